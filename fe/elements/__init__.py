@@ -1,0 +1,1 @@
+"""Finite elements: quadrature rules, plane-stress quads and zero-thickness line interfaces."""

@@ -1,0 +1,53 @@
+"""Consistent nodal forces of distributed boundary tractions."""
+
+import numpy as np
+
+from .exceptions import MeshError
+
+
+def edge_traction(mesh, edges, traction, thickness, interval=None, axis=None):
+    """Nodal forces of a uniform traction on boundary edges.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    edges : ndarray of shape (n_edges, 2 or 3)
+        Boundary edges, nodes (start, end[, mid]) as in ``mesh.edge_sets``.
+    traction : array_like of shape (2,)
+        Traction vector (x, y), MPa (N/mm²).
+    thickness : float
+        Out-of-plane thickness, mm.
+    interval : (float, float), optional
+        Only the edges lying inside ``[a, b]`` along coordinate ``axis`` (0 = x, 1 = y) are
+        loaded; the interval must start and end on element edges.
+    axis : int, optional
+
+    Returns
+    -------
+    f : ndarray of shape (n_dofs,)
+        Nodal forces, N. Quadratic edges get the consistent weights (1/6, 1/6, 2/3) of the
+        edge length, linear ones (1/2, 1/2).
+    """
+    p = mesh.nodes[edges[:, 0]]
+    q = mesh.nodes[edges[:, 1]]
+    if interval is not None:
+        a, b = interval
+        lo = np.minimum(p[:, axis], q[:, axis])
+        hi = np.maximum(p[:, axis], q[:, axis])
+        tol = 1e-9 * max(1.0, abs(b - a))
+        inside = (lo >= a - tol) & (hi <= b + tol)
+        covered = np.sum(hi[inside] - lo[inside])
+        if abs(covered - (b - a)) > 1e-6 * (b - a):
+            raise MeshError(
+                f"load patch [{a}, {b}] mm does not coincide with element edges "
+                f"(edges cover {covered:.6g} mm); choose nx, ny so that element edges fall on it"
+            )
+        edges, p, q = edges[inside], p[inside], q[inside]
+    length = np.linalg.norm(q - p, axis=1)
+    weights = np.array([1 / 6, 1 / 6, 2 / 3]) if edges.shape[1] == 3 else np.array([0.5, 0.5])
+    nodal = (length * thickness)[:, None] * weights  # (n_edges, nodes_per_edge) mm²
+    f = np.zeros(mesh.n_dofs)
+    traction = np.asarray(traction, dtype=float)
+    for j in range(2):
+        np.add.at(f, 2 * edges + j, nodal * traction[j])
+    return f

@@ -1,0 +1,261 @@
+"""Brick-wall mesh generator: expanded units, running or stack bond, zero-thickness joints.
+
+Each masonry unit is *expanded* (unit plus half a joint on each side) and meshed with its own
+nodes; bed joints, head joints and, optionally, the vertical mid-plane of every full unit
+(the potential brick crack, thesis §2) become zero-thickness interfaces.
+
+Example
+-------
+>>> from fe.mesh import BrickWallLayout, brick_wall
+>>> mesh = brick_wall(BrickWallLayout(n_courses=2, units_per_course=2, nx=2, ny=1))
+>>> mesh.width, mesh.height
+(520.0, 130.0)
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import MeshError
+from .mesh import INTERFACE_KINDS, Mesh
+
+_ROUND = 6  # decimals used to match coincident coordinates (mm): 1 nm
+
+
+@dataclass(frozen=True)
+class BrickWallLayout:
+    """Geometry and discretisation of a brick wall.
+
+    Parameters
+    ----------
+    unit_length, unit_height : float
+        Expanded unit size (unit plus one joint thickness), mm.
+    n_courses : int
+        Number of courses; course 0 is at the bottom.
+    units_per_course : float
+        Wall width in expanded units, a multiple of 0.5.
+    bond : {"running", "stack"}
+        Running bond: even courses start with a full unit at x = 0, odd courses with a half
+        unit. Stack bond: every course starts with a full unit.
+    nx, ny : int
+        Elements along the length and height of a full unit; ``nx`` must be even so that half
+        units and unit mid-planes fall on element edges.
+    element : {"Q8", "Q4"}
+        Continuum element; interfaces are 6-node or 4-node to match.
+    brick_interfaces : bool
+        Put an interface on the vertical mid-plane of every full unit.
+    """
+
+    unit_length: float = 260.0
+    unit_height: float = 65.0
+    n_courses: int = 18
+    units_per_course: float = 4.5
+    bond: str = "running"
+    nx: int = 4
+    ny: int = 2
+    element: str = "Q8"
+    brick_interfaces: bool = True
+
+    def __post_init__(self):
+        for name in ("unit_length", "unit_height"):
+            if not getattr(self, name) > 0:
+                raise MeshError(f"{name} must be > 0 mm; got {getattr(self, name)}")
+        if int(self.n_courses) != self.n_courses or self.n_courses < 1:
+            raise MeshError(f"n_courses must be an integer >= 1; got {self.n_courses}")
+        if self.units_per_course < 0.5 or (2 * self.units_per_course) % 1:
+            raise MeshError(
+                f"units_per_course must be a multiple of 0.5 and >= 0.5; got {self.units_per_course}"
+            )
+        if self.bond not in ("running", "stack"):
+            raise MeshError(f"bond must be 'running' or 'stack'; got {self.bond!r}")
+        if int(self.nx) != self.nx or self.nx < 2 or self.nx % 2:
+            raise MeshError(f"nx must be an even integer >= 2 (half units); got {self.nx}")
+        if int(self.ny) != self.ny or self.ny < 1:
+            raise MeshError(f"ny must be an integer >= 1; got {self.ny}")
+        if self.element not in ("Q4", "Q8"):
+            raise MeshError(f"element must be 'Q4' or 'Q8'; got {self.element!r}")
+
+    @property
+    def width(self):
+        return self.units_per_course * self.unit_length
+
+    @property
+    def height(self):
+        return self.n_courses * self.unit_height
+
+    def course_units(self, course):
+        """Left and right x of each unit of a course, ``(n_units, 2)`` in mm."""
+        L, W = self.unit_length, self.width
+        x = [0.0]
+        if self.bond == "running" and course % 2 == 1:
+            x.append(min(L / 2, W))
+        while W - x[-1] > 1e-9:
+            x.append(min(x[-1] + L, W))
+        x = np.array(x)
+        return np.column_stack([x[:-1], x[1:]])
+
+
+def _block_grid(x0, y0, x1, y1, mx, my, quadratic):
+    """Nodes and connectivity of one rectangular block of mx × my elements.
+
+    Returns node coordinates, quads (local numbering) and the full-grid index map.
+    """
+    k = 2 if quadratic else 1
+    gx = np.linspace(x0, x1, k * mx + 1)
+    gy = np.linspace(y0, y1, k * my + 1)
+    I, J = np.meshgrid(np.arange(len(gx)), np.arange(len(gy)), indexing="ij")
+    keep = ~((I % 2 == 1) & (J % 2 == 1)) if quadratic else np.ones_like(I, bool)
+    index = -np.ones(I.shape, np.intp)
+    index[keep] = np.arange(np.count_nonzero(keep))
+    nodes = np.column_stack([gx[I[keep]], gy[J[keep]]])
+    a, b = np.meshgrid(np.arange(mx), np.arange(my), indexing="ij")
+    a, b = k * a.ravel(), k * b.ravel()
+    corners = [(a, b), (a + k, b), (a + k, b + k), (a, b + k)]
+    if quadratic:
+        corners += [(a + 1, b), (a + 2, b + 1), (a + 1, b + 2), (a, b + 1)]
+    quads = np.column_stack([index[i, j] for i, j in corners])
+    return nodes, quads, index
+
+
+def brick_wall(layout=BrickWallLayout()):
+    """Mesh a brick wall.
+
+    Parameters
+    ----------
+    layout : BrickWallLayout
+        Geometry and discretisation.
+
+    Returns
+    -------
+    Mesh
+        With node sets ``bottom``, ``top``, ``left``, ``right``, ``bottom_left``,
+        ``bottom_right``, ``top_left``, ``top_right`` and edge sets ``bottom``, ``top``,
+        ``left``, ``right``.
+    """
+    quadratic = layout.element == "Q8"
+    L, H = layout.unit_length, layout.unit_height
+    nodes, quads, quad_block, block_unit, bounds = [], [], [], [], []
+    edges = []  # (block, side, start, end, mid, key) for every block-boundary element edge
+    n_nodes = n_units = 0
+    for course in range(layout.n_courses):
+        y0, y1 = course * H, (course + 1) * H
+        for ux0, ux1 in layout.course_units(course):
+            full = abs((ux1 - ux0) - L) < 1e-9
+            splits = [ux0, 0.5 * (ux0 + ux1), ux1] if full and layout.brick_interfaces else [ux0, ux1]
+            for bx0, bx1 in zip(splits[:-1], splits[1:]):
+                mx = int(round(layout.nx * (bx1 - bx0) / L))
+                xy, q, index = _block_grid(bx0, y0, bx1, y1, mx, layout.ny, quadratic)
+                block = len(bounds)
+                nodes.append(xy)
+                quads.append(q + n_nodes)
+                quad_block.append(np.full(len(q), block))
+                block_unit.append(n_units)
+                bounds.append((bx0, y0, bx1, y1))
+                _collect_edges(edges, block, index + n_nodes, xy, n_nodes, quadratic)
+                n_nodes += len(xy)
+            n_units += 1
+    nodes = np.vstack(nodes)
+    quads = np.vstack(quads).astype(np.intp)
+    block_unit = np.array(block_unit, np.intp)
+    interfaces, kinds, pairs = _match_interfaces(edges, block_unit, quadratic)
+    node_sets, edge_sets = _boundary_sets(nodes, edges, layout)
+    mesh = Mesh(
+        nodes=nodes,
+        element=layout.element,
+        quads=quads,
+        quad_block=np.concatenate(quad_block).astype(np.intp),
+        block_unit=block_unit,
+        block_bounds=np.array(bounds),
+        interfaces=interfaces,
+        interface_kind=kinds,
+        interface_blocks=pairs,
+        node_sets=node_sets,
+        edge_sets=edge_sets,
+    )
+    problems = mesh.check()
+    if problems:
+        raise MeshError("brick_wall produced an invalid mesh: " + "; ".join(problems))
+    return mesh
+
+
+def _collect_edges(edges, block, index, xy, offset, quadratic):
+    """Append the element edges on the four sides of a block (global node numbers)."""
+    k = 2 if quadratic else 1
+    sides = {
+        "bottom": index[:, 0],
+        "top": index[:, -1],
+        "left": index[0, :],
+        "right": index[-1, :],
+    }
+    for side, line in sides.items():
+        for i in range(0, len(line) - 1, k):
+            start, end = line[i], line[i + k]
+            mid = line[i + 1] if quadratic else -1
+            p, q = xy[start - offset], xy[end - offset]
+            edges.append((block, side, start, end, mid, p, q))
+
+
+def _match_interfaces(edges, block_unit, quadratic):
+    """Pair coincident block edges into interface elements (face A, face B)."""
+    by_key = {}
+    for block, side, start, end, mid, p, q in edges:
+        key = (side in ("bottom", "top"),) + tuple(np.round(np.concatenate([p, q]), _ROUND))
+        by_key.setdefault(key, []).append((block, side, start, end, mid))
+    rows, kinds, pairs = [], [], []
+    for key, group in by_key.items():
+        if len(group) == 1:
+            continue  # an outer boundary edge
+        if len(group) != 2:
+            raise MeshError(f"{len(group)} block edges coincide at {key[1:]}; expected 2")
+        (b1, s1, *e1), (b2, s2, *e2) = group
+        horizontal = key[0]
+        # face A is below (horizontal joints) or left (vertical joints); A's tangent is +x for
+        # horizontal joints and -y for vertical ones, so the normal (-s_y, s_x) points A -> B.
+        lower_first = s1 in ("top", "right")
+        (ba, ea), (bb, eb) = ((b1, e1), (b2, e2)) if lower_first else ((b2, e2), (b1, e1))
+        if not horizontal:  # block edges run upwards: reverse to run downwards
+            ea = [ea[1], ea[0], ea[2]]
+            eb = [eb[1], eb[0], eb[2]]
+        face_a = ea if quadratic else ea[:2]
+        face_b = eb if quadratic else eb[:2]
+        rows.append(list(face_a) + list(face_b))
+        if horizontal:
+            kind = "bed"
+        elif block_unit[ba] == block_unit[bb]:
+            kind = "brick"
+        else:
+            kind = "head"
+        kinds.append(INTERFACE_KINDS.index(kind))
+        pairs.append((ba, bb))
+    n_if = 6 if quadratic else 4
+    return (
+        np.array(rows, np.intp).reshape(-1, n_if),
+        np.array(kinds, np.intp),
+        np.array(pairs, np.intp).reshape(-1, 2),
+    )
+
+
+def _boundary_sets(nodes, edges, layout):
+    """Named node sets and edge sets on the four faces of the wall."""
+    W, H = layout.width, layout.height
+    tol = 1e-9 * max(W, H)
+    x, y = nodes[:, 0], nodes[:, 1]
+    node_sets = {
+        "bottom": np.flatnonzero(abs(y) < tol),
+        "top": np.flatnonzero(abs(y - H) < tol),
+        "left": np.flatnonzero(abs(x) < tol),
+        "right": np.flatnonzero(abs(x - W) < tol),
+    }
+    for v, yy in (("bottom", 0.0), ("top", H)):
+        for h, xx in (("left", 0.0), ("right", W)):
+            node_sets[f"{v}_{h}"] = np.flatnonzero((abs(x - xx) < tol) & (abs(y - yy) < tol))
+    edge_sets = {}
+    for face, coord, value in (("bottom", 1, 0.0), ("top", 1, H), ("left", 0, 0.0), ("right", 0, W)):
+        rows = [
+            (start, end, mid)
+            for _, side, start, end, mid, p, q in edges
+            if side == face and abs(p[coord] - value) < tol and abs(q[coord] - value) < tol
+        ]
+        arr = np.array(rows, np.intp).reshape(-1, 3)
+        edge_sets[face] = arr if layout.element == "Q8" else arr[:, :2]
+    return node_sets, edge_sets

@@ -1,0 +1,23 @@
+"""Scenario registry: name → scenario class; :func:`build_scenario` rebuilds one from its spec."""
+
+from .base import ParameterInfo, Scenario
+from .diagonal_compression import DiagonalCompression
+from .spec import ScenarioSpec
+
+SCENARIOS = {cls.name: cls for cls in (DiagonalCompression,)}
+
+
+def build_scenario(spec, solver="auto"):
+    """Build a scenario from a :class:`ScenarioSpec`, a plain dict, or a registered name."""
+    from ..exceptions import SpecError
+
+    if isinstance(spec, str):
+        spec = ScenarioSpec(spec)
+    elif isinstance(spec, dict):
+        spec = ScenarioSpec.from_dict(spec)
+    if spec.scenario not in SCENARIOS:
+        raise SpecError(f"unknown scenario {spec.scenario!r}; available: {sorted(SCENARIOS)}")
+    return SCENARIOS[spec.scenario](spec, solver=solver)
+
+
+__all__ = ["SCENARIOS", "build_scenario", "Scenario", "ScenarioSpec", "ParameterInfo"]

@@ -1,0 +1,188 @@
+"""The :class:`Scenario` base class: a virtual test mapping model parameters to a :class:`Response`."""
+
+import dataclasses
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..exceptions import SpecError
+from ..response import Response
+from .spec import ScenarioSpec
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class ParameterInfo:
+    """A model parameter: default, unit and physical limits.
+
+    ``lower``/``upper`` bound the physically admissible values; ``lower_open``/``upper_open``
+    exclude the bound itself (e.g. a stiffness must be > 0).
+    """
+
+    name: str
+    default: float
+    unit: str
+    lower: float
+    upper: float
+    description: str
+    lower_open: bool = False
+    upper_open: bool = False
+
+    def admissible_range(self):
+        lo = "(" if self.lower_open else "["
+        hi = ")" if self.upper_open else "]"
+        return f"{lo}{self.lower:g}, {self.upper:g}{hi}{' ' + self.unit if self.unit != '-' else ''}"
+
+    def check(self, value, source="parameters"):
+        """Return ``value`` as float, or raise :class:`SpecError` naming the parameter and range."""
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise SpecError(f"{source}: parameter {self.name!r} must be a number; got {value!r}")
+        v = float(value)
+        bad = (
+            not math.isfinite(v)
+            or v < self.lower
+            or v > self.upper
+            or (self.lower_open and v == self.lower)
+            or (self.upper_open and v == self.upper)
+        )
+        if bad:
+            raise SpecError(
+                f"{source}: parameter {self.name!r} = {v:g} is outside its physical range "
+                f"{self.admissible_range()} ({self.description})"
+            )
+        return v
+
+
+class Scenario:
+    """A complete virtual test: geometry, mesh, supports, loading, sensors.
+
+    Subclasses define ``name``, ``Options`` (a frozen dataclass of options with defaults),
+    ``PARAMETERS`` (tuple of :class:`ParameterInfo`), ``load_unit`` and ``_build()`` which sets
+    ``self.mesh``, ``self.sensors``, ``self.model`` (a :class:`fe.model.LinearModel`) and
+    ``self.load_coefficients`` ``(n_loads, n_patterns)``, plus ``theta(values)``.
+
+    ``Scenario(spec).run(params)`` is pure: it writes no files.
+    """
+
+    name = None
+    Options = None
+    PARAMETERS = ()
+    load_unit = "kN"
+
+    def __init__(self, spec=None, solver="auto"):
+        if spec is None:
+            spec = ScenarioSpec(self.name)
+        if isinstance(spec, dict):
+            spec = ScenarioSpec.from_dict(spec)
+        if spec.scenario != self.name:
+            raise SpecError(f"spec is for scenario {spec.scenario!r}, not {self.name!r}")
+        self.options = self._parse_options(spec.options)
+        known = {p.name: p for p in self.PARAMETERS}
+        defaults = {}
+        for k, v in spec.parameters.items():
+            if k not in known:
+                raise SpecError(
+                    f"{self.name}: unknown parameter {k!r} in the spec; known: {sorted(known)}"
+                )
+            defaults[k] = known[k].check(v, source=f"{self.name} spec")
+        self.parameters = {
+            p.name: dataclasses.replace(p, default=defaults.get(p.name, p.default)) for p in self.PARAMETERS
+        }
+        self.spec = ScenarioSpec(self.name, dataclasses.asdict(self.options), dict(defaults))
+        self._solver_name = solver
+        self._build()
+
+    @classmethod
+    def _parse_options(cls, options):
+        fields = {f.name: f for f in dataclasses.fields(cls.Options)}
+        unknown = sorted(set(options) - set(fields))
+        if unknown:
+            raise SpecError(
+                f"{cls.name}: unknown option(s) {unknown}; allowed options: {sorted(fields)}"
+            )
+        values = {}
+        for k, v in options.items():
+            default = getattr(cls.Options(), k)
+            if isinstance(default, tuple) and isinstance(v, list):
+                v = tuple(v)
+            if isinstance(default, float) and isinstance(v, int) and not isinstance(v, bool):
+                v = float(v)
+            if default is not None and not isinstance(v, type(default)):
+                raise SpecError(
+                    f"{cls.name}: option {k!r} must be of type {type(default).__name__}; got {v!r}"
+                )
+            values[k] = v
+        try:
+            return cls.Options(**values)
+        except (ValueError, TypeError) as e:
+            raise SpecError(f"{cls.name}: {e}") from e
+
+    @property
+    def parameter_names(self):
+        return tuple(self.parameters)
+
+    @property
+    def load_levels(self):
+        """Load levels, ``(n_loads,)`` in ``load_unit``."""
+        return np.asarray(self.options.load_levels, dtype=float)
+
+    @property
+    def sensor_names(self):
+        return self.model.channel_names
+
+    @property
+    def n_dofs(self):
+        return self.model.n_dofs
+
+    def sensor_definitions(self):
+        """Sensor name → definition dict (mm)."""
+        return {s.name: s.to_dict() for s in self.sensors}
+
+    def resolve(self, params=None):
+        """Every parameter's value: defaults updated by ``params``; validated.
+
+        Raises
+        ------
+        SpecError
+            Unknown parameter name or value outside its physical range.
+        """
+        values = {k: p.default for k, p in self.parameters.items()}
+        for k, v in (params or {}).items():
+            if k not in self.parameters:
+                raise SpecError(
+                    f"{self.name}: unknown parameter {k!r}; parameters are {list(self.parameters)}"
+                )
+            values[k] = self.parameters[k].check(v)
+        return values
+
+    def theta(self, values):
+        """Coefficients of the stiffness parts for a full parameter dict."""
+        raise NotImplementedError
+
+    def run(self, params=None, *, field=False):
+        """Run the virtual test.
+
+        Parameters
+        ----------
+        params : dict of str to float, optional
+            Parameter values; the others keep their defaults.
+        field : bool
+            Also return the nodal displacement field.
+
+        Returns
+        -------
+        Response
+        """
+        t0 = time.perf_counter()
+        values = self.resolve(params)
+        q = self.model.solve(self.theta(values))
+        readings = self.load_coefficients @ self.model.readings(q)
+        u = None
+        if field:
+            u = np.einsum("lp,pnc->lnc", self.load_coefficients, self.model.displacements(q))
+        logger.debug("%s run in %.4f s", self.name, time.perf_counter() - t0)
+        return Response(readings, self.sensor_names, self.load_levels, self.load_unit, u)

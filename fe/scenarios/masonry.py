@@ -1,0 +1,66 @@
+"""Shared pieces of the mesoscale masonry scenarios: parameters and affine stiffness parts.
+
+Units are expanded plane-stress continua; bed joints, head joints and unit mid-planes are
+zero-thickness interfaces with uncoupled elastic stiffness diag(kV, kN) (thesis eq. 2.3 in 2D).
+Head joints have ``r_hj`` times the bed-joint stiffness.
+"""
+
+import numpy as np
+
+from ..assembly import StiffnessPart, element_dofs
+from ..elements.interface import IL4, IL6
+from ..elements.quad import QUADS
+from ..materials import D0, D1, plane_stress_coefficients
+from .base import ParameterInfo
+
+_BIG = 1e9
+
+MASONRY_PARAMETERS = (
+    ParameterInfo("E_b", 12000.0, "MPa", 0.0, 1e6, "Young's modulus of the expanded units", lower_open=True),
+    ParameterInfo("nu_b", 0.15, "-", 0.0, 0.5, "Poisson's ratio of the expanded units", upper_open=True),
+    ParameterInfo("kN_bj", 100.0, "N/mm³", 0.0, _BIG, "normal stiffness of bed joints", lower_open=True),
+    ParameterInfo("kV_bj", 40.0, "N/mm³", 0.0, _BIG, "shear stiffness of bed joints", lower_open=True),
+    ParameterInfo("r_hj", 1.0, "-", 0.0, 10.0, "head-joint / bed-joint stiffness ratio"),
+    ParameterInfo("kN_bb", 1e5, "N/mm³", 0.0, _BIG, "normal stiffness of unit mid-plane interfaces", lower_open=True),
+    ParameterInfo("kV_bb", 1e5, "N/mm³", 0.0, _BIG, "shear stiffness of unit mid-plane interfaces", lower_open=True),
+)
+
+
+def masonry_parts(mesh, thickness):
+    """The eight parameter-independent stiffness parts of a mesoscale masonry mesh.
+
+    Returns
+    -------
+    list of StiffnessPart
+        ``units_D0``, ``units_D1`` (see :mod:`fe.materials`), then ``{bed,head,brick}_{normal,shear}``
+        (unit kN or kV). Families absent from the mesh give empty parts.
+    """
+    quad = QUADS[mesh.element]
+    coords = mesh.nodes[mesh.quads]
+    qdofs = element_dofs(mesh.quads)
+    parts = [
+        StiffnessPart("units_D0", qdofs, quad.stiffness(coords, D0, thickness)),
+        StiffnessPart("units_D1", qdofs, quad.stiffness(coords, D1, thickness)),
+    ]
+    iface = IL6 if mesh.element == "Q8" else IL4
+    for kind in ("bed", "head", "brick"):
+        conn = mesh.interfaces[mesh.interfaces_of_kind(kind)]
+        idofs = element_dofs(conn)
+        xy = mesh.nodes[conn]
+        parts.append(StiffnessPart(f"{kind}_normal", idofs, iface.stiffness(xy, 0.0, 1.0, thickness)))
+        parts.append(StiffnessPart(f"{kind}_shear", idofs, iface.stiffness(xy, 1.0, 0.0, thickness)))
+    return parts
+
+
+def masonry_theta(values):
+    """Coefficients of :func:`masonry_parts` for a full parameter dict, ``(8,)``."""
+    c0, c1 = plane_stress_coefficients(values["E_b"], values["nu_b"])
+    r = values["r_hj"]
+    return np.array(
+        [
+            c0, c1,
+            values["kN_bj"], values["kV_bj"],
+            r * values["kN_bj"], r * values["kV_bj"],
+            values["kN_bb"], values["kV_bb"],
+        ]
+    )

@@ -1,0 +1,232 @@
+"""Sensors: linear operators from nodal displacements to readings (mm).
+
+- :class:`Gauge` (LVDT / extensometer): relative displacement of two points along the line
+  joining them, positive when they move apart (DESIGN sign convention).
+- :class:`PointDisplacement`: one displacement component of a point.
+- :class:`DICGrid`: both displacement components on a regular grid of points, as digital image
+  correlation would give them.
+
+Each point is located in its element by inverse isoparametric mapping. A point on an interface
+(a joint or a unit mid-plane, where the displacement is discontinuous) is refused with an error
+naming the sensor: move it off the joint.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .elements.quad import QUADS
+from .exceptions import SensorError
+
+_INSIDE_TOL = 1e-9  # reference-coordinate tolerance for "inside an element"
+
+
+@dataclass(frozen=True)
+class Gauge:
+    """A gauge between points ``p1`` and ``p2`` (mm); reading in mm, positive when lengthening."""
+
+    name: str
+    p1: tuple
+    p2: tuple
+
+    kind = "gauge"
+
+    def __post_init__(self):
+        object.__setattr__(self, "p1", tuple(float(v) for v in self.p1))
+        object.__setattr__(self, "p2", tuple(float(v) for v in self.p2))
+        if np.allclose(self.p1, self.p2):
+            raise SensorError(f"gauge {self.name!r} has coincident end points {self.p1} mm")
+
+    @property
+    def channel_names(self):
+        return (self.name,)
+
+    @property
+    def points(self):
+        return np.array([self.p1, self.p2])
+
+    @property
+    def length(self):
+        """Gauge length, mm."""
+        return float(np.hypot(self.p2[0] - self.p1[0], self.p2[1] - self.p1[1]))
+
+    def weights(self):
+        """Reading_c = Σ w u_comp(point): arrays ``(channel, point, component, w)``."""
+        e = (np.array(self.p2) - np.array(self.p1)) / self.length
+        return np.zeros(4, np.intp), np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1]), np.r_[-e, e]
+
+    def to_dict(self):
+        return {"kind": "gauge", "p1": list(self.p1), "p2": list(self.p2)}
+
+
+@dataclass(frozen=True)
+class PointDisplacement:
+    """Displacement component ``"x"`` or ``"y"`` of a point (mm)."""
+
+    name: str
+    point: tuple
+    component: str
+
+    kind = "point"
+
+    def __post_init__(self):
+        object.__setattr__(self, "point", tuple(float(v) for v in self.point))
+        if self.component not in ("x", "y"):
+            raise SensorError(f"sensor {self.name!r}: component must be 'x' or 'y'; got {self.component!r}")
+
+    @property
+    def channel_names(self):
+        return (self.name,)
+
+    @property
+    def points(self):
+        return np.array([self.point])
+
+    def weights(self):
+        return np.zeros(1, np.intp), np.zeros(1, np.intp), np.array(["xy".index(self.component)]), np.ones(1)
+
+    def to_dict(self):
+        return {"kind": "point", "point": list(self.point), "component": self.component}
+
+
+@dataclass(frozen=True)
+class DICGrid:
+    """Displacements (x and y) on an ``nx × ny`` grid of points spanning ``[x0, x1] × [y0, y1]`` mm.
+
+    Channels are named ``f"{name}[i,j].ux"`` and ``f"{name}[i,j].uy"``, i along x.
+    """
+
+    name: str
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+    nx: int
+    ny: int
+
+    kind = "dic"
+
+    def __post_init__(self):
+        if self.nx < 1 or self.ny < 1:
+            raise SensorError(f"DIC grid {self.name!r} needs nx, ny >= 1; got {self.nx}, {self.ny}")
+
+    @property
+    def points(self):
+        X, Y = np.meshgrid(
+            np.linspace(self.x0, self.x1, self.nx), np.linspace(self.y0, self.y1, self.ny), indexing="ij"
+        )
+        return np.column_stack([X.ravel(), Y.ravel()])
+
+    @property
+    def channel_names(self):
+        return tuple(
+            f"{self.name}[{i},{j}].u{c}" for i in range(self.nx) for j in range(self.ny) for c in "xy"
+        )
+
+    def weights(self):
+        n = self.nx * self.ny
+        point = np.repeat(np.arange(n), 2)
+        component = np.tile([0, 1], n)
+        return 2 * point + component, point, component, np.ones(2 * n)
+
+    def to_dict(self):
+        return {
+            "kind": "dic", "x0": self.x0, "y0": self.y0, "x1": self.x1, "y1": self.y1,
+            "nx": self.nx, "ny": self.ny,
+        }
+
+
+def sensor_from_dict(name, d):
+    """Rebuild a sensor from its ``to_dict()`` form."""
+    kinds = {"gauge": Gauge, "point": PointDisplacement, "dic": DICGrid}
+    d = dict(d)
+    kind = d.pop("kind", None)
+    if kind not in kinds:
+        raise SensorError(f"sensor {name!r}: kind must be one of {sorted(kinds)}; got {kind!r}")
+    return kinds[kind](name, **d)
+
+
+def locate_points(mesh, points, owner="point"):
+    """Element and reference coordinates of each point.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    points : ndarray of shape (n_points, 2)
+        Physical coordinates, mm.
+    owner : str or sequence of str
+        Name(s) used in error messages (one per point, or one for all).
+
+    Returns
+    -------
+    element : ndarray of shape (n_points,)
+    xi : ndarray of shape (n_points, 2)
+
+    Raises
+    ------
+    SensorError
+        A point outside the mesh, or on an interface (in elements of two different blocks).
+    """
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    owners = [owner] * len(points) if isinstance(owner, str) else list(owner)
+    etype = QUADS[mesh.element]
+    corner_xy = mesh.nodes[mesh.quads[:, :4]]
+    lo, hi = corner_xy.min(axis=1), corner_xy.max(axis=1)
+    span = max(mesh.width, mesh.height)
+    tol = 1e-9 * span
+    element = np.empty(len(points), np.intp)
+    xi = np.empty((len(points), 2))
+    for k, p in enumerate(points):
+        cand = np.flatnonzero(np.all((p >= lo - tol) & (p <= hi + tol), axis=1))
+        if len(cand) == 0:
+            raise SensorError(f"sensor {owners[k]!r}: point {tuple(p)} mm lies outside the specimen")
+        ref = etype.inverse_map(mesh.nodes[mesh.quads[cand]], np.repeat(p[None], len(cand), axis=0))
+        inside = np.all(np.abs(ref) <= 1 + _INSIDE_TOL, axis=1)
+        if not inside.any():
+            raise SensorError(f"sensor {owners[k]!r}: point {tuple(p)} mm lies outside the specimen")
+        blocks = np.unique(mesh.quad_block[cand[inside]])
+        if len(blocks) > 1:
+            raise SensorError(
+                f"sensor {owners[k]!r}: point {tuple(p)} mm lies on an interface (joint or unit "
+                "mid-plane) where the displacement jumps; move it off the joint"
+            )
+        first = np.flatnonzero(inside)[0]
+        element[k], xi[k] = cand[first], ref[first]
+    return element, xi
+
+
+def sensor_operator(mesh, sensors):
+    """The sparse operator ``H`` with readings = ``H @ u``.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    sensors : sequence of Gauge, PointDisplacement or DICGrid
+
+    Returns
+    -------
+    H : scipy.sparse.csr_matrix of shape (n_channels, n_dofs)
+    names : tuple of str
+        Channel names, in row order.
+    """
+    etype = QUADS[mesh.element]
+    rows, cols, vals, names = [], [], [], []
+    for s in sensors:
+        pts = s.points
+        element, xi = locate_points(mesh, pts, owner=s.name)
+        N = etype.shape(xi)  # (n_points, n_nodes)
+        nodes = mesh.quads[element]  # (n_points, n_nodes)
+        channel, point, component, w = s.weights()
+        rows.append(np.repeat(len(names) + channel, nodes.shape[1]))
+        cols.append((2 * nodes[point] + component[:, None]).ravel())
+        vals.append((w[:, None] * N[point]).ravel())
+        names.extend(s.channel_names)
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise SensorError(f"sensor names must be unique; repeated: {dup}")
+    H = sp.csr_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(len(names), mesh.n_dofs),
+    )
+    return H, tuple(names)
