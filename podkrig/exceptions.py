@@ -1,0 +1,17 @@
+"""Domain exceptions of podkrig; the CLI turns them into one-line messages with a hint."""
+
+
+class PodkrigError(Exception):
+    """Base class of podkrig errors."""
+
+
+class NotFittedError(PodkrigError, ValueError):
+    """An estimator used before ``fit``."""
+
+
+class StoreError(PodkrigError):
+    """A snapshot or surrogate store that cannot be used (missing, corrupt, incompatible)."""
+
+
+class SchemaError(StoreError):
+    """A store written with an unknown or incompatible schema version."""
