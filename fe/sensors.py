@@ -225,6 +225,8 @@ def sensor_operator(mesh, sensors):
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
         raise SensorError(f"sensor names must be unique; repeated: {dup}")
+    if not names:
+        return sp.csr_matrix((0, mesh.n_dofs)), ()
     H = sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
         shape=(len(names), mesh.n_dofs),

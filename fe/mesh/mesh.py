@@ -113,6 +113,7 @@ class Mesh:
         """The continuum mesh: coincident nodes merged and interfaces removed.
 
         Used for the stiff-joint limit (a mesoscale model with very stiff joints must approach it).
+        The result is one body: every quad belongs to block 0 of unit 0.
         """
         key = np.round(self.nodes / atol).astype(np.int64)
         _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
@@ -126,6 +127,9 @@ class Mesh:
             self,
             nodes=nodes,
             quads=new_of_old[self.quads],
+            quad_block=np.zeros(len(self.quads), np.intp),
+            block_unit=np.zeros(1, np.intp),
+            block_bounds=np.r_[nodes.min(axis=0), nodes.max(axis=0)][None],
             interfaces=np.zeros((0, self.interfaces.shape[1]), np.intp),
             interface_kind=np.zeros(0, np.intp),
             interface_blocks=np.zeros((0, 2), np.intp),

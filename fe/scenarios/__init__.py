@@ -2,9 +2,10 @@
 
 from .base import ParameterInfo, Scenario
 from .diagonal_compression import DiagonalCompression
+from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 
-SCENARIOS = {cls.name: cls for cls in (DiagonalCompression,)}
+SCENARIOS = {cls.name: cls for cls in (DiagonalCompression, ShearCompression)}
 
 
 def build_scenario(spec, solver="auto"):

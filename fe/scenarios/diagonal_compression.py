@@ -38,11 +38,10 @@ import numpy as np
 from ..constraints import constraint_transform
 from ..exceptions import SpecError
 from ..loads import edge_traction
-from ..mesh import BrickWallLayout, brick_wall
 from ..model import LinearModel
 from ..sensors import Gauge, sensor_from_dict
 from .base import Scenario
-from .masonry import MASONRY_PARAMETERS, masonry_parts, masonry_theta
+from .masonry import MASONRY_PARAMETERS, masonry_parts, masonry_theta, wall_mesh
 
 _D_LO, _D_HI = 302.157, 867.843
 
@@ -70,6 +69,7 @@ class DiagonalCompressionOptions:
     ny: int = 2
     element: str = "Q8"
     brick_interfaces: bool = True
+    continuum: bool = False
     shoe_length: float = 130.0
     support_length: float = 130.0
     load_levels: tuple = (25.0, 50.0, 75.0, 100.0)
@@ -95,13 +95,8 @@ class DiagonalCompression(Scenario):
 
     def _build(self):
         o = self.options
-        layout = BrickWallLayout(
-            unit_length=o.unit_length, unit_height=o.unit_height, n_courses=o.n_courses,
-            units_per_course=o.units_per_course, bond=o.bond, nx=o.nx, ny=o.ny,
-            element=o.element, brick_interfaces=o.brick_interfaces,
-        )
-        self.mesh = mesh = brick_wall(layout)
-        W, H = layout.width, layout.height
+        self.mesh = mesh = wall_mesh(o)
+        W, H = mesh.width, mesh.height
         for name in ("shoe_length", "support_length"):
             if not 0 < getattr(o, name) <= min(W, H):
                 raise SpecError(f"{self.name}: {name} must be in (0, {min(W, H):g}] mm; got {getattr(o, name)}")

@@ -11,6 +11,7 @@ from ..assembly import StiffnessPart, element_dofs
 from ..elements.interface import IL4, IL6
 from ..elements.quad import QUADS
 from ..materials import D0, D1, plane_stress_coefficients
+from ..mesh import BrickWallLayout, brick_wall
 from .base import ParameterInfo
 
 _BIG = 1e9
@@ -24,6 +25,20 @@ MASONRY_PARAMETERS = (
     ParameterInfo("kN_bb", 1e5, "N/mm³", 0.0, _BIG, "normal stiffness of unit mid-plane interfaces", lower_open=True),
     ParameterInfo("kV_bb", 1e5, "N/mm³", 0.0, _BIG, "shear stiffness of unit mid-plane interfaces", lower_open=True),
 )
+
+
+def wall_mesh(options):
+    """The wall mesh of a scenario's options (fields of :class:`~fe.mesh.BrickWallLayout` plus
+    ``continuum``: merge the units into one homogeneous body without joints, the stiff-joint
+    limit used for verification)."""
+    layout = BrickWallLayout(
+        unit_length=options.unit_length, unit_height=options.unit_height,
+        n_courses=options.n_courses, units_per_course=options.units_per_course,
+        bond=options.bond, nx=options.nx, ny=options.ny, element=options.element,
+        brick_interfaces=options.brick_interfaces,
+    )
+    mesh = brick_wall(layout)
+    return mesh.without_interfaces() if options.continuum else mesh
 
 
 def masonry_parts(mesh, thickness):

@@ -1,0 +1,61 @@
+"""``podkrig simulate`` through typer's CliRunner."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from podkrig.cli import app
+
+runner = CliRunner()
+
+
+def test_help():
+    result = runner.invoke(app, ["simulate", "--help"])
+    assert result.exit_code == 0 and "--set" in result.output
+
+
+def test_json_output_keys(tmp_path):
+    spec = tmp_path / "coarse.toml"
+    spec.write_text('scenario = "diagonal_compression"\nnx = 2\nny = 1\n')
+    field = tmp_path / "field.csv"
+    result = runner.invoke(
+        app, ["simulate", "diagonal_compression", "--spec", str(spec), "--set", "kN_bj=80", "--format", "json", "--field", str(field)]
+    )
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.output)
+    assert set(out) >= {"scenario", "parameters", "load_levels", "sensors", "readings", "n_dofs", "seconds"}
+    assert out["parameters"]["kN_bj"] == 80.0 and out["parameters"]["E_b"] == 12000.0
+    assert out["load_levels"] == [25.0, 50.0, 75.0, 100.0]
+    assert out["sensors"]["D1"] == {"kind": "gauge", "p1": [302.157, 302.157], "p2": [867.843, 867.843]}
+    assert len(out["readings"]["D1"]) == 4 and out["readings"]["D1"][-1] < 0
+    header = field.read_text().splitlines()[0]
+    assert header.startswith("node,x_mm,y_mm,ux_mm@25kN")
+
+
+def test_csv_and_table_output(tmp_path):
+    spec = tmp_path / "coarse.toml"
+    spec.write_text('scenario = "shear_compression"\nnx = 2\nny = 1\n')
+    result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec), "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.strip().splitlines()
+    assert lines[0].startswith("load_kN,top_ux") and len(lines) == 5
+    result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec)])
+    assert result.exit_code == 0 and "readings in mm" in result.output
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["simulate", "diagonal_compression", "--set", "kN_bj"], "expected NAME=VALUE"),
+        (["simulate", "diagonal_compression", "--set", "kN_bj=soft"], "is not a number"),
+        (["simulate", "diagonal_compression", "--set", "kN_bj=-1"], "outside its physical range"),
+        (["simulate", "dome"], "unknown scenario 'dome'"),
+        (["simulate", "diagonal_compression", "--format", "xml"], "--format must be"),
+        (["simulate", "diagonal_compression", "--spec", "missing.toml"], "cannot read scenario spec missing.toml"),
+    ],
+)
+def test_errors_are_one_line_with_exit_code_2(args, message):
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    assert message in result.output
