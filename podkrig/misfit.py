@@ -1,0 +1,108 @@
+"""The misfit ω(m) of thesis eq. (2.13), vectorised over a population of parameter vectors.
+
+.. math::
+
+    ω(\\mathbf m) = \\tfrac12\\left[(\\mathbf g(\\mathbf m) - \\mathbf d_{obs})^t \\mathbf C_D^{-1}
+    (\\mathbf g(\\mathbf m) - \\mathbf d_{obs}) + (\\mathbf m - \\mathbf m_{prior})^t \\mathbf C_M^{-1}
+    (\\mathbf m - \\mathbf m_{prior})\\right], \\qquad \\mathbf C_D = \\mathbf C_d + \\mathbf C_T
+
+(thesis eqs. 2.10, 2.13): the data covariance ``C_d`` of the noise model plus the modelling
+covariance ``C_T``, here the surrogate's predictive variance at ``m`` (diagonal), so that
+surrogate error widens the fit instead of biasing it. The prior term is optional. As an
+alternative, ``kind="relative"`` gives the relative least-squares discrepancy of the group's
+papers, ½ Σ ((g_i − d_i) / d_i)².
+
+One :class:`Misfit` serves the GA (a population ``(n, d)`` at a time), a local least-squares
+polish (:meth:`Misfit.whitened_residuals`) and MCMC (``-ω`` is the log-posterior up to a constant).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Misfit:
+    """Noise-weighted misfit of a model against a measurement.
+
+    Parameters
+    ----------
+    model : callable
+        ``model(X) -> (mean, std)`` with ``X`` ``(n, n_params)`` physical parameters and ``mean``,
+        ``std`` ``(n, n_outputs)`` mm (``std`` may be None: no modelling error).
+    measurement : Measurement
+    noise : NoiseModel
+    output_indices : ndarray of shape (n_obs,)
+        Position of each observed entry in the model's flattened output
+        (:meth:`Measurement.output_indices`).
+    prior_mean : ndarray of shape (n_params,), optional
+    prior_cov : ndarray of shape (n_params, n_params), optional
+        Gaussian prior (thesis eq. 2.11), physical units.
+    kind : {"gaussian", "relative"}
+    model_error : bool
+        Add the model's predictive variance ``C_T`` to ``C_d``.
+    """
+
+    model: object
+    measurement: object
+    noise: object
+    output_indices: np.ndarray
+    prior_mean: np.ndarray | None = None
+    prior_cov: np.ndarray | None = None
+    kind: str = "gaussian"
+    model_error: bool = True
+
+    def __post_init__(self):
+        if self.kind not in ("gaussian", "relative"):
+            raise ValueError(f"misfit kind must be 'gaussian' or 'relative'; got {self.kind!r}")
+        if (self.prior_mean is None) != (self.prior_cov is None):
+            raise ValueError("a Gaussian prior needs both prior_mean and prior_cov")
+        object.__setattr__(self, "_d", self.measurement.data)
+        object.__setattr__(self, "_Cd", self.noise.covariance_matrix(self.measurement))
+        object.__setattr__(self, "_sd", np.sqrt(np.diag(self._Cd)))
+        if self.prior_cov is not None:
+            object.__setattr__(self, "_prior_chol", np.linalg.cholesky(np.asarray(self.prior_cov, float)))
+
+    @property
+    def n_obs(self):
+        return len(self._d)
+
+    def predict(self, X):
+        """Model predictions at the observed entries: ``(mean, std)`` each ``(n, n_obs)`` mm."""
+        mean, std = self.model(np.atleast_2d(X))
+        mean = mean[:, self.output_indices]
+        std = None if std is None or not self.model_error else std[:, self.output_indices]
+        return mean, std
+
+    def whitened_residuals(self, X):
+        """``L_D⁻¹ (g(m) − d)`` with ``C_D = L_D L_Dᵀ``, ``(n, n_obs)`` (dimensionless).
+
+        For ``kind="relative"``: ``(g − d)/|d|``.
+        """
+        mean, std = self.predict(X)
+        r = mean - self._d
+        if self.kind == "relative":
+            return r / np.maximum(np.abs(self._d), 1e-12)
+        if self.noise.is_diagonal:
+            var = self._sd**2 if std is None else self._sd**2 + std**2
+            return r / np.sqrt(var)
+        C = np.broadcast_to(self._Cd, (len(r),) + self._Cd.shape).copy()
+        if std is not None:
+            idx = np.arange(self.n_obs)
+            C[:, idx, idx] += std**2
+        L = np.linalg.cholesky(C)
+        return np.linalg.solve(L, r[..., None])[..., 0]
+
+    def chi2(self, X):
+        """Data term ``(g − d)ᵀ C_D⁻¹ (g − d)``, ``(n,)``."""
+        w = self.whitened_residuals(X)
+        return np.einsum("ij,ij->i", w, w)
+
+    def __call__(self, X):
+        """ω(m), ``(n,)``; thesis eq. (2.13)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        omega = 0.5 * self.chi2(X)
+        if self.prior_mean is not None:
+            z = np.linalg.solve(self._prior_chol, (X - self.prior_mean).T)
+            omega = omega + 0.5 * np.einsum("ij,ij->j", z, z)
+        return omega

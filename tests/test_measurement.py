@@ -1,0 +1,71 @@
+"""Measurement CSV reading/validation and noise models."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from podkrig.measurement import Measurement, NoiseModel
+from podkrig.measurement_csv import read_measurement_csv, write_measurement_csv
+
+SENSORS = ("D1", "D2", "U1")
+LEVELS = (25.0, 50.0, 75.0, 100.0)
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "data.csv"
+    p.write_text(text)
+    return p
+
+
+def test_round_trip_and_subset(tmp_path):
+    m = Measurement(np.array([[-0.06, 0.027], [-0.24, 0.11]]), ("D1", "D2"), np.array([25.0, 100.0]), source="x")
+    p = tmp_path / "m.csv"
+    write_measurement_csv(p, m)
+    back = read_measurement_csv(p, SENSORS, LEVELS)
+    assert back.sensor_names == ("D1", "D2")
+    assert_allclose(back.values, m.values, rtol=1e-12)
+    # flattened positions in a (4 loads × 3 sensors) output, load-major
+    assert back.output_indices(SENSORS, LEVELS).tolist() == [0, 1, 9, 10]
+
+
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("force,D1\n25,1\n", r"row 1, column 1: the first column must be 'load'"),
+        ("load,D9\n25,1\n", r"row 1, column 2: unknown sensor 'D9'"),
+        ("load,D1,D1\n25,1,2\n", r"row 1, column 3: sensor 'D1' appears more than once"),
+        ("load,D1,D2\n25,1,abc\n", r"row 2, column 3 \(D2\): 'abc' is not a number"),
+        ("load,D1,D2\n25,1,2\n50,nan,2\n", r"row 3, column 2 \(D1\): 'nan' is not a finite number"),
+        ("load,D1\n25,1\n25,2\n", r"row 3, column 1 \(load\): load level 25 kN appears twice"),
+        ("load,D1\n30,1\n", r"row 2, column 1 \(load\): unknown load level 30 kN"),
+        ("load,D1\n25,1,3\n", r"row 2: 3 cells, expected 2"),
+        ("load,D1\n", "no data rows"),
+    ],
+)
+def test_bad_files_name_file_row_and_column(tmp_path, text, match):
+    p = _write(tmp_path, text)
+    with pytest.raises(ValueError, match=match) as info:
+        read_measurement_csv(p, SENSORS, LEVELS)
+    assert str(p) in str(info.value)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(ValueError, match="cannot read measurement file"):
+        read_measurement_csv(tmp_path / "nope.csv", SENSORS, LEVELS)
+
+
+def test_noise_models():
+    m = Measurement(np.array([[-0.2, 0.1], [-0.4, 0.0]]), ("D1", "D2"), np.array([50.0, 100.0]))
+    assert_allclose(NoiseModel(sigma=0.002).std(m), 0.002)
+    assert_allclose(NoiseModel(sigma={"D1": 0.001, "D2": 0.003}).std(m), [0.001, 0.003, 0.001, 0.003])
+    assert_allclose(NoiseModel(delta=0.01, floor=1e-4).std(m), [0.002, 0.001, 0.004, 1e-4])
+    C = np.diag([1.0, 2.0, 3.0, 4.0]) * 1e-6
+    assert_allclose(NoiseModel(covariance=C).std(m), np.sqrt(np.diag(C)))
+    with pytest.raises(ValueError, match="exactly one noise model"):
+        NoiseModel(sigma=0.1, delta=0.01)
+    with pytest.raises(ValueError, match="sigma must be > 0 mm"):
+        NoiseModel(sigma=0.0)
+    with pytest.raises(ValueError, match=r"no noise sigma given for sensor\(s\) \['D2'\]"):
+        NoiseModel(sigma={"D1": 0.001}).std(m)
+    with pytest.raises(ValueError, match=r"must be \(4, 4\)"):
+        NoiseModel(covariance=np.eye(3)).covariance_matrix(m)

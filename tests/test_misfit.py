@@ -1,0 +1,82 @@
+"""The misfit of thesis eq. (2.13) against closed forms and its χ² statistics."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from podkrig.measurement import Measurement, NoiseModel
+from podkrig.misfit import Misfit
+
+rng = np.random.default_rng(3)
+A = rng.normal(size=(6, 2))  # a linear "model": 3 loads × 2 sensors from 2 parameters
+
+
+def linear_model(std=None):
+    def model(X):
+        mean = X @ A.T
+        return mean, None if std is None else np.broadcast_to(std, mean.shape)
+
+    return model
+
+
+def measurement(values):
+    return Measurement(values.reshape(3, 2), ("a", "b"), np.array([1.0, 2.0, 3.0]))
+
+
+def test_gaussian_misfit_matches_closed_form_with_prior():
+    m_true = np.array([1.0, -2.0])
+    d = A @ m_true + 0.01
+    meas = measurement(d)
+    sigma = 0.05
+    prior_mean, prior_cov = np.array([0.5, -1.0]), np.diag([4.0, 9.0])
+    f = Misfit(linear_model(), meas, NoiseModel(sigma=sigma), np.arange(6), prior_mean, prior_cov)
+    X = rng.normal(size=(5, 2))
+    r = X @ A.T - d
+    expected = 0.5 * (np.sum(r**2, axis=1) / sigma**2 + np.sum((X - prior_mean) ** 2 / np.diag(prior_cov), axis=1))
+    assert_allclose(f(X), expected, rtol=1e-12)
+
+
+def test_full_covariance_equals_diagonal_when_diagonal_and_model_error_adds():
+    d = A @ np.array([0.3, 0.7])
+    meas = measurement(d)
+    model_std = 0.02
+    diag = Misfit(linear_model(model_std), meas, NoiseModel(sigma=0.03), np.arange(6))
+    full = Misfit(linear_model(model_std), meas, NoiseModel(covariance=np.diag(np.full(6, 0.03**2))), np.arange(6))
+    X = rng.normal(size=(4, 2))
+    assert_allclose(full(X), diag(X), rtol=1e-12)
+    # C_D = C_d + C_T: the modelling variance widens the fit (smaller misfit), exactly
+    no_model_error = Misfit(linear_model(model_std), meas, NoiseModel(sigma=0.03), np.arange(6), model_error=False)
+    r = X @ A.T - d
+    assert_allclose(diag(X), 0.5 * np.sum(r**2, axis=1) / (0.03**2 + model_std**2), rtol=1e-12)
+    assert np.all(diag(X) < no_model_error(X))
+
+
+def test_chi2_of_noisy_data_at_the_truth_has_n_obs_degrees_of_freedom():
+    """Over many noise realisations, χ² at the true parameters has mean n_obs and variance 2 n_obs."""
+    m_true = np.array([1.0, 2.0])
+    clean = A @ m_true
+    sigma = 0.01
+    gen = np.random.default_rng(11)
+    chi2 = []
+    for _ in range(4000):
+        meas = measurement(clean + sigma * gen.normal(size=6))
+        chi2.append(Misfit(linear_model(), meas, NoiseModel(sigma=sigma), np.arange(6)).chi2(m_true[None])[0])
+    chi2 = np.array(chi2)
+    # standard errors with 4000 draws: mean ±0.055, variance ±0.3 → 4-sigma bounds
+    assert abs(chi2.mean() - 6) < 0.25
+    assert abs(chi2.var() - 12) < 1.5
+
+
+def test_relative_misfit_and_subset_indices():
+    d = np.array([1.0, 2.0, 4.0, 8.0, 16.0, 32.0])  # model output: 3 loads × sensors (a, b)
+    meas = Measurement(np.array([[2.0], [8.0]]), ("b",), np.array([1.0, 2.0]))
+    idx = meas.output_indices(("a", "b"), (1.0, 2.0, 3.0))
+    assert idx.tolist() == [1, 3]
+
+    def model(X):
+        return np.tile(d, (len(X), 1)) * X[:, :1], None
+
+    f = Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="relative")
+    assert_allclose(f(np.array([[1.1, 0.0]])), 0.5 * 2 * 0.1**2, rtol=1e-12)
+    with pytest.raises(ValueError, match="kind must be"):
+        Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="l1")
