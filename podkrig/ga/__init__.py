@@ -1,0 +1,24 @@
+"""Genetic algorithm of the thesis, chapter 3 (TOSCA): operators, solver and figures.
+
+- :mod:`podkrig.ga.operators` — vectorised initialisation, fitness scaling, selection,
+  crossover and mutation on populations in the unit hypercube;
+- :mod:`podkrig.ga.core` — :class:`GeneticAlgorithm` (steppable), :func:`minimize`,
+  :class:`GAResult`;
+- :mod:`podkrig.ga.plotting` — history, statistics and parameter–fitness figures (matplotlib is
+  imported only when a figure is drawn).
+
+Conventions: ``X`` is ``(n_individuals, n_params)`` in physical units, objective values are
+``(n_individuals,)``, lower is better.
+"""
+
+from .core import GAResult, GeneticAlgorithm, minimize
+from .plotting import plot_history, plot_parameters, plot_statistics
+
+__all__ = [
+    "GAResult",
+    "GeneticAlgorithm",
+    "minimize",
+    "plot_history",
+    "plot_parameters",
+    "plot_statistics",
+]
