@@ -1,0 +1,196 @@
+"""``podkrig snapshots``: run the offline stage into a snapshot store, describe it, export it."""
+
+import csv
+import json
+import math
+import time
+from pathlib import Path
+
+import typer
+
+from ._common import configure_logging, user_errors
+
+snapshots_app = typer.Typer(
+    name="snapshots",
+    help="Offline stage: FE snapshots over a Sobol' design in a resumable HDF5 store.",
+    no_args_is_help=True,
+)
+
+
+def _scenario_spec(scenario, spec_file):
+    from fe.scenarios import ScenarioSpec
+
+    if spec_file is None and scenario is None:
+        raise ValueError("give the scenario: --scenario NAME or --spec FILE")
+    if spec_file is None:
+        return ScenarioSpec(scenario)
+    spec = ScenarioSpec.from_file(spec_file)
+    if scenario is not None and spec.scenario != scenario:
+        raise ValueError(f"--spec {spec_file} is for scenario {spec.scenario!r}, not --scenario {scenario!r}")
+    return spec
+
+
+@snapshots_app.command("run")
+def run(
+    store: Path = typer.Option(..., "--store", help="Snapshot store (HDF5); created if missing, else resumed."),
+    param: list[str] = typer.Option(..., "--param", help="Free parameter NAME=LOW:HIGH[:log] (repeatable)."),
+    n: int = typer.Option(..., "--n", help="Number of samples (a power of two for Sobol')."),
+    seed: int = typer.Option(..., "--seed", help="Seed of the design (recorded in the store)."),
+    scenario: str = typer.Option(None, "--scenario", help="Scenario name, e.g. diagonal_compression."),
+    spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
+    sampling: str = typer.Option("sobol", "--sampling", help="Design: sobol, lhs or random."),
+    workers: int = typer.Option(None, "--workers", help="Local worker processes; 1 runs in this process without Dask (default: one per core)."),
+    scheduler: str = typer.Option(None, "--scheduler", help="Existing Dask scheduler, e.g. tcp://HOST:8786."),
+    fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
+    retry_failed: bool = typer.Option(False, "--retry-failed", help="Rerun rows whose FE run failed."),
+    chunk_size: int = typer.Option(None, "--chunk-size", help="Rows per task (default: adapted to the work, at most 32)."),
+    verbose: bool = typer.Option(False, "--verbose", "-v"),
+):
+    """Run a scenario at N sampled parameter vectors into a snapshot store.
+
+    Rerunning the same command resumes an interrupted job: finished rows are kept, never rewritten.
+    A larger --n on a Sobol' store appends rows that continue the same sequence.
+    Any other change of arguments against an existing store is refused.
+    """
+    configure_logging(verbose)
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from fe.scenarios import build_scenario
+
+    from ..parameters import ParameterSpace, parse_params
+    from ..runner import run_snapshots
+
+    with user_errors():
+        if workers is not None and scheduler is not None:
+            raise ValueError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+        bounds = parse_params(param)
+        sc = build_scenario(_scenario_spec(scenario, spec))
+        space = ParameterSpace.from_scenario(sc, bounds)
+        progress = Progress(
+            TextColumn("snapshots"), BarColumn(), MofNCompleteColumn(),
+            TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
+            console=Console(stderr=True),
+        )
+        task = progress.add_task("run", total=None, rate="")
+        t0 = time.perf_counter()
+
+        def report(completed, total):
+            if not progress.live.is_started:  # only once rows complete: errors print no empty bar
+                progress.start()
+            rate = completed / (time.perf_counter() - t0)
+            progress.update(task, completed=completed, total=total, rate=f"{rate:.1f} snapshots/s")
+
+        try:
+            summary = run_snapshots(
+                store, sc, space, n=n, seed=seed, sampling=sampling, fields=fields, workers=workers,
+                scheduler=scheduler, retry_failed=retry_failed, chunk_size=chunk_size, progress=report,
+            )
+        except KeyboardInterrupt:
+            typer.echo(f"interrupted: finished rows are kept in {store}; rerun the same command to resume", err=True)
+            raise typer.Exit(code=130) from None
+        finally:
+            progress.stop()
+    rate = summary.snapshots_per_second
+    typer.echo(
+        f"{summary.action} {store}: {summary.done} done, {summary.failed} failed, {summary.pending} pending "
+        f"of {summary.total} rows; ran {summary.ran} in {summary.seconds:.1f} s "
+        f"({rate if math.isfinite(rate) else 0:.1f} snapshots/s, {summary.executor})"
+    )
+    if summary.failed:
+        typer.echo(
+            f"{summary.failed} rows failed: see 'podkrig snapshots info {store}'; rerun with --retry-failed "
+            "to run them again", err=True,
+        )
+
+
+@snapshots_app.command("info")
+def info(
+    path: Path = typer.Argument(..., help="Snapshot store."),
+    format: str = typer.Option("text", "--format", help="Output format: text or json."),
+):
+    """Describe a snapshot store: provenance, scenario, parameters, sensors, row status."""
+    from ..store import SnapshotStore
+
+    with user_errors():
+        if format not in ("text", "json"):
+            raise ValueError(f"--format must be text or json; got {format!r}")
+        with SnapshotStore.open(path) as store:
+            d = store.info()
+    if format == "json":
+        typer.echo(json.dumps(d, indent=2, ensure_ascii=False))
+        return
+    rows = d["rows"]
+    sw = d["software"]
+    spec = dict(d["scenario_spec"])
+    lines = [
+        f"snapshot store {d['path']} ({d['file_size_bytes'] / 1e6:.2f} MB, schema {d['schema_version']})",
+        (f"created      {d['created']} with podkrig {sw['podkrig']} (scipy {sw['scipy']}, "
+         f"numpy {sw['numpy']}, h5py {sw['h5py']}, HDF5 {sw['hdf5']}, Python {sw['python']})"),
+        f"rows         {rows['total']}: {rows['done']} done, {rows['failed']} failed, {rows['pending']} pending",
+        f"design       {d['sampling']['method']}, seed {d['sampling']['seed']}",
+        f"scenario     {spec.pop('scenario')} ({d['n_dofs']} dofs, {d['n_nodes']} nodes)",
+        f"  fixed      {json.dumps(spec.pop('parameters'), ensure_ascii=False) or '{}'}",
+        f"  options    {json.dumps(spec, ensure_ascii=False)}",
+        "parameters",
+    ]
+    for p in d["parameter_space"]["parameters"]:
+        lines.append(f"  {p['name']:<10} {p['lower']:g} .. {p['upper']:g} {p['unit']}  ({p['scale']})")
+    lines.append(f"load levels  {', '.join(f'{v:g}' for v in d['load_levels'])} {d['load_unit']}")
+    lines.append(f"sensors      readings in {d['reading_unit']}")
+    for name in d["sensor_names"]:
+        lines.append(f"  {name:<10} {json.dumps(d['sensor_definitions'][name], ensure_ascii=False)}")
+    lines.append(f"fields       {'yes (n_loads, n_nodes, 2) mm' if d['fields'] else 'no'}")
+    wall = d["wall_time_s"]
+    if wall["mean"] is not None:
+        cpu = d["cpu_time_s"]["mean"]
+        lines.append(f"FE time      {wall['total']:.1f} s in total, {1000 * wall['mean']:.1f} ms per run"
+                     + (f" ({1000 * cpu:.1f} ms CPU)" if cpu is not None else ""))
+    lines.append(f"run args     {json.dumps(d['run_arguments'])}")
+    for event in d["history"]:
+        source = f", {event['source']}" if "source" in event else ""
+        lines.append(f"history      {event['time']} {event['event']} ({event['rows']} rows{source})")
+    lines.append(f"content      {d['content_hash']}")
+    for failure in d["failures"]:
+        lines.append(f"failed row {failure['row']}: {failure['error']}")
+    typer.echo("\n".join(lines))
+
+
+@snapshots_app.command("export")
+def export(
+    path: Path = typer.Argument(..., help="Snapshot store."),
+    csv_path: Path = typer.Option(..., "--csv", help="CSV file to write."),
+):
+    """Export a store as CSV: row, status, one column per parameter, one per SENSOR@LOAD (mm)."""
+    from ..store import STATUS_NAMES, SnapshotStore
+
+    with user_errors():
+        with SnapshotStore.open(path) as store:
+            X = store.parameters(physical=True, only_done=False)
+            Y = store.readings(only_done=False)
+            status = store.status()
+            header = ["row", "status", *store.space.names]
+            header += [f"{s}@{level:g}" for level in store.load_levels for s in store.sensor_names]
+        try:
+            with open(csv_path, "w", newline="") as fh:
+                writer = csv.writer(fh)
+                writer.writerow(header)
+                for i in range(len(X)):
+                    values = Y[i].ravel()  # C order: load-major, as the header
+                    writer.writerow([i, STATUS_NAMES[int(status[i])], *map(repr, X[i].tolist()),
+                                     *("" if math.isnan(v) else repr(v) for v in values.tolist())])
+        except OSError as e:
+            raise ValueError(f"cannot write {csv_path}: {e.strerror}") from e
+    typer.echo(f"wrote {csv_path}: {len(X)} rows x {len(header)} columns (parameters in their units, readings in mm)")
+
+
+def register(app):
+    """Add the ``snapshots`` sub-app to the ``podkrig`` app."""
+    app.add_typer(snapshots_app, name="snapshots")

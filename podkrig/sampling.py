@@ -1,0 +1,180 @@
+"""Sampling designs in the unit hypercube: scrambled Sobol', Latin hypercube, uniform random.
+
+Every design returns ``U`` of shape ``(n_samples, n_params)`` in :math:`[0, 1)^d`, reproducible
+from an integer ``seed`` (recorded by the snapshot store); map it to physical values with
+:meth:`podkrig.parameters.ParameterSpace.from_unit`.
+
+- ``"sobol"``: scrambled Sobol' points [1]_ with the Joe & Kuo direction numbers [2]_, through
+  :class:`scipy.stats.qmc.Sobol`. Its balance properties need ``n`` to be a power of two (a
+  warning says so otherwise). ``sobol(k, d, seed, skip=n)`` returns points ``n .. n+k-1`` of the
+  same scrambled sequence, bitwise identical to the tail of ``sobol(n + k, d, seed)``; this is how
+  a store grows.
+- ``"lhs"``: Latin hypercube, :class:`scipy.stats.qmc.LatinHypercube`; a design of ``n`` points
+  cannot be extended.
+- ``"random"``: independent uniform points from :func:`numpy.random.default_rng`; for held-out
+  test sets.
+
+Example
+-------
+>>> from podkrig.sampling import sobol
+>>> U = sobol(8, 3, seed=1)
+>>> U.shape
+(8, 3)
+>>> bool(((U >= 0) & (U < 1)).all())
+True
+
+References
+----------
+.. [1] I. M. Sobol', "On the distribution of points in a cube and the approximate evaluation of
+   integrals", USSR Comput. Math. Math. Phys. 7(4), 86–112, 1967.
+.. [2] S. Joe and F. Y. Kuo, "Constructing Sobol sequences with better two-dimensional
+   projections", SIAM J. Sci. Comput. 30(5), 2635–2654, 2008.
+"""
+
+import inspect
+import logging
+import warnings
+
+import numpy as np
+from scipy.stats import qmc
+
+logger = logging.getLogger(__name__)
+
+METHODS = ("sobol", "lhs", "random")
+
+# scipy >= 1.15 takes ``rng=``; older versions ``seed=`` (same integer -> same Generator)
+_RNG_KEYWORD = "rng" if "rng" in inspect.signature(qmc.Sobol).parameters else "seed"
+
+
+def _check(n, d, seed, skip=0):
+    for name, value, least in (("n", n, 1), ("d", d, 1), ("seed", seed, 0), ("skip", skip, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise TypeError(f"{name} must be an integer; got {value!r}")
+        if value < least:
+            raise ValueError(f"{name} must be >= {least}; got {value}")
+
+
+def is_power_of_two(n):
+    """True when ``n`` is 1, 2, 4, 8, ..."""
+    return n > 0 and n & (n - 1) == 0
+
+
+def sobol(n, d, seed, *, skip=0):
+    """Scrambled Sobol' points ``skip .. skip+n-1`` of the sequence fixed by ``seed``.
+
+    Parameters
+    ----------
+    n : int
+        Number of points, >= 1.
+    d : int
+        Dimension (number of free parameters), >= 1.
+    seed : int
+        Seed of the scrambling, >= 0.
+    skip : int, optional
+        Points of the sequence to skip first (the engine is fast-forwarded), >= 0.
+
+    Returns
+    -------
+    U : ndarray of shape (n, d)
+        Points in the unit hypercube.
+
+    Warns
+    -----
+    UserWarning
+        When ``skip + n`` is not a power of two (the design loses Sobol' balance properties).
+    """
+    _check(n, d, seed, skip)
+    _warn_power_of_two(skip + n)
+    return _sobol(n, d, seed, skip)
+
+
+def _warn_power_of_two(total):
+    if not is_power_of_two(total):
+        warnings.warn(
+            f"Sobol' design of {total} points: balance properties need a power of two "
+            f"(e.g. {1 << (total - 1).bit_length()}); the points are still valid but less uniform",
+            UserWarning,
+            stacklevel=3,  # the caller of sobol() / sample()
+        )
+
+
+def _sobol(n, d, seed, skip):
+    engine = qmc.Sobol(d, scramble=True, **{_RNG_KEYWORD: np.random.default_rng(seed)})
+    if skip:
+        engine.fast_forward(skip)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # scipy's own power-of-two warning; ours is above
+        return engine.random(n)
+
+
+def latin_hypercube(n, d, seed):
+    """Latin hypercube design of ``n`` points.
+
+    Parameters
+    ----------
+    n, d : int
+        Number of points and dimension, >= 1.
+    seed : int
+        Seed, >= 0.
+
+    Returns
+    -------
+    U : ndarray of shape (n, d)
+        Points in the unit hypercube, one per row and column stratum.
+    """
+    _check(n, d, seed)
+    return qmc.LatinHypercube(d, **{_RNG_KEYWORD: np.random.default_rng(seed)}).random(n)
+
+
+def uniform(n, d, seed):
+    """Independent uniform points (e.g. a held-out test set).
+
+    Parameters
+    ----------
+    n, d : int
+        Number of points and dimension, >= 1.
+    seed : int
+        Seed of :func:`numpy.random.default_rng`, >= 0.
+
+    Returns
+    -------
+    U : ndarray of shape (n, d)
+        Points in the unit hypercube.
+    """
+    _check(n, d, seed)
+    return np.random.default_rng(seed).random((n, d))
+
+
+def sample(method, n, d, seed, *, skip=0):
+    """Points ``skip .. skip+n-1`` of a seeded design.
+
+    Parameters
+    ----------
+    method : {"sobol", "lhs", "random"}
+    n, d : int
+        Number of points and dimension, >= 1.
+    seed : int
+        Seed, >= 0.
+    skip : int, optional
+        Points already drawn; only ``"sobol"`` can continue its sequence.
+
+    Returns
+    -------
+    U : ndarray of shape (n, d)
+
+    Raises
+    ------
+    ValueError
+        Unknown method, or ``skip > 0`` for a design that cannot be extended.
+    """
+    if method not in METHODS:
+        raise ValueError(f"sampling method must be one of {METHODS}; got {method!r}")
+    _check(n, d, seed, skip)
+    if method == "sobol":
+        _warn_power_of_two(skip + n)
+        return _sobol(n, d, seed, skip)
+    if skip:
+        raise ValueError(
+            f"a {method!r} design of {skip} points cannot be extended; only 'sobol' continues its sequence"
+        )
+    return latin_hypercube(n, d, seed) if method == "lhs" else uniform(n, d, seed)
