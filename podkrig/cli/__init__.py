@@ -3,7 +3,7 @@ outputs and turns domain errors into one-line messages with a hint and a non-zer
 
 import typer
 
-from . import simulate
+from . import simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -13,6 +13,8 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 simulate.register(app)
+snapshots.register(app)
+surrogate.register(app)
 
 
 @app.callback()

@@ -1,0 +1,185 @@
+"""``podkrig surrogate``: build a POD-kriging surrogate from a snapshot store, validate it, refine it."""
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from ._common import configure_logging, user_errors
+
+surrogate_app = typer.Typer(
+    name="surrogate",
+    help="POD-kriging surrogate: build from a snapshot store, validate on held-out runs, refine.",
+    no_args_is_help=True,
+)
+
+
+def _beta(text):
+    if text == "fit":
+        return "fit"
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"--beta must be a number in (0, 2] or 'fit'; got {text!r}") from None
+
+
+def _templates(energy, modes, variogram, beta, criterion, nugget):
+    from ..kriging import OrdinaryKriging
+    from ..pod import POD
+    from ..surrogate import DEFAULT_ENERGY
+
+    if energy is not None and modes is not None:
+        raise ValueError("give either --energy or --modes, not both")
+    pod = POD(n_modes=modes) if modes is not None else POD(energy=DEFAULT_ENERGY if energy is None else energy)
+    return pod, OrdinaryKriging(variogram=variogram, beta=_beta(beta), criterion=criterion, nugget=nugget)
+
+
+@surrogate_app.command("build")
+def build(
+    store: Path = typer.Argument(..., help="Snapshot store (HDF5) with finished rows."),
+    out: Path = typer.Option(..., "--out", help="Surrogate file to write (HDF5)."),
+    energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
+    modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
+    variogram: str = typer.Option("exponential", "--variogram", help="Semivariogram: exponential or power."),
+    beta: str = typer.Option("fit", "--beta", help="Exponent beta (e.g. 1.2, 1.5, 1.8) or 'fit' per mode."),
+    criterion: str = typer.Option("ml", "--criterion", help="Hyperparameters by 'ml' (likelihood) or 'loo'."),
+    nugget: float = typer.Option(0.0, "--nugget", help="Nugget relative to the sill (0: exact interpolation)."),
+    field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
+    verbose: bool = typer.Option(False, "--verbose", "-v"),
+):
+    """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
+    configure_logging(verbose)
+    with user_errors():
+        from ..store import SnapshotStore
+        from ..surrogate import fit_from_store
+
+        pod, kriging = _templates(energy, modes, variogram, beta, criterion, nugget)
+        t0 = time.perf_counter()
+        with SnapshotStore.open(store) as s:
+            sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
+        seconds = time.perf_counter() - t0
+        sur.provenance_["training_seconds"] = seconds
+        sur.save(out)
+    betas = ", ".join(f"{b:.3g}" for b in sur.kriging_.beta_)
+    typer.echo(
+        f"{out}: {len(sur.X_)} snapshots, {sur.n_modes_} POD modes "
+        f"(retained energy {sur.pod_.retained_energy_:.10f}), beta per mode [{betas}], "
+        f"trained in {seconds:.2f} s"
+    )
+
+
+@surrogate_app.command("validate")
+def validate(
+    file: Path = typer.Argument(..., help="Surrogate file written by 'podkrig surrogate build'."),
+    held_out: Path = typer.Option(..., "--held-out", help="Snapshot store of held-out FE runs."),
+    report: Path = typer.Option(None, "--report", help="Directory for index.html and the figures."),
+    format: str = typer.Option("table", "--format", help="Output format: table or json."),
+    compare: bool = typer.Option(True, "--compare/--no-compare",
+                                 help="Also refit with beta 1.2/1.5/1.8/fit and the power model for the "
+                                      "error histograms (needs the training store)."),
+    verbose: bool = typer.Option(False, "--verbose", "-v"),
+):
+    """Errors of the surrogate FILE on the held-out runs; optionally an HTML report."""
+    configure_logging(verbose)
+    with user_errors():
+        from ..store import SnapshotStore
+        from ..surrogate import PODKriging, training_data
+        from ..validation import compare_settings, held_out_errors
+
+        if format not in ("table", "json"):
+            raise ValueError(f"--format must be table or json; got {format!r}")
+        sur = PODKriging.load(file)
+        output = sur.provenance_.get("output", "readings")
+        with SnapshotStore.open(held_out) as h:
+            Xh, Yh = training_data(h, output)
+            held_hash = h.content_hash()
+        rep = held_out_errors(sur, Xh, Yh)
+        summary = rep.summary()
+        summary["held_out_store"] = str(held_out)
+        summary["held_out_content_hash"] = held_hash
+        if report is not None:
+            comparison = None
+            src = sur.provenance_.get("source_store")
+            if compare and src and Path(src).is_file():
+                with SnapshotStore.open(src) as s:
+                    X, Y = training_data(s, output)
+                settings = [{"beta": b} for b in (1.2, 1.5, 1.8, "fit")] + [{"variogram": "power", "beta": 1.5}]
+                comparison = compare_settings(X, Y, Xh, Yh, settings, space=sur.space, pod=sur.pod)
+            _write_report(report, sur, rep, summary, comparison)
+    if format == "json":
+        typer.echo(json.dumps(summary, indent=2))
+        return
+    r, p = summary["rel_error"], summary["pod_error"]
+    typer.echo(
+        f"{summary['n_held_out']} held-out runs, {summary['n_train']} training, {summary['n_modes']} modes: "
+        f"relative error median {r['median']:.3e}, p95 {r['p95']:.3e}, max {r['max']:.3e} (POD part median "
+        f"{p['median']:.3e}); {100 * summary['coverage_2sigma']:.1f} % of outputs within ±2σ"
+        + (f"; report {report / 'index.html'}" if report is not None else "")
+    )
+
+
+def _write_report(directory, sur, rep, summary, comparison):
+    from ..reports import surrogate as figs
+
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    prov = sur.provenance_
+    figures = [("POD energy decay", figs.plot_energy(sur.pod_, directory / "energy.png"))]
+    if prov.get("output", "readings") == "readings" and "sensor_names" in prov:
+        figures.append(("First POD modes per sensor over the load levels",
+                        figs.plot_reading_modes(sur.pod_, prov["sensor_names"], prov["load_levels"],
+                                                prov.get("load_unit", "kN"), directory / "modes.png")))
+    elif prov.get("output") == "field" and "scenario_spec" in prov:
+        from fe.scenarios import build_scenario
+
+        nodes = build_scenario(prov["scenario_spec"]).mesh.nodes
+        figures.append(("First POD modes on the mesh", figs.plot_field_modes(sur.pod_, nodes, directory / "modes.png")))
+    if comparison:
+        figures.append(("Held-out relative errors per semivariogram and exponent (cf. thesis Fig. 4.4)",
+                        figs.plot_error_histograms(comparison, directory / "error_histograms.png")))
+        summary = dict(summary, comparison={k: float(np.median(v)) for k, v in comparison.items()})
+    figures.append(("Surrogate against FE on the held-out runs",
+                    figs.plot_predicted_vs_fe(rep, directory / "predicted_vs_fe.png",
+                                              unit=prov.get("reading_unit", "mm"))))
+    settings = sur.kriging_.get_params()
+    notes = [
+        f"training store: {prov.get('source_store', '?')} ({prov.get('source_content_hash', '?')})",
+        f"kriging: variogram {settings['variogram']}, beta {settings['beta']}, criterion {settings['criterion']}, "
+        f"nugget {settings['nugget']}; fitted beta per mode "
+        + ", ".join(f"{b:.3g}" for b in sur.kriging_.beta_),
+        f"package version {prov.get('package_version', '?')}",
+    ]
+    figs.write_html(directory, "POD-kriging surrogate: held-out validation", summary, figures, notes)
+
+
+@surrogate_app.command("refine")
+def refine(
+    file: Path = typer.Argument(..., help="Surrogate file; rewritten with the refitted surrogate."),
+    store: Path = typer.Option(..., "--store", help="Training snapshot store; new rows are appended and run."),
+    held_out: Path = typer.Option(..., "--held-out", help="Snapshot store of held-out FE runs."),
+    target_error: float = typer.Option(0.005, "--target-error", help="Stop at this held-out median relative error (-)."),
+    budget: int = typer.Option(64, "--budget", help="At most this many new FE runs."),
+    batch: int = typer.Option(8, "--batch", help="FE runs added per round."),
+    candidates: int = typer.Option(4096, "--candidates", help="Size of the Sobol' candidate set."),
+    seed: int = typer.Option(1, "--seed", help="Seed of the candidate set."),
+    workers: int = typer.Option(1, "--workers", help="FE workers (1: in this process)."),
+    verbose: bool = typer.Option(False, "--verbose", "-v"),
+):
+    """Add FE runs where the surrogate is least certain until --target-error or --budget is reached."""
+    configure_logging(verbose)
+    with user_errors():
+        from ..refine import refine_surrogate
+
+        result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
+                                  batch=batch, n_candidates=candidates, seed=seed, workers=workers)
+    hist = result["history"]
+    typer.echo(
+        f"{file}: {result['added']} FE runs added in {len(hist) - 1} rounds, held-out median relative error "
+        f"{hist[0]['median']:.3e} -> {hist[-1]['median']:.3e} ({result['stop_reason']})"
+    )
+
+
+def register(app):
+    app.add_typer(surrogate_app, name="surrogate")

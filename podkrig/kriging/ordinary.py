@@ -1,0 +1,653 @@
+"""Ordinary kriging of several outputs, one set of hyperparameters per output column.
+
+Conventions: inputs ``X`` of shape ``(n_samples, n_dims)`` in the unit cube (scale physical
+parameters with :meth:`podkrig.parameters.ParameterSpace.to_unit`); outputs ``Y`` of shape
+``(n_samples,)`` or ``(n_samples, n_outputs)``, e.g. the POD coefficients of the snapshots, in their
+own units. Every output gets its own ranges (and exponent, with ``beta="fit"``), fitted
+independently; they share the training points and the batched prediction kernel.
+
+Example
+-------
+>>> import numpy as np
+>>> from podkrig.kriging import OrdinaryKriging
+>>> rng = np.random.default_rng(0)
+>>> X = rng.random((30, 2))
+>>> Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1], X[:, 0] * X[:, 1]])
+>>> ok = OrdinaryKriging(beta=1.8).fit(X, Y)
+>>> mean, std = ok.predict(X[:3], return_std=True)
+>>> bool(np.allclose(mean, Y[:3], rtol=0, atol=1e-8)), bool(np.all(std < 1e-4))
+(True, True)
+"""
+
+import logging
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import lapack, solve_triangular
+from scipy.optimize import minimize
+from threadpoolctl import ThreadpoolController
+
+from ..exceptions import NotFittedError
+from . import _kernels
+from .variogram import BETA_FIT_BOUNDS, EXPONENTIAL, check_beta, check_variogram
+
+logger = logging.getLogger(__name__)
+
+DEFAULT_BETA = "fit"
+CRITERIA = ("ml", "loo")
+RCOND_MIN = 1e-12  # smallest admissible reciprocal condition number of the kriging matrix
+_FAIL = 1e10  # objective value returned where the (generalised) covariance matrix is singular
+
+
+
+_CONTROLLER = None
+
+
+def _one_blas_thread():
+    """Context limiting BLAS to one thread. The controller is built once (scanning the loaded
+    libraries costs milliseconds, too much per prediction call)."""
+    global _CONTROLLER
+    if _CONTROLLER is None:
+        _CONTROLLER = ThreadpoolController()
+    return _CONTROLLER.limit(limits=1, user_api="blas")
+
+class SingularSystemError(ValueError):
+    """Internal: a factorisation failed at some hyperparameters (caught by the optimiser)."""
+
+
+@dataclass
+class _Pairs:
+    """Pairwise data of the training points shared by every output: ``i < j`` pairs only."""
+
+    n: int
+    iu: tuple
+    A: np.ndarray  # (n_pairs, d) |x_i - x_j| per dimension
+    logA: np.ndarray | None = None  # (n_pairs, d) log|x_i - x_j|, 0 where the difference is 0
+    powers: dict | None = None  # beta -> (n_pairs, d) |x_i - x_j| ** beta
+
+    def power(self, beta):
+        if beta not in self.powers:
+            if len(self.powers) > 8:
+                self.powers.clear()
+            self.powers[beta] = _kernels.abs_power(self.A, beta)
+        return self.powers[beta]
+
+
+@dataclass
+class _State:
+    """Factorised kriging system of one output at given hyperparameters."""
+
+    L: np.ndarray  # Cholesky factor: of R (exponential) or of Z^T K Z (power)
+    Q: np.ndarray  # (n, n) projected precision, bordered-system inverse block
+    Kinv_like: np.ndarray  # R^-1 (exponential) or Q (power): d log det / dK
+    alpha: np.ndarray  # Q y
+    mu: float
+    sigma2: float
+    logdet: float
+    m: int  # degrees of freedom of sigma2: n (exponential) or n - 1 (power)
+    q1: np.ndarray
+    c0: float
+    K: np.ndarray
+
+
+def _symmetrize_lower(M):
+    """Full symmetric matrix from the lower triangle of ``M`` (LAPACK ``potri`` output)."""
+    iu = np.triu_indices(M.shape[0], 1)
+    M[iu] = M.T[iu]
+    return M
+
+
+def _check_rcond(L, anorm, what):
+    """Treat a numerically singular matrix (1-norm reciprocal condition < RCOND_MIN) as singular.
+
+    Without this guard the likelihood, evaluated through a Cholesky factor that barely exists,
+    is dominated by rounding and the optimiser walks to ranges whose weights are noise.
+    """
+    rcond, info = lapack.dpocon(L, anorm, uplo="L")
+    if info != 0 or not rcond > RCOND_MIN:
+        raise SingularSystemError(f"{what} ill-conditioned (reciprocal condition number {rcond:.2g})")
+
+
+def _factor(Svals, pairs, kind, nugget, y):
+    """Build, factorise and solve the kriging system for reduced distances ``Svals`` on the pairs.
+
+    Notes
+    -----
+    With the bordered matrix :math:`M = [[K, 1], [1^T, 0]]` of ordinary kriging, the block
+    :math:`Q` of :math:`M^{-1}` is :math:`Z (Z^T K Z)^{-1} Z^T` for any orthonormal basis :math:`Z`
+    of :math:`1^\\perp`; for a positive definite :math:`K = R` it equals
+    :math:`R^{-1} - R^{-1} 1 1^T R^{-1} / (1^T R^{-1} 1)`. The exponential family uses the Cholesky
+    factor of :math:`R`; the power model (only conditionally positive definite) that of
+    :math:`Z^T K Z`, with :math:`Z` from a Householder reflection.
+    """
+    n = pairs.n
+    i, j = pairs.iu
+    K = np.empty((n, n))
+    off = np.exp(-Svals) if kind == EXPONENTIAL else -Svals
+    K[i, j] = off
+    K[j, i] = off
+    if kind == EXPONENTIAL:
+        # (10 + n) eps on the diagonal as in DACE: rounding-level regularisation only
+        np.fill_diagonal(K, 1.0 + nugget + (10 + n) * np.finfo(float).eps)
+        L, info = lapack.dpotrf(K, lower=1, clean=1)
+        if info != 0:
+            raise SingularSystemError(f"correlation matrix not positive definite (pivot {info})")
+        _check_rcond(L, np.abs(K).sum(axis=0).max(), "correlation matrix")
+        Rinv, info = lapack.dpotri(L, lower=1)
+        if info != 0:
+            raise SingularSystemError(f"correlation matrix singular (pivot {info})")
+        Rinv = _symmetrize_lower(Rinv)
+        r1 = Rinv.sum(axis=1)
+        s = r1.sum()
+        if not s > 0:
+            raise SingularSystemError("1^T R^-1 1 <= 0: correlation matrix numerically singular")
+        Q = Rinv - np.outer(r1, r1) / s
+        q1 = r1 / s  # 1/n - Q K 1/n, simplified
+        c0 = 1.0 / s
+        Kinv_like, m = Rinv, n
+    else:
+        scale = np.abs(off).max() if off.size else 1.0
+        np.fill_diagonal(K, nugget + (10 + n) * np.finfo(float).eps * scale)
+        v = np.ones(n)
+        v[0] += np.sqrt(n)
+        c = 2.0 / (v @ v)
+        Kv = K @ v
+        HKH = K - c * np.outer(v, Kv) - c * np.outer(Kv, v) + c * c * (v @ Kv) * np.outer(v, v)
+        L, info = lapack.dpotrf(HKH[1:, 1:], lower=1, clean=1)
+        if info != 0:
+            raise SingularSystemError(f"projected variogram matrix not positive definite (pivot {info})")
+        _check_rcond(L, np.abs(HKH[1:, 1:]).sum(axis=0).max(), "projected variogram matrix")
+        Ainv, info = lapack.dpotri(L, lower=1)
+        if info != 0:
+            raise SingularSystemError(f"projected variogram matrix singular (pivot {info})")
+        B = np.zeros((n, n))
+        B[1:, 1:] = _symmetrize_lower(Ainv)
+        HB = B - c * np.outer(v, v @ B)
+        Q = HB - c * np.outer(HB @ v, v)
+        Q = 0.5 * (Q + Q.T)
+        b = K.sum(axis=1) / n
+        q1 = 1.0 / n - Q @ b
+        c0 = float(b @ q1)
+        Kinv_like, m = Q, n - 1
+    alpha = Q @ y
+    mu = float(np.mean(y - K @ alpha))
+    sigma2 = max(float(y @ alpha), 0.0) / m
+    logdet = 2.0 * float(np.sum(np.log(np.diag(L))))
+    return _State(L, Q, Kinv_like, alpha, mu, sigma2, logdet, m, q1, c0, K)
+
+
+class _Objective:
+    """Criterion and its analytic gradient for one output over ``params = [log a_1..log a_d, (beta)]``."""
+
+    def __init__(self, pairs, y, kind, nugget, criterion, beta):
+        self.pairs, self.y, self.kind, self.nugget = pairs, y, kind, nugget
+        self.criterion, self.beta = criterion, beta  # beta: float, or None when fitted
+        self.yscale = max(float(np.sum((y - y.mean()) ** 2)), np.finfo(float).tiny)
+
+    def split(self, params):
+        d = self.pairs.A.shape[1]
+        psi = params[:d]
+        beta = self.beta if self.beta is not None else float(params[d])
+        return psi, beta
+
+    def state(self, params):
+        psi, beta = self.split(params)
+        theta = np.exp(-beta * psi)
+        P = self.pairs.power(beta) if self.beta is not None else _kernels.abs_power(self.pairs.A, beta)
+        return _factor(P @ theta, self.pairs, self.kind, self.nugget, self.y), P, theta, psi, beta
+
+    def value(self, st):
+        if self.criterion == "ml":
+            # concentrated likelihood (Sacks et al. 1989): -2 log L = m log sigma2 + log det + const
+            return st.m * np.log(max(st.sigma2, 1e-300)) + st.logdet
+        e = st.alpha / np.diag(st.Q)  # Dubrule (1983): LOO residuals y_i - yhat_{-i}(x_i)
+        return float(e @ e) / self.yscale
+
+    def __call__(self, params):
+        try:
+            st, P, theta, psi, beta = self.state(params)
+        except SingularSystemError:
+            return _FAIL, np.zeros_like(params)
+        f = self.value(st)
+        # dF = sum_ij G_ij dK_ij for symmetric dK
+        if self.criterion == "ml":
+            G = st.Kinv_like - np.outer(st.alpha, st.alpha) / max(st.sigma2, 1e-300)
+        else:
+            dq = np.diag(st.Q)
+            e = st.alpha / dq
+            v, w = e / dq, e * e / dq
+            Qv = st.Q @ v
+            G = 2.0 * (st.Q * w) @ st.Q - np.outer(Qv, st.alpha) - np.outer(st.alpha, Qv)
+            G /= self.yscale
+        i, j = self.pairs.iu
+        H = 2.0 * G[i, j]  # two symmetric entries per pair
+        if self.kind == EXPONENTIAL:
+            H = H * st.K[i, j]  # dK/dS = -R (exponential); -1 (power)
+        # dS/dpsi_k = -beta theta_k P_k  ->  dK/dpsi_k = +beta theta_k P_k (times R for exponential)
+        g_psi = beta * theta * (H @ P)
+        if self.beta is not None:
+            return f, g_psi
+        # dS/dbeta = sum_k theta_k P_k (log|dx_k| - psi_k)
+        g_beta = -float(H @ ((P * (self.pairs.logA - psi)) @ theta))
+        return f, np.append(g_psi, g_beta)
+
+
+class OrdinaryKriging:
+    """Ordinary kriging with exponential-family or power semivariograms, one fit per output.
+
+    Parameters
+    ----------
+    variogram : {"exponential", "power"}, default "exponential"
+        Semivariogram model, see :mod:`podkrig.kriging.variogram`.
+    beta : float or "fit", default "fit"
+        Exponent of the semivariogram: fixed, or ``"fit"`` to estimate it per output together with
+        the ranges (bounded to [0.2, 2] for the exponential family, [0.2, 1.95] for the power
+        model). The thesis compares the fixed values 1.2, 1.5 and 1.8. The default is ``"fit"``: the
+        elastic responses are very smooth functions of the parameters, the likelihood drives every
+        POD coefficient of the diagonal compression test to beta = 2, and on 200 held-out runs
+        (4 free parameters, n = 256) the median relative error is 1.6e-3 against 4.0e-3, 6.1e-3
+        and 9.8e-3 for the fixed 1.8, 1.5 and 1.2, with 94 % of the outputs inside ±2 sigma; a
+        rougher (e.g. nonlinear) response gets a smaller exponent automatically. A fixed exponent
+        trains about 4x faster. Exponents 1, 1.5 and 2 use fast kernel paths; others call ``pow``.
+    ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
+        Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
+        the values used when ``optimizer=None``.
+    nugget : float, default 0.0
+        Nugget relative to the sill (added to the diagonal of the correlation matrix). 0 gives an
+        exact interpolator; use a small positive value (e.g. 1e-8) for noisy or duplicated samples.
+    criterion : {"ml", "loo"}, default "ml"
+        Hyperparameters by maximum concentrated likelihood ([1]_; for the intrinsic power model,
+        the likelihood of the n − 1 contrasts) or by the closed-form leave-one-out error [2]_.
+    optimizer : {"l-bfgs-b", None}, default "l-bfgs-b"
+        L-BFGS-B on the log-ranges (and beta) with analytic gradients; ``None`` keeps ``ranges``.
+    n_restarts : int, default 1
+        Extra random starting points of the optimiser, on top of ``ranges`` and the previous
+        output's optimum.
+    range_bounds : tuple of float, default (0.01, 100.0)
+        Bounds of the ranges during optimisation, unit-cube units.
+    random_state : int, default 0
+        Seed of the random restarts.
+    use_numba : bool or None, default None
+        Use the numba prediction kernels (None: unless ``PODKRIG_DISABLE_NUMBA=1``).
+
+    Attributes
+    ----------
+    X_ : ndarray of shape (n_samples, n_dims)
+        Training inputs (a copy).
+    ranges_ : ndarray of shape (n_outputs, n_dims)
+        Fitted ranges.
+    beta_ : ndarray of shape (n_outputs,)
+        Exponent per output.
+    mu_ : ndarray of shape (n_outputs,)
+        Generalised-least-squares mean per output.
+    sigma2_ : ndarray of shape (n_outputs,)
+        Process variance (exponential) or variogram scale (power) per output, output units².
+    alpha_ : ndarray of shape (n_outputs, n_samples)
+        Kriging weights :math:`Q y`.
+    L_ : ndarray of shape (n_outputs, m, m)
+        Lower Cholesky factors (``m = n_samples`` for the exponential family, ``n_samples - 1`` for
+        the power model, see ``_factor``).
+    Q_ : ndarray of shape (n_outputs, n_samples, n_samples)
+        Projected precision (block of the inverse bordered kriging matrix), used for variances.
+    loo_residuals_ : ndarray of shape (n_samples, n_outputs)
+        Closed-form leave-one-out residuals :math:`y_i - \\hat y_{-i}(x_i)` at the fitted
+        hyperparameters (Dubrule 1983).
+    loo_variance_ : ndarray of shape (n_samples, n_outputs)
+        Kriging variances of those leave-one-out predictions, output units².
+    criterion_ : ndarray of shape (n_outputs,)
+        Final criterion value per output.
+
+    Notes
+    -----
+    Predictor and variance of ordinary kriging [1]_, with the (generalised) covariance vector
+    :math:`k(x)` and the bordered-system block :math:`Q`:
+
+    .. math::
+
+        \\hat y(x) = \\hat\\mu + k(x)^T Q y, \\qquad
+        \\sigma^2_K(x) = \\hat\\sigma^2 \\left[k_0 + c_0 - 2 q_1^T k(x) - k(x)^T Q k(x)\\right],
+
+    which for the exponential family reduces to Sacks et al.'s
+    :math:`\\hat\\sigma^2 [1 - r^T R^{-1} r + (1 - 1^T R^{-1} r)^2 / 1^T R^{-1} 1]`. The concentrated
+    likelihood is :math:`-2 \\log L = m \\log \\hat\\sigma^2 + \\log\\det R`,
+    :math:`\\hat\\sigma^2 = y^T Q y / m`; the leave-one-out residuals are
+    :math:`e_i = (Q y)_i / Q_{ii}`. Both gradients come from
+    :math:`\\partial Q = -Q \\, \\partial K \\, Q`. With ``criterion="loo"`` the variance is
+    calibrated on the leave-one-out residuals,
+    :math:`\\hat\\sigma^2 = \\frac{1}{n} \\sum_i e_i^2 Q_{ii}`.
+
+    Cost: ``fit`` forms and factorises one ``n × n`` matrix per objective evaluation
+    (:math:`O(n^3)`); ``predict`` of the mean is :math:`O(n_{pred} \\, n \\, d)` per output without
+    forming the cross-covariance matrix, ``return_std`` forms it and costs :math:`O(n_{pred} n^2)`
+    per output.
+
+    References
+    ----------
+    .. [1] J. Sacks, W. J. Welch, T. J. Mitchell, H. P. Wynn, "Design and analysis of computer
+       experiments", Statistical Science 4(4), 409–423, 1989.
+    .. [2] O. Dubrule, "Cross validation of kriging in a unique neighborhood", Mathematical
+       Geology 15(6), 687–699, 1983.
+    .. [3] The thesis, ch. 4 (ordinary kriging of POD coefficients).
+    """
+
+    def __init__(self, variogram="exponential", beta=DEFAULT_BETA, ranges=0.5, nugget=0.0, criterion="ml",
+                 optimizer="l-bfgs-b", n_restarts=1, range_bounds=(1e-2, 1e2), random_state=0,
+                 use_numba=None):
+        self.variogram = variogram
+        self.beta = beta
+        self.ranges = ranges
+        self.nugget = nugget
+        self.criterion = criterion
+        self.optimizer = optimizer
+        self.n_restarts = n_restarts
+        self.range_bounds = range_bounds
+        self.random_state = random_state
+        self.use_numba = use_numba
+
+    # ------------------------------------------------------------------ parameters
+    def get_params(self, deep=True):
+        """Hyperparameters as a dict (scikit-learn convention)."""
+        return {k: getattr(self, k) for k in (
+            "variogram", "beta", "ranges", "nugget", "criterion", "optimizer", "n_restarts",
+            "range_bounds", "random_state", "use_numba")}
+
+    def set_params(self, **params):
+        """Set hyperparameters; unknown names are an error."""
+        valid = self.get_params()
+        for k, v in params.items():
+            if k not in valid:
+                raise ValueError(f"unknown parameter {k!r} of OrdinaryKriging; valid: {sorted(valid)}")
+            setattr(self, k, v)
+        return self
+
+    def _check_settings(self, d, n_out):
+        kind = check_variogram(self.variogram)
+        fit_beta = isinstance(self.beta, str)
+        if fit_beta and self.beta != "fit":
+            raise ValueError(f"beta must be a number in (0, 2] or 'fit'; got {self.beta!r}")
+        beta = None if fit_beta else check_beta(self.beta, self.variogram)
+        if self.criterion not in CRITERIA:
+            raise ValueError(f"criterion must be one of {CRITERIA}; got {self.criterion!r}")
+        if self.optimizer not in ("l-bfgs-b", None):
+            raise ValueError(f"optimizer must be 'l-bfgs-b' or None; got {self.optimizer!r}")
+        if fit_beta and self.optimizer is None:
+            raise ValueError("beta='fit' needs an optimizer; give a fixed beta or optimizer='l-bfgs-b'")
+        if not (np.isscalar(self.nugget) and np.isfinite(self.nugget) and self.nugget >= 0):
+            raise ValueError(f"nugget must be a finite number >= 0; got {self.nugget!r}")
+        lo, hi = (float(b) for b in self.range_bounds)
+        if not 0 < lo < hi:
+            raise ValueError(f"range_bounds must satisfy 0 < lower < upper; got {self.range_bounds!r}")
+        if isinstance(self.n_restarts, bool) or not isinstance(self.n_restarts, (int, np.integer)) \
+                or self.n_restarts < 0:
+            raise ValueError(f"n_restarts must be an integer >= 0; got {self.n_restarts!r}")
+        r = np.asarray(self.ranges, dtype=float)
+        if r.ndim == 0:
+            r = np.full((n_out, d), float(r))
+        elif r.shape == (d,):
+            r = np.tile(r, (n_out, 1))
+        elif r.shape != (n_out, d):
+            raise ValueError(f"ranges must be a number or have shape ({d},) or ({n_out}, {d}); got {r.shape}")
+        if not np.all(np.isfinite(r) & (r > 0)):
+            raise ValueError(f"ranges must be finite and > 0; got {self.ranges!r}")
+        return kind, beta, r, (lo, hi)
+
+    # ------------------------------------------------------------------ fit
+    def fit(self, X, Y):
+        """Fit one kriging interpolant per output column.
+
+        Parameters
+        ----------
+        X : array_like of shape (n_samples, n_dims)
+            Training inputs in the unit cube.
+        Y : array_like of shape (n_samples,) or (n_samples, n_outputs)
+            Training outputs, any units.
+
+        Returns
+        -------
+        self : OrdinaryKriging
+
+        Raises
+        ------
+        ValueError
+            Bad shapes or values, inputs outside the unit cube, duplicate samples with
+            ``nugget=0``, or a singular kriging system at every starting point.
+        """
+        # one BLAS thread: the matrices are small (n <= a few thousand), and on a shared machine
+        # a multi-threaded BLAS in many tiny calls is 20-60x slower than a single thread
+        with _one_blas_thread():
+            return self._fit(X, Y)
+
+    def _fit(self, X, Y):
+        X = np.array(X, dtype=float, copy=True)
+        Y = np.array(Y, dtype=float, copy=True)
+        if X.ndim != 2:
+            raise ValueError(f"X must have shape (n_samples, n_dims); got shape {X.shape}")
+        self._y_1d = Y.ndim == 1
+        Y = Y.reshape(len(Y), -1) if Y.ndim == 1 else Y
+        if Y.ndim != 2 or Y.shape[0] != X.shape[0]:
+            raise ValueError(f"Y must have shape ({X.shape[0]},) or ({X.shape[0]}, n_outputs); got {Y.shape}")
+        n, d = X.shape
+        if n < 3:
+            raise ValueError(f"ordinary kriging needs at least 3 samples; got {n}")
+        if not (np.all(np.isfinite(X)) and np.all(np.isfinite(Y))):
+            raise ValueError("X and Y must be finite; found NaN or inf (drop failed FE runs first)")
+        if X.min() < -1e-9 or X.max() > 1 + 1e-9:
+            raise ValueError(
+                f"kriging inputs must lie in the unit cube; got values in [{X.min():g}, {X.max():g}]; "
+                "scale them with ParameterSpace.to_unit (PODKriging does this for you)"
+            )
+        kind, beta, ranges0, (lo, hi) = self._check_settings(d, Y.shape[1])
+        if self.nugget == 0:
+            _check_duplicates(X)
+        i, j = np.triu_indices(n, 1)
+        A = np.abs(X[i] - X[j])
+        logA = None
+        if beta is None:
+            with np.errstate(divide="ignore"):
+                logA = np.where(A > 0, np.log(np.where(A > 0, A, 1.0)), 0.0)
+        pairs = _Pairs(n, (i, j), A, logA, {})
+        rng = np.random.default_rng(self.random_state)
+        fit_beta = beta is None
+        bfit_lo, bfit_hi = BETA_FIT_BOUNDS[self.variogram]
+        bounds = [(np.log(lo), np.log(hi))] * d + ([(bfit_lo, bfit_hi)] if fit_beta else [])
+
+        n_out = Y.shape[1]
+        self.ranges_ = np.empty((n_out, d))
+        self.beta_ = np.empty(n_out)
+        self.mu_ = np.empty(n_out)
+        self.sigma2_ = np.empty(n_out)
+        self.alpha_ = np.empty((n_out, n))
+        m = n if kind == EXPONENTIAL else n - 1
+        self.L_ = np.empty((n_out, m, m))
+        self.Q_ = np.empty((n_out, n, n))
+        self.q1_ = np.empty((n_out, n))
+        self.c0_ = np.empty(n_out)
+        self.criterion_ = np.empty(n_out)
+        self.loo_residuals_ = np.empty((n, n_out))
+        self.loo_variance_ = np.empty((n, n_out))
+        self.n_evaluations_ = np.zeros(n_out, dtype=int)
+        previous = None
+        beta0 = 1.8 if kind == EXPONENTIAL else 1.5
+        for col in range(n_out):
+            y = Y[:, col]
+            obj = _Objective(pairs, y, kind, float(self.nugget), self.criterion, beta)
+            start = np.log(np.clip(ranges0[col], lo, hi))
+            if fit_beta:
+                start = np.append(start, beta0)
+            constant = np.ptp(y) <= 1e-14 * max(1.0, float(np.max(np.abs(y))))
+            if self.optimizer is None or constant:
+                params = start
+                try:
+                    st = obj.state(params)[0]
+                except SingularSystemError as e:
+                    raise self._singular(X, col, params, d, e) from e
+            else:
+                starts = [start] + ([previous] if previous is not None else [])
+                for _ in range(self.n_restarts):
+                    s = rng.uniform(np.log(max(lo, 0.05)), np.log(min(hi, 5.0)), d)
+                    starts.append(np.append(s, rng.uniform(bfit_lo, bfit_hi)) if fit_beta else s)
+                best = None
+                for s in starts:
+                    res = minimize(obj, s, jac=True, method="L-BFGS-B", bounds=bounds,
+                                   options={"maxiter": 200})
+                    self.n_evaluations_[col] += res.nfev
+                    if res.fun < _FAIL and (best is None or res.fun < best.fun):
+                        best = res
+                if best is None:
+                    raise self._singular(X, col, start, d, None)
+                params = best.x
+                if fit_beta and bfit_hi - params[-1] < 0.02:
+                    # L-BFGS-B stops just short of an active upper bound: polish the ranges at the
+                    # bound and keep it unless clearly worse (0.01 in -2 log L, or 0.1 % of the LOO
+                    # error); an exact 2.0 also uses the fast kernel path
+                    fixed = _Objective(pairs, y, kind, float(self.nugget), self.criterion, bfit_hi)
+                    res = minimize(fixed, params[:-1], jac=True, method="L-BFGS-B", bounds=bounds[:-1],
+                                   options={"maxiter": 50})
+                    self.n_evaluations_[col] += res.nfev
+                    tol = 0.01 if self.criterion == "ml" else 1e-3 * abs(best.fun)
+                    if res.fun <= best.fun + tol:
+                        params = np.append(res.x, bfit_hi)
+                previous = params
+                st = obj.state(params)[0]
+            psi, b = obj.split(params)
+            self.ranges_[col] = np.exp(psi)
+            self.beta_[col] = b
+            self.mu_[col] = st.mu
+            self.alpha_[col] = st.alpha
+            self.L_[col] = st.L
+            self.Q_[col] = st.Q
+            self.q1_[col] = st.q1
+            self.c0_[col] = st.c0
+            self.criterion_[col] = obj.value(st)
+            dq = np.diag(st.Q)
+            e = st.alpha / dq
+            self.loo_residuals_[:, col] = e
+            if constant:
+                self.sigma2_[col] = 0.0
+            elif self.criterion == "loo":
+                self.sigma2_[col] = float(np.mean(e * e * dq))
+            else:
+                self.sigma2_[col] = st.sigma2
+            self.loo_variance_[:, col] = self.sigma2_[col] / dq
+        self.X_ = X
+        self.n_features_in_ = d
+        self.n_outputs_ = n_out
+        self.kind_ = kind
+        logger.info("kriging fitted: %d samples, %d dims, %d outputs, %d criterion evaluations",
+                    n, d, n_out, int(self.n_evaluations_.sum()))
+        return self
+
+    def _singular(self, X, col, params, d, cause):
+        from scipy.spatial.distance import pdist
+
+        dist = pdist(X)
+        k = int(np.argmin(dist))
+        ranges = ", ".join(f"{v:.3g}" for v in np.exp(params[:d]))
+        return ValueError(
+            f"kriging system of output {col} is singular at ranges ({ranges}) "
+            f"({cause or 'at every starting point'}); the closest samples are {dist[k]:.3g} apart "
+            "(unit cube): remove duplicates or set a nugget (e.g. nugget=1e-8)"
+        )
+
+    # ------------------------------------------------------------------ predict
+    def _check_fitted(self):
+        if not hasattr(self, "alpha_"):
+            raise NotFittedError(
+                "this OrdinaryKriging instance is not fitted yet; call fit(X, Y) before predict"
+            )
+
+    @property
+    def theta_(self):
+        """:math:`a_k^{-\\beta}` per output, ndarray of shape (n_outputs, n_dims)."""
+        self._check_fitted()
+        return self.ranges_ ** (-self.beta_[:, None])
+
+    def predict(self, X, return_std=False):
+        """Kriging mean (and standard deviation) at new inputs.
+
+        Parameters
+        ----------
+        X : array_like of shape (n_pred, n_dims)
+            Inputs in the unit cube.
+        return_std : bool, default False
+            Also return the kriging standard deviation.
+
+        Returns
+        -------
+        mean : ndarray of shape (n_pred, n_outputs), or (n_pred,) for 1-D training outputs
+        std : ndarray, same shape as ``mean``
+            Only with ``return_std``; output units.
+
+        Warns
+        -----
+        UserWarning
+            When a variance is clearly negative (ill-conditioned system) and clipped to 0.
+        """
+        self._check_fitted()
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
+            raise ValueError(f"X must have shape (n_pred, {self.n_features_in_}); got {X.shape}")
+        order = np.argsort(self.beta_, kind="stable")  # outputs sharing beta share the power block
+        mean = np.empty((X.shape[0], self.n_outputs_))
+        mean[:, order] = _kernels.predict_mean(
+            X, self.X_, self.theta_[order], self.beta_[order], self.kind_, self.alpha_[order],
+            self.mu_[order], self.use_numba,
+        )
+        if not return_std:
+            return mean[:, 0] if self._y_1d else mean
+        var = self.predict_variance(X)
+        std = np.sqrt(var)
+        if self._y_1d:
+            return mean[:, 0], std[:, 0]
+        return mean, std
+
+    def predict_variance(self, X):
+        """Kriging variance, ndarray of shape (n_pred, n_outputs), output units² (clipped at 0).
+
+        Forms the ``(n_pred, n)`` cross-covariance of each output and solves with its Cholesky
+        factor: :math:`O(n_{pred} n^2)` per output, one BLAS thread (see :meth:`fit`).
+        """
+        with _one_blas_thread():
+            return self._predict_variance(X)
+
+    def _predict_variance(self, X):
+        self._check_fitted()
+        X = np.asarray(X, dtype=float)
+        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
+            raise ValueError(f"X must have shape (n_pred, {self.n_features_in_}); got {X.shape}")
+        k0 = 1.0 if self.kind_ == EXPONENTIAL else 0.0
+        theta = self.theta_
+        var = np.empty((X.shape[0], self.n_outputs_))
+        ones = np.ones(self.X_.shape[0])
+        for j in range(self.n_outputs_):
+            Kx = _kernels.cross_covariance(X, self.X_, theta[j], self.beta_[j], self.kind_, self.use_numba)
+            if self.kind_ == EXPONENTIAL:
+                # Sacks et al. (1989) form through triangular solves with the stored Cholesky factor
+                # (better conditioned than the Q form): V = L^-1 r, u = L^-1 1
+                V = solve_triangular(self.L_[j], Kx.T, lower=True, check_finite=False)
+                u = solve_triangular(self.L_[j], ones, lower=True, check_finite=False)
+                quad = np.einsum("ip,ip->p", V, V)
+                var[:, j] = self.sigma2_[j] * (k0 - quad + (1.0 - u @ V) ** 2 * self.c0_[j])
+            else:
+                quad = np.einsum("pi,pi->p", Kx @ self.Q_[j], Kx)
+                var[:, j] = self.sigma2_[j] * (k0 + self.c0_[j] - 2.0 * (Kx @ self.q1_[j]) - quad)
+        scale = np.maximum(self.sigma2_, np.finfo(float).tiny)
+        if np.any(var < -1e-6 * scale):
+            warnings.warn(
+                f"kriging variance down to {var.min():.3g} < 0 (ill-conditioned system), clipped to 0; "
+                "consider a small nugget", UserWarning, stacklevel=2,
+            )
+        return np.maximum(var, 0.0)
+
+
+def _check_duplicates(X):
+    """``ValueError`` naming the first pair of identical rows of ``X``."""
+    _, index, counts = np.unique(X, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        row = X[index[np.argmax(counts > 1)]]
+        rows = np.flatnonzero(np.all(X == row, axis=1))
+        raise ValueError(
+            f"duplicate samples: rows {rows.tolist()} of X are identical ({row.tolist()}); "
+            "the kriging system is singular: remove duplicates or set a nugget (e.g. nugget=1e-8)"
+        )

@@ -1,0 +1,129 @@
+"""Adaptive enrichment of a POD-kriging surrogate: add FE runs where it is least certain.
+
+Each round fits the surrogate on the finished rows of the training store, measures the held-out
+median relative error, and, unless the target or the budget is reached, appends the ``batch``
+candidates of largest predictive variance (summed over the outputs, mm²) from a scrambled Sobol'
+candidate set to the store (:meth:`~podkrig.store.SnapshotStore.extend`) and runs them with the
+offline runner (:func:`~podkrig.runner.run_pending`), so that every new snapshot is saved and an
+interrupted refinement resumes from the store. Selected points keep a minimum distance from each
+other (half the mean nearest-neighbour distance of the training design) so that a batch does not
+cluster around one variance peak.
+"""
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+
+def select_batch(U_candidates, score, U_train, k):
+    """Greedy choice of ``k`` high-score candidates kept apart from each other.
+
+    Parameters
+    ----------
+    U_candidates : ndarray of shape (m, d)
+        Candidate points, unit cube.
+    score : ndarray of shape (m,)
+        Larger is more wanted (e.g. predictive variance, mm²).
+    U_train : ndarray of shape (n, d)
+        Current design, unit cube.
+    k : int
+
+    Returns
+    -------
+    ndarray of int, shape (<= k,)
+        Indices into ``U_candidates``.
+    """
+    from scipy.spatial import cKDTree
+
+    nn = cKDTree(U_train).query(U_train, k=2)[0][:, 1]
+    radius = 0.5 * float(np.mean(nn))
+    order = np.argsort(score)[::-1]
+    chosen = []
+    for i in order:
+        if len(chosen) == k:
+            break
+        if chosen and np.min(np.linalg.norm(U_candidates[chosen] - U_candidates[i], axis=1)) < radius:
+            continue
+        chosen.append(int(i))
+    return np.array(chosen, dtype=int)
+
+
+def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, batch=8, n_candidates=4096,
+                     seed=1, workers=1):
+    """Enrich the training store until the held-out median error or the FE budget is reached.
+
+    Parameters
+    ----------
+    file : str or Path
+        Surrogate file; its settings are reused and it is rewritten with the final surrogate.
+    store : str or Path
+        Training snapshot store (appended to).
+    held_out : str or Path
+        Held-out snapshot store (read only).
+    target_error : float
+        Held-out median relative error to reach (-).
+    budget : int
+        Maximum number of new FE runs.
+    batch : int
+        FE runs per round.
+    n_candidates : int
+        Size of the Sobol' candidate set (a power of two).
+    seed : int
+        Seed of the candidate set.
+    workers : int
+        FE workers of the runner (1: in this process).
+
+    Returns
+    -------
+    dict
+        ``added`` (FE runs), ``history`` (per round: ``n_train``, ``median``, ``p95``),
+        ``stop_reason``.
+    """
+    from .runner import run_pending
+    from .sampling import sobol
+    from .store import SnapshotStore
+    from .surrogate import PODKriging, fit_from_store, training_data
+    from .validation import held_out_errors
+
+    for name, v, least in (("budget", budget, 0), ("batch", batch, 1), ("n_candidates", n_candidates, 1)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
+            raise ValueError(f"{name} must be an integer >= {least}; got {v!r}")
+    if not target_error > 0:
+        raise ValueError(f"target_error must be > 0; got {target_error!r}")
+    file, store, held_out = Path(file), Path(store), Path(held_out)
+    template = PODKriging.load(file)
+    output = template.provenance_.get("output", "readings")
+    with SnapshotStore.open(held_out) as h:
+        Xh, Yh = training_data(h, output)
+    added, history = 0, []
+    while True:
+        with SnapshotStore.open(store) as s:
+            sur = fit_from_store(s, pod=template.pod, kriging=template.kriging, output=output)
+            U_train = s.parameters(physical=False, only_done=True)
+            space = s.space
+        summary = held_out_errors(sur, Xh, Yh, with_loo=False).summary()
+        history.append({"n_train": len(U_train), "median": summary["rel_error"]["median"],
+                        "p95": summary["rel_error"]["p95"]})
+        logger.info("refine: %d snapshots, held-out median %.3g", len(U_train), history[-1]["median"])
+        if history[-1]["median"] <= target_error:
+            reason = f"target {target_error:g} reached"
+            break
+        if added >= budget:
+            reason = f"budget of {budget} FE runs used"
+            break
+        k = min(batch, budget - added)
+        U_cand = sobol(n_candidates, space.n_params, seed + len(history))
+        _, std = sur.predict(space.from_unit(U_cand), return_std=True)
+        pick = select_batch(U_cand, np.sum(std**2, axis=1), U_train, k)
+        SnapshotStore.extend(store, U_cand[pick])
+        summary_run = run_pending(store, workers=workers)
+        added += len(pick)
+        if summary_run.failed_now:
+            logger.warning("refine: %d of %d new FE runs failed (kept as failed rows)", summary_run.failed_now,
+                           len(pick))
+    sur.provenance_["refinement"] = {"added": added, "history": history, "stop_reason": reason}
+    sur.save(file)
+    return {"added": added, "history": history, "stop_reason": reason}

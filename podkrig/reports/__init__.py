@@ -1,0 +1,1 @@
+"""Figures and HTML reports: they read result objects and never compute them."""

@@ -1,0 +1,189 @@
+"""Figures and a one-page HTML report of a POD-kriging surrogate and its held-out errors.
+
+Presentation only: every function takes fitted objects or result dataclasses
+(:class:`~podkrig.validation.HeldOutReport`) and writes PNG files; nothing is computed here beyond
+reshaping for display. matplotlib is imported lazily with the non-interactive Agg backend.
+"""
+
+import html
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_energy(pod, path):
+    """Energy decay of the POD: singular values² share and the unretained energy, log scale."""
+    plt = _plt()
+    s2 = pod.singular_values_**2
+    k = np.arange(1, len(s2) + 1)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.semilogy(k, s2 / s2.sum(), "o-", label=r"energy share $\lambda_k / \sum \lambda$")
+    rest = np.clip(1.0 - pod.energy_, 1e-18, None)
+    ax.semilogy(k, rest, "s--", label=r"unretained energy $1 - \sum_{j \leq k} \lambda_j / \sum \lambda$")
+    ax.axvline(pod.n_modes_, color="k", lw=0.8, ls=":", label=f"retained: {pod.n_modes_} modes")
+    ax.set_xlabel("mode number k (-)")
+    ax.set_ylabel("energy share (-)")
+    ax.set_title("POD energy decay")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_reading_modes(pod, sensor_names, load_levels, load_unit, path, n_show=4):
+    """First POD modes of readings: one panel per mode, one line per sensor over the load levels."""
+    plt = _plt()
+    n_loads, n_sensors = len(load_levels), len(sensor_names)
+    n_show = min(n_show, pod.n_modes_)
+    fig, axes = plt.subplots(1, n_show, figsize=(3.2 * n_show, 3.4), squeeze=False)
+    for k in range(n_show):
+        ax = axes[0, k]
+        mode = pod.modes_[k].reshape(n_loads, n_sensors)
+        for j, name in enumerate(sensor_names):
+            ax.plot(load_levels, mode[:, j], "o-", ms=3, label=name)
+        ax.set_title(f"mode {k + 1}")
+        ax.set_xlabel(f"load ({load_unit})")
+        ax.set_ylabel("mode component (mm per unit coefficient)" if k == 0 else "")
+        ax.axhline(0, color="k", lw=0.5)
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_field_modes(pod, nodes, path, n_show=3, load_index=-1):
+    """First POD modes of displacement fields on the mesh (magnitude at one load level, coloured)."""
+    plt = _plt()
+    n_nodes = len(nodes)
+    n_show = min(n_show, pod.n_modes_)
+    fig, axes = plt.subplots(1, n_show, figsize=(4 * n_show, 3.8), squeeze=False)
+    for k in range(n_show):
+        ax = axes[0, k]
+        mode = pod.modes_[k].reshape(-1, n_nodes, 2)[load_index]
+        mag = np.hypot(mode[:, 0], mode[:, 1])
+        sc = ax.scatter(nodes[:, 0], nodes[:, 1], c=mag, s=2, cmap="viridis")
+        ax.set_aspect("equal")
+        ax.set_title(f"mode {k + 1} (last load level)")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        fig.colorbar(sc, ax=ax, label="|mode| (mm per unit coefficient)", shrink=0.8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_error_histograms(errors_by_label, path):
+    """Histograms of held-out relative errors per semivariogram and exponent (cf. thesis Fig. 4.4)."""
+    plt = _plt()
+    labels = list(errors_by_label)
+    fig, axes = plt.subplots(len(labels), 1, figsize=(6, 1.8 * len(labels) + 0.6), sharex=True, squeeze=False)
+    allv = np.concatenate([np.asarray(v, float) for v in errors_by_label.values()])
+    allv = allv[allv > 0]
+    lo, hi = (allv.min(), allv.max()) if len(allv) else (1e-6, 1.0)
+    bins = np.logspace(np.log10(lo), np.log10(hi) + 1e-9, 30)
+    for ax, label in zip(axes[:, 0], labels):
+        e = np.asarray(errors_by_label[label], float)
+        ax.hist(np.clip(e, lo, hi), bins=bins, color="C0", alpha=0.8)
+        ax.axvline(np.median(e), color="C3", lw=1, label=f"median {np.median(e):.2e}")
+        ax.set_xscale("log")
+        ax.set_ylabel("samples (-)")
+        ax.set_title(label, fontsize=9)
+        ax.legend(fontsize=7)
+    axes[-1, 0].set_xlabel(r"held-out relative error $\|\hat y - y\| / \|y\|$ (-)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def plot_predicted_vs_fe(report, path, unit="mm"):
+    """Surrogate prediction against the FE value for every held-out output, with ±2σ bars."""
+    plt = _plt()
+    y, p, s = report.Y_true.ravel(), report.Y_pred.ravel(), report.Y_std.ravel()
+    if len(y) > 20000:  # keep the figure light for full fields
+        idx = np.random.default_rng(0).choice(len(y), 20000, replace=False)
+        y, p, s = y[idx], p[idx], s[idx]
+    fig, ax = plt.subplots(figsize=(5, 5))
+    ax.errorbar(y, p, yerr=2 * s, fmt=".", ms=2, lw=0.3, alpha=0.5, label=r"prediction $\pm 2\sigma$")
+    lim = [min(y.min(), p.min()), max(y.max(), p.max())]
+    ax.plot(lim, lim, "k-", lw=0.8, label="prediction = FE")
+    ax.set_xlabel(f"FE value ({unit})")
+    ax.set_ylabel(f"surrogate prediction ({unit})")
+    ax.set_title("held-out outputs")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _fmt(v):
+    return f"{v:.3g}" if isinstance(v, float) else html.escape(str(v))
+
+
+def write_html(directory, title, summary, figures, notes=()):
+    """Write ``directory/index.html``: the summary numbers (with units) and the figures beside it.
+
+    Parameters
+    ----------
+    directory : str or Path
+        Created if missing; figures are referenced by file name.
+    title : str
+    summary : dict
+        As :meth:`podkrig.validation.HeldOutReport.summary`, plus optional provenance keys.
+    figures : sequence of (caption, Path)
+    notes : sequence of str
+        Extra lines (e.g. settings, the source stores).
+
+    Returns
+    -------
+    Path of ``index.html``.
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for key in ("rel_error", "pod_error", "interp_error", "loo_error"):
+        if key in summary:
+            d = summary[key]
+            rows.append(f"<tr><td>{key.replace('_', ' ')} (-)</td>" + "".join(
+                f"<td>{d[k]:.3e}</td>" for k in ("median", "p95", "max")) + "</tr>")
+    scalars = "".join(
+        f"<li>{html.escape(k)}: {_fmt(v)}</li>" for k, v in summary.items() if not isinstance(v, (dict, list))
+    )
+    figs = "".join(
+        f'<figure><img src="{html.escape(Path(p).name)}" alt="{html.escape(c)}"><figcaption>{html.escape(c)}'
+        "</figcaption></figure>" for c, p in figures
+    )
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}td,th{{padding:0.2em 0.8em;text-align:right}}
+img{{max-width:100%}}figure{{margin:1.5em 0}}</style></head><body>
+<h1>{html.escape(title)}</h1>
+<ul>{scalars}</ul>
+<p>Relative errors are per held-out sample, ‖ŷ − y‖ / ‖y‖ over all outputs (dimensionless);
+coverage is the share of held-out outputs (mm) within ±2σ of the prediction.</p>
+<table><tr><th></th><th>median</th><th>p95</th><th>max</th></tr>{''.join(rows)}</table>
+<ul>{''.join(f'<li>{html.escape(n)}</li>' for n in notes)}</ul>
+{figs}
+<details><summary>summary (JSON)</summary><pre>{html.escape(json.dumps(summary, indent=2, default=str))}</pre></details>
+</body></html>
+"""
+    out = directory / "index.html"
+    out.write_text(page, encoding="utf-8")
+    return out

@@ -1,0 +1,470 @@
+"""The POD-kriging surrogate: a POD basis of the snapshots plus one kriging interpolant per mode.
+
+Conventions: parameter vectors ``X`` of shape ``(n_samples, n_params)`` in physical units (scaled
+to the unit cube inside, by a :class:`~podkrig.parameters.ParameterSpace` or by the training
+bounds); snapshots ``Y`` of shape ``(n_samples, ...)``, e.g. readings ``(n, n_loads, n_sensors)``
+or fields ``(n, n_loads, n_nodes, 2)`` in mm, flattened in C order to ``(n, n_outputs)`` for the POD.
+
+Example
+-------
+>>> import numpy as np
+>>> from podkrig.surrogate import PODKriging
+>>> from podkrig.pod import POD
+>>> from podkrig.kriging import OrdinaryKriging
+>>> rng = np.random.default_rng(0)
+>>> X = rng.uniform([10, 4], [1000, 400], size=(40, 2))
+>>> Y = np.stack([np.outer([1, 2, 3], [1 / x[0], 1 / x[1], 1 / x[0] + 1 / x[1]]) for x in X])
+>>> sur = PODKriging(pod=POD(energy=1 - 1e-10), kriging=OrdinaryKriging(beta=1.8)).fit(X, Y)
+>>> sur.predict(X[:2], reshape=True).shape
+(2, 3, 3)
+
+References
+----------
+.. [1] The thesis, ch. 4 (POD and ordinary kriging; sources of error of the approximation).
+.. [2] L. Sirovich, "Turbulence and the dynamics of coherent structures", Q. Appl. Math. 45(3),
+   561–571, 1987.
+.. [3] J. Sacks, W. J. Welch, T. J. Mitchell, H. P. Wynn, "Design and analysis of computer
+   experiments", Statistical Science 4(4), 409–423, 1989.
+"""
+
+import datetime
+import json
+import logging
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .exceptions import NotFittedError, SchemaError, StoreError
+from .kriging import OrdinaryKriging
+from .parameters import ParameterSpace
+from .pod import POD
+
+logger = logging.getLogger(__name__)
+
+FORMAT = "podkrig.surrogate"
+SCHEMA_VERSION = 1
+DEFAULT_ENERGY = 1 - 1e-8
+_BOX_TOL = 1e-9  # unit-cube slack of the extrapolation check (rounding of log scales)
+
+
+def _clone(estimator):
+    return type(estimator)(**estimator.get_params())
+
+
+class PODKriging:
+    """POD of the snapshots, ordinary kriging of each retained POD coefficient.
+
+    Parameters
+    ----------
+    pod : POD, optional
+        Template of the POD (copied at ``fit``); default ``POD(energy=1 - 1e-8)``.
+    kriging : OrdinaryKriging, optional
+        Template of the kriging (copied at ``fit``; its hyperparameters are fitted per mode);
+        default ``OrdinaryKriging()``.
+    space : ParameterSpace, optional
+        Maps parameters to the unit cube (linear or log per parameter) and defines the trained
+        box. Without it the training samples' bounding box is mapped linearly to the unit cube.
+
+    Attributes
+    ----------
+    pod_ : POD
+    kriging_ : OrdinaryKriging
+    X_ : ndarray of shape (n_samples, n_params)
+        Training parameters, physical units.
+    lower_, upper_ : ndarray of shape (n_params,)
+        The trained box, physical units.
+    output_shape_ : tuple
+        Shape of one snapshot, e.g. ``(n_loads, n_sensors)``.
+    residual_variance_ : ndarray of shape (n_outputs,)
+        POD truncation part of the predictive variance, output units².
+    train_norm_, train_residual_norm_ : ndarray of shape (n_samples,)
+        :math:`\\|y_i\\|` and the POD truncation residual :math:`\\|y_i - P y_i\\|` of the training
+        snapshots, output units (for the leave-one-out errors).
+    provenance_ : dict
+        Source store, its content hash, sensor names, load levels, ... (filled by
+        :func:`fit_from_store`; ``package_version`` and ``created`` always).
+
+    Notes
+    -----
+    Prediction :math:`\\hat y(x) = \\bar y + \\sum_k \\hat a_k(x) \\varphi_k`; predictive variance
+    per output :math:`o`
+
+    .. math::
+
+        \\sigma^2_o(x) = \\sum_k \\sigma^2_{K,k}(x) \\, \\varphi_{k,o}^2 + r_o,
+
+    with the kriging variance :math:`\\sigma^2_{K,k}` of mode :math:`k` (modes independent) and the
+    mean squared residual :math:`r_o` of the training snapshots off the retained basis (POD
+    truncation error).
+    """
+
+    def __init__(self, pod=None, kriging=None, space=None):
+        self.pod = pod
+        self.kriging = kriging
+        self.space = space
+
+    def get_params(self, deep=True):
+        """Hyperparameters as a dict (scikit-learn convention)."""
+        return {"pod": self.pod, "kriging": self.kriging, "space": self.space}
+
+    # ------------------------------------------------------------------ scaling
+    def _to_unit(self, X):
+        if self.space is not None:
+            return self.space.to_unit(X)
+        return (X - self.lower_) / (self.upper_ - self.lower_)
+
+    @property
+    def parameter_names(self):
+        """Names of the parameters (from the space, else ``x0, x1, ...``)."""
+        if self.space is not None:
+            return self.space.names
+        return tuple(f"x{k}" for k in range(self.X_.shape[1]))
+
+    # ------------------------------------------------------------------ fit / predict
+    def fit(self, X, Y):
+        """Fit the POD basis and one kriging interpolant per retained mode.
+
+        Parameters
+        ----------
+        X : array_like of shape (n_samples, n_params)
+            Parameter vectors, physical units (inside ``space`` when one is given).
+        Y : array_like of shape (n_samples, ...)
+            Snapshots, e.g. readings ``(n, n_loads, n_sensors)`` in mm.
+
+        Returns
+        -------
+        self : PODKriging
+
+        Raises
+        ------
+        ValueError
+            Mismatched shapes, samples outside the space, or a parameter that does not vary.
+        """
+        X = np.array(X, dtype=float, copy=True)
+        Y = np.asarray(Y, dtype=float)
+        if X.ndim != 2:
+            raise ValueError(f"X must have shape (n_samples, n_params); got {X.shape}")
+        if Y.ndim < 2 or Y.shape[0] != X.shape[0]:
+            raise ValueError(f"Y must have shape ({X.shape[0]}, ...) (one snapshot per row of X); got {Y.shape}")
+        if self.space is not None:
+            if X.shape[1] != self.space.n_params:
+                raise ValueError(f"X has {X.shape[1]} columns but the space has parameters {list(self.space.names)}")
+            lower, upper = self.space.lower, self.space.upper
+            U = self.space.to_unit(X)
+            if U.min() < -_BOX_TOL or U.max() > 1 + _BOX_TOL:
+                k = int(np.argmax(np.any((U < -_BOX_TOL) | (U > 1 + _BOX_TOL), axis=0)))
+                raise ValueError(
+                    f"training samples of {self.space.names[k]!r} lie outside its bounds "
+                    f"[{lower[k]:g}, {upper[k]:g}] {self.space.units[k]}; widen the space"
+                )
+            U = np.clip(U, 0.0, 1.0)
+        else:
+            lower, upper = X.min(axis=0), X.max(axis=0)
+            flat = np.flatnonzero(upper <= lower)
+            if len(flat):
+                raise ValueError(
+                    f"parameter column {int(flat[0])} is constant ({lower[flat[0]]:g}) in the training "
+                    "samples; remove it or give a ParameterSpace"
+                )
+            self.lower_, self.upper_ = lower, upper  # _to_unit reads them
+            U = self._to_unit(X)
+        self.lower_, self.upper_ = np.asarray(lower, float), np.asarray(upper, float)
+        self.output_shape_ = tuple(Y.shape[1:])
+        Yf = Y.reshape(len(Y), -1)
+        self.pod_ = _clone(self.pod if self.pod is not None else POD(energy=DEFAULT_ENERGY)).fit(Yf)
+        A = self.pod_.transform(Yf)
+        self.train_norm_ = np.linalg.norm(Yf, axis=1)
+        self.train_residual_norm_ = np.linalg.norm(Yf - self.pod_.inverse_transform(A), axis=1)
+        self.kriging_ = _clone(self.kriging if self.kriging is not None else OrdinaryKriging()).fit(U, A)
+        self.X_ = X
+        self.U_ = U
+        self.residual_variance_ = self.pod_.residual_variance_
+        self.n_features_in_ = X.shape[1]
+        self.provenance_ = {"package_version": __version__, "created": _now()}
+        logger.info("POD-kriging fitted: %d samples, %d outputs, %d modes", len(X), Yf.shape[1],
+                    self.pod_.n_modes_)
+        return self
+
+    def _check_fitted(self):
+        if not hasattr(self, "kriging_"):
+            raise NotFittedError("this PODKriging instance is not fitted yet; call fit(X, Y) first")
+
+    @property
+    def n_modes_(self):
+        """Number of retained POD modes."""
+        self._check_fitted()
+        return self.pod_.n_modes_
+
+    def check_box(self, X, extrapolate=False):
+        """Unit-cube coordinates of ``X``; refuse (or warn about) samples outside the trained box.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, n_params)
+            Physical units.
+        extrapolate : bool
+            Warn instead of raising.
+
+        Returns
+        -------
+        U : ndarray of shape (n, n_params)
+        """
+        self._check_fitted()
+        X = np.asarray(X, dtype=float)
+        if X.ndim == 1:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != self.n_features_in_:
+            raise ValueError(
+                f"X must have shape (n, {self.n_features_in_}) for parameters {list(self.parameter_names)}; "
+                f"got {X.shape}"
+            )
+        if not np.all(np.isfinite(X)):
+            raise ValueError("X must be finite; found NaN or inf")
+        U = self._to_unit(X)
+        out = (U < -_BOX_TOL) | (U > 1 + _BOX_TOL)
+        if out.any():
+            i, k = (int(v[0]) for v in np.nonzero(out))
+            unit = self.space.units[k] if self.space is not None else ""
+            msg = (
+                f"{int(out.any(axis=1).sum())} of {len(X)} samples lie outside the trained box, e.g. sample "
+                f"{i}: {self.parameter_names[k]} = {X[i, k]:g} {unit} not in "
+                f"[{self.lower_[k]:g}, {self.upper_[k]:g}]".replace("  ", " ")
+            )
+            if not extrapolate:
+                raise ValueError(msg + "; the surrogate does not extrapolate: pass extrapolate=True "
+                                       "to predict anyway (accuracy unknown) or train on a wider space")
+            warnings.warn(msg + "; extrapolating, accuracy unknown", UserWarning, stacklevel=3)
+        return U
+
+    def predict(self, X, return_std=False, *, extrapolate=False, reshape=False):
+        """Predicted snapshots (and standard deviations) for a batch of parameter vectors.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, n_params)
+            Physical units, inside the trained box.
+        return_std : bool, default False
+            Also return the predictive standard deviation (kriging variance of every mode plus the
+            POD truncation variance).
+        extrapolate : bool, default False
+            Allow samples outside the trained box (with a warning).
+        reshape : bool, default False
+            Return ``(n, *output_shape_)`` (e.g. ``(n, n_loads, n_sensors)``) instead of
+            ``(n, n_outputs)``.
+
+        Returns
+        -------
+        Y : ndarray of shape (n, n_outputs) or (n, *output_shape_)
+            Output units (mm for readings and fields).
+        std : ndarray, same shape
+            Only with ``return_std``.
+
+        Raises
+        ------
+        ValueError
+            Samples outside the trained box without ``extrapolate=True``.
+        """
+        U = self.check_box(X, extrapolate)
+        if return_std:
+            A, S = self.kriging_.predict(U, return_std=True)
+        else:
+            A = self.kriging_.predict(U)
+        Y = self.pod_.inverse_transform(A.reshape(len(U), -1))
+        shape = (len(U), *self.output_shape_) if reshape else Y.shape
+        if not return_std:
+            return Y.reshape(shape)
+        var = (S.reshape(len(U), -1) ** 2) @ (self.pod_.modes_**2) + self.residual_variance_
+        return Y.reshape(shape), np.sqrt(var).reshape(shape)
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, path):
+        """Write the fitted surrogate to an HDF5 file (no pickle), with its provenance.
+
+        Parameters
+        ----------
+        path : str or Path
+            Written atomically (temporary file, then renamed).
+        """
+        import h5py
+
+        self._check_fitted()
+        path = Path(path)
+        tmp = path.with_name(f".{path.name}.tmp")
+        pod, kr = self.pod_, self.kriging_
+        settings = {
+            "pod": pod.get_params(),
+            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
+                        for k, v in kr.get_params().items()},
+        }
+        try:
+            with h5py.File(tmp, "w") as f:
+                f.attrs["format"] = FORMAT
+                f.attrs["schema_version"] = SCHEMA_VERSION
+                f.attrs["settings"] = json.dumps(settings, sort_keys=True)
+                f.attrs["provenance"] = json.dumps(self.provenance_, sort_keys=True, default=_jsonable)
+                f.attrs["parameter_space"] = json.dumps(self.space.to_dict() if self.space is not None else None)
+                f.attrs["output_shape"] = json.dumps(list(self.output_shape_))
+                f.attrs["saved"] = _now()
+                f.attrs["package_version"] = __version__
+                f.create_dataset("X", data=self.X_).attrs["unit"] = "physical parameter units"
+                f.create_dataset("U", data=self.U_)
+                f.create_dataset("lower", data=self.lower_)
+                f.create_dataset("upper", data=self.upper_)
+                f.create_dataset("train_norm", data=self.train_norm_)
+                f.create_dataset("train_residual_norm", data=self.train_residual_norm_)
+                g = f.create_group("pod")
+                g.attrs["method"] = pod.method_
+                g.attrs["n_samples"] = pod.n_samples_
+                for name in ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_"):
+                    g.create_dataset(name.rstrip("_"), data=getattr(pod, name))
+                g = f.create_group("kriging")
+                g.attrs["kind"] = kr.kind_
+                g.attrs["y_1d"] = bool(kr._y_1d)
+                for name in _KRIGING_ARRAYS:
+                    g.create_dataset(name.rstrip("_"), data=getattr(kr, name))
+            tmp.replace(path)
+        finally:
+            tmp.unlink(missing_ok=True)
+
+    @classmethod
+    def load(cls, path):
+        """Read a surrogate written by :meth:`save`; predictions are bitwise identical.
+
+        Raises
+        ------
+        StoreError
+            Missing, unreadable or non-surrogate file.
+        SchemaError
+            Unknown schema version.
+        """
+        import h5py
+
+        path = Path(path)
+        if not path.is_file():
+            raise StoreError(f"no surrogate file at {path}; build one with 'podkrig surrogate build'")
+        try:
+            f = h5py.File(path, "r")
+        except OSError as e:
+            raise StoreError(f"{path} cannot be read as HDF5 ({e}); rebuild the surrogate") from e
+        with f:
+            if f.attrs.get("format") != FORMAT:
+                raise StoreError(f"{path} is not a podkrig surrogate (format {f.attrs.get('format')!r}); "
+                                 "pass the file written by 'podkrig surrogate build'")
+            if int(f.attrs.get("schema_version", -1)) != SCHEMA_VERSION:
+                raise SchemaError(f"{path} has surrogate schema version {f.attrs.get('schema_version')!r}; "
+                                  f"this podkrig reads {SCHEMA_VERSION}; rebuild it")
+            try:
+                settings = json.loads(f.attrs["settings"])
+                space = json.loads(f.attrs["parameter_space"])
+                kr_settings = dict(settings["kriging"])
+                if isinstance(kr_settings.get("range_bounds"), list):
+                    kr_settings["range_bounds"] = tuple(kr_settings["range_bounds"])
+                sur = cls(pod=POD(**settings["pod"]), kriging=OrdinaryKriging(**kr_settings),
+                          space=ParameterSpace.from_dict(space) if space is not None else None)
+                pod = _clone(sur.pod)
+                g = f["pod"]
+                for name in ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_"):
+                    setattr(pod, name, g[name.rstrip("_")][...])
+                pod.method_ = str(g.attrs["method"])
+                pod.n_samples_ = int(g.attrs["n_samples"])
+                pod.n_modes_, pod.n_outputs_ = pod.modes_.shape
+                kr = _clone(sur.kriging)
+                g = f["kriging"]
+                for name in _KRIGING_ARRAYS:
+                    setattr(kr, name, g[name.rstrip("_")][...])
+                kr.kind_ = int(g.attrs["kind"])
+                kr._y_1d = bool(g.attrs["y_1d"])
+                kr.n_outputs_ = kr.alpha_.shape[0]
+                kr.n_features_in_ = kr.X_.shape[1]
+                sur.pod_, sur.kriging_ = pod, kr
+                sur.X_, sur.U_ = f["X"][...], f["U"][...]
+                sur.lower_, sur.upper_ = f["lower"][...], f["upper"][...]
+                sur.train_norm_ = f["train_norm"][...]
+                sur.train_residual_norm_ = f["train_residual_norm"][...]
+                sur.output_shape_ = tuple(json.loads(f.attrs["output_shape"]))
+                sur.residual_variance_ = pod.residual_variance_
+                sur.n_features_in_ = sur.X_.shape[1]
+                sur.provenance_ = json.loads(f.attrs["provenance"])
+            except (KeyError, ValueError, TypeError) as e:
+                raise StoreError(f"{path} is a damaged surrogate file ({type(e).__name__}: {e}); rebuild it") from e
+        return sur
+
+
+_KRIGING_ARRAYS = ("X_", "ranges_", "beta_", "mu_", "sigma2_", "alpha_", "L_", "Q_", "q1_", "c0_",
+                   "criterion_", "loo_residuals_", "loo_variance_", "n_evaluations_")
+
+
+def _now():
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+
+
+def _jsonable(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.integer, np.floating)):
+        return v.item()
+    return str(v)
+
+
+def training_data(store, output="readings"):
+    """Parameters and snapshots of the finished rows of a snapshot store.
+
+    Parameters
+    ----------
+    store : podkrig.store.SnapshotStore
+        An open store.
+    output : {"readings", "field"}
+        Sensor readings ``(n, n_loads, n_sensors)`` or displacement fields
+        ``(n, n_loads, n_nodes, 2)``, mm.
+
+    Returns
+    -------
+    X : ndarray of shape (n_done, n_params)
+        Physical parameters.
+    Y : ndarray of shape (n_done, ...)
+        Snapshots, mm.
+    """
+    if output not in ("readings", "field"):
+        raise ValueError(f"output must be 'readings' or 'field'; got {output!r}")
+    X = store.parameters(physical=True, only_done=True)
+    Y = store.readings(only_done=True) if output == "readings" else store.fields(only_done=True)
+    if len(X) < 3:
+        raise ValueError(f"{store.path} has {len(X)} finished snapshots; the surrogate needs at least 3 "
+                         "(run 'podkrig snapshots run' first)")
+    return X, Y
+
+
+def fit_from_store(store, pod=None, kriging=None, output="readings"):
+    """Fit a :class:`PODKriging` on a snapshot store and record where it came from.
+
+    Parameters
+    ----------
+    store : podkrig.store.SnapshotStore
+        An open store; its parameter space scales the inputs.
+    pod, kriging : optional
+        Templates, as in :class:`PODKriging`.
+    output : {"readings", "field"}
+
+    Returns
+    -------
+    PODKriging
+        With ``provenance_`` holding the store path and content hash, scenario spec, sensor names,
+        load levels and unit, the output kind and the number of nodes.
+    """
+    X, Y = training_data(store, output)
+    sur = PODKriging(pod=pod, kriging=kriging, space=store.space).fit(X, Y)
+    sur.provenance_.update({
+        "source_store": str(Path(store.path).resolve()),
+        "source_content_hash": store.content_hash(),
+        "scenario_spec": store.spec.to_dict(),
+        "sensor_names": list(store.sensor_names),
+        "load_levels": np.asarray(store.load_levels).tolist(),
+        "load_unit": store.load_unit,
+        "reading_unit": getattr(store, "reading_unit", "mm"),
+        "output": output,
+        "n_nodes": int(getattr(store, "n_nodes", 0) or 0),
+        "n_train": len(X),
+    })
+    return sur

@@ -1,0 +1,200 @@
+"""Errors of a POD-kriging surrogate: held-out FE runs, closed-form leave-one-out, coverage.
+
+Conventions: snapshots ``Y`` of shape ``(n_samples, ...)`` (flattened to ``(n, n_outputs)``), mm;
+parameters ``X`` ``(n, n_params)`` in physical units. Relative errors are per sample,
+:math:`\\|\\hat y - y\\| / \\|y\\|` over all outputs of the snapshot (dimensionless).
+
+Error split (thesis ch. 4, "sources of error"): with :math:`P` the projection onto the affine POD
+space, :math:`y - \\hat y = (y - P y) + (P y - \\hat y)`; the first term (POD truncation) is
+orthogonal to the basis and the second lies in it, so
+:math:`\\|y - \\hat y\\|^2 = \\|y - Py\\|^2 + \\|Py - \\hat y\\|^2` exactly.
+
+Example
+-------
+>>> rep = held_out_errors(surrogate, X_test, Y_test)          # doctest: +SKIP
+>>> rep.summary()["rel_error"]["median"]                      # doctest: +SKIP
+0.0016
+"""
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+
+def relative_errors(Y_pred, Y_true):
+    """Per-sample relative error :math:`\\|\\hat y - y\\| / \\|y\\|`.
+
+    Parameters
+    ----------
+    Y_pred, Y_true : array_like of shape (n_samples, ...)
+        Same shape, output units.
+
+    Returns
+    -------
+    ndarray of shape (n_samples,)
+        Dimensionless; ``inf`` for a zero snapshot with a nonzero error.
+    """
+    Y_pred, Y_true = np.asarray(Y_pred, float), np.asarray(Y_true, float)
+    if Y_pred.shape != Y_true.shape:
+        raise ValueError(f"predicted and true snapshots differ in shape: {Y_pred.shape} vs {Y_true.shape}")
+    n = len(Y_true)
+    err = np.linalg.norm((Y_pred - Y_true).reshape(n, -1), axis=1)
+    norm = np.linalg.norm(Y_true.reshape(n, -1), axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(err == 0, 0.0, err / norm)
+
+
+def summarize(errors):
+    """``{"median", "p95", "max", "mean"}`` of per-sample errors (floats)."""
+    e = np.asarray(errors, float)
+    return {"median": float(np.median(e)), "p95": float(np.percentile(e, 95)), "max": float(np.max(e)),
+            "mean": float(np.mean(e))}
+
+
+@dataclass(frozen=True, eq=False)
+class HeldOutReport:
+    """Errors of a surrogate on held-out FE runs.
+
+    Attributes
+    ----------
+    rel_error : ndarray of shape (n_held_out,)
+        :math:`\\|\\hat y - y\\| / \\|y\\|` per held-out sample.
+    pod_error : ndarray of shape (n_held_out,)
+        POD truncation part :math:`\\|y - P y\\| / \\|y\\|`.
+    interp_error : ndarray of shape (n_held_out,)
+        Interpolation part :math:`\\|P y - \\hat y\\| / \\|y\\|`.
+    coverage_2sigma : float
+        Share of all held-out outputs with :math:`|\\hat y - y| \\le 2 \\sigma`.
+    X : ndarray of shape (n_held_out, n_params)
+    Y_true, Y_pred, Y_std : ndarray of shape (n_held_out, n_outputs)
+        mm (output units).
+    n_train, n_modes : int
+    loo_error : ndarray of shape (n_train,) or None
+        Closed-form leave-one-out relative errors of the training snapshots.
+    """
+
+    rel_error: np.ndarray
+    pod_error: np.ndarray
+    interp_error: np.ndarray
+    coverage_2sigma: float
+    X: np.ndarray
+    Y_true: np.ndarray
+    Y_pred: np.ndarray
+    Y_std: np.ndarray
+    n_train: int
+    n_modes: int
+    loo_error: np.ndarray | None = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def n_held_out(self):
+        return len(self.rel_error)
+
+    def summary(self):
+        """JSON-able dict: ``n_train``, ``n_held_out``, ``n_modes``, ``rel_error``, ``pod_error``,
+        ``interp_error``, ``loo_error`` (each ``{median, p95, max, mean}``), ``coverage_2sigma``."""
+        out = {
+            "n_train": int(self.n_train),
+            "n_held_out": int(self.n_held_out),
+            "n_modes": int(self.n_modes),
+            "rel_error": summarize(self.rel_error),
+            "pod_error": summarize(self.pod_error),
+            "interp_error": summarize(self.interp_error),
+            "coverage_2sigma": float(self.coverage_2sigma),
+        }
+        if self.loo_error is not None:
+            out["loo_error"] = summarize(self.loo_error)
+        out.update(self.extra)
+        return out
+
+
+def held_out_errors(surrogate, X, Y, *, with_loo=True):
+    """Compare a fitted :class:`~podkrig.surrogate.PODKriging` with held-out FE snapshots.
+
+    Parameters
+    ----------
+    surrogate : PODKriging
+        Fitted.
+    X : array_like of shape (n_held_out, n_params)
+        Physical units, inside the trained box.
+    Y : array_like of shape (n_held_out, ...)
+        FE snapshots with the training snapshots' shape, mm.
+    with_loo : bool, default True
+        Also compute the closed-form leave-one-out errors of the training snapshots.
+
+    Returns
+    -------
+    HeldOutReport
+    """
+    X = np.asarray(X, float)
+    Y = np.asarray(Y, float)
+    if Y.shape[1:] != tuple(surrogate.output_shape_):
+        raise ValueError(
+            f"held-out snapshots have shape {Y.shape[1:]} per sample, the surrogate predicts "
+            f"{tuple(surrogate.output_shape_)}; use held-out runs of the same scenario and output"
+        )
+    if len(X) != len(Y) or len(X) == 0:
+        raise ValueError(f"need as many held-out parameter vectors as snapshots (>= 1); got {len(X)} and {len(Y)}")
+    Yf = Y.reshape(len(Y), -1)
+    pred, std = surrogate.predict(X, return_std=True)
+    proj = surrogate.pod_.project(Yf)
+    norm = np.linalg.norm(Yf, axis=1)
+    norm = np.where(norm > 0, norm, np.inf)
+    rel = relative_errors(pred, Yf)
+    pod = np.linalg.norm(Yf - proj, axis=1) / norm
+    interp = np.linalg.norm(proj - pred, axis=1) / norm
+    coverage = float(np.mean(np.abs(pred - Yf) <= 2.0 * std))
+    loo = loo_errors(surrogate) if with_loo else None
+    logger.info("held-out: %d samples, median relative error %.3g, coverage %.3f", len(X), np.median(rel), coverage)
+    return HeldOutReport(rel, pod, interp, coverage, X, Yf, pred, std, len(surrogate.X_),
+                         surrogate.pod_.n_modes_, loo)
+
+
+def loo_errors(surrogate):
+    """Closed-form leave-one-out relative errors of the training snapshots (Dubrule 1983).
+
+    The kriging of each POD coefficient is left out one sample at a time in closed form, at fixed
+    hyperparameters and with the POD basis of all training samples; the error of snapshot
+    :math:`i` is :math:`\\| \\sum_k e_{ik} \\varphi_k + (y_i - P y_i) \\| / \\|y_i\\|` with the
+    kriging LOO residuals :math:`e_{ik}`.
+
+    Returns
+    -------
+    ndarray of shape (n_train,)
+    """
+    E = surrogate.kriging_.loo_residuals_  # (n, n_modes): a_ik - a_hat_{-i}(x_i)
+    # the truncation residual y_i - P y_i is orthogonal to the basis: Pythagoras
+    err = np.sqrt(np.sum(E * E, axis=1) + surrogate.train_residual_norm_**2)
+    return err / np.where(surrogate.train_norm_ > 0, surrogate.train_norm_, np.inf)
+
+
+def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
+    """Held-out relative errors of several kriging settings on the same snapshots (thesis Fig. 4.4).
+
+    Parameters
+    ----------
+    X, Y : training parameters ``(n, n_params)`` and snapshots ``(n, ...)``
+    X_held, Y_held : held-out parameters and snapshots
+    settings : sequence of dict
+        Keyword arguments of :class:`~podkrig.kriging.OrdinaryKriging`, e.g.
+        ``[{"variogram": "exponential", "beta": 1.2}, ...]``.
+    space : ParameterSpace, optional
+    pod : POD, optional
+
+    Returns
+    -------
+    dict
+        Label (e.g. ``"exponential, beta=1.2"``) to ndarray of shape (n_held_out,) of relative errors.
+    """
+    from .kriging import OrdinaryKriging
+    from .surrogate import PODKriging
+
+    out = {}
+    for s in settings:
+        sur = PODKriging(pod=pod, kriging=OrdinaryKriging(**s), space=space).fit(X, Y)
+        label = f"{s.get('variogram', 'exponential')}, beta={s.get('beta', 'fit')}"
+        out[label] = relative_errors(sur.predict(X_held), np.asarray(Y_held).reshape(len(Y_held), -1))
+    return out

@@ -1,0 +1,85 @@
+"""``podkrig surrogate build / validate / refine`` through typer's CliRunner on small stores."""
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from podkrig.cli import app
+from podkrig.parameters import ParameterSpace
+from podkrig.runner import run_snapshots
+from podkrig.store import SnapshotStore
+
+runner = CliRunner()
+SPEC = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
+BOUNDS = {"kN_bj": (10, 1000, "log"), "kV_bj": (4, 400, "log"), "r_hj": (0.1, 1.0), "E_b": (5000, 20000)}
+
+
+@pytest.fixture(scope="module")
+def stores(tmp_path_factory, coarse_diagonal):
+    d = tmp_path_factory.mktemp("stores")
+    space = ParameterSpace.from_scenario(coarse_diagonal, BOUNDS)
+    run_snapshots(d / "train.h5", coarse_diagonal, space, n=16, seed=0, workers=1)
+    run_snapshots(d / "held.h5", coarse_diagonal, space, n=8, seed=3, sampling="random", workers=1)
+    return d
+
+
+def test_help():
+    for cmd in ("build", "validate", "refine"):
+        result = runner.invoke(app, ["surrogate", cmd, "--help"])
+        assert result.exit_code == 0, result.output
+    assert "--target-error" in runner.invoke(app, ["surrogate", "refine", "--help"]).output
+
+
+def test_build_validate_refine(stores, tmp_path):
+    out = tmp_path / "s.h5"
+    result = runner.invoke(app, ["surrogate", "build", str(stores / "train.h5"), "--out", str(out), "--beta", "1.5"])
+    assert result.exit_code == 0, result.output
+    assert "16 snapshots, 6 POD modes" in result.output and "trained in" in result.output
+
+    report = tmp_path / "report"
+    result = runner.invoke(app, ["surrogate", "validate", str(out), "--held-out", str(stores / "held.h5"),
+                                 "--report", str(report), "--format", "json"])
+    assert result.exit_code == 0, result.output
+    s = json.loads(result.output)
+    assert {"n_train", "n_held_out", "n_modes", "rel_error", "pod_error", "coverage_2sigma"} <= set(s)
+    assert (s["n_train"], s["n_held_out"], s["n_modes"]) == (16, 8, 6)
+    assert set(s["rel_error"]) >= {"median", "p95", "max"} and s["rel_error"]["median"] < 0.2
+    for name in ("index.html", "energy.png", "modes.png", "error_histograms.png", "predicted_vs_fe.png"):
+        assert (report / name).is_file(), name
+    assert "mm" in (report / "index.html").read_text()
+
+    result = runner.invoke(app, ["surrogate", "validate", str(out), "--held-out", str(stores / "held.h5")])
+    assert result.exit_code == 0 and "held-out runs" in result.output and "±2σ" in result.output
+
+    train = tmp_path / "train.h5"
+    train.write_bytes((stores / "train.h5").read_bytes())
+    result = runner.invoke(app, ["surrogate", "refine", str(out), "--store", str(train), "--held-out",
+                                 str(stores / "held.h5"), "--budget", "4", "--batch", "2",
+                                 "--candidates", "256", "--target-error", "1e-9"])
+    assert result.exit_code == 0, result.output
+    assert "4 FE runs added in 2 rounds" in result.output and "budget" in result.output
+    with SnapshotStore.open(train) as st:
+        assert st.counts()["done"] == 20  # the new runs are saved in the store
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["surrogate", "build", "missing.h5", "--out", "x.h5"], "no snapshot store at missing.h5"),
+        (["surrogate", "validate", "missing.h5", "--held-out", "h.h5"], "no surrogate file at missing.h5"),
+    ],
+)
+def test_errors_are_one_line_with_exit_code_2(args, message):
+    result = runner.invoke(app, args)
+    assert result.exit_code == 2
+    assert message in result.output
+
+
+def test_conflicting_truncation(stores, tmp_path):
+    result = runner.invoke(app, ["surrogate", "build", str(stores / "train.h5"), "--out", str(tmp_path / "x.h5"),
+                                 "--energy", "0.9", "--modes", "2"])
+    assert result.exit_code == 2 and "either --energy or --modes" in result.output
+    result = runner.invoke(app, ["surrogate", "build", str(stores / "train.h5"), "--out", str(tmp_path / "x.h5"),
+                                 "--beta", "steep"])
+    assert result.exit_code == 2 and "--beta must be" in result.output

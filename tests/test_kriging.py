@@ -1,0 +1,164 @@
+"""Ordinary kriging: interpolation, analytic gradients, closed-form LOO, agreement with
+scikit-learn GPR, numba/NumPy kernel agreement, and errors with remedies."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+from scipy.optimize import approx_fprime
+
+from podkrig.exceptions import NotFittedError
+from podkrig.kriging import OrdinaryKriging, semivariogram
+from podkrig.kriging.ordinary import _Objective, _Pairs
+
+
+def _f(X):
+    return np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1] ** 2 + 0.3 * X[:, 2], np.exp(-X[:, 0] * X[:, 1])])
+
+
+@pytest.fixture(scope="module")
+def data():
+    rng = np.random.default_rng(0)
+    X = rng.random((25, 3))
+    return X, _f(X), rng.random((40, 3))
+
+
+@pytest.mark.parametrize("kw", [{"beta": 1.5}, {"beta": "fit"}, {"variogram": "power", "beta": 1.2},
+                                {"beta": 1.8, "criterion": "loo"}])
+def test_interpolates_training_points(data, kw):
+    X, Y, _ = data
+    ok = OrdinaryKriging(**kw).fit(X, Y)
+    mean, std = ok.predict(X, return_std=True)
+    # exact interpolator; the residual is rounding amplified by the condition number of the
+    # correlation matrix, which may reach 1e12 (RCOND_MIN) when beta is fitted close to 2
+    assert_allclose(mean, Y, rtol=0, atol=1e-5)
+    # the variance at a training point is a difference of O(1) terms: rounding ~1e-12 relative
+    assert np.all(std <= 1e-5 * np.sqrt(ok.sigma2_))
+    assert ok.ranges_.shape == (2, 3) and ok.beta_.shape == (2,)
+
+
+@pytest.mark.parametrize("kind", [0, 1])
+@pytest.mark.parametrize("criterion", ["ml", "loo"])
+@pytest.mark.parametrize("beta", [1.5, None])
+def test_analytic_gradient_matches_finite_differences(data, kind, criterion, beta):
+    X, Y, _ = data
+    n = len(X)
+    i, j = np.triu_indices(n, 1)
+    A = np.abs(X[i] - X[j])
+    logA = np.log(A)
+    obj = _Objective(_Pairs(n, (i, j), A, logA, {}), Y[:, 0], kind, 0.0, criterion, beta)
+    p = np.log([0.4, 0.7, 1.3])
+    if beta is None:
+        p = np.append(p, 1.3)
+    _, g = obj(p)
+    g_fd = approx_fprime(p, lambda q: obj(q)[0], 1e-6)
+    # forward differences with step 1e-6: agreement to ~1e-5 relative
+    assert_allclose(g, g_fd, rtol=1e-4, atol=1e-5 * np.max(np.abs(g)))
+
+
+@pytest.mark.parametrize("variogram, beta", [("exponential", 1.8), ("exponential", 1.0), ("power", 1.5)])
+def test_closed_form_loo_equals_refits(data, variogram, beta):
+    X, Y, _ = data
+    y = Y[:, 0]
+    ok = OrdinaryKriging(variogram=variogram, beta=beta).fit(X, y)
+    fixed = OrdinaryKriging(variogram=variogram, beta=beta, ranges=ok.ranges_[0], optimizer=None)
+    brute = [y[k] - fixed.fit(np.delete(X, k, 0), np.delete(y, k)).predict(X[k : k + 1])[0] for k in range(len(X))]
+    # the same linear algebra in two orders: rounding of the (ill-conditioned) kriging solves
+    assert_allclose(ok.loo_residuals_[:, 0], brute, rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("beta", [1.0, 2.0])
+def test_agrees_with_sklearn_gpr(beta):
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Matern
+
+    rng = np.random.default_rng(1)
+    X = rng.random((20, 1))
+    y = np.sin(5 * X[:, 0]) + 2.0
+    Xp = rng.random((15, 1))
+    a = 0.3 if beta == 1.0 else 0.1  # a Gaussian of range 0.3 on 20 points is numerically singular
+    ok = OrdinaryKriging(beta=beta, ranges=a, optimizer=None).fit(X, y)
+    mean, std = ok.predict(Xp, return_std=True)
+    s2 = ok.sigma2_[0]
+    # beta = 1: exp(-|h|/a) = Matern(nu=0.5, length_scale=a); beta = 2: exp(-(h/a)^2) = RBF(a/sqrt(2))
+    base = Matern(a, "fixed", nu=0.5) if beta == 1.0 else RBF(a / np.sqrt(2), "fixed")
+    # ordinary kriging = the GP with known mean mu (the GLS estimate) plus the variance of
+    # estimating mu, sigma^2 (1 - 1^T R^-1 r)^2 / (1^T R^-1 1), computed here with sklearn's kernel
+    kernel = ConstantKernel(s2, "fixed") * base
+    gp = GaussianProcessRegressor(kernel, alpha=1e-14, optimizer=None).fit(X, y - ok.mu_[0])
+    m_gp, s_gp = gp.predict(Xp, return_std=True)
+    R = base(X)
+    r = base(Xp, X)
+    Rinv_1 = np.linalg.solve(R, np.ones(len(X)))
+    var = s_gp**2 + s2 * (1.0 - r @ Rinv_1) ** 2 / Rinv_1.sum()
+    # independent code (sklearn's Cholesky with alpha = 1e-14 jitter, numpy solve): agreement
+    # limited by the conditioning of R (~1e8 for the Gaussian)
+    assert_allclose(mean, m_gp + ok.mu_[0], rtol=1e-6, atol=1e-7)
+    assert_allclose(std, np.sqrt(var), rtol=1e-5, atol=1e-7 * np.sqrt(s2))
+
+
+@pytest.mark.parametrize("kw", [{"beta": 1.2}, {"beta": 1.5}, {"beta": 2.0}, {"beta": "fit"},
+                                {"variogram": "power", "beta": 1.3}])
+def test_numba_and_numpy_kernels_agree(data, kw):
+    X, Y, Xp = data
+    a = OrdinaryKriging(**kw, use_numba=True).fit(X, Y)
+    b = OrdinaryKriging(**kw, use_numba=False).fit(X, Y)
+    ma, sa = a.predict(Xp, return_std=True)
+    mb, sb = b.predict(Xp, return_std=True)
+    # the numba kernel's polynomial exp is accurate to ~1e-14 relative, amplified by the kriging
+    # weights (up to ~1e6 times the outputs for a Gaussian near the conditioning limit)
+    assert_allclose(ma, mb, rtol=1e-7, atol=1e-8)
+    assert_allclose(sa, sb, rtol=1e-6, atol=1e-8)
+
+
+def test_variance_is_positive_and_grows_away_from_data(data):
+    X, Y, _ = data
+    ok = OrdinaryKriging(beta=1.5).fit(X, Y[:, 0])
+    near = X[:1] + 1e-3
+    far = np.array([[0.999, 0.001, 0.999]])
+    assert ok.predict(far, return_std=True)[1][0] > ok.predict(near, return_std=True)[1][0] > 0
+
+
+def test_duplicates_are_refused_with_remedy(data):
+    X, Y, _ = data
+    Xd = np.vstack([X, X[3]])
+    Yd = np.vstack([Y, Y[3]])
+    with pytest.raises(ValueError, match=r"rows \[3, 25\].*remove duplicates or set a nugget"):
+        OrdinaryKriging().fit(Xd, Yd)
+    ok = OrdinaryKriging(beta=1.5, nugget=1e-6).fit(Xd, Yd)
+    assert np.all(np.isfinite(ok.predict(X)))
+
+
+@pytest.mark.parametrize(
+    "kw, message",
+    [
+        ({"beta": 2.5}, "0 < beta <= 2"),
+        ({"variogram": "power", "beta": 2.0}, "0 < beta < 2"),
+        ({"beta": "auto"}, "number in \\(0, 2\\] or 'fit'"),
+        ({"variogram": "spherical"}, "variogram must be one of"),
+        ({"criterion": "aic"}, "criterion must be one of"),
+        ({"nugget": -1.0}, "nugget must be"),
+        ({"ranges": [0.1, 0.2]}, "ranges must be a number or have shape"),
+    ],
+)
+def test_setting_errors(data, kw, message):
+    X, Y, _ = data
+    with pytest.raises(ValueError, match=message):
+        OrdinaryKriging(**kw).fit(X, Y)
+
+
+def test_input_errors(data):
+    X, Y, _ = data
+    with pytest.raises(ValueError, match="unit cube"):
+        OrdinaryKriging().fit(X * 10, Y)
+    with pytest.raises(NotFittedError, match="not fitted"):
+        OrdinaryKriging().predict(X)
+    ok = OrdinaryKriging(beta=1.5).fit(X, Y)
+    with pytest.raises(ValueError, match=r"shape \(n_pred, 3\)"):
+        ok.predict(X[:, :2])
+
+
+def test_semivariogram_shapes():
+    h = np.array([0.0, 0.5, 1.0, 100.0])
+    g = semivariogram(h, "exponential", beta=1.0, sill=2.0, range_=1.0)
+    assert_allclose(g, [0.0, 2 * (1 - np.exp(-0.5)), 2 * (1 - np.exp(-1)), 2.0], rtol=1e-12, atol=0)
+    assert_allclose(semivariogram(h, "power", beta=1.5), h**1.5, rtol=1e-12, atol=0)

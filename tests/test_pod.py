@@ -1,0 +1,94 @@
+"""POD: known orthonormal bases, truncation by energy or count, round trips, method agreement."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from podkrig.exceptions import NotFittedError
+from podkrig.pod import POD
+
+
+def _data(rng, n=40, m=30, rank=5, center=True):
+    """Snapshots mean + A @ Phi with a known orthonormal Phi (rank, m) and decaying coefficients."""
+    r = np.random.default_rng(rng)
+    Phi = np.linalg.qr(r.standard_normal((m, rank)))[0].T
+    A = r.standard_normal((n, rank)) * (10.0 ** -np.arange(rank))[None, :]
+    A -= A.mean(axis=0)
+    mean = r.standard_normal(m) if center else np.zeros(m)
+    return mean + A @ Phi, Phi, mean
+
+
+@pytest.mark.parametrize("method", ["svd", "snapshots"])
+def test_recovers_known_basis(method):
+    Y, Phi, _ = _data(0)
+    pod = POD(energy=1.0, method=method).fit(Y)
+    assert pod.n_modes_ == 5
+    # orthonormal rows; rounding-level tolerance (the method of snapshots squares the condition
+    # number, so its smallest mode (1e-4 of the first) is accurate to ~1e-8 only)
+    assert_allclose(pod.modes_ @ pod.modes_.T, np.eye(5), rtol=0, atol=1e-12 if method == "svd" else 1e-8)
+    # same subspace: the known basis projects onto the modes without residual
+    resid = Phi - (Phi @ pod.modes_.T) @ pod.modes_
+    assert_allclose(resid, 0.0, rtol=0, atol=1e-8)
+    assert_allclose(pod.mean_, Y.mean(axis=0), rtol=0, atol=1e-14)
+    assert_allclose(pod.inverse_transform(pod.transform(Y)), Y, rtol=0, atol=1e-10)
+    assert_allclose(pod.projection_error(Y), 0.0, rtol=0, atol=1e-10)
+
+
+def test_svd_and_snapshots_agree():
+    Y, _, _ = _data(1, n=20, m=200, rank=4)
+    a, b = POD(n_modes=4, method="svd").fit(Y), POD(n_modes=4, method="snapshots").fit(Y)
+    assert b.method_ == "snapshots" and POD(n_modes=4).fit(Y).method_ == "snapshots"  # auto: m > 4n
+    assert_allclose(a.singular_values_[:4], b.singular_values_[:4], rtol=1e-10, atol=0)
+    assert_allclose(a.modes_, b.modes_, rtol=0, atol=1e-7)  # signs are fixed deterministically
+
+
+def test_energy_truncation_keeps_fewest_modes():
+    Y, _, _ = _data(2, rank=5)
+    full = POD().fit(Y)
+    for energy in (0.5, 0.99, 0.9999, 0.999999):
+        pod = POD(energy=energy).fit(Y)
+        k = pod.n_modes_
+        assert full.energy_[k - 1] >= energy - 1e-12
+        assert k == 1 or full.energy_[k - 2] < energy
+    assert POD(n_modes=2).fit(Y).n_modes_ == 2
+
+
+def test_truncation_residual_variance():
+    Y, _, _ = _data(3, rank=5)
+    pod = POD(n_modes=3).fit(Y)
+    R = Y - pod.project(Y)
+    assert_allclose(pod.residual_variance_, np.mean(R**2, axis=0), rtol=1e-10, atol=1e-30)
+    # discarded energy = sum of the discarded singular values squared
+    assert_allclose(np.sum(R**2), np.sum(pod.singular_values_[3:] ** 2), rtol=1e-8, atol=0)
+
+
+def test_input_not_modified_and_uncentred():
+    Y, _, _ = _data(4)
+    before = Y.copy()
+    POD(energy=0.99).fit(Y)
+    assert np.array_equal(Y, before)
+    pod = POD(center=False).fit(Y)
+    assert np.all(pod.mean_ == 0) and pod.n_modes_ == 6  # the mean becomes a sixth direction
+
+
+@pytest.mark.parametrize(
+    "kwargs, data, message",
+    [
+        ({"n_modes": 2, "energy": 0.9}, None, "either n_modes or energy"),
+        ({"energy": 1.5}, None, "0 < energy <= 1"),
+        ({"n_modes": 0}, None, "n_modes must be an integer >= 1"),
+        ({"n_modes": 9}, None, "exceeds the numerical rank 5"),
+        ({"method": "qr"}, None, "method must be one of"),
+        ({}, np.ones((5, 3)), "all snapshots are identical"),
+        ({}, np.full((4, 3), np.nan), "must be finite"),
+    ],
+)
+def test_errors(kwargs, data, message):
+    Y = _data(5)[0] if data is None else data
+    with pytest.raises(ValueError, match=message):
+        POD(**kwargs).fit(Y)
+
+
+def test_not_fitted():
+    with pytest.raises(NotFittedError, match="call fit"):
+        POD().transform(np.ones((2, 3)))
