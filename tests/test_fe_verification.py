@@ -187,3 +187,24 @@ def test_gauges_default_layout_is_off_joints():
         sc = build_scenario({"scenario": name, "nx": 2, "ny": 1})
         assert len(sc.sensor_names) >= 5
         assert all(isinstance(s, Gauge) or s.kind == "point" for s in sc.sensors)
+
+
+def test_changing_blas_threads_between_runs_is_safe():
+    """PARDISO's symbolic analysis depends on the MKL thread count; limiting threads after the
+    first run (as a runner or benchmark does) must redo it rather than crash (run in a subprocess:
+    the failure mode is a segmentation fault)."""
+    import subprocess
+    import sys
+
+    code = (
+        "from threadpoolctl import threadpool_limits\n"
+        "from fe.scenarios import build_scenario\n"
+        "s = build_scenario({'scenario': 'diagonal_compression', 'nx': 2, 'ny': 1})\n"
+        "a = s.run().readings[-1, 0]\n"
+        "with threadpool_limits(1):\n"
+        "    b = s.run().readings[-1, 0]\n"
+        "c = s.run().readings[-1, 0]\n"
+        "assert abs(a - b) < 1e-12 and abs(a - c) < 1e-12\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr

@@ -111,7 +111,7 @@ class PardisoSolver:
         iparm[7] = 0  # no iterative refinement: SPD, direct solve to round-off
         iparm[9] = 8  # pivot perturbation 1e-8 (MKL default for symmetric matrices)
         iparm[17] = -1  # report the number of non-zeros in the factor (iparm[17] after phase 11)
-        self._analysed = False
+        self._analysed_threads = None  # MKL threads at the symbolic analysis
         self._matrix = None
 
     def _call(self, phase, rhs):
@@ -128,9 +128,14 @@ class PardisoSolver:
             shape=(self.n, self.n),
         )
         dummy = np.zeros((self.n, 1), order="F")
-        if not self._analysed:
+        # PARDISO's analysis is tied to the MKL thread count: factorising with another count
+        # (e.g. under threadpoolctl limits set after the first run) crashes, so redo it then
+        threads = self._solver.libmkl.mkl_get_max_threads()
+        if threads != self._analysed_threads:
+            if self._analysed_threads is not None:
+                self._call(-1, dummy)  # release the old analysis
             self._call(11, dummy)
-            self._analysed = True
+            self._analysed_threads = threads
         self._call(22, dummy)
 
     def solve(self, rhs):

@@ -5,7 +5,6 @@ Presentation only: every function takes fitted objects or result dataclasses
 reshaping for display. matplotlib is imported lazily with the non-interactive Agg backend.
 """
 
-import html
 import json
 import logging
 from pathlib import Path
@@ -133,10 +132,6 @@ def plot_predicted_vs_fe(report, path, unit="mm"):
     return Path(path)
 
 
-def _fmt(v):
-    return f"{v:.3g}" if isinstance(v, float) else html.escape(str(v))
-
-
 def write_html(directory, title, summary, figures, notes=()):
     """Write ``directory/index.html``: the summary numbers (with units) and the figures beside it.
 
@@ -155,35 +150,22 @@ def write_html(directory, title, summary, figures, notes=()):
     -------
     Path of ``index.html``.
     """
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    rows = []
-    for key in ("rel_error", "pod_error", "interp_error", "loo_error"):
-        if key in summary:
-            d = summary[key]
-            rows.append(f"<tr><td>{key.replace('_', ' ')} (-)</td>" + "".join(
-                f"<td>{d[k]:.3e}</td>" for k in ("median", "p95", "max")) + "</tr>")
-    scalars = "".join(
-        f"<li>{html.escape(k)}: {_fmt(v)}</li>" for k, v in summary.items() if not isinstance(v, (dict, list))
+    from .html import Page, fmt
+
+    page = Page(title)
+    page.table(["quantity", "value"], [[k.replace("_", " "), fmt(v)] for k, v in summary.items() if not isinstance(v, (dict, list))])
+    page.paragraph(
+        "Relative errors are per held-out sample, ‖ŷ − y‖ / ‖y‖ over all outputs (dimensionless); "
+        "coverage is the share of held-out outputs (mm) within ±2σ of the prediction."
     )
-    figs = "".join(
-        f'<figure><img src="{html.escape(Path(p).name)}" alt="{html.escape(c)}"><figcaption>{html.escape(c)}'
-        "</figcaption></figure>" for c, p in figures
-    )
-    page = f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
-<style>body{{font-family:sans-serif;max-width:60em;margin:2em auto}}td,th{{padding:0.2em 0.8em;text-align:right}}
-img{{max-width:100%}}figure{{margin:1.5em 0}}</style></head><body>
-<h1>{html.escape(title)}</h1>
-<ul>{scalars}</ul>
-<p>Relative errors are per held-out sample, ‖ŷ − y‖ / ‖y‖ over all outputs (dimensionless);
-coverage is the share of held-out outputs (mm) within ±2σ of the prediction.</p>
-<table><tr><th></th><th>median</th><th>p95</th><th>max</th></tr>{''.join(rows)}</table>
-<ul>{''.join(f'<li>{html.escape(n)}</li>' for n in notes)}</ul>
-{figs}
-<details><summary>summary (JSON)</summary><pre>{html.escape(json.dumps(summary, indent=2, default=str))}</pre></details>
-</body></html>
-"""
-    out = directory / "index.html"
-    out.write_text(page, encoding="utf-8")
-    return out
+    rows = [
+        [f"{key.replace('_', ' ')} (-)"] + [f"{summary[key][k]:.3e}" for k in ("median", "p95", "max")]
+        for key in ("rel_error", "pod_error", "interp_error", "loo_error") if key in summary
+    ]
+    page.table(["error", "median", "p95", "max"], rows)
+    for note in notes:
+        page.paragraph(note, "meta")
+    for caption, path in figures:
+        page.figure(Path(path).name, caption)
+    page.details("summary (JSON)", json.dumps(summary, indent=2, default=str))
+    return page.write(Path(directory) / "index.html")
