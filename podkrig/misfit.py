@@ -67,6 +67,18 @@ class Misfit:
     def n_obs(self):
         return len(self._d)
 
+    @property
+    def noise_std(self):
+        """Noise standard deviation of each observed entry, ``(n_obs,)`` mm."""
+        return self._sd
+
+    def prior_residuals(self, X):
+        """``L_M⁻¹ (m − m_prior)`` for each row of ``X``, ``(n, n_params)``; zeros without a prior."""
+        X = np.atleast_2d(X)
+        if self.prior_mean is None:
+            return np.zeros((len(X), 0))
+        return np.linalg.solve(self._prior_chol, (X - self.prior_mean).T).T
+
     def predict(self, X):
         """Model predictions at the observed entries: ``(mean, std)`` each ``(n, n_obs)`` mm."""
         mean, std = self.model(np.atleast_2d(X))
@@ -102,7 +114,5 @@ class Misfit:
         """ω(m), ``(n,)``; thesis eq. (2.13)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         omega = 0.5 * self.chi2(X)
-        if self.prior_mean is not None:
-            z = np.linalg.solve(self._prior_chol, (X - self.prior_mean).T)
-            omega = omega + 0.5 * np.einsum("ij,ij->j", z, z)
-        return omega
+        z = self.prior_residuals(X)
+        return omega + 0.5 * np.einsum("ij,ij->i", z, z)

@@ -3,7 +3,7 @@ outputs and turns domain errors into one-line messages with a hint and a non-zer
 
 import typer
 
-from . import simulate, snapshots, surrogate
+from . import invert, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -15,6 +15,7 @@ app = typer.Typer(
 simulate.register(app)
 snapshots.register(app)
 surrogate.register(app)
+invert.register(app)
 
 
 @app.callback()

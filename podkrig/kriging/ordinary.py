@@ -438,6 +438,7 @@ class OrdinaryKriging:
                 "scale them with ParameterSpace.to_unit (PODKriging does this for you)"
             )
         kind, beta, ranges0, (lo, hi) = self._check_settings(d, Y.shape[1])
+        self._ones_cache = None  # L⁻¹ 1 of the previous fit
         if self.nugget == 0:
             _check_duplicates(X)
         i, j = np.triu_indices(n, 1)
@@ -611,6 +612,13 @@ class OrdinaryKriging:
         with _one_blas_thread():
             return self._predict_variance(X)
 
+    def _ones_solved(self):
+        """``L_j⁻¹ 1`` for every output, ``(n_outputs, n)``: fixed by the fit, computed once."""
+        if getattr(self, "_ones_cache", None) is None:
+            ones = np.ones(self.X_.shape[0])
+            self._ones_cache = np.stack([solve_triangular(L, ones, lower=True, check_finite=False) for L in self.L_])
+        return self._ones_cache
+
     def _predict_variance(self, X):
         self._check_fitted()
         X = np.asarray(X, dtype=float)
@@ -619,14 +627,15 @@ class OrdinaryKriging:
         k0 = 1.0 if self.kind_ == EXPONENTIAL else 0.0
         theta = self.theta_
         var = np.empty((X.shape[0], self.n_outputs_))
-        ones = np.ones(self.X_.shape[0])
+        if self.kind_ == EXPONENTIAL:
+            u_all = self._ones_solved()
         for j in range(self.n_outputs_):
             Kx = _kernels.cross_covariance(X, self.X_, theta[j], self.beta_[j], self.kind_, self.use_numba)
             if self.kind_ == EXPONENTIAL:
                 # Sacks et al. (1989) form through triangular solves with the stored Cholesky factor
                 # (better conditioned than the Q form): V = L^-1 r, u = L^-1 1
                 V = solve_triangular(self.L_[j], Kx.T, lower=True, check_finite=False)
-                u = solve_triangular(self.L_[j], ones, lower=True, check_finite=False)
+                u = u_all[j]
                 quad = np.einsum("ip,ip->p", V, V)
                 var[:, j] = self.sigma2_[j] * (k0 - quad + (1.0 - u @ V) ** 2 * self.c0_[j])
             else:

@@ -1,0 +1,247 @@
+"""Figures of an inversion: fit, region of equivalence, RVC, posterior (matplotlib, imported lazily).
+
+Every function takes result objects, draws on a new figure, saves it to ``path`` (PNG) and returns
+the path. Units on every axis.
+"""
+
+import numpy as np
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _label(name, unit):
+    return f"{name} ({unit})" if unit and unit != "-" else f"{name} (-)"
+
+
+def plot_fit(result, path, *, load_unit="kN"):
+    """Measured vs predicted readings per sensor against load, with ±2σ noise bars."""
+    plt = _plt()
+    meas = result.problem.measurement
+    pred, std = result.predicted()
+    sd = result.problem.misfit.noise_std.reshape(meas.values.shape)
+    n = len(meas.sensor_names)
+    cols = min(n, 3)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+    for j, name in enumerate(meas.sensor_names):
+        ax = axes.flat[j]
+        ax.errorbar(meas.load_levels, meas.values[:, j], yerr=2 * sd[:, j], fmt="o", color="k", ms=4, capsize=3, label="measured ±2σ noise")
+        ax.plot(meas.load_levels, pred[:, j], "-", color="tab:red", label="calibrated model")
+        if std is not None:
+            ax.fill_between(meas.load_levels, pred[:, j] - 2 * std[:, j], pred[:, j] + 2 * std[:, j], color="tab:red", alpha=0.2, label="surrogate ±2σ")
+        ax.set_title(name)
+        ax.set_xlabel(f"load ({load_unit})")
+        ax.set_ylabel("reading (mm)")
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_residuals(result, path, *, load_unit="kN"):
+    """Standardised residuals (model − measured)/σ per sensor and load level, as a heat map."""
+    plt = _plt()
+    meas = result.problem.measurement
+    pred, _ = result.predicted()
+    sd = result.problem.misfit.noise_std.reshape(meas.values.shape)
+    z = (pred - meas.values) / sd
+    fig, ax = plt.subplots(figsize=(1.2 + 0.9 * len(meas.sensor_names), 1.2 + 0.5 * len(meas.load_levels)))
+    lim = max(3.0, float(np.abs(z).max()))
+    im = ax.imshow(z, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
+    ax.set_xticks(range(len(meas.sensor_names)), meas.sensor_names, rotation=45)
+    ax.set_yticks(range(len(meas.load_levels)), [f"{v:g} {load_unit}" for v in meas.load_levels])
+    for (i, j), v in np.ndenumerate(z):
+        ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7)
+    fig.colorbar(im, ax=ax, label="standardised residual (model − measured)/σ (-)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_region(region, path, *, best=None, truth=None, posterior=None, space=None):
+    """2-D projections of the region of equivalence on every pair of parameters (thesis
+    Figs. 5.17–5.21), with the best fit, the truth (when known) and posterior samples."""
+    plt = _plt()
+    p = len(region.names)
+    X = region.samples
+    if len(X) > 20000:
+        X = X[np.random.default_rng(0).choice(len(X), 20000, replace=False)]
+    pairs = [(i, j) for i in range(p) for j in range(i + 1, p)] or [(0, 0)]
+    cols = min(len(pairs), 3)
+    rows = int(np.ceil(len(pairs) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
+    # a log axis only where the region spans a factor > 3 (narrow log axes have unreadable ticks)
+    scales = space.scales if space is not None else ["linear"] * p
+    log = [sc == "log" and X[:, k].min() > 0 and X[:, k].max() / X[:, k].min() > 3 for k, sc in enumerate(scales)]
+    for ax, (i, j) in zip(axes.flat, pairs):
+        if i == j:
+            ax.hist(X[:, i], bins=40, color="0.6")
+        else:
+            ax.scatter(X[:, i], X[:, j], s=2, color="0.65", alpha=0.4, label=f"region ({100 * region.confidence:.0f} %)", rasterized=True)
+            if posterior is not None:
+                P = posterior.samples[:: max(1, len(posterior.samples) // 3000)]
+                ax.scatter(P[:, i], P[:, j], s=2, color="tab:blue", alpha=0.3, label="MCMC posterior", rasterized=True)
+            if best is not None:
+                ax.plot(best[i], best[j], "r*", ms=11, label="best fit")
+            if truth is not None:
+                ax.plot(truth[i], truth[j], "kx", ms=9, mew=2, label="truth")
+            ax.set_ylabel(_label(region.names[j], region.units[j]))
+            if log[j]:
+                ax.set_yscale("log")
+        ax.set_xlabel(_label(region.names[i], region.units[i]))
+        if log[i]:
+            ax.set_xscale("log")
+    for ax in list(axes.flat)[len(pairs):]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=7, markerscale=2)
+    fig.suptitle(f"region of equivalence ({region.method}, {len(region.samples)} members of {region.n_evaluated} evaluated)", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_rvc(rvc_results, path):
+    """Spread of model outputs over the region (thesis Figs. 5.16 / 7.27): per model and output,
+    the normalised distribution (value / mean) as box plots, annotated with the CV."""
+    plt = _plt()
+    labels, data, cvs = [], [], []
+    for model_name, res in rvc_results.items():
+        vals = res["values"]
+        for k, out in enumerate(res["outputs"]):
+            labels.append(f"{model_name}\n{out}")
+            data.append(vals[:, k] / res["mean"][k])
+            cvs.append(res["cv"][k])
+    fig, ax = plt.subplots(figsize=(max(5, 0.9 * len(labels) + 1), 4))
+    ax.boxplot(data, whis=(0, 100))
+    ax.set_xticks(range(1, len(labels) + 1), labels, rotation=60, fontsize=7)
+    for k, cv in enumerate(cvs, start=1):
+        ax.annotate(f"CV {100 * cv:.2f} %", (k, 1), xytext=(0, 8), textcoords="offset points", ha="center", fontsize=7)
+    ax.axhline(1.0, color="0.5", lw=0.8)
+    ax.set_ylabel("output / mean over the region (-)")
+    ax.set_title("response variability over the region of equivalence (RVC)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=None, posterior=None,
+                           rvc_results=None, load_unit="kN", noise_text="", warnings=()):
+    """Write ``out_dir/index.html`` with the figures of an inversion; returns the page path.
+
+    Parameters
+    ----------
+    out_dir : Path
+    result : podkrig.inverse.InverseResult
+    region : podkrig.uncertainty.Region
+    fe : dict, optional
+        :func:`podkrig.inverse.fe_check` output.
+    identifiability : dict, optional
+        :meth:`Region.identifiability` output.
+    posterior : podkrig.posterior.Posterior, optional
+    rvc_results : dict of str to dict, optional
+        Model name → :func:`podkrig.uncertainty.rvc` output.
+    warnings : sequence of (what, remedy)
+    """
+    from pathlib import Path
+
+    from ..ga import plot_history, plot_parameters, plot_statistics
+    from .html import Page, fmt
+
+    plt = _plt()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    problem = result.problem
+    page = Page("podkrig inversion report")
+    page.paragraph(
+        f"Data: {problem.measurement.source} ({problem.n_obs} readings: sensors {', '.join(problem.measurement.sensor_names)}"
+        f" at {', '.join(f'{v:g}' for v in problem.measurement.load_levels)} {load_unit}); noise: {noise_text}. "
+        f"Free parameters: {', '.join(problem.free)}; fixed: "
+        + (", ".join(f"{k} = {v:g}" for k, v in problem.fixed.items()) or "none") + ".",
+        "meta",
+    )
+    for what, remedy in warnings:
+        page.warning(what, remedy)
+
+    page.heading("Identified parameters")
+    units = dict(zip(problem.free_space.names, problem.free_space.units))
+    rows = []
+    for j, name in enumerate(problem.free):
+        lo, hi = region.intervals[name]
+        verdict = identifiability[name]["message"] if identifiability else ""
+        post = f"[{fmt(posterior.intervals[name][0])}, {fmt(posterior.intervals[name][1])}]" if posterior else "—"
+        rows.append([f"{name} ({units[name]})", fmt(result.x[j]), f"[{fmt(lo)}, {fmt(hi)}]", post, verdict])
+    page.table(["parameter (unit)", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",
+                "MCMC credible interval", "verdict"], rows)
+    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "evaluations", "seconds (s)"],
+               [[fmt(result.misfit), fmt(result.chi2), result.dof, fmt(result.chi2_dof), result.n_evaluations, fmt(result.seconds, 3)]])
+    if result.chi2_dof > 2.0:
+        page.warning(
+            f"χ²/dof = {result.chi2_dof:.2f}: the calibrated model does not reproduce the data within the stated noise.",
+            "check the noise level; if it is right, a physical effect is missing from the model — run 'podkrig diagnose'.",
+        )
+
+    page.heading("Fit to the measurements")
+    page.figure(Path(plot_fit(result, out / "fit.png", load_unit=load_unit)).name,
+                "Measured readings (±2σ noise) and the calibrated model (mm) against load.")
+    page.figure(Path(plot_residuals(result, out / "residuals.png", load_unit=load_unit)).name,
+                "Standardised residuals (model − measured)/σ per sensor and load level.")
+
+    if fe is not None:
+        page.heading("FE check at the optimum")
+        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)", "χ²/dof of the FE model (-)"],
+                   [[fmt(fe["max_abs_diff"]), fmt(fe["max_diff_over_noise"]), fmt(fe["rel_diff"]), fmt(fe["chi2_dof_fe"])]])
+        if fe["ok"]:
+            page.success("The surrogate agrees with the FE model at the optimum within the measurement noise.")
+
+    page.heading("Region of equivalence")
+    page.paragraph(
+        f"Parameter vectors whose misfit is statistically indistinguishable from the best fit "
+        f"(ω − ω* ≤ ½ χ²_{len(problem.free)}({region.confidence:.2f}); {region.n_evaluated} surrogate evaluations, "
+        f"{len(region.samples)} members, {region.seconds:.2f} s)."
+    )
+    page.figure(Path(plot_region(region, out / "region.png", best=result.x, posterior=posterior, space=problem.free_space)).name,
+                "2-D projections of the region of equivalence" + (" with MCMC posterior samples" if posterior else "") + ".")
+    if posterior is not None:
+        page.table(["MCMC steps", "acceptance (-)", "max autocorrelation time (steps)", "effective samples", "max R̂ (-)", "converged"],
+                   [[posterior.n_steps, fmt(posterior.acceptance), fmt(float(np.max(posterior.autocorr_time))),
+                     fmt(posterior.effective_samples), fmt(float(np.max(posterior.r_hat))), "yes" if posterior.converged else "NO"]])
+        if not posterior.converged:
+            page.warning("the MCMC chains have not converged (chain shorter than 50 autocorrelation times or R̂ ≥ 1.05).",
+                         "run longer (--mcmc-steps) before reading the credible intervals.")
+
+    if rvc_results:
+        page.heading("Response variability (RVC)")
+        rows = []
+        for model_name, res in rvc_results.items():
+            for k, o in enumerate(res["outputs"]):
+                rows.append([model_name, o, fmt(res["mean"][k]), fmt(100 * res["cv"][k], 3), fmt(100 * res["range_ratio"][k], 3)])
+        page.table(["model", "output", "mean (mm)", "CV (%)", "(max − min)/mean (%)"], rows)
+        page.figure(Path(plot_rvc(rvc_results, out / "rvc.png")).name, "Spread of the outputs over the region of equivalence.")
+
+    page.heading("Genetic algorithm")
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    plot_history(result.ga, ax=axes[0])
+    plot_statistics(result.ga, ax=axes[1])
+    fig.tight_layout()
+    fig.savefig(out / "ga_history.png", dpi=110)
+    plt.close(fig)
+    page.figure("ga_history.png", "Every evaluated individual's misfit by generation, and population statistics (thesis Fig. 3.17).")
+    axes = plot_parameters(result.ga)
+    fig = np.ravel(axes)[0].figure
+    fig.savefig(out / "ga_parameters.png", dpi=110)
+    plt.close(fig)
+    page.figure("ga_parameters.png", "Parameter values of evaluated individuals against misfit (thesis Fig. 3.23).")
+    return page.write(out / "index.html")

@@ -1,0 +1,112 @@
+"""``podkrig invert``, ``podkrig rvc`` and ``podkrig overparam`` end to end on coarse-mesh stores."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fe.scenarios import build_scenario
+from podkrig.cli import app
+from podkrig.measurement import Measurement
+from podkrig.measurement_csv import write_measurement_csv
+
+runner = CliRunner()
+PARAMS = ["--param", "E_b=6000:18000", "--param", "kN_bj=30:300:log", "--param", "kV_bj=10:120:log", "--param", "r_hj=0.2:1.0"]
+
+
+def _ok(args):
+    result = runner.invoke(app, [str(a) for a in args])
+    assert result.exit_code == 0, result.output
+    return result.output
+
+
+@pytest.fixture(scope="module")
+def surrogates(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli_invert")
+    out = {}
+    for name in ("diagonal_compression", "shear_compression"):
+        spec = d / f"{name}.toml"
+        spec.write_text(f'scenario = "{name}"\nnx = 2\nny = 1\n')
+        store = d / f"{name}.h5"
+        _ok(["snapshots", "run", "--spec", spec, *PARAMS, "--n", 64, "--seed", 0, "--store", store, "--workers", 1])
+        _ok(["surrogate", "build", store, "--out", d / f"{name}_surrogate.h5"])
+        out[name] = d / f"{name}_surrogate.h5"
+    truth = {"E_b": 11000.0, "kN_bj": 90.0, "kV_bj": 35.0, "r_hj": 0.6}
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+    clean = sc.run(truth).readings
+    noisy = clean * (1 + 0.01 * np.random.default_rng(0).standard_normal(clean.shape))
+    data = d / "data.csv"
+    write_measurement_csv(data, Measurement(noisy, sc.sensor_names, sc.load_levels))
+    return out, data, truth, d
+
+
+def test_invert_json_and_report(surrogates):
+    sur, data, truth, d = surrogates
+    report = d / "report"
+    out = json.loads(_ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01,
+                          "--report", report, "--format", "json", "--region-samples", 16384, "--mcmc-steps", 600]))
+    assert set(out) >= {"parameters", "intervals", "chi2_dof", "misfit", "n_evaluations", "seconds", "fe_check"}
+    for name, value in truth.items():
+        lo, hi = out["intervals"][name]
+        assert lo <= out["parameters"][name] <= hi
+    assert out["fe_check"]["max_abs_diff"] >= 0 and "posterior" in out
+    html = (report / "index.html").read_text()
+    for fig in ("fit.png", "residuals.png", "region.png", "ga_history.png", "ga_parameters.png"):
+        assert (report / fig).stat().st_size > 1000 and fig in html
+    assert "Region of equivalence" in html and "MCMC" in html
+
+
+def test_invert_with_fixed_parameters_and_table(surrogates):
+    sur, data, truth, _ = surrogates
+    text = _ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-abs", 0.002, "--free", "kN_bj,kV_bj",
+                "--fix", "E_b=11000", "--fix", "r_hj=0.6", "--region-samples", 16384, "--no-fe-check"])
+    assert "identified parameters" in text and "kN_bj" in text
+
+
+def test_invert_noise_monte_carlo_region(surrogates):
+    sur, data, truth, _ = surrogates
+    out = json.loads(_ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01, "--fix", "E_b=11000",
+                          "--region-method", "noise-mc", "--no-fe-check", "--format", "json"]))
+    assert set(out["parameters"]) == {"kN_bj", "kV_bj", "r_hj"} and out["fixed"] == {"E_b": 11000.0}
+    for name in out["parameters"]:
+        lo, hi = out["intervals"][name]
+        assert lo < out["parameters"][name] < hi
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--noise-rel", "0.01", "--noise-abs", "0.002"], "exactly one noise model"),
+        ([], "exactly one noise model"),
+        (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),
+        (["--noise-rel", "0.01", "--free", "G_f"], "unknown parameter"),
+        (["--noise-abs", "D9=0.1"], r"no noise sigma given for sensor"),
+    ],
+)
+def test_invert_errors(surrogates, extra, message):
+    sur, data, _, _ = surrogates
+    result = runner.invoke(app, ["invert", str(sur["diagonal_compression"]), "--data", str(data), *extra])
+    assert result.exit_code == 2, result.output
+    assert message in result.output
+
+
+def test_rvc_with_a_validation_model(surrogates):
+    sur, data, _, _ = surrogates
+    out = json.loads(_ok(["rvc", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01,
+                          "--validation", sur["shear_compression"], "--format", "json"]))
+    assert set(out) == {"calibration", "shear_compression_surrogate"}
+    shear = out["shear_compression_surrogate"]
+    assert shear["outputs"][0] == "top_ux@40" and all(cv >= 0 for cv in shear["cv"])
+
+
+def test_overparam_flags_what_the_data_cannot_pin_down(surrogates):
+    sur, data, _, d = surrogates
+    # only the two diagonals: four free parameters are too many for two gauges
+    two = d / "two.csv"
+    lines = data.read_text().splitlines()
+    two.write_text("\n".join(",".join(line.split(",")[:3]) for line in lines) + "\n")
+    out = json.loads(_ok(["overparam", sur["diagonal_compression"], "--data", two, "--noise-rel", 0.01,
+                          "--set", "kN_bj,kV_bj", "--set", "E_b,kN_bj,kV_bj,r_hj", "--format", "json"]))
+    assert [r["free"] for r in out] == [["kN_bj", "kV_bj"], ["E_b", "kN_bj", "kV_bj", "r_hj"]]
+    assert any(not v["identifiable"] for v in out[1]["identifiability"].values())
