@@ -69,9 +69,7 @@ def main(argv=None):
         n_inv = int(np.median([r.n_evaluations for r in runs]))
         best = runs[0]
         likelihood_ratio_region(problem, best.x, n_samples=2**14)  # warm-up
-        t0 = time.perf_counter()
         region = likelihood_ratio_region(problem, best.x, n_samples=2**20, rng=0)
-        t_region = time.perf_counter() - t0
         # the same region on a surrogate with the exponent fixed at 1.5 (a fast kernel path)
         _, _, model15, _ = setup(args.out, beta=1.5)
         problem15 = InverseProblem(model15, meas, noise)

@@ -46,7 +46,7 @@ from ..loads import edge_traction
 from ..model import LinearModel
 from ..sensors import Gauge, sensor_from_dict
 from .base import Scenario
-from .masonry import MASONRY_PARAMETERS, masonry_parts, masonry_theta, wall_mesh
+from .masonry import MASONRY_PARAMETERS, WallOptions, masonry_parts, masonry_theta, wall_mesh
 
 _D_LO, _D_HI = 302.157, 867.843
 
@@ -61,33 +61,13 @@ DEFAULT_SENSORS = (
 
 
 @dataclass(frozen=True)
-class DiagonalCompressionOptions:
-    """Options of the diagonal compression scenario (lengths in mm, loads in kN)."""
+class DiagonalCompressionOptions(WallOptions):
+    """Options of the diagonal compression scenario (lengths in mm, loads in kN): those of
+    :class:`~fe.scenarios.masonry.WallOptions` plus the lengths of the loading shoes and of the
+    supports along each face from their corner."""
 
-    unit_length: float = 260.0
-    unit_height: float = 65.0
-    n_courses: int = 18
-    units_per_course: float = 4.5
-    thickness: float = 120.0
-    bond: str = "running"
-    nx: int = 6
-    ny: int = 2
-    element: str = "Q8"
-    brick_interfaces: bool = True
-    continuum: bool = False
     shoe_length: float = 130.0
     support_length: float = 130.0
-    load_levels: tuple = (25.0, 50.0, 75.0, 100.0)
-    sensors: dict | None = None
-
-    def __post_init__(self):
-        if not self.thickness > 0:
-            raise ValueError(f"thickness must be > 0 mm; got {self.thickness}")
-        if not self.load_levels or any(not isinstance(v, (int, float)) for v in self.load_levels):
-            raise ValueError(f"load_levels must be a non-empty list of numbers (kN); got {self.load_levels}")
-        if len(set(self.load_levels)) != len(self.load_levels):
-            raise ValueError(f"load_levels must be distinct; got {self.load_levels}")
-        object.__setattr__(self, "load_levels", tuple(float(v) for v in self.load_levels))
 
 
 class DiagonalCompression(Scenario):

@@ -5,6 +5,8 @@ zero-thickness interfaces with uncoupled elastic stiffness diag(kV, kN) (thesis 
 Head joints have ``r_hj`` times the bed-joint stiffness.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..assembly import StiffnessPart, element_dofs
@@ -25,6 +27,40 @@ MASONRY_PARAMETERS = (
     ParameterInfo("kN_bb", 1e5, "N/mm³", 0.0, _BIG, "normal stiffness of unit mid-plane interfaces", lower_open=True),
     ParameterInfo("kV_bb", 1e5, "N/mm³", 0.0, _BIG, "shear stiffness of unit mid-plane interfaces", lower_open=True),
 )
+
+
+@dataclass(frozen=True)
+class WallOptions:
+    """Options shared by the masonry wall scenarios (lengths in mm, loads in the scenario's unit).
+
+    Geometry and discretisation as in :class:`~fe.mesh.BrickWallLayout`; ``thickness`` of the
+    wall; ``continuum`` merges the units into one homogeneous body without joints (the
+    stiff-joint limit, for verification); ``load_levels``; ``sensors`` (name → definition dict,
+    see :func:`fe.sensors.sensor_from_dict`; None = the scenario's default set).
+    """
+
+    unit_length: float = 260.0
+    unit_height: float = 65.0
+    n_courses: int = 18
+    units_per_course: float = 4.5
+    thickness: float = 120.0
+    bond: str = "running"
+    nx: int = 6
+    ny: int = 2
+    element: str = "Q8"
+    brick_interfaces: bool = True
+    continuum: bool = False
+    load_levels: tuple = (25.0, 50.0, 75.0, 100.0)
+    sensors: dict | None = None
+
+    def __post_init__(self):
+        if not self.thickness > 0:
+            raise ValueError(f"thickness must be > 0 mm; got {self.thickness}")
+        if not self.load_levels or any(not isinstance(v, (int, float)) for v in self.load_levels):
+            raise ValueError(f"load_levels must be a non-empty list of numbers; got {self.load_levels}")
+        if len(set(self.load_levels)) != len(self.load_levels):
+            raise ValueError(f"load_levels must be distinct; got {self.load_levels}")
+        object.__setattr__(self, "load_levels", tuple(float(v) for v in self.load_levels))
 
 
 def wall_mesh(options):

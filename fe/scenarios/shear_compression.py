@@ -33,7 +33,7 @@ from ..constraints import constraint_transform
 from ..model import LinearModel
 from ..sensors import Gauge, PointDisplacement, sensor_from_dict
 from .base import Scenario
-from .masonry import MASONRY_PARAMETERS, masonry_parts, masonry_theta, wall_mesh
+from .masonry import MASONRY_PARAMETERS, WallOptions, masonry_parts, masonry_theta, wall_mesh
 
 _DEFAULTS = {"E_b": 16700.0, "nu_b": 0.15, "kN_bj": 82.0, "kV_bj": 36.0}
 
@@ -47,34 +47,22 @@ DEFAULT_SENSORS = (
 
 
 @dataclass(frozen=True)
-class ShearCompressionOptions:
-    """Options of the shear–compression scenario (lengths in mm, stress in MPa, loads in kN)."""
+class ShearCompressionOptions(WallOptions):
+    """Options of the shear–compression scenario: those of
+    :class:`~fe.scenarios.masonry.WallOptions` with the TU Eindhoven wall's geometry, plus the
+    vertical ``precompression`` (MPa); load levels are horizontal forces (kN)."""
 
     unit_length: float = 220.0
     unit_height: float = 62.0
     n_courses: int = 16
-    units_per_course: float = 4.5
     thickness: float = 100.0
-    bond: str = "running"
-    nx: int = 6
-    ny: int = 2
-    element: str = "Q8"
-    brick_interfaces: bool = True
-    continuum: bool = False
-    precompression: float = 0.30
     load_levels: tuple = (10.0, 20.0, 30.0, 40.0)
-    sensors: dict | None = None
+    precompression: float = 0.30
 
     def __post_init__(self):
-        if not self.thickness > 0:
-            raise ValueError(f"thickness must be > 0 mm; got {self.thickness}")
+        super().__post_init__()
         if not self.precompression >= 0:
             raise ValueError(f"precompression must be >= 0 MPa; got {self.precompression}")
-        if not self.load_levels or any(not isinstance(v, (int, float)) for v in self.load_levels):
-            raise ValueError(f"load_levels must be a non-empty list of numbers (kN); got {self.load_levels}")
-        if len(set(self.load_levels)) != len(self.load_levels):
-            raise ValueError(f"load_levels must be distinct; got {self.load_levels}")
-        object.__setattr__(self, "load_levels", tuple(float(v) for v in self.load_levels))
 
 
 class ShearCompression(Scenario):
