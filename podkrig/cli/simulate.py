@@ -92,7 +92,9 @@ def _print(sc, response, values, seconds, format):
         typer.echo(json.dumps(out, indent=2))
         return
     if format == "csv":
-        typer.echo(",".join(["load_" + response.load_unit] + list(response.sensor_names)))
+        # the measurement-file layout (first column "load" in the scenario load unit, readings in mm),
+        # so that a simulated response can serve as pseudo-measured data
+        typer.echo(",".join(["load"] + list(response.sensor_names)))
         for level, row in zip(response.load_levels, response.readings):
             typer.echo(",".join([f"{level:g}"] + [f"{v:.8g}" for v in row]))
         return
