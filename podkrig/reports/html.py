@@ -11,8 +11,8 @@ from pathlib import Path
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:2em;border-bottom:1px solid #bbb}
-table{border-collapse:collapse;margin:1em 0;font-size:.92em}th,td{border:1px solid #ccc;padding:.3em .6em;text-align:right}
-th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
+table{border-collapse:collapse;margin:1em 0;font-size:.92em}th,td{border:1px solid #ccc;padding:.3em .6em;text-align:left}
+th{background:#f0f0f0}td.num{text-align:right;white-space:nowrap}
 figure{margin:1em 0}figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:.9em;color:#555}
 .warn{background:#fff4e0;border-left:4px solid #e69500;padding:.6em 1em;margin:1em 0}
 .ok{background:#eaf6ea;border-left:4px solid #3a3;padding:.6em 1em;margin:1em 0}
@@ -55,7 +55,7 @@ class Page:
         """A table; ``header`` are column titles (with units), ``rows`` lists of cells."""
         cap = f"<caption>{_e(caption)}</caption>" if caption else ""
         head = "".join(f"<th>{_e(h)}</th>" for h in header)
-        body = "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in row) + "</tr>" for row in rows)
+        body = "".join("<tr>" + "".join(_cell(c) for c in row) + "</tr>" for row in rows)
         self._parts.append(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>")
 
     def details(self, summary, text):
@@ -77,6 +77,13 @@ class Page:
             encoding="utf-8",
         )
         return path
+
+
+def _cell(value):
+    """A table cell; numbers (and [low, high] intervals) are right-aligned."""
+    text = str(value)
+    numeric = isinstance(value, (int, float)) or text.lstrip("[-+").replace(".", "", 1)[:1].isdigit()
+    return f'<td class="num">{_e(text)}</td>' if numeric else f"<td>{_e(text)}</td>"
 
 
 def fmt(value, digits=4):

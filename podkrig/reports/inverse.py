@@ -62,7 +62,7 @@ def plot_residuals(result, path, *, load_unit="kN"):
     ax.set_yticks(range(len(meas.load_levels)), [f"{v:g} {load_unit}" for v in meas.load_levels])
     for (i, j), v in np.ndenumerate(z):
         ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7)
-    fig.colorbar(im, ax=ax, label="standardised residual (model − measured)/σ (-)")
+    fig.colorbar(im, ax=ax, label="(model − measured)/σ (-)")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
