@@ -24,6 +24,7 @@ import numpy as np
 from scipy import optimize
 from scipy.stats import qmc
 
+from ._threads import one_blas_thread
 from .misfit import Misfit
 from .parameters import ParameterSpace
 
@@ -302,32 +303,39 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
     from .ga import minimize
 
     t0 = time.perf_counter()
-    with warnings.catch_warnings():
+    with one_blas_thread(), warnings.catch_warnings():  # small BLAS calls: see podkrig._threads
         # running the GA to its generation budget is the plan here: the polish finishes the job
         warnings.filterwarnings("ignore", message="GA stopped on its budget", category=RuntimeWarning)
         ga = minimize(
             problem.omega, problem.free_space, rng=rng, population_size=population_size,
             max_generations=generations, **ga_options,
         )
-    x, n_eval = np.asarray(ga.x, dtype=float), ga.nfev
-    if polish:
-        best_omega = ga.fun
-        screen = problem.free_space.from_unit(qmc.Sobol(problem.n_free, scramble=True, seed=rng_seed(rng)).random_base2(10))
-        screen_omega = problem.omega(screen)
-        n_eval += len(screen)
-        starts = np.vstack([x[None], _distinct_starts(problem, screen, screen_omega, n_starts - 1)])
-        for x0 in starts:
-            x_pol, n_pol = problem.polish(x0)
-            n_eval += n_pol
-            omega_pol = problem.omega(x_pol[None])[0]
-            if omega_pol < best_omega:
-                x, best_omega = x_pol, omega_pol
+        x, n_eval = np.asarray(ga.x, dtype=float), ga.nfev
+        if polish:
+            x, n_eval = _polish_from_starts(problem, ga, x, n_eval, rng, n_starts)
     omega = float(problem.omega(x[None])[0])
     chi2 = float(problem.misfit.chi2(x[None])[0])
     params = dict(zip(problem.model.space.names, problem.full(x[None])[0].tolist()))
     seconds = time.perf_counter() - t0
     logger.info("inversion: omega=%.4g chi2/dof=%.3g in %.3f s (%d evaluations)", omega, chi2 / max(problem.n_obs - problem.n_free, 1), seconds, n_eval)
     return InverseResult(problem, x, params, omega, chi2, problem.n_obs - problem.n_free, n_eval, seconds, ga)
+
+
+def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
+    """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
+    returns the best point and the updated evaluation count."""
+    best_omega = ga.fun
+    screen = problem.free_space.from_unit(qmc.Sobol(problem.n_free, scramble=True, seed=rng_seed(rng)).random_base2(10))
+    screen_omega = problem.omega(screen)
+    n_eval += len(screen)
+    starts = np.vstack([x[None], _distinct_starts(problem, screen, screen_omega, n_starts - 1)])
+    for x0 in starts:
+        x_pol, n_pol = problem.polish(x0)
+        n_eval += n_pol
+        omega_pol = problem.omega(x_pol[None])[0]
+        if omega_pol < best_omega:
+            x, best_omega = x_pol, omega_pol
+    return x, n_eval
 
 
 def rng_seed(rng):

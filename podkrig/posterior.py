@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._threads import one_blas_thread
+
 logger = logging.getLogger(__name__)
 
 
@@ -108,7 +110,8 @@ def sample_posterior(problem, x_start, *, n_walkers=32, n_steps=3000, burn=None,
 
     sampler = emcee.EnsembleSampler(n_walkers, p, log_prob, vectorize=True)
     sampler.random_state = np.random.RandomState(int(gen.integers(2**31))).get_state()  # seeded
-    sampler.run_mcmc(start, n_steps, progress=False)
+    with one_blas_thread():
+        sampler.run_mcmc(start, n_steps, progress=False)
     burn = n_steps // 3 if burn is None else burn
     chain = sampler.get_chain(discard=burn)  # (steps, walkers, p)
     tau = emcee.autocorr.integrated_time(chain, quiet=True, tol=0)

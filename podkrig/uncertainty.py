@@ -22,6 +22,8 @@ import numpy as np
 from scipy import stats
 from scipy.stats import qmc
 
+from ._threads import one_blas_thread
+
 logger = logging.getLogger(__name__)
 
 #: a parameter whose equivalence interval spans more than this share of its search range (in the
@@ -139,7 +141,8 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
     for round_ in range(max_grow + 1):
         sobol = qmc.Sobol(p, scramble=True, seed=engine_seed)
         U = lo + (hi - lo) * sobol.random_base2(m)
-        om = np.concatenate([problem.omega_unit(U[i : i + batch]) for i in range(0, len(U), batch)])
+        with one_blas_thread():
+            om = np.concatenate([problem.omega_unit(U[i : i + batch]) for i in range(0, len(U), batch)])
         n_eval += len(U)
         keep = om <= threshold
         members = U[keep]
@@ -169,8 +172,8 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
     re-identified by bounded least squares from m* (fast on the surrogate). Intervals are the
     central ``confidence`` percentiles of the re-identified parameters.
     """
-    from .measurement import Measurement
     from .inverse import InverseProblem
+    from .measurement import Measurement
 
     t0 = time.perf_counter()
     gen = np.random.default_rng(rng)

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack, solve_triangular
 from scipy.optimize import minimize
-from threadpoolctl import ThreadpoolController
 
+from .._threads import one_blas_thread
 from ..exceptions import NotFittedError
 from . import _kernels
 from .variogram import BETA_FIT_BOUNDS, EXPONENTIAL, check_beta, check_variogram
@@ -40,17 +40,6 @@ RCOND_MIN = 1e-12  # smallest admissible reciprocal condition number of the krig
 _FAIL = 1e10  # objective value returned where the (generalised) covariance matrix is singular
 
 
-
-_CONTROLLER = None
-
-
-def _one_blas_thread():
-    """Context limiting BLAS to one thread. The controller is built once (scanning the loaded
-    libraries costs milliseconds, too much per prediction call)."""
-    global _CONTROLLER
-    if _CONTROLLER is None:
-        _CONTROLLER = ThreadpoolController()
-    return _CONTROLLER.limit(limits=1, user_api="blas")
 
 class SingularSystemError(ValueError):
     """Internal: a factorisation failed at some hyperparameters (caught by the optimiser)."""
@@ -415,7 +404,7 @@ class OrdinaryKriging:
         """
         # one BLAS thread: the matrices are small (n <= a few thousand), and on a shared machine
         # a multi-threaded BLAS in many tiny calls is 20-60x slower than a single thread
-        with _one_blas_thread():
+        with one_blas_thread():
             return self._fit(X, Y)
 
     def _fit(self, X, Y):
@@ -609,7 +598,7 @@ class OrdinaryKriging:
         Forms the ``(n_pred, n)`` cross-covariance of each output and solves with its Cholesky
         factor: :math:`O(n_{pred} n^2)` per output, one BLAS thread (see :meth:`fit`).
         """
-        with _one_blas_thread():
+        with one_blas_thread():
             return self._predict_variance(X)
 
     def _ones_solved(self):
