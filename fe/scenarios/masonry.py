@@ -5,7 +5,7 @@ zero-thickness interfaces with uncoupled elastic stiffness diag(kV, kN) (thesis 
 Head joints have ``r_hj`` times the bed-joint stiffness.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -67,12 +67,7 @@ def wall_mesh(options):
     """The wall mesh of a scenario's options (fields of :class:`~fe.mesh.BrickWallLayout` plus
     ``continuum``: merge the units into one homogeneous body without joints, the stiff-joint
     limit used for verification)."""
-    layout = BrickWallLayout(
-        unit_length=options.unit_length, unit_height=options.unit_height,
-        n_courses=options.n_courses, units_per_course=options.units_per_course,
-        bond=options.bond, nx=options.nx, ny=options.ny, element=options.element,
-        brick_interfaces=options.brick_interfaces,
-    )
+    layout = BrickWallLayout(**{f.name: getattr(options, f.name) for f in fields(BrickWallLayout)})
     mesh = brick_wall(layout)
     return mesh.without_interfaces() if options.continuum else mesh
 
