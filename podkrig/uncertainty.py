@@ -158,8 +158,9 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
         lo = np.where(touch_lo, np.clip(lo - width, 0, 1), lo)
         hi = np.where(touch_hi, np.clip(hi + width, 0, 1), hi)
         logger.info("region round %d: members touch the sampling box; growing it", round_)
-    X = space.from_unit(members) if len(members) else np.atleast_2d(x_best)
-    omegas = om[keep] if len(members) else np.array([omega_best])
+    # the best fit is a member by definition, whether or not a sample landed next to it
+    X = np.vstack([np.atleast_2d(x_best)] + ([space.from_unit(members)] if len(members) else []))
+    omegas = np.concatenate([[omega_best], om[keep] if len(members) else []])
     intervals = {n: (float(X[:, j].min()), float(X[:, j].max())) for j, n in enumerate(space.names)}
     return Region("likelihood-ratio", confidence, X, omegas, threshold, intervals, tuple(space.names),
                   tuple(space.units), n_eval, time.perf_counter() - t0)
