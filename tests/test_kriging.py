@@ -97,7 +97,7 @@ def test_agrees_with_sklearn_gpr(beta):
 
 
 @pytest.mark.parametrize("kw", [{"beta": 1.2}, {"beta": 1.5}, {"beta": 2.0}, {"beta": "fit"},
-                                {"variogram": "power", "beta": 1.3}])
+                                {"beta": "fit-shared"}, {"variogram": "power", "beta": 1.3}])
 def test_numba_and_numpy_kernels_agree(data, kw):
     X, Y, Xp = data
     a = OrdinaryKriging(**kw, use_numba=True).fit(X, Y)
@@ -108,6 +108,20 @@ def test_numba_and_numpy_kernels_agree(data, kw):
     # weights (up to ~1e6 times the outputs for a Gaussian near the conditioning limit)
     assert_allclose(ma, mb, rtol=1e-7, atol=1e-8)
     assert_allclose(sa, sb, rtol=1e-6, atol=1e-8)
+
+
+def test_fit_shared_uses_the_first_outputs_exponent_for_all(data):
+    X, Y, _ = data
+    assert Y.shape[1] > 1
+    shared = OrdinaryKriging(beta="fit-shared").fit(X, Y)
+    first = OrdinaryKriging(beta="fit").fit(X, Y[:, :1])
+    assert np.all(shared.beta_ == shared.beta_[0])
+    # L-BFGS-B stopping tolerance: the two fits reach the same optimum to ~1e-9
+    assert_allclose(shared.beta_[0], first.beta_[0], rtol=1e-6)
+    # the other outputs' ranges are fitted at that exponent: same as a fixed-beta fit (warm starts
+    # differ between the two runs, so only to the optimiser's tolerance)
+    fixed = OrdinaryKriging(beta=float(shared.beta_[0])).fit(X, Y[:, 1:])
+    assert_allclose(shared.ranges_[1:], fixed.ranges_, rtol=1e-3)
 
 
 def test_variance_is_positive_and_grows_away_from_data(data):
@@ -133,7 +147,7 @@ def test_duplicates_are_refused_with_remedy(data):
     [
         ({"beta": 2.5}, "0 < beta <= 2"),
         ({"variogram": "power", "beta": 2.0}, "0 < beta < 2"),
-        ({"beta": "auto"}, "number in \\(0, 2\\] or 'fit'"),
+        ({"beta": "auto"}, "number in \\(0, 2\\], 'fit' or 'fit-shared'"),
         ({"variogram": "spherical"}, "variogram must be one of"),
         ({"criterion": "aic"}, "criterion must be one of"),
         ({"nugget": -1.0}, "nugget must be"),

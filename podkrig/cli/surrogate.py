@@ -17,12 +17,12 @@ surrogate_app = typer.Typer(
 
 
 def _beta(text):
-    if text == "fit":
-        return "fit"
+    if text in ("fit", "fit-shared"):
+        return text
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"--beta must be a number in (0, 2] or 'fit'; got {text!r}") from None
+        raise ValueError(f"--beta must be a number in (0, 2], 'fit' or 'fit-shared'; got {text!r}") from None
 
 
 def _templates(energy, modes, variogram, beta, criterion, nugget):
@@ -43,7 +43,7 @@ def build(
     energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
     modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
     variogram: str = typer.Option("exponential", "--variogram", help="Semivariogram: exponential or power."),
-    beta: str = typer.Option("fit", "--beta", help="Exponent beta (e.g. 1.2, 1.5, 1.8) or 'fit' per mode."),
+    beta: str = typer.Option("fit", "--beta", help="Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all)."),
     criterion: str = typer.Option("ml", "--criterion", help="Hyperparameters by 'ml' (likelihood) or 'loo'."),
     nugget: float = typer.Option(0.0, "--nugget", help="Nugget relative to the sill (0: exact interpolation)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),

