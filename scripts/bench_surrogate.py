@@ -162,6 +162,7 @@ def sklearn_matern(U, Y):
 
 METHODS = {
     "podkrig (beta fit)": (ours("fit"), None),
+    "podkrig (beta fit-shared)": (ours("fit-shared"), None),
     "podkrig (beta 1.8)": (ours(1.8), None),
     "SMT KRG pow_exp": (smt_krg("pow_exp"), "smt"),
     "SMT KRG abs_exp": (smt_krg("abs_exp"), "smt"),
