@@ -60,6 +60,8 @@ class Misfit:
         object.__setattr__(self, "_d", self.measurement.data)
         object.__setattr__(self, "_Cd", self.noise.covariance_matrix(self.measurement))
         object.__setattr__(self, "_sd", np.sqrt(np.diag(self._Cd)))
+        idx = np.asarray(self.output_indices)
+        object.__setattr__(self, "_identity_indices", bool(np.array_equal(idx, np.arange(len(idx)))))
         if self.prior_cov is not None:
             object.__setattr__(self, "_prior_chol", np.linalg.cholesky(np.asarray(self.prior_cov, float)))
 
@@ -82,9 +84,10 @@ class Misfit:
     def predict(self, X):
         """Model predictions at the observed entries: ``(mean, std)`` each ``(n, n_obs)`` mm."""
         mean, std = self.model(np.atleast_2d(X))
-        mean = mean[:, self.output_indices]
-        std = None if std is None or not self.model_error else std[:, self.output_indices]
-        return mean, std
+        if not (mean.shape[1] == self.n_obs and self._identity_indices):  # skip a copy when all observed
+            mean = mean[:, self.output_indices]
+            std = None if std is None else std[:, self.output_indices]
+        return mean, None if not self.model_error else std
 
     def whitened_residuals(self, X):
         """``L_D⁻¹ (g(m) − d)`` with ``C_D = L_D L_Dᵀ``, ``(n, n_obs)`` (dimensionless).
@@ -96,8 +99,11 @@ class Misfit:
         if self.kind == "relative":
             return r / np.maximum(np.abs(self._d), 1e-12)
         if self.noise.is_diagonal:
+            if std is not None and std.ndim == 2 and std.strides[0] == 0:
+                std = std[0]  # the same std for every row (frozen C_T): weights computed once
             var = self._sd**2 if std is None else self._sd**2 + std**2
-            return r / np.sqrt(var)
+            r *= 1.0 / np.sqrt(var)
+            return r
         C = np.broadcast_to(self._Cd, (len(r),) + self._Cd.shape).copy()
         if std is not None:
             idx = np.arange(self.n_obs)

@@ -105,7 +105,7 @@ def validate(
             if compare and src and Path(src).is_file():
                 with SnapshotStore.open(src) as s:
                     X, Y = training_data(s, output)
-                settings = [{"beta": b} for b in (1.2, 1.5, 1.8, "fit")] + [{"variogram": "power", "beta": 1.5}]
+                settings = [{"beta": b} for b in (1.2, 1.5, 1.8, "fit", "fit-shared")] + [{"variogram": "power", "beta": 1.5}]
                 comparison = compare_settings(X, Y, Xh, Yh, settings, space=sur.space, pod=sur.pod)
             _write_report(report, sur, rep, summary, comparison)
     if format == "json":

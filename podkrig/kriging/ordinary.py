@@ -230,18 +230,19 @@ class OrdinaryKriging:
     variogram : {"exponential", "power"}, default "exponential"
         Semivariogram model, see :mod:`podkrig.kriging.variogram`.
     beta : float, "fit" or "fit-shared", default "fit"
-        Exponent of the semivariogram: fixed; ``"fit-shared"`` to estimate it on the first output
-        (the dominant POD coefficient) and keep it for the others, whose ranges alone are fitted
-        (diagonal test, n = 256: 2.9x faster training, median held-out error 2.14e-3 against
-        2.05e-3); or ``"fit"`` to estimate it per output together with
-        the ranges (bounded to [0.2, 2] for the exponential family, [0.2, 1.95] for the power
-        model). The thesis compares the fixed values 1.2, 1.5 and 1.8. The default is ``"fit"``: the
-        elastic responses are very smooth functions of the parameters, the likelihood drives every
-        POD coefficient of the diagonal compression test to beta = 2, and on 200 held-out runs
-        (4 free parameters, n = 256) the median relative error is 1.6e-3 against 4.0e-3, 6.1e-3
-        and 9.8e-3 for the fixed 1.8, 1.5 and 1.2, with 94 % of the outputs inside ±2 sigma; a
-        rougher (e.g. nonlinear) response gets a smaller exponent automatically. A fixed exponent
-        trains about 4x faster. Exponents 1, 1.5 and 2 use fast kernel paths; others call ``pow``.
+        Exponent of the semivariogram (bounded to [0.2, 2] for the exponential family, [0.2, 1.95]
+        for the power model when fitted): a fixed value (the thesis compares 1.2, 1.5 and 1.8);
+        ``"fit"``, estimated per output together with its ranges; or ``"fit-shared"``, estimated
+        on the first output (the dominant POD coefficient) and kept for the others, whose ranges
+        alone are fitted. The default is ``"fit"``: the elastic responses are very smooth, the
+        likelihood drives the POD coefficients of the diagonal compression test to beta ≈ 2, and
+        on 200 held-out runs (4 free parameters, n = 256) the median relative error is 1.8e-3
+        against 4.2e-3, 6.1e-3 and 9.8e-3 for the fixed 1.8, 1.5 and 1.2, with 95 % of the outputs
+        inside ±2 sigma. ``"fit-shared"`` (one exponent per surrogate, as in the thesis) ties in
+        accuracy, trains 4x faster and predicts 2-3x faster (the outputs share one block of
+        powers), but its variance is less honest with few samples (n = 64: 87 % of held-out
+        outputs inside ±2 sigma against 90 %), which matters for the misfit's C_T. Exponents 1,
+        1.5 and 2 need no transcendental function in the kernels (see ``BENCHMARKS.md``).
     ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
         Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
         the values used when ``optimizer=None``.
