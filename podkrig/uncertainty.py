@@ -23,6 +23,8 @@ from scipy import stats
 from scipy.stats import qmc
 
 from ._threads import one_blas_thread
+from .inverse import InverseProblem, invert
+from .measurement import Measurement
 
 logger = logging.getLogger(__name__)
 
@@ -173,9 +175,6 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
     re-identified by bounded least squares from m* (fast on the surrogate). Intervals are the
     central ``confidence`` percentiles of the re-identified parameters.
     """
-    from .inverse import InverseProblem
-    from .measurement import Measurement
-
     t0 = time.perf_counter()
     gen = np.random.default_rng(rng)
     meas = problem.measurement
@@ -285,8 +284,6 @@ def nested_analyses(make_problem, free_sets, *, confidence=0.95, rng=0, validati
         Per analysis: ``free``, ``misfit``, ``chi2_dof``, ``aic``, ``bic``, ``intervals``,
         ``identifiability`` (with messages), ``rvc`` (per validation model: max CV).
     """
-    from .inverse import invert
-
     rows = []
     for free in free_sets:
         problem = make_problem(tuple(free))
