@@ -90,11 +90,20 @@ class SuperLUSolver:
 
 
 class PardisoSolver:
-    """MKL PARDISO for real SPD matrices; the symbolic analysis is done once per pattern."""
+    """MKL PARDISO for real SPD matrices; the symbolic analysis is done once per pattern.
+
+    PARDISO runs on ``threads`` MKL threads of its own (thread-local, whatever the process-wide
+    MKL setting): one by default below 200 000 unknowns, where threads only add overhead (default
+    diagonal test, 9 360 dofs: 12.6 ms per parameter vector on one thread against 17.1 ms on two;
+    73 000 dofs: 162 against 168 ms). A fixed count also keeps the analysis and the factorisations
+    consistent: PARDISO crashes when they run with different thread counts.
+    """
 
     name = "pardiso"
 
-    def __init__(self, indptr, indices, n):
+    def __init__(self, indptr, indices, n, threads=None):
+        import ctypes
+
         import pypardiso
 
         rows = np.repeat(np.arange(n), np.diff(indptr))
@@ -111,15 +120,22 @@ class PardisoSolver:
         iparm[7] = 0  # no iterative refinement: SPD, direct solve to round-off
         iparm[9] = 8  # pivot perturbation 1e-8 (MKL default for symmetric matrices)
         iparm[17] = -1  # report the number of non-zeros in the factor (iparm[17] after phase 11)
-        self._analysed_threads = None  # MKL threads at the symbolic analysis
+        self.threads = int(threads if threads is not None else (1 if n < 200_000 else 0))  # 0: MKL's
+        self._set_threads = self._solver.libmkl.MKL_Set_Num_Threads_Local  # C API (the lowercase name is Fortran)
+        self._set_threads.argtypes = [ctypes.c_int]
+        self._set_threads.restype = ctypes.c_int
+        self._analysed = False
         self._matrix = None
 
     def _call(self, phase, rhs):
         self._solver.set_phase(phase)
+        previous = self._set_threads(self.threads)
         try:
             return self._solver._call_pardiso(self._matrix, rhs)
         except Exception as e:  # pypardiso raises PyPardisoError with MKL's error code
             raise SolverError(f"{_SINGULAR_HINT} (PARDISO: {e})") from e
+        finally:
+            self._set_threads(previous)
 
     def factorize(self, data):
         """Factorise the matrix with values ``data`` (aligned with the full CSR pattern)."""
@@ -128,14 +144,9 @@ class PardisoSolver:
             shape=(self.n, self.n),
         )
         dummy = np.zeros((self.n, 1), order="F")
-        # PARDISO's analysis is tied to the MKL thread count: factorising with another count
-        # (e.g. under threadpoolctl limits set after the first run) crashes, so redo it then
-        threads = self._solver.libmkl.mkl_get_max_threads()
-        if threads != self._analysed_threads:
-            if self._analysed_threads is not None:
-                self._call(-1, dummy)  # release the old analysis
+        if not self._analysed:
             self._call(11, dummy)
-            self._analysed_threads = threads
+            self._analysed = True
         self._call(22, dummy)
 
     def solve(self, rhs):
