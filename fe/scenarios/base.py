@@ -1,5 +1,6 @@
 """The :class:`Scenario` base class: a virtual test mapping model parameters to a :class:`Response`."""
 
+import abc
 import dataclasses
 import logging
 import math
@@ -57,7 +58,7 @@ class ParameterInfo:
         return v
 
 
-class Scenario:
+class Scenario(abc.ABC):
     """A complete virtual test: geometry, mesh, supports, loading, sensors.
 
     Subclasses define ``name``, ``Options`` (a frozen dataclass of options with defaults),
@@ -159,9 +160,13 @@ class Scenario:
             values[k] = self.parameters[k].check(v)
         return values
 
+    @abc.abstractmethod
+    def _build(self):
+        """Set ``mesh``, ``sensors``, ``model`` and ``load_coefficients`` from ``self.options``."""
+
+    @abc.abstractmethod
     def theta(self, values):
-        """Coefficients of the stiffness parts for a full parameter dict."""
-        raise NotImplementedError
+        """Coefficients of the stiffness parts for a full parameter dict, ``(n_parts,)``."""
 
     def run(self, params=None, *, field=False):
         """Run the virtual test.
