@@ -213,6 +213,25 @@ def table(rows, title):
     return "\n".join(lines)
 
 
+def compare_methods(args, label, U, Y, Uh, Yh, batch, rng):
+    """One result row per method on the same training and held-out sets (skipped or failed peers
+    get a note instead of stopping the comparison)."""
+    rows = []
+    for name, (fit, module) in METHODS.items():
+        if name in args.skip:
+            continue
+        if not available(module):
+            rows.append({"method": name, "note": f"skipped: {module} not installed"})
+            continue
+        print(f"  {label}: {name} ...", flush=True)
+        try:
+            rows.append(bench(name, fit, U, Y, Uh, Yh, batch, rng))
+        except Exception as e:  # noqa: BLE001 - a peer failing must not stop the comparison
+            rows.append({"method": name, "note": f"failed: {type(e).__name__}: {str(e)[:80]}"})
+        print(f"    {rows[-1]}", flush=True)
+    return rows
+
+
 def main(argv=None):
     args = parse_args(argv)
     if args.quick:
@@ -242,37 +261,13 @@ def main(argv=None):
         _, U, Y, Uh, Yh, _ = snapshots(args, max(sizes), field=False)
         Yf, Yhf = Y.reshape(len(Y), -1), Yh.reshape(len(Yh), -1)
         for n in sizes:
-            rows = []
-            for name, (fit, module) in METHODS.items():
-                if name in args.skip:
-                    continue
-                if not available(module):
-                    rows.append({"method": name, "note": f"skipped: {module} not installed"})
-                    continue
-                print(f"  readings n={n}: {name} ...", flush=True)
-                try:
-                    rows.append(bench(name, fit, U[:n], Yf[:n], Uh, Yhf, args.batch, rng))
-                except Exception as e:  # noqa: BLE001 - a peer failing must not stop the comparison
-                    rows.append({"method": name, "note": f"failed: {type(e).__name__}: {str(e)[:80]}"})
-                print(f"    {rows[-1]}", flush=True)
+            rows = compare_methods(args, f"readings n={n}", U[:n], Yf[:n], Uh, Yhf, args.batch, rng)
             out.append(table(rows, f"Readings (4 loads × 6 sensors = 24 outputs), n = {n}, "
                                    f"throughput on {args.batch} points"))
         if field_n:
             _, U, Y, Uh, Yh, _ = snapshots(args, field_n, field=True)
             Yf, Yhf = Y.reshape(len(Y), -1), Yh.reshape(len(Yh), -1)
-            rows = []
-            for name, (fit, module) in METHODS.items():
-                if name in args.skip:
-                    continue
-                if not available(module):
-                    rows.append({"method": name, "note": f"skipped: {module} not installed"})
-                    continue
-                print(f"  field n={field_n}: {name} ...", flush=True)
-                try:
-                    rows.append(bench(name, fit, U, Yf, Uh, Yhf, args.field_batch, rng))
-                except Exception as e:  # noqa: BLE001
-                    rows.append({"method": name, "note": f"failed: {type(e).__name__}: {str(e)[:80]}"})
-                print(f"    {rows[-1]}", flush=True)
+            rows = compare_methods(args, f"field n={field_n}", U, Yf, Uh, Yhf, args.field_batch, rng)
             out.append(table(rows, f"Full field ({Yf.shape[1]} outputs: 4 loads × {Yf.shape[1] // 8} nodes × 2), "
                                    f"n = {field_n}, throughput on {args.field_batch} points"))
     text = "\n".join(out + notes)

@@ -263,8 +263,9 @@ if njit is not None:
                         last_beta = beta[j]
                         # a block of powers pays off for a fast exponent or one shared with the
                         # next output (outputs come sorted by beta); otherwise logs, shared by all
-                        fast = _is_fast(beta[j]) or (j + 1 < n_out and beta[j + 1] == beta[j])
-                        if _is_fast(beta[j]):
+                        exact = _is_fast(beta[j])
+                        fast = exact or (j + 1 < n_out and beta[j + 1] == beta[j])
+                        if exact:
                             _fill_powers(P, Xp[p], XtT, beta[j])
                         else:
                             if not have_logs:
