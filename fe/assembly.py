@@ -65,6 +65,30 @@ class StiffnessPart:
     matrices: np.ndarray
 
 
+@dataclass(frozen=True)
+class StiffnessIncrement:
+    """A sparse addition to an :class:`AffineStiffness` matrix on its pattern.
+
+    Attributes
+    ----------
+    name : str
+    positions : ndarray of shape (m,)
+        Indices into the pattern's data (unique).
+    values : ndarray of shape (m,)
+        Reduced matrix entries for a unit coefficient, N/mm.
+    """
+
+    name: str
+    positions: np.ndarray
+    values: np.ndarray
+
+
+def _csr_keys(K):
+    """Row-major linear keys ``row * n + col`` of a sorted CSR matrix's entries."""
+    n = K.shape[1]
+    return np.repeat(np.arange(K.shape[0], dtype=np.int64), np.diff(K.indptr)) * n + K.indices
+
+
 class AffineStiffness:
     """``K(θ) = Σ θ_q K_q``, reduced by ``u = T q`` (``K_red = Tᵀ K T``), on one CSR pattern.
 
@@ -88,6 +112,7 @@ class AffineStiffness:
     def __init__(self, parts, n_dofs, transform):
         self.names = tuple(p.name for p in parts)
         T = sp.csr_matrix(transform)
+        self._transform, self._n_full = T, n_dofs
         reduced = [(T.T @ assemble_matrix(p.dofs, p.matrices, n_dofs) @ T).tocsr() for p in parts]
         union = sum(abs(K) for K in reduced).tocsr()
         union.sum_duplicates()
@@ -95,16 +120,40 @@ class AffineStiffness:
         n = union.shape[0]
         self.n = n
         self.indptr, self.indices = union.indptr, union.indices
-        union_keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(union.indptr)) * n + union.indices
+        self._keys = union_keys = _csr_keys(union)
         self.data = np.zeros((len(parts), union.nnz))
         for q, K in enumerate(reduced):
             K.sort_indices()
-            keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(K.indptr)) * n + K.indices
-            self.data[q, np.searchsorted(union_keys, keys)] = K.data
+            self.data[q, np.searchsorted(union_keys, _csr_keys(K))] = K.data
 
-    def values(self, theta):
-        """Values of ``K_red(θ)`` on the pattern, ``(nnz,)``; ``theta`` is ``(n_parts,)``."""
-        return np.asarray(theta, dtype=float) @ self.data
+    def increment(self, part):
+        """A sparse increment of the matrix by ``part`` (whose entries must lie on the pattern,
+        e.g. a subset of the elements of one of the parts).
+
+        Returns
+        -------
+        StiffnessIncrement
+            Positions in the pattern's data and the reduced values there (N/mm per unit coefficient).
+        """
+        T = self._transform
+        K = (T.T @ assemble_matrix(part.dofs, part.matrices, self._n_full) @ T).tocsr()
+        K.sum_duplicates()
+        K.sort_indices()
+        keys = _csr_keys(K)
+        pos = np.searchsorted(self._keys, keys)
+        if np.any(pos >= len(self._keys)) or np.any(self._keys[np.minimum(pos, len(self._keys) - 1)] != keys):
+            raise ValueError(f"part {part.name!r} has entries outside the stiffness pattern")
+        return StiffnessIncrement(part.name, pos, K.data.copy())
+
+    def values(self, theta, increments=()):
+        """Values of ``K_red(θ)`` on the pattern, ``(nnz,)``; ``theta`` is ``(n_parts,)``.
+
+        ``increments`` is a sequence of ``(coefficient, StiffnessIncrement)`` added on top.
+        """
+        values = np.asarray(theta, dtype=float) @ self.data
+        for coefficient, inc in increments:
+            values[inc.positions] += coefficient * inc.values
+        return values
 
     def matrix(self, theta):
         """``K_red(θ)`` as a CSR matrix."""

@@ -5,8 +5,8 @@ import numpy as np
 from .exceptions import MeshError
 
 
-def edge_traction(mesh, edges, traction, thickness, interval=None, axis=None):
-    """Nodal forces of a uniform traction on boundary edges.
+def edge_traction(mesh, edges, traction, thickness, interval=None, axis=None, gradient=False):
+    """Nodal forces of a uniform (or linearly varying) traction on boundary edges.
 
     Parameters
     ----------
@@ -21,6 +21,11 @@ def edge_traction(mesh, edges, traction, thickness, interval=None, axis=None):
         Only the edges lying inside ``[a, b]`` along coordinate ``axis`` (0 = x, 1 = y) are
         loaded; the interval must start and end on element edges.
     axis : int, optional
+    gradient : bool
+        Instead of the uniform traction ``t``, the linearly varying one ``t · (s − s_c)`` where
+        ``s`` is the coordinate along ``axis`` and ``s_c`` the centre of ``interval`` (``traction``
+        is then in MPa per mm): a traction with zero resultant and moment ``t · L³/12`` per unit
+        thickness over a patch of length ``L``. Needs ``interval`` and ``axis``.
 
     Returns
     -------
@@ -44,10 +49,30 @@ def edge_traction(mesh, edges, traction, thickness, interval=None, axis=None):
             )
         edges, p, q = edges[inside], p[inside], q[inside]
     length = np.linalg.norm(q - p, axis=1)
-    weights = np.array([1 / 6, 1 / 6, 2 / 3]) if edges.shape[1] == 3 else np.array([0.5, 0.5])
-    nodal = (length * thickness)[:, None] * weights  # (n_edges, nodes_per_edge) mm²
+    if gradient:
+        if interval is None:
+            raise ValueError("a traction gradient needs the patch interval and axis")
+        nodal = _linear_weights(mesh, edges, axis, 0.5 * (interval[0] + interval[1]), thickness)
+    else:
+        weights = np.array([1 / 6, 1 / 6, 2 / 3]) if edges.shape[1] == 3 else np.array([0.5, 0.5])
+        nodal = (length * thickness)[:, None] * weights  # (n_edges, nodes_per_edge) mm²
     f = np.zeros(mesh.n_dofs)
     traction = np.asarray(traction, dtype=float)
     for j in range(2):
         np.add.at(f, 2 * edges + j, nodal * traction[j])
     return f
+
+
+def _linear_weights(mesh, edges, axis, centre, thickness):
+    """Consistent nodal weights ∫ N_i (s − centre) t dl of straight edges, ``(n_edges, nodes)`` mm³
+    (3-point Gauss–Legendre: exact for the quadratic shape functions times a linear function)."""
+    xi, w = np.polynomial.legendre.leggauss(3)
+    if edges.shape[1] == 3:  # start, end, mid
+        N = np.stack([0.5 * xi * (xi - 1), 0.5 * xi * (xi + 1), 1 - xi**2], axis=1)
+    else:
+        N = np.stack([0.5 * (1 - xi), 0.5 * (1 + xi)], axis=1)
+    a = mesh.nodes[edges[:, 0], axis]
+    b = mesh.nodes[edges[:, 1], axis]
+    length = np.linalg.norm(mesh.nodes[edges[:, 1]] - mesh.nodes[edges[:, 0]], axis=1)
+    s = 0.5 * (a + b)[:, None] + 0.5 * (b - a)[:, None] * xi[None]  # (n_edges, n_gauss)
+    return np.einsum("g,gi,eg,e->ei", w, N, s - centre, 0.5 * length * thickness)

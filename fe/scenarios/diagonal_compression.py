@@ -91,10 +91,8 @@ class DiagonalCompression(Scenario):
             ((np.abs(y) < tol) & (x <= o.support_length + tol)) | ((np.abs(x) < tol) & (y <= o.support_length + tol))
         )
         fixed = np.concatenate([2 * supported, 2 * supported + 1])
-        # unit load F = 1 N: pressure p with resultant 1/√2 N on each shoe
-        p = (1.0 / np.sqrt(2.0)) / (o.shoe_length * o.thickness)
-        f = edge_traction(mesh, mesh.edge_sets["top"], (0.0, -p), o.thickness, (W - o.shoe_length, W), axis=0)
-        f += edge_traction(mesh, mesh.edge_sets["right"], (-p, 0.0), o.thickness, (H - o.shoe_length, H), axis=1)
+        self.supported_nodes, self.tie_groups = supported, []
+        f = self._shoe_loads()
         if o.sensors is None:
             self.sensors = DEFAULT_SENSORS
         else:
@@ -107,3 +105,45 @@ class DiagonalCompression(Scenario):
 
     def theta(self, values):
         return masonry_theta(values)
+
+    def _shoe_loads(self, gradient=False, rotated=False):
+        """Nodal forces ``(n_dofs,)`` N of the two loading shoes for a unit load F = 1 N: pressure
+        with resultant 1/√2 N on each. ``gradient``: the derivative of the pressure with respect
+        to an offset e (mm) of both shoes' resultants towards the top-left corner. ``rotated``:
+        the shoe tractions turned by +90° (counter-clockwise)."""
+        o, mesh = self.options, self.mesh
+        W, H, L = mesh.width, mesh.height, o.shoe_length
+        p = (1.0 / np.sqrt(2.0)) / (L * o.thickness)
+        # a linear pressure p (1 + 12 e (s − s_c) / L²) keeps the resultant and moves it by e
+        g = 12.0 * p / L**2 if gradient else p
+        sign_top, sign_right = (-1.0, 1.0) if gradient else (1.0, 1.0)  # top shoe moves to −x, right to +y
+        t_top, t_right = np.array([0.0, -g * sign_top]), np.array([-g * sign_right, 0.0])
+        if rotated:
+            t_top, t_right = t_top[::-1] * (-1, 1), t_right[::-1] * (-1, 1)  # (x, y) -> (-y, x)
+        f = edge_traction(mesh, mesh.edge_sets["top"], t_top, o.thickness, (W - L, W), axis=0, gradient=gradient)
+        f += edge_traction(mesh, mesh.edge_sets["right"], t_right, o.thickness, (H - L, H), axis=1,
+                           gradient=gradient)
+        return f
+
+    def rotated_load_patterns(self):
+        """The load patterns with every shoe traction turned by +90°, ``(n_dofs, 1)`` N per N of F.
+
+        A load line rotated by φ (counter-clockwise, the shoes' tractions turning with it, e.g.
+        a misaligned actuator with friction at the shoes) has patterns ``cos φ f + sin φ f⊥``.
+        """
+        return self._shoe_loads(rotated=True)[:, None]
+
+    def eccentric_load_patterns(self):
+        """Derivative of the load patterns with respect to a load-line offset, ``(n_dofs, 1)`` N/mm.
+
+        The offset e (mm) moves the resultant of each loading shoe along its face towards the
+        panel's top-left corner (the top shoe by −e in x, the right shoe by +e in y), i.e. the load
+        line by √2·e off the diagonal, with the shoe pressure varying linearly; loads are exactly
+        affine in e. Admissible while the pressure stays compressive: ``|e| ≤ shoe_length / 6``.
+        """
+        return self._shoe_loads(gradient=True)[:, None]
+
+    @property
+    def max_load_eccentricity(self):
+        """Largest admissible load-line offset (mm): the shoe pressure stays compressive."""
+        return self.options.shoe_length / 6.0

@@ -80,7 +80,8 @@ class ShearCompression(Scenario):
         self.mesh = mesh = wall_mesh(o)
         bottom, top = mesh.node_sets["bottom"], mesh.node_sets["top"]
         fixed = np.concatenate([2 * bottom, 2 * bottom + 1])
-        transform = constraint_transform(mesh.n_dofs, fixed, ties=[2 * top, 2 * top + 1])
+        self.supported_nodes, self.tie_groups = bottom, [2 * top, 2 * top + 1]
+        transform = constraint_transform(mesh.n_dofs, fixed, ties=self.tie_groups)
         patterns = np.zeros((mesh.n_dofs, 2))
         patterns[2 * top[0] + 1, 0] = -o.precompression * mesh.width * o.thickness  # N on the beam
         patterns[2 * top[0], 1] = 1.0  # unit horizontal force on the beam, N

@@ -1,0 +1,371 @@
+"""The library of candidate causes: physical effects a base model leaves out.
+
+Each :class:`Candidate` is a named effect with one extra parameter per *location* (a joint
+segment, a sensor and fault kind, a kind of load misalignment) and a neutral value at which it is
+off. The effect is computed by the FE model directly, reusing its stiffness parts and pattern:
+
+=====================  =====================================  ===========================================
+candidate              extra parameter (neutral)               residual signature
+=====================  =====================================  ===========================================
+head_joint_stiffness   r_hj, head/bed stiffness ratio (base)   gauges across head joints, diagonals; ∝ load
+weak_joint             f, stiffness factor of one joint        gauges crossing or near that joint, a
+                       segment's kN and kV (1)                 local pattern; ∝ load
+support_compliance     c_s = 1/k_s, compliance of the          absolute displacements and gauges near the
+                       supports, mm³/N (0: rigid)              supports; ∝ load
+gauge_fault            gain g (0) or offset o, mm (0)          one sensor only: ∝ its reading (gain) or
+                                                               constant over the load levels (offset)
+load_eccentricity      offset e of the load line, mm (0),      antisymmetric about the intended load line;
+                       or its rotation φ, degrees (0)          ∝ load
+unit_stiffness         E_b, MPa (base)                         gauges on units, diagonals; ∝ load
+=====================  =====================================  ===========================================
+
+``head_joint_stiffness`` and ``unit_stiffness`` are candidates only when the base model keeps
+``r_hj`` / ``E_b`` fixed; ``support_compliance`` and ``load_eccentricity`` only for scenarios
+with supports / a load line (:class:`fe.Scenario`'s ``supported_nodes``,
+``eccentric_load_patterns``, ``rotated_load_patterns``).
+"""
+
+import abc
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fe.supports import spring_supported_model
+
+
+@dataclass(frozen=True)
+class Location:
+    """One place (or instance) of a candidate cause.
+
+    Attributes
+    ----------
+    key : str
+        Unique within the candidate, e.g. ``"bed 12|17"`` or ``"HJ_H gain"``.
+    label : str
+        In words, for reports.
+    detail : dict
+        JSON-able description (kind, coordinates in mm, sensor, ...).
+    """
+
+    key: str
+    label: str
+    detail: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class EffectParameter:
+    """The extra parameter of a candidate at one location.
+
+    ``neutral`` switches the effect off; ``reference`` is a moderate value whose effect serves as
+    the screening signature; ``scale`` is how the fit moves through ``[lower, upper]``
+    (``"linear"`` or ``"log"``). ``one_sided``: the neutral value is a bound (e.g. a joint can only
+    be weaker), which halves the null distribution of the likelihood-ratio statistic.
+    """
+
+    name: str
+    unit: str
+    neutral: float
+    lower: float
+    upper: float
+    reference: float
+    scale: str = "linear"
+    one_sided: bool = False
+
+    def to_fit(self, c):
+        """Physical value → fit coordinate in [0, 1]."""
+        if self.scale == "log":
+            return (np.log(c) - np.log(self.lower)) / (np.log(self.upper) - np.log(self.lower))
+        return (c - self.lower) / (self.upper - self.lower)
+
+    def from_fit(self, t):
+        """Fit coordinate in [0, 1] → physical value."""
+        if self.scale == "log":
+            return float(np.exp(np.log(self.lower) + t * (np.log(self.upper) - np.log(self.lower))))
+        return float(self.lower + t * (self.upper - self.lower))
+
+
+class FEContext:
+    """The base model's FE scenario with the pieces the candidates share, built lazily and cached.
+
+    Parameters
+    ----------
+    scenario : fe.Scenario
+    free : sequence of str
+        The base model's free parameters.
+    values : dict of str to float
+        Every parameter's value in the base model (the fixed ones stay at these).
+    """
+
+    def __init__(self, scenario, free, values):
+        self.scenario = scenario
+        self.free = tuple(free)
+        self.values = dict(values)
+        self.n_runs = 0
+        self._cache = {}
+
+    @property
+    def sensor_names(self):
+        return tuple(self.scenario.sensor_names)
+
+    def readings(self, values, increments=()):
+        """FE readings ``(n_loads, n_sensors)`` mm with optional stiffness increments."""
+        sc = self.scenario
+        self.n_runs += 1
+        q = sc.model.solve(sc.theta(values), increments)
+        return sc.load_coefficients @ sc.model.readings(q)
+
+    def readings_with_extra_loads(self, values, extra_patterns_key, extra_patterns):
+        """Readings of the model's load patterns and of extra ones (one factorisation), each
+        ``(n_loads, n_sensors)`` mm: ``(base, extra)`` where ``extra`` uses the same load coefficients."""
+        sc = self.scenario
+        if extra_patterns_key not in self._cache:
+            self._cache[extra_patterns_key] = sc.model.reduce_loads(extra_patterns())
+        rhs_extra = self._cache[extra_patterns_key]
+        self.n_runs += 1
+        q = sc.model.solve(sc.theta(values), rhs=np.hstack([sc.model.rhs, rhs_extra]))
+        r = sc.model.readings(q)
+        n_pat = sc.model.rhs.shape[1]
+        return sc.load_coefficients @ r[:n_pat], sc.load_coefficients @ r[n_pat:]
+
+    def spring_model(self):
+        if "springs" not in self._cache:
+            self._cache["springs"] = spring_supported_model(self.scenario)
+        return self._cache["springs"]
+
+    def joint_segments(self):
+        """Bed- and head-joint segments (unit pairs) of the mesh: list of (kind, elements, detail)."""
+        if "segments" not in self._cache:
+            self._cache["segments"] = _joint_segments(self.scenario.mesh)
+        return self._cache["segments"]
+
+    def joint_increments(self, index):
+        """Normal and shear stiffness increments of joint segment ``index`` (unit coefficients)."""
+        key = ("joint", index)
+        if key not in self._cache:
+            kind, elements, _ = self.joint_segments()[index]
+            m = self.scenario.model
+            elements = np.searchsorted(np.flatnonzero(self.scenario.mesh.interfaces_of_kind(kind)), elements)  # within the part
+            self._cache[key] = (m.part_increment(f"{kind}_normal", elements), m.part_increment(f"{kind}_shear", elements))
+        return self._cache[key]
+
+
+def _joint_segments(mesh):
+    """Group the bed/head interface elements of a wall mesh by the pair of units they join."""
+    from fe.mesh.mesh import INTERFACE_KINDS
+
+    units = mesh.block_unit[mesh.interface_blocks]
+    segments = {}
+    for i, (kind, (a, b)) in enumerate(zip(mesh.interface_kind, units)):
+        name = INTERFACE_KINDS[kind]
+        if name in ("bed", "head"):
+            segments.setdefault((name, min(a, b), max(a, b)), []).append(i)
+    out = []
+    for (kind, a, b), elements in sorted(segments.items(), key=lambda kv: (kv[0][0], kv[0][1], kv[0][2])):
+        xy = mesh.nodes[mesh.interfaces[elements]].reshape(-1, 2)
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        detail = {
+            "kind": kind, "units": [int(a), int(b)],
+            "x": [round(float(lo[0]), 3), round(float(hi[0]), 3)], "y": [round(float(lo[1]), 3), round(float(hi[1]), 3)],
+        }
+        out.append((kind, np.array(elements), detail))
+    return out
+
+
+class Candidate(abc.ABC):
+    """A candidate cause. Subclasses set ``name``, ``description`` (physical meaning) and
+    ``signature`` (the residual pattern it produces) and implement :meth:`locations`,
+    :meth:`parameter` and :meth:`readings`."""
+
+    name = ""
+    description = ""
+    signature = ""
+
+    def not_applicable(self, ctx):
+        """Why the candidate does not apply to this base model (str), or None."""
+        return None
+
+    @abc.abstractmethod
+    def locations(self, ctx):
+        """The candidate's locations for this scenario, list of :class:`Location`."""
+
+    @abc.abstractmethod
+    def parameter(self, ctx, location):
+        """The :class:`EffectParameter` at ``location``."""
+
+    @abc.abstractmethod
+    def readings(self, ctx, values, location, c):
+        """FE readings ``(n_loads, n_sensors)`` mm with base parameters ``values`` (full dict)
+        and the effect at ``location`` with parameter value ``c``."""
+
+
+class HeadJointStiffness(Candidate):
+    name = "head_joint_stiffness"
+    description = ("Head joints with a stiffness r_hj times that of the bed joints (partly filled or "
+                   "shrunk head joints), where the base model keeps r_hj fixed.")
+    signature = "Gauges across head joints and the diagonals, growing in proportion to the load."
+
+    def not_applicable(self, ctx):
+        if "r_hj" in ctx.free:
+            return "r_hj is a free parameter of the base model"
+        if "r_hj" not in ctx.values:
+            return "the scenario has no head-joint stiffness ratio"
+        return None
+
+    def locations(self, ctx):
+        return [Location("all head joints", "all head joints", {"parameter": "r_hj"})]
+
+    def parameter(self, ctx, location):
+        r0 = ctx.values["r_hj"]
+        return EffectParameter("r_hj", "-", r0, min(0.02, r0), max(5.0, r0), 0.5 * r0, scale="log")
+
+    def readings(self, ctx, values, location, c):
+        return ctx.readings({**values, "r_hj": c})
+
+
+class UnitStiffness(Candidate):
+    name = "unit_stiffness"
+    description = "Units with a Young's modulus E_b different from the value the base model fixes."
+    signature = "Gauges inside units and the diagonals, growing in proportion to the load."
+
+    def not_applicable(self, ctx):
+        if "E_b" in ctx.free:
+            return "E_b is a free parameter of the base model"
+        return None
+
+    def locations(self, ctx):
+        return [Location("all units", "all units", {"parameter": "E_b"})]
+
+    def parameter(self, ctx, location):
+        e0 = ctx.values["E_b"]
+        return EffectParameter("E_b", "MPa", e0, e0 / 4.0, 4.0 * e0, 0.7 * e0, scale="log")
+
+    def readings(self, ctx, values, location, c):
+        return ctx.readings({**values, "E_b": c})
+
+
+class WeakJoint(Candidate):
+    name = "weak_joint"
+    description = ("One bed- or head-joint segment (between two units) with its normal and shear "
+                   "stiffness reduced by a factor f (poor filling, debonding, a local defect).")
+    signature = ("A local pattern: gauges crossing or next to that joint move most, far sensors "
+                 "little; in proportion to the load.")
+
+    def locations(self, ctx):
+        out = []
+        for i, (kind, _, d) in enumerate(ctx.joint_segments()):
+            label = f"{kind} joint between units {d['units'][0]} and {d['units'][1]}, x {d['x'][0]:g}–{d['x'][1]:g} mm, y {d['y'][0]:g}–{d['y'][1]:g} mm"
+            out.append(Location(f"{kind} {d['units'][0]}|{d['units'][1]}", label, {**d, "segment": i}))
+        return out
+
+    def parameter(self, ctx, location):
+        # the screening signature of a nearly open joint also measures the candidate's visibility
+        return EffectParameter("f", "-", 1.0, 1e-3, 1.0, 0.01, scale="log", one_sided=True)
+
+    def readings(self, ctx, values, location, c):
+        i = location.detail["segment"]
+        inc_n, inc_v = ctx.joint_increments(i)
+        r = values.get("r_hj", 1.0) if location.detail["kind"] == "head" else 1.0
+        return ctx.readings(values, [((c - 1.0) * r * values["kN_bj"], inc_n), ((c - 1.0) * r * values["kV_bj"], inc_v)])
+
+
+class SupportCompliance(Candidate):
+    name = "support_compliance"
+    description = ("Compliant supports (bedding mortar, gypsum or pads under the support shoes, a "
+                   "flexible rig): distributed springs of compliance c_s = 1/k_s instead of fixed nodes.")
+    signature = ("Absolute displacements and gauges near the supports; relative gauges far from "
+                 "them barely move; in proportion to the load.")
+
+    def not_applicable(self, ctx):
+        if len(getattr(ctx.scenario, "supported_nodes", ())) == 0:
+            return "the scenario has no supports"
+        return None
+
+    def locations(self, ctx):
+        return [Location("supports", "all supports", {"nodes": int(len(ctx.scenario.supported_nodes))})]
+
+    def parameter(self, ctx, location):
+        # compliance 1 mm³/N is a 10 mm layer of a 10 MPa material: a soft pad
+        # (fitted in log scale from 1e-5 mm³/N, a support 10⁴ times stiffer than a mortar joint)
+        return EffectParameter("c_s", "mm³/N", 0.0, 1e-5, 1.0, 0.02, scale="log", one_sided=True)
+
+    def readings(self, ctx, values, location, c):
+        if c <= 0.0:
+            return ctx.readings(values)
+        m, sc = ctx.spring_model(), ctx.scenario
+        ctx.n_runs += 1
+        q = m.solve(np.append(sc.theta(values), 1.0 / c))
+        return sc.load_coefficients @ m.readings(q)
+
+
+class GaugeFault(Candidate):
+    name = "gauge_fault"
+    description = ("One sensor with a gain error (mis-calibrated, slipping or misaligned transducer: "
+                   "reading × (1 + g)) or an offset (wrong zero: reading + o).")
+    signature = ("One sensor only: in proportion to its own reading (gain) or the same at every load "
+                 "level (offset); every other sensor fits.")
+
+    def locations(self, ctx):
+        return [Location(f"{s} {kind}", f"sensor {s}, {kind}", {"sensor": s, "fault": kind})
+                for s in ctx.sensor_names for kind in ("gain", "offset")]
+
+    def parameter(self, ctx, location):
+        if location.detail["fault"] == "gain":
+            return EffectParameter("g", "-", 0.0, -0.5, 0.5, 0.1)
+        scale = ctx.offset_scale
+        return EffectParameter("o", "mm", 0.0, -scale, scale, 0.1 * scale)
+
+    def readings(self, ctx, values, location, c):
+        R = ctx.readings(values)
+        return apply_gauge_fault(R, ctx.sensor_names.index(location.detail["sensor"]), location.detail["fault"], c)
+
+
+def apply_gauge_fault(R, column, fault, value):
+    """Readings ``R`` ``(n_loads, n_sensors)`` with a gain (``R·(1+g)``) or offset (``R + o``) on one column."""
+    R = np.array(R, dtype=float)
+    if fault == "gain":
+        R[:, column] *= 1.0 + value
+    else:
+        R[:, column] += value
+    return R
+
+
+class LoadEccentricity(Candidate):
+    name = "load_eccentricity"
+    description = ("The load applied off its intended line: the resultant offset by e along the "
+                   "loading shoes, or the load direction rotated by φ (a misaligned actuator).")
+    signature = ("Antisymmetric about the intended load line: sensors on one side lengthen, on the "
+                 "other shorten; in proportion to the load.")
+
+    def not_applicable(self, ctx):
+        sc = ctx.scenario
+        if sc.eccentric_load_patterns() is None and sc.rotated_load_patterns() is None:
+            return f"the {sc.name} scenario defines no load line that could be off"
+        return None
+
+    def locations(self, ctx):
+        sc, out = ctx.scenario, []
+        if sc.eccentric_load_patterns() is not None:
+            out.append(Location("offset", "load line offset", {"kind": "offset"}))
+        if sc.rotated_load_patterns() is not None:
+            out.append(Location("rotation", "load line rotated", {"kind": "rotation"}))
+        return out
+
+    def parameter(self, ctx, location):
+        if location.detail["kind"] == "offset":
+            e = ctx.scenario.max_load_eccentricity
+            return EffectParameter("e", "mm", 0.0, -e, e, 0.5 * e)
+        return EffectParameter("phi", "degree", 0.0, -15.0, 15.0, 5.0)
+
+    def readings(self, ctx, values, location, c):
+        sc = ctx.scenario
+        if location.detail["kind"] == "offset":
+            R0, R1 = ctx.readings_with_extra_loads(values, "offset", sc.eccentric_load_patterns)
+            return R0 + c * R1
+        R0, R1 = ctx.readings_with_extra_loads(values, "rotation", sc.rotated_load_patterns)
+        phi = np.radians(c)
+        return np.cos(phi) * R0 + np.sin(phi) * R1
+
+
+#: every candidate cause, by name
+CANDIDATES = {c.name: c for c in (HeadJointStiffness(), WeakJoint(), SupportCompliance(), GaugeFault(),
+                                  LoadEccentricity(), UnitStiffness())}

@@ -1,0 +1,520 @@
+"""Model diagnosis: does the calibrated model explain the data within the noise, and if not, why?
+
+:func:`diagnose` runs five steps on a scenario, a measurement and its noise model:
+
+1. **Calibrate the base model** surrogate first: a POD-kriging surrogate over the free parameters
+   (built here from a Sobol' design unless one is given), GA inversion with least-squares polish
+   (:func:`podkrig.inverse.invert`), then a least-squares polish with the FE model itself so that
+   the adequacy test is not blurred by surrogate error.
+2. **Adequacy**: χ² of the whitened residuals ``r = L⁻¹(d − g(m*))`` (``C_d = L Lᵀ``) against
+   χ²(n_obs − n_free), and the residual structure across sensors and load levels.
+3. **Score every candidate cause** (:mod:`podkrig.diagnosis.candidates`) at every location:
+   screening by the share of the residual its signature ``s`` (whitened effect of a moderate
+   strength) explains beyond the span of the base Jacobian ``J``,
+   ``Δχ²_lin = (sᵀ P r)² / (sᵀ P s)``, ``P = I − J J⁺``; then a nonlinear FE refit, with the base
+   parameters and the candidate's parameter free, of the best-screened locations. The
+   likelihood-ratio statistic ``Δχ² = χ²_base − χ²_ext`` is χ²(1) under the null (a ½χ²(0) +
+   ½χ²(1) mixture when the neutral value is a bound), and its p-value is multiplied by the number
+   of candidates times the candidate's number of locations (Bonferroni), so that trying 200 joint
+   segments does not manufacture a finding.
+4. **Verdict and cause**: *inadequate* when the χ² test or the best corrected candidate test is
+   significant at ``alpha``; the cause is the candidate with the smallest corrected p-value if it
+   is below ``alpha``, else none ("no candidate explains the residual"). Candidates whose
+   extended fit is within a likelihood ratio of 20 of the best are reported as alternatives the
+   data cannot tell apart.
+5. **Gain**: χ²/dof and misfit before and after, AIC/BIC, and the error on the highest load level
+   predicted by both models fitted without it.
+
+All FE work reuses the scenario's factorisation pattern; a diagnosis of the default diagonal test
+is a few hundred FE solves.
+"""
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import linalg, optimize, stats
+
+from ..inverse import InverseProblem, invert
+from ..kriging import OrdinaryKriging
+from ..measurement import Measurement
+from ..sampling import sobol
+from ..surrogate import PODKriging
+from .candidates import CANDIDATES, FEContext
+
+logger = logging.getLogger(__name__)
+
+#: likelihood ratio within which two explanations count as equally supported
+EQUIVALENCE_RATIO = 20.0
+#: candidates with at most this many locations get their visibility from both ends of the range
+_EXACT_VISIBILITY = 20
+
+
+@dataclass(frozen=True, eq=False)
+class Fit:
+    """A least-squares fit of the FE model (base or extended) to (part of) the data.
+
+    Attributes
+    ----------
+    values : dict of str to float
+        Every parameter of the scenario at the optimum.
+    free : dict of str to float
+        The base model's free parameters at the optimum.
+    effect : float or None
+        The candidate's parameter at the optimum (extended fits).
+    chi2 : float
+        ``‖L⁻¹(d − g)‖²`` over the fitted entries.
+    n_obs, n_params : int
+    readings : ndarray of shape (n_loads, n_sensors)
+        FE readings at the optimum (every sensor and load level of the scenario), mm.
+    jacobian : ndarray of shape (n_obs, n_params)
+        Whitened Jacobian w.r.t. the fit coordinates (unit cube) at the optimum.
+    """
+
+    values: dict
+    free: dict
+    effect: float | None
+    chi2: float
+    n_obs: int
+    n_params: int
+    readings: np.ndarray
+    jacobian: np.ndarray
+
+    @property
+    def dof(self):
+        return max(self.n_obs - self.n_params, 1)
+
+    @property
+    def chi2_dof(self):
+        return self.chi2 / self.dof
+
+    @property
+    def aic(self):
+        """χ² + 2k (Akaike, Gaussian noise of known covariance, constants dropped)."""
+        return self.chi2 + 2 * self.n_params
+
+    @property
+    def bic(self):
+        """χ² + k ln n (Schwarz)."""
+        return self.chi2 + self.n_params * np.log(self.n_obs)
+
+    def summary(self):
+        return {
+            "parameters": {k: float(v) for k, v in self.free.items()},
+            "chi2": float(self.chi2), "dof": int(self.dof), "chi2_dof": float(self.chi2_dof),
+            "misfit": float(0.5 * self.chi2), "aic": float(self.aic), "bic": float(self.bic),
+        }
+
+
+@dataclass
+class CandidateScore:
+    """A candidate cause's evidence at its best location."""
+
+    name: str
+    description: str
+    signature: str
+    n_locations: int
+    applicable: bool
+    reason: str | None = None
+    location: object = None
+    parameter: object = None
+    screening_delta_chi2: float = 0.0
+    delta_chi2: float = 0.0
+    p_value: float = 1.0
+    p_corrected: float = 1.0
+    visible: bool = True
+    max_delta_chi2: float = 0.0
+    fit: Fit | None = None
+    refitted: list = field(default_factory=list)
+
+    def to_dict(self):
+        d = {
+            "name": self.name, "applicable": self.applicable, "n_locations": self.n_locations,
+            "description": self.description, "signature": self.signature,
+        }
+        if not self.applicable:
+            d["reason"] = self.reason
+            return d
+        d.update({
+            "location": None if self.location is None else self.location.label,
+            "detail": None if self.location is None else self.location.detail,
+            "parameter": None if self.parameter is None else {
+                "name": self.parameter.name, "unit": self.parameter.unit, "neutral": self.parameter.neutral,
+                "value": None if self.fit is None else self.fit.effect},
+            "screening_delta_chi2": float(self.screening_delta_chi2),
+            "delta_chi2": float(self.delta_chi2),
+            "p_value": float(self.p_value),
+            "p_corrected": float(self.p_corrected),
+            "score": float(-np.log10(max(self.p_corrected, 1e-300))),
+            "visible": bool(self.visible),
+            "max_delta_chi2": float(self.max_delta_chi2),
+        })
+        return d
+
+
+@dataclass(frozen=True, eq=False)
+class Diagnosis:
+    """Outcome of :func:`diagnose`; :meth:`to_dict` is the JSON of ``podkrig diagnose``."""
+
+    scenario: object
+    measurement: Measurement
+    noise_std: np.ndarray
+    alpha: float
+    base: Fit
+    extended: Fit | None
+    chi2_p_value: float
+    verdict: str
+    cause: str | None
+    best: CandidateScore | None
+    alternatives: list
+    candidates: list
+    structure: dict
+    held_out: dict | None
+    seconds: float
+    n_fe_runs: int
+    surrogate_fit: dict
+
+    def residuals(self, fit):
+        """Standardised residuals ``(d − g)/σ`` of a fit, ``(n_loads_obs, n_sensors_obs)``."""
+        idx = self.measurement.output_indices(self.scenario.sensor_names, self.scenario.load_levels)
+        r = (self.measurement.data - fit.readings.ravel()[idx]) / self.noise_std
+        return r.reshape(self.measurement.values.shape)
+
+    def detail(self):
+        if self.best is None or self.cause is None:
+            return None
+        d = {"location": self.best.location.label, **self.best.location.detail,
+             "parameter": self.best.parameter.name, "unit": self.best.parameter.unit,
+             "value": self.best.fit.effect, "neutral": self.best.parameter.neutral}
+        d["alternatives"] = [{"cause": a.name, "location": a.location.label, "delta_chi2": float(a.delta_chi2)}
+                             for a in self.alternatives]
+        return d
+
+    def gain(self):
+        if self.extended is None:
+            return None
+        b, e = self.base, self.extended
+        g = {
+            "chi2_drop": float(b.chi2 - e.chi2),
+            "chi2_dof_before": float(b.chi2_dof), "chi2_dof_after": float(e.chi2_dof),
+            "misfit_drop": float(0.5 * (b.chi2 - e.chi2)),
+            "aic_drop": float(b.aic - e.aic), "bic_drop": float(b.bic - e.bic),
+        }
+        if self.held_out is not None:
+            g["held_out"] = self.held_out
+            g["held_out_rms_before"] = self.held_out["rms_before"]
+            g["held_out_rms_after"] = self.held_out["rms_after"]
+        return g
+
+    def to_dict(self):
+        return {
+            "verdict": self.verdict,
+            "cause": self.cause,
+            "detail": self.detail(),
+            "candidates": [c.to_dict() for c in self.candidates],
+            "base": self.base.summary(),
+            "extended": None if self.extended is None else {**self.extended.summary(), "effect": self.best.fit.effect},
+            "gain": self.gain(),
+            "adequacy": {
+                "chi2": float(self.base.chi2), "dof": int(self.base.dof), "chi2_dof": float(self.base.chi2_dof),
+                "p_value": float(self.chi2_p_value), "alpha": self.alpha,
+            },
+            "residual_structure": self.structure,
+            "scenario": self.scenario.name,
+            "sensors": list(self.measurement.sensor_names),
+            "load_levels": self.measurement.load_levels.tolist(),
+            "seconds": float(self.seconds),
+            "n_fe_runs": int(self.n_fe_runs),
+            "surrogate": self.surrogate_fit,
+        }
+
+
+class _SurrogateAdapter:
+    """A fitted PODKriging as an inversion model (space, sensor names, load levels, predict)."""
+
+    def __init__(self, surrogate, scenario):
+        self.surrogate = surrogate
+        self.space = surrogate.space
+        self.sensor_names = tuple(scenario.sensor_names)
+        self.load_levels = np.asarray(scenario.load_levels, dtype=float)
+
+    def predict(self, X, return_std=False):
+        return self.surrogate.predict(X, return_std=return_std)
+
+
+def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
+    """A POD-kriging surrogate of the scenario's readings over ``space`` (others at ``values``):
+    ``n_train`` Sobol' FE runs, exponent fitted on the dominant mode (``beta="fit-shared"``)."""
+    X = space.from_unit(sobol(n_train, space.n_params, seed))
+    Y = np.stack([scenario.run({**values, **space.as_params(x)}).readings for x in X])
+    return PODKriging(kriging=OrdinaryKriging(beta="fit-shared"), space=space).fit(X, Y)
+
+
+class _Fitter:
+    """Least-squares fits of base and extended FE models to a subset of the observed entries."""
+
+    def __init__(self, ctx, space, measurement, noise, rows):
+        self.ctx, self.space = ctx, space
+        sc = ctx.scenario
+        idx = measurement.output_indices(sc.sensor_names, sc.load_levels)
+        C = noise.covariance_matrix(measurement)
+        self.rows = np.asarray(rows)
+        self.idx = idx[self.rows]
+        self.d = measurement.data[self.rows]
+        self.L = np.linalg.cholesky(C[np.ix_(self.rows, self.rows)])
+
+    def whiten(self, R):
+        """``L⁻¹ (g − d)`` of full readings ``R`` at the fitted entries."""
+        return linalg.solve_triangular(self.L, R.ravel()[self.idx] - self.d, lower=True)
+
+    def values(self, u):
+        return {**self.ctx.values, **self.space.as_params(self.space.from_unit(np.clip(u, 0, 1)[None])[0])}
+
+    def fit(self, u0, candidate=None, location=None, t0=None, max_nfev=60):
+        """Fit from unit coordinates ``u0`` (and candidate fit coordinate ``t0``); returns a :class:`Fit`."""
+        p = len(u0)
+        par = None if candidate is None else candidate.parameter(self.ctx, location)
+
+        def readings(z):
+            values = self.values(z[:p])
+            if candidate is None:
+                return self.ctx.readings(values)
+            return candidate.readings(self.ctx, values, location, par.from_fit(float(np.clip(z[p], 0, 1))))
+
+        def residual(z):
+            return self.whiten(readings(z))
+
+        z0 = np.asarray(u0, dtype=float) if candidate is None else np.append(u0, t0)
+        z0 = np.clip(z0, 0.0, 1.0)
+        sol = optimize.least_squares(residual, z0, bounds=(0.0, 1.0), method="trf", jac="2-point",
+                                     diff_step=1e-6, x_scale=1.0, max_nfev=max_nfev)
+        z = sol.x
+        values = self.values(z[:p])
+        return Fit(
+            values=values, free={n: values[n] for n in self.space.names},
+            effect=None if candidate is None else par.from_fit(float(z[p])),
+            chi2=float(sol.fun @ sol.fun), n_obs=len(self.rows), n_params=len(z),
+            readings=readings(z), jacobian=sol.jac,
+        )
+
+
+def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None, candidates=None, alpha=0.01,
+             rng=0, n_train=64, refit_locations=3, progress=None):
+    """Diagnose a calibrated FE model against measured data.
+
+    Parameters
+    ----------
+    scenario : fe.Scenario
+        The virtual test; parameters not in ``space`` stay at its defaults (or ``fixed``).
+    measurement : Measurement
+        Measured readings (a subset of the scenario's sensors and load levels), mm.
+    noise : NoiseModel
+    space : ParameterSpace
+        The base model's free parameters with bounds and scales.
+    fixed : dict of str to float, optional
+        Values of non-free parameters that differ from the scenario's defaults.
+    surrogate : PODKriging, optional
+        A surrogate of the scenario's readings over ``space`` (built here when not given:
+        ``n_train`` Sobol' FE runs, about a second for the default test).
+    candidates : sequence of str, optional
+        Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default: all).
+    alpha : float
+        Significance level of the χ² test and of the (multiplicity-corrected) candidate tests.
+    rng : int
+        Seed of the surrogate design and the GA.
+    refit_locations : int
+        Locations per candidate refitted with the FE model after screening.
+    progress : callable, optional
+        ``progress(stage, done, total)``.
+
+    Returns
+    -------
+    Diagnosis
+    """
+    t_start = time.perf_counter()
+    say = progress or (lambda *a: None)
+    names = list(candidates or CANDIDATES)
+    unknown = [n for n in names if n not in CANDIDATES]
+    if unknown:
+        raise ValueError(f"unknown candidate cause(s) {unknown}; known: {list(CANDIDATES)}")
+    if not 0 < alpha < 0.5:
+        raise ValueError(f"alpha must be in (0, 0.5); got {alpha}")
+    values0 = scenario.resolve(fixed)
+    ctx = FEContext(scenario, space.names, values0)
+    ctx.offset_scale = float(np.max(np.abs(measurement.values)))
+    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs))
+    noise_std = np.sqrt(np.diag(noise.covariance_matrix(measurement)))
+
+    # 1. base calibration: surrogate first, FE last
+    say("calibration", 0, 3)
+    if surrogate is None:
+        surrogate = build_base_surrogate(scenario, space, values0, n_train=n_train, seed=rng)
+        ctx.n_runs += n_train
+    say("calibration", 1, 3)
+    problem = InverseProblem(_SurrogateAdapter(surrogate, scenario), measurement, noise)
+    inv = invert(problem, rng=rng)
+    say("calibration", 2, 3)
+    base = fitter.fit(space.to_unit(inv.x[None])[0])
+    say("calibration", 3, 3)
+    dof = base.dof
+    p_chi2 = float(stats.chi2.sf(base.chi2, dof))
+    structure = residual_structure(fitter.whiten(base.readings), measurement, noise_std)
+
+    # 2. screening and refits of every candidate
+    r = -fitter.whiten(base.readings)  # data − model, whitened
+    J = base.jacobian
+    Q, _ = np.linalg.qr(J)
+    def project(v):
+        return v - Q @ (Q.T @ v)
+    Pr = project(r)
+    u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
+    scores = []
+    applicable = [CANDIDATES[n] for n in names if CANDIDATES[n].not_applicable(ctx) is None]
+    n_applicable = max(len(applicable), 1)
+    for k, name in enumerate(names):
+        cand = CANDIDATES[name]
+        reason = cand.not_applicable(ctx)
+        if reason is not None:
+            scores.append(CandidateScore(name, cand.description, cand.signature, 0, False, reason))
+            continue
+        say(f"screening {name}", k, len(names))
+        locations = cand.locations(ctx)
+        score = CandidateScore(name, cand.description, cand.signature, len(locations), True)
+        screened = []
+        max_effect = 0.0
+        for loc in locations:
+            par = cand.parameter(ctx, loc)
+            Ps = project(fitter.whiten(cand.readings(ctx, base.values, loc, par.reference)) + r)
+            ss = float(Ps @ Ps)
+            a = float(Ps @ Pr) / ss if ss > 0 else 0.0
+            delta = a * float(Ps @ Pr) if (ss > 0 and (a > 0 or not par.one_sided)) else 0.0
+            screened.append((delta, loc, par))
+            # visibility: the largest χ² change the effect can make beyond the base parameters' span
+            # (for candidates with many locations the reference strength is near the extreme)
+            max_effect = max(max_effect, ss)
+            if len(locations) <= _EXACT_VISIBILITY:
+                for extreme in (par.lower, par.upper):
+                    if extreme != par.neutral:
+                        Pe = project(fitter.whiten(cand.readings(ctx, base.values, loc, extreme)) + r)
+                        max_effect = max(max_effect, float(Pe @ Pe))
+        screened.sort(key=lambda t: -t[0])
+        score.max_delta_chi2 = max_effect
+        score.visible = max_effect >= stats.chi2.isf(alpha / (n_applicable * len(locations)), 1)
+        n_refit = min(refit_locations, len(screened))
+        best = None
+        for delta_lin, loc, par in screened[:n_refit]:
+            fit = _refit(fitter, cand, loc, par, u_base, base)
+            delta = max(base.chi2 - fit.chi2, 0.0)
+            score.refitted.append((loc, par, delta_lin, fit, delta))
+            if best is None or fit.chi2 < best[3].chi2:
+                best = (loc, par, delta_lin, fit, delta)
+        loc, par, delta_lin, fit, delta = best
+        score.location, score.parameter, score.screening_delta_chi2, score.fit, score.delta_chi2 = loc, par, delta_lin, fit, delta
+        p = float(stats.chi2.sf(delta, 1)) if delta > 0 else 1.0
+        if par.one_sided:
+            p = 0.5 * p if delta > 0 else 1.0
+        score.p_value = p
+        score.p_corrected = min(1.0, p * n_applicable * len(locations))
+        scores.append(score)
+
+    ranked = sorted([s for s in scores if s.applicable], key=lambda s: (s.p_corrected, -s.delta_chi2))
+    inapplicable = [s for s in scores if not s.applicable]
+    best = ranked[0] if ranked else None
+    candidate_hit = best is not None and best.p_corrected < alpha
+    verdict = "inadequate" if (p_chi2 < alpha or candidate_hit) else "adequate"
+    cause = best.name if (verdict == "inadequate" and candidate_hit) else None
+    alternatives = []
+    if cause is not None:
+        limit = 2.0 * np.log(EQUIVALENCE_RATIO)
+        for s in ranked[1:]:
+            for loc, par, _, fit, delta in s.refitted:
+                if fit.chi2 - best.fit.chi2 < limit and s.p_corrected < alpha:
+                    alternatives.append(_Alternative(s.name, loc, delta))
+                    break
+        for loc, par, _, fit, delta in best.refitted:
+            if loc is not best.location and fit.chi2 - best.fit.chi2 < limit:
+                alternatives.append(_Alternative(best.name, loc, delta))
+
+    extended = best.fit if cause is not None else None
+    held_out = None
+    if extended is not None and len(measurement.load_levels) >= 3:
+        say("held-out check", 0, 1)
+        held_out = _held_out(ctx, space, measurement, noise, base, best)
+    seconds = time.perf_counter() - t_start
+    logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, cause, seconds, ctx.n_runs)
+    return Diagnosis(
+        scenario=scenario, measurement=measurement, noise_std=noise_std, alpha=alpha, base=base,
+        extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=cause, best=best if cause else None,
+        alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,
+        held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs,
+        surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)}},
+    )
+
+
+@dataclass(frozen=True)
+class _Alternative:
+    name: str
+    location: object
+    delta_chi2: float
+
+
+def _refit(fitter, cand, loc, par, u_base, base):
+    """Extended FE fit at one location: start from the base optimum and the best of a few effect
+    strengths, then least squares over base and effect parameters together."""
+    grid = np.linspace(0.0, 1.0, 9)
+    chi2 = []
+    for t in grid:
+        c = par.from_fit(t)
+        w = fitter.whiten(cand.readings(fitter.ctx, base.values, loc, c))
+        chi2.append(float(w @ w))
+    t0 = grid[int(np.argmin(chi2))]
+    return fitter.fit(u_base, cand, loc, t0)
+
+
+def _held_out(ctx, space, measurement, noise, base, best):
+    """Fit base and extended models without the highest load level; error there (whitened RMS and mm)."""
+    sc = ctx.scenario
+    n_s = len(measurement.sensor_names)
+    top = int(np.argmax(measurement.load_levels))
+    rows_all = np.arange(measurement.n_obs).reshape(-1, n_s)
+    train = np.delete(rows_all, top, axis=0).ravel()
+    test = rows_all[top]
+    fit_train = _Fitter(ctx, space, measurement, noise, train)
+    test_fitter = _Fitter(ctx, space, measurement, noise, test)
+    u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
+    b = fit_train.fit(u_base)
+    t0 = best.parameter.to_fit(best.fit.effect)
+    u_ext = space.to_unit(np.array([[best.fit.free[n] for n in space.names]]))[0]
+    e = fit_train.fit(u_ext, CANDIDATES[best.name], best.location, t0)
+    wb, we = test_fitter.whiten(b.readings), test_fitter.whiten(e.readings)
+    idx = measurement.output_indices(sc.sensor_names, sc.load_levels)[test]
+    d = measurement.data[test]
+    return {
+        "held_out": f"load level {measurement.load_levels[top]:g} {sc.load_unit}",
+        "rms_before": float(np.sqrt(np.mean(wb**2))), "rms_after": float(np.sqrt(np.mean(we**2))),
+        "max_abs_mm_before": float(np.max(np.abs(b.readings.ravel()[idx] - d))),
+        "max_abs_mm_after": float(np.max(np.abs(e.readings.ravel()[idx] - d))),
+    }
+
+
+def residual_structure(w, measurement, noise_std):
+    """Where the whitened residuals ``w`` ``(n_obs,)`` sit: per sensor and per load level.
+
+    Returns a dict with, per sensor, its share of χ², its standardised residuals (data − model)/σ,
+    and the correlation of the residual with the load level (growth with load); per load level its
+    share of χ²; and the sensor with the largest share.
+    """
+    n_l, n_s = measurement.values.shape
+    W = -np.asarray(w).reshape(n_l, n_s)  # data − model
+    total = float(np.sum(W**2)) or 1.0
+    loads = measurement.load_levels
+    per_sensor = {}
+    for j, s in enumerate(measurement.sensor_names):
+        col = W[:, j]
+        corr = float(np.corrcoef(loads, col)[0, 1]) if n_l >= 3 and np.std(col) > 0 else None
+        per_sensor[s] = {"chi2_share": float(np.sum(col**2) / total), "standardised": col.tolist(),
+                         "growth_with_load": corr}
+    per_load = {f"{lv:g}": float(np.sum(W[i] ** 2) / total) for i, lv in enumerate(loads)}
+    worst = max(per_sensor, key=lambda s: per_sensor[s]["chi2_share"])
+    return {"per_sensor": per_sensor, "per_load": per_load, "largest_share": worst}

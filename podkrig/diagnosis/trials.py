@@ -1,0 +1,107 @@
+"""Hidden-effect trials: pseudo-experimental data with a candidate cause switched on, for testing
+and benchmarking the diagnosis (the code under test never sees the cause, location or strength).
+
+Noise is the realistic level of the diagnosis issue: σ = 1 % of the largest reading, at least
+1 µm, independent on every reading. The *identifiable* size of an effect is the largest
+|residual| / σ left when the base model (free parameters only) is fitted to the noise-free data
+with the effect: what the base parameters can absorb is not evidence of anything.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..measurement import Measurement, NoiseModel
+from .candidates import CANDIDATES, FEContext
+from .engine import _Fitter
+
+
+@dataclass(frozen=True, eq=False)
+class Trial:
+    """One pseudo-experiment.
+
+    Attributes
+    ----------
+    cause : str or None
+        The hidden candidate (None: a negative control).
+    location : Location or None
+    value : float or None
+        The candidate's parameter, in its unit.
+    truth : dict of str to float
+        The base parameters used.
+    measurement : Measurement
+    noise : NoiseModel
+    sigma : float
+        Noise standard deviation, mm.
+    raw_effect : float
+        Largest change of a reading caused by the effect, in σ.
+    identifiable_effect : float
+        Largest |residual| / σ of the base model refitted to the noise-free data.
+    """
+
+    cause: str | None
+    location: object
+    value: float | None
+    truth: dict
+    measurement: Measurement
+    noise: NoiseModel
+    sigma: float
+    raw_effect: float
+    identifiable_effect: float
+
+
+def noise_sigma(readings):
+    """σ = 1 % of the largest |reading|, at least 1 µm (mm)."""
+    return max(0.01 * float(np.max(np.abs(readings))), 1e-3)
+
+
+def draw_strength(cause, location, parameter, rng):
+    """A random effect strength for ``cause`` (physical units of its parameter), away from neutral."""
+    p = parameter
+    if cause == "weak_joint":
+        return float(np.exp(rng.uniform(np.log(1e-3), np.log(0.5))))
+    if cause in ("head_joint_stiffness", "unit_stiffness"):
+        lo, hi = (0.05, 0.7) if cause == "head_joint_stiffness" else (0.3, 0.8)
+        factor = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+        return p.neutral * (factor if rng.random() < 0.5 else 1.0 / factor)
+    if cause == "support_compliance":
+        return float(np.exp(rng.uniform(np.log(1e-3), np.log(p.upper))))  # mm³/N
+    sign = rng.choice([-1.0, 1.0])
+    if cause == "gauge_fault":  # gain 2–30 %; offset 1–15 % of the largest reading (1–15 σ)
+        lo, hi = (0.02, 0.3) if location.detail["fault"] == "gain" else (0.01 * p.upper, 0.15 * p.upper)
+        return float(sign * rng.uniform(lo, hi))
+    # load-line offset and rotation: 10–100 % of the admissible range
+    return float(sign * rng.uniform(0.1, 1.0) * p.upper)
+
+
+def make_trial(scenario, space, truth, cause=None, location=None, value=None, *, rng):
+    """Pseudo-data from ``truth`` with an optional effect, plus noise; see :class:`Trial`.
+
+    ``location`` is a :class:`Location` of ``cause`` (drawn at random when None) and ``value`` its
+    parameter (drawn by :func:`draw_strength` when None).
+    """
+    values = scenario.resolve(truth)
+    ctx = FEContext(scenario, space.names, values)
+    clean = ctx.readings(values)
+    if cause is not None:
+        cand = CANDIDATES[cause]
+        ctx.offset_scale = float(np.max(np.abs(clean)))
+        if location is None:
+            locations = cand.locations(ctx)
+            location = locations[int(rng.integers(len(locations)))]
+        par = cand.parameter(ctx, location)
+        if value is None:
+            value = draw_strength(cause, location, par, rng)
+        effect = cand.readings(ctx, values, location, value)
+    else:
+        effect = clean
+    sigma = noise_sigma(effect)
+    noise = NoiseModel(sigma=sigma)
+    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
+    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs))
+    u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+    identifiable = float(np.max(np.abs(fitter.whiten(fitter.fit(u).readings)))) if cause else 0.0
+    data = effect + sigma * rng.standard_normal(effect.shape)
+    measurement = Measurement(data, scenario.sensor_names, scenario.load_levels, f"pseudo-data ({cause or 'no effect'})")
+    raw = float(np.max(np.abs(effect - clean)) / sigma)
+    return Trial(cause, location, value, dict(truth), measurement, noise, sigma, raw, identifiable)
