@@ -71,6 +71,11 @@ class EffectParameter:
     scale: str = "linear"
     one_sided: bool = False
 
+    @property
+    def off(self):
+        """The value in ``[lower, upper]`` where the effect is off (or nearest to off)."""
+        return min(max(self.neutral, self.lower), self.upper)
+
     def to_fit(self, c):
         """Physical value → fit coordinate in [0, 1]."""
         if self.scale == "log":
@@ -108,11 +113,18 @@ class FEContext:
         return tuple(self.scenario.sensor_names)
 
     def readings(self, values, increments=()):
-        """FE readings ``(n_loads, n_sensors)`` mm with optional stiffness increments."""
+        """FE readings ``(n_loads, n_sensors)`` mm with optional stiffness increments (the last
+        plain run is remembered: candidates that post-process readings reuse it)."""
         sc = self.scenario
+        key = tuple(sorted(values.items()))
+        if not increments and self._cache.get("last_key") == key:
+            return self._cache["last_readings"].copy()
         self.n_runs += 1
         q = sc.model.solve(sc.theta(values), increments)
-        return sc.load_coefficients @ sc.model.readings(q)
+        R = sc.load_coefficients @ sc.model.readings(q)
+        if not increments:
+            self._cache["last_key"], self._cache["last_readings"] = key, R.copy()
+        return R
 
     def readings_with_extra_loads(self, values, extra_patterns_key, extra_patterns):
         """Readings of the model's load patterns and of extra ones (one factorisation), each

@@ -18,7 +18,8 @@
    of candidates times the candidate's number of locations (Bonferroni), so that trying 200 joint
    segments does not manufacture a finding.
 4. **Verdict and cause**: *inadequate* when the χ² test or the best corrected candidate test is
-   significant at ``alpha``; the cause is the candidate with the smallest corrected p-value if it
+   significant at ``alpha`` (the latter only for an effect that moves some reading by at least
+   ``MIN_EFFECT`` σ); the cause is the candidate with the smallest corrected p-value if it
    is below ``alpha``, else none ("no candidate explains the residual"). Candidates whose
    extended fit is within a likelihood ratio of 20 of the best are reported as alternatives the
    data cannot tell apart.
@@ -47,6 +48,9 @@ logger = logging.getLogger(__name__)
 
 #: likelihood ratio within which two explanations count as equally supported
 EQUIVALENCE_RATIO = 20.0
+#: smallest effect (largest change of a reading, in σ) that names a cause: smaller, diffuse
+#: "effects" fitted over many readings are model-form error, not a physical finding
+MIN_EFFECT = 2.0
 #: candidates with at most this many locations get their visibility from both ends of the range
 _EXACT_VISIBILITY = 20
 
@@ -125,6 +129,7 @@ class CandidateScore:
     p_corrected: float = 1.0
     visible: bool = True
     max_delta_chi2: float = 0.0
+    effect_size: float = 0.0
     fit: Fit | None = None
     refitted: list = field(default_factory=list)
 
@@ -149,6 +154,7 @@ class CandidateScore:
             "score": float(-np.log10(max(self.p_corrected, 1e-300))),
             "visible": bool(self.visible),
             "max_delta_chi2": float(self.max_delta_chi2),
+            "effect_size": float(self.effect_size),
         })
         return d
 
@@ -254,11 +260,11 @@ def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
 class _Fitter:
     """Least-squares fits of base and extended FE models to a subset of the observed entries."""
 
-    def __init__(self, ctx, space, measurement, noise, rows):
+    def __init__(self, ctx, space, measurement, noise, rows, model_tolerance=0.0):
         self.ctx, self.space = ctx, space
         sc = ctx.scenario
         idx = measurement.output_indices(sc.sensor_names, sc.load_levels)
-        C = noise.covariance_matrix(measurement)
+        C = data_covariance(measurement, noise, model_tolerance)
         self.rows = np.asarray(rows)
         self.idx = idx[self.rows]
         self.d = measurement.data[self.rows]
@@ -299,8 +305,17 @@ class _Fitter:
         )
 
 
+def data_covariance(measurement, noise, model_tolerance=0.0):
+    """``C_D = C_d + C_T`` (thesis eq. 2.10) with the modelling part ``C_T = diag((ε d_i)²)``: a
+    relative model-form tolerance ε on every reading (discretisation, idealised geometry), mm²."""
+    C = noise.covariance_matrix(measurement)
+    if model_tolerance:
+        C = C + np.diag((model_tolerance * measurement.data) ** 2)
+    return C
+
+
 def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None, candidates=None, alpha=0.01,
-             rng=0, n_train=64, refit_locations=3, progress=None):
+             model_tolerance=0.01, rng=0, n_train=64, refit_locations=3, progress=None):
     """Diagnose a calibrated FE model against measured data.
 
     Parameters
@@ -321,6 +336,11 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default: all).
     alpha : float
         Significance level of the χ² test and of the (multiplicity-corrected) candidate tests.
+    model_tolerance : float
+        Relative model-form tolerance ε added to the noise, ``C_D = C_d + diag((ε d)²)``
+        (thesis eq. 2.10): two sound FE discretisations of the same test differ by about 0.5 %,
+        which many readings (a DIC grid) would otherwise flag as a missing effect. A cause is
+        named only when its fitted effect moves some reading by at least ``MIN_EFFECT`` (2) σ.
     rng : int
         Seed of the surrogate design and the GA.
     refit_locations : int
@@ -343,8 +363,10 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     values0 = scenario.resolve(fixed)
     ctx = FEContext(scenario, space.names, values0)
     ctx.offset_scale = float(np.max(np.abs(measurement.values)))
-    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs))
-    noise_std = np.sqrt(np.diag(noise.covariance_matrix(measurement)))
+    if not 0 <= model_tolerance < 0.5:
+        raise ValueError(f"model_tolerance must be in [0, 0.5) (a relative tolerance); got {model_tolerance}")
+    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), model_tolerance)
+    noise_std = np.sqrt(np.diag(data_covariance(measurement, noise, model_tolerance)))
 
     # 1. base calibration: surrogate first, FE last
     say("calibration", 0, 3)
@@ -416,12 +438,14 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
             p = 0.5 * p if delta > 0 else 1.0
         score.p_value = p
         score.p_corrected = min(1.0, p * n_applicable * len(locations))
+        neutral = cand.readings(ctx, fit.values, loc, par.off)
+        score.effect_size = float(np.max(np.abs((fit.readings - neutral).ravel()[fitter.idx]) / noise_std))
         scores.append(score)
 
     ranked = sorted([s for s in scores if s.applicable], key=lambda s: (s.p_corrected, -s.delta_chi2))
     inapplicable = [s for s in scores if not s.applicable]
     best = ranked[0] if ranked else None
-    candidate_hit = best is not None and best.p_corrected < alpha
+    candidate_hit = best is not None and best.p_corrected < alpha and best.effect_size >= MIN_EFFECT
     verdict = "inadequate" if (p_chi2 < alpha or candidate_hit) else "adequate"
     cause = best.name if (verdict == "inadequate" and candidate_hit) else None
     alternatives = []
@@ -440,7 +464,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     held_out = None
     if extended is not None and len(measurement.load_levels) >= 3:
         say("held-out check", 0, 1)
-        held_out = _held_out(ctx, space, measurement, noise, base, best)
+        held_out = _held_out(ctx, space, measurement, noise, base, best, model_tolerance)
     seconds = time.perf_counter() - t_start
     logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, cause, seconds, ctx.n_runs)
     return Diagnosis(
@@ -460,19 +484,24 @@ class _Alternative:
 
 
 def _refit(fitter, cand, loc, par, u_base, base):
-    """Extended FE fit at one location: start from the base optimum and the best of a few effect
-    strengths, then least squares over base and effect parameters together."""
-    grid = np.linspace(0.0, 1.0, 9)
-    chi2 = []
-    for t in grid:
-        c = par.from_fit(t)
-        w = fitter.whiten(cand.readings(fitter.ctx, base.values, loc, c))
-        chi2.append(float(w @ w))
-    t0 = grid[int(np.argmin(chi2))]
-    return fitter.fit(u_base, cand, loc, t0)
+    """Extended FE fit at one location: least squares over base and effect parameters together,
+    from the base optimum and the best of a few effect strengths. When the base optimum sits on a
+    face of the box (the base model strained by a missing effect), also from the box centre."""
+    starts = [np.asarray(u_base, dtype=float)]
+    if np.any(np.minimum(u_base, 1.0 - u_base) < 1e-3):
+        starts.append(np.full(len(u_base), 0.5))
+    best = None
+    for u0 in starts:
+        values = fitter.values(u0)
+        grid = np.linspace(0.0, 1.0, 9)
+        chi2 = [float(np.sum(fitter.whiten(cand.readings(fitter.ctx, values, loc, par.from_fit(t))) ** 2)) for t in grid]
+        fit = fitter.fit(u0, cand, loc, grid[int(np.argmin(chi2))])
+        if best is None or fit.chi2 < best.chi2:
+            best = fit
+    return best
 
 
-def _held_out(ctx, space, measurement, noise, base, best):
+def _held_out(ctx, space, measurement, noise, base, best, model_tolerance):
     """Fit base and extended models without the highest load level; error there (whitened RMS and mm)."""
     sc = ctx.scenario
     n_s = len(measurement.sensor_names)
@@ -480,8 +509,8 @@ def _held_out(ctx, space, measurement, noise, base, best):
     rows_all = np.arange(measurement.n_obs).reshape(-1, n_s)
     train = np.delete(rows_all, top, axis=0).ravel()
     test = rows_all[top]
-    fit_train = _Fitter(ctx, space, measurement, noise, train)
-    test_fitter = _Fitter(ctx, space, measurement, noise, test)
+    fit_train = _Fitter(ctx, space, measurement, noise, train, model_tolerance)
+    test_fitter = _Fitter(ctx, space, measurement, noise, test, model_tolerance)
     u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
     b = fit_train.fit(u_base)
     t0 = best.parameter.to_fit(best.fit.effect)

@@ -60,10 +60,10 @@ def draw_strength(cause, location, parameter, rng):
     p = parameter
     if cause == "weak_joint":
         return float(np.exp(rng.uniform(np.log(1e-3), np.log(0.5))))
-    if cause in ("head_joint_stiffness", "unit_stiffness"):
+    if cause in ("head_joint_stiffness", "unit_stiffness"):  # 1.25–20 × softer or stiffer, inside the fit range
         lo, hi = (0.05, 0.7) if cause == "head_joint_stiffness" else (0.3, 0.8)
         factor = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
-        return p.neutral * (factor if rng.random() < 0.5 else 1.0 / factor)
+        return float(np.clip(p.neutral * (factor if rng.random() < 0.5 else 1.0 / factor), p.lower, p.upper))
     if cause == "support_compliance":
         return float(np.exp(rng.uniform(np.log(1e-3), np.log(p.upper))))  # mm³/N
     sign = rng.choice([-1.0, 1.0])

@@ -1,0 +1,122 @@
+"""``podkrig diagnose``: does the calibrated model explain the data, and if not, which physical
+effect is missing?"""
+
+import json
+import sys
+from pathlib import Path
+
+import typer
+
+from ._common import configure_logging, user_errors
+from .invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
+from .simulate import load_spec, parse_assignment
+
+
+def register(app):
+    @app.command()
+    def diagnose(
+        scenario: str = typer.Option(..., "--scenario", help="Scenario name, e.g. diagonal_compression."),
+        data: Path = typer.Option(..., "--data", help="Measurement CSV: load, then one column per sensor (mm)."),
+        param: list[str] = typer.Option([], "--param", help="Free parameter of the base model NAME=LOW:HIGH[:log] (repeatable)."),
+        spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON): options, sensors, fixed values."),
+        set_: list[str] = typer.Option([], "--set", help="Value of a non-free parameter NAME=VALUE (repeatable)."),
+        noise_abs: list[str] = _NOISE_ABS,
+        noise_rel: float = _NOISE_REL,
+        noise_cov: Path = _NOISE_COV,
+        candidates: str = typer.Option(None, "--candidates", help="Comma-separated candidate causes (default: all)."),
+        alpha: float = typer.Option(0.01, "--alpha", help="Significance level of the tests (multiplicity-corrected)."),
+        seed: int = typer.Option(0, "--seed", help="Seed of the surrogate design and the GA."),
+        n_train: int = typer.Option(64, "--n-train", help="FE snapshots of the base surrogate."),
+        report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
+        format: str = typer.Option("text", "--format", help="Output: text or json."),
+        verbose: bool = typer.Option(False, "--verbose", "-v"),
+    ):
+        """Calibrate the base model, test whether it explains the data within the noise, name the
+        missing physical effect among the candidate causes, fit the extended model and measure the gain."""
+        configure_logging(verbose)
+        with user_errors():
+            from fe.scenarios import build_scenario
+
+            from ..diagnosis import diagnose as run_diagnosis
+            from ..measurement_csv import read_measurement_csv
+            from ..parameters import ParameterSpace, parse_params
+
+            if format not in ("text", "json"):
+                raise ValueError(f"--format must be text or json; got {format!r}")
+            sc = build_scenario(load_spec(scenario, spec))
+            space = ParameterSpace.from_scenario(sc, parse_params(param))
+            fixed = dict(parse_assignment(t, "--set") for t in set_)
+            both = sorted(set(fixed) & set(space.names))
+            if both:
+                raise ValueError(f"parameter(s) {both} are both free (--param) and fixed (--set); choose one")
+            measurement = read_measurement_csv(data, sc.sensor_names, sc.load_levels, sc.load_unit)
+            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov)
+            names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
+            with _progress() as progress:
+                result = run_diagnosis(sc, measurement, noise, space, fixed=fixed, candidates=names, alpha=alpha,
+                                       rng=seed, n_train=n_train, progress=progress)
+            out = result.to_dict()
+            if report is not None:
+                from ..reports.diagnosis import write_diagnosis_report
+
+                out["report"] = str(write_diagnosis_report(result, report, noise_text=noise_text))
+            if format == "json":
+                typer.echo(json.dumps(out, indent=1))
+            else:
+                _print_text(out)
+
+
+class _progress:
+    """A rich progress bar on stderr, fed by ``diagnose``'s ``progress(stage, done, total)``."""
+
+    def __enter__(self):
+        from rich.progress import Progress
+
+        self._bar = Progress(transient=True, console=_stderr_console())
+        self._bar.start()
+        self._task = self._bar.add_task("diagnosis", total=1)
+        return self
+
+    def __call__(self, stage, done, total):
+        self._bar.update(self._task, description=stage, completed=done, total=max(total, 1))
+
+    def __exit__(self, *exc):
+        self._bar.stop()
+        return False
+
+
+def _stderr_console():
+    from rich.console import Console
+
+    return Console(file=sys.stderr)
+
+
+def _print_text(out):
+    a = out["adequacy"]
+    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}, α = {a['alpha']:g})")
+    typer.echo("base fit: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["base"]["parameters"].items()))
+    if out["cause"] is not None:
+        d = out["detail"]
+        unit = "" if d["unit"] == "-" else f" {d['unit']}"
+        typer.echo(f"cause: {out['cause']} at {d['location']}: {d['parameter']} = {d['value']:.4g}{unit} "
+                   f"(neutral {d['neutral']:g}{unit})")
+        for alt in d["alternatives"]:
+            typer.echo(f"  equally supported: {alt['cause']} at {alt['location']}")
+        g = out["gain"]
+        typer.echo(f"gain: χ²/dof {g['chi2_dof_before']:.2f} -> {g['chi2_dof_after']:.2f}, AIC −{g['aic_drop']:.1f}, "
+                   f"BIC −{g['bic_drop']:.1f}")
+        if "held_out" in g:
+            h = g["held_out"]
+            typer.echo(f"held out ({h['held_out']}): RMS residual {h['rms_before']:.2f}σ -> {h['rms_after']:.2f}σ")
+    elif out["verdict"] == "inadequate":
+        typer.echo("cause: none of the candidate causes explains the residual")
+    typer.echo("candidates (corrected p):")
+    for c in out["candidates"]:
+        if c["applicable"]:
+            vis = "" if c["visible"] else "  [not visible to these sensors]"
+            typer.echo(f"  {c['name']:22s} {c['p_corrected']:9.3g}  {c['location']}{vis}")
+        else:
+            typer.echo(f"  {c['name']:22s} not applicable: {c['reason']}")
+    typer.echo(f"{out['n_fe_runs']} FE runs in {out['seconds']:.1f} s")
+    if "report" in out:
+        typer.echo(f"report: {out['report']}")

@@ -1,0 +1,259 @@
+"""Figures and the HTML page of a model diagnosis (:func:`podkrig.diagnosis.diagnose`).
+
+The residuals are drawn on the specimen: the wall's joints, the supports, every sensor coloured
+(gauges, point sensors) or drawn as an arrow (pairs of x/y displacement channels, e.g. DIC) by its
+standardised residual (measured − model)/σ at the highest load level, before and after the
+extension; the named cause's location is marked.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from .html import Page, fmt
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _channel_geometry(scenario):
+    """Channel name → ("gauge", p1, p2) or ("point", xy, component)."""
+    geometry = {}
+    for s in scenario.sensors:
+        kind = getattr(s, "kind", None)
+        if kind == "gauge":
+            geometry[s.name] = ("gauge", np.asarray(s.p1, float), np.asarray(s.p2, float))
+        elif kind == "point":
+            geometry[s.name] = ("point", np.asarray(s.point, float), s.component)
+        else:  # a grid of points, channels ".ux", ".uy" per point
+            points = s.points
+            for k, name in enumerate(s.channel_names):
+                geometry[name] = ("point", points[k // 2], name[-1])
+    return geometry
+
+
+def _draw_wall(ax, scenario):
+    mesh = scenario.mesh
+    from fe.mesh.mesh import INTERFACE_KINDS
+
+    for kind, colour, width in (("bed", "#999", 0.6), ("head", "#999", 0.6)):
+        conn = mesh.interfaces[mesh.interface_kind == INTERFACE_KINDS.index(kind)]
+        for e in conn:
+            p, q = mesh.nodes[e[0]], mesh.nodes[e[1]]
+            ax.plot([p[0], q[0]], [p[1], q[1]], color=colour, lw=width, zorder=1)
+    ax.plot([0, mesh.width, mesh.width, 0, 0], [0, 0, mesh.height, mesh.height, 0], color="#444", lw=1.0, zorder=1)
+    sup = mesh.nodes[np.asarray(getattr(scenario, "supported_nodes", []), dtype=int)]
+    if len(sup):
+        ax.plot(sup[:, 0], sup[:, 1], "^", color="#555", ms=3, zorder=2, label="supported nodes")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+
+
+def _mark_cause(ax, diagnosis):
+    best = diagnosis.best
+    if best is None:
+        return
+    d = best.location.detail
+    if best.name == "weak_joint":
+        ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weak joint (f = {best.fit.effect:.3g})")
+    elif best.name == "gauge_fault":
+        geom = _channel_geometry(diagnosis.scenario).get(d["sensor"])
+        if geom is not None:
+            xy = 0.5 * (geom[1] + geom[2]) if geom[0] == "gauge" else geom[1]
+            ax.plot(*xy, "o", ms=16, mfc="none", mec="red", mew=2, zorder=6, label=f"faulty sensor {d['sensor']}")
+    elif best.name == "support_compliance":
+        sup = diagnosis.scenario.mesh.nodes[np.asarray(diagnosis.scenario.supported_nodes, dtype=int)]
+        ax.plot(sup[:, 0], sup[:, 1], "s", color="red", ms=5, zorder=6, label="compliant supports")
+
+
+def plot_residuals_on_specimen(diagnosis, path):
+    """Standardised residuals at the highest load level drawn on the specimen, before and after."""
+    plt = _plt()
+    fits = [("base model", diagnosis.base)]
+    if diagnosis.extended is not None:
+        fits.append((f"extended: {diagnosis.cause}", diagnosis.extended))
+    fig, axes = plt.subplots(1, len(fits), figsize=(6.2 * len(fits), 6.0), squeeze=False)
+    geometry = _channel_geometry(diagnosis.scenario)
+    m = diagnosis.measurement
+    top = int(np.argmax(m.load_levels))
+    residuals = [diagnosis.residuals(f)[top] for _, f in fits]
+    vmax = max(3.0, float(np.max(np.abs(residuals[0]))))
+    norm = plt.Normalize(-vmax, vmax)
+    cmap = plt.get_cmap("coolwarm")
+    size = max(diagnosis.scenario.mesh.width, diagnosis.scenario.mesh.height)
+    for ax, (title, _), res in zip(axes[0], fits, residuals):
+        _draw_wall(ax, diagnosis.scenario)
+        values = dict(zip(m.sensor_names, res))
+        arrows = {}
+        for name, r in values.items():
+            geom = geometry.get(name)
+            if geom is None:
+                continue
+            if geom[0] == "gauge":
+                ax.plot([geom[1][0], geom[2][0]], [geom[1][1], geom[2][1]], color=cmap(norm(r)), lw=4, zorder=4)
+                ax.annotate(f"{name} {r:+.1f}", 0.5 * (geom[1] + geom[2]), fontsize=7, zorder=7,
+                            xytext=(3, 3), textcoords="offset points")
+            else:
+                arrows.setdefault(tuple(np.round(geom[1], 6)), {})[geom[2]] = r
+        if arrows:
+            xy = np.array(list(arrows))
+            ux = np.array([a.get("x", 0.0) for a in arrows.values()])
+            uy = np.array([a.get("y", 0.0) for a in arrows.values()])
+            mag = np.hypot(ux, uy)
+            scale = 0.04 * size / vmax  # mm of drawing per σ
+            ax.quiver(xy[:, 0], xy[:, 1], ux * scale, uy * scale, mag, cmap="viridis", angles="xy", scale_units="xy",
+                      scale=1.0, width=0.004, zorder=4, clim=(0, vmax))
+            ax.plot(xy[:, 0], xy[:, 1], ".", color="k", ms=2, zorder=3)
+        if title != "base model":
+            _mark_cause(ax, diagnosis)
+        chi = np.sum(res**2)
+        ax.set_title(f"{title}\nresiduals at {m.load_levels[top]:g} {diagnosis.scenario.load_unit} (Σr² = {chi:.1f})", fontsize=10)
+        handles, labels = ax.get_legend_handles_labels()
+        if handles:
+            ax.legend(fontsize=7, loc="upper left")
+    sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
+    fig.colorbar(sm, ax=axes[0].tolist(), shrink=0.7, label="gauge residual (measured − model)/σ (-); arrows: |r| (σ)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_residuals_vs_load(diagnosis, path, max_channels=12):
+    """Standardised residuals against load for the channels with the largest base residuals."""
+    plt = _plt()
+    m = diagnosis.measurement
+    rb = diagnosis.residuals(diagnosis.base)
+    re = None if diagnosis.extended is None else diagnosis.residuals(diagnosis.extended)
+    order = np.argsort(-np.sum(rb**2, axis=0))[:max_channels]
+    n = len(order)
+    cols = min(4, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.5 * rows), squeeze=False, sharex=True)
+    for ax, j in zip(axes.ravel(), order):
+        ax.axhspan(-2, 2, color="#eee")
+        ax.plot(m.load_levels, rb[:, j], "o-", color="C3", label="base")
+        if re is not None:
+            ax.plot(m.load_levels, re[:, j], "s--", color="C0", label="extended")
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_title(m.sensor_names[j], fontsize=9)
+        ax.set_xlabel(f"load ({diagnosis.scenario.load_unit})")
+        ax.set_ylabel("(measured − model)/σ (-)")
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    axes[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_candidate_scores(diagnosis, path):
+    """Evidence of each candidate: −log10 of its multiplicity-corrected p-value, with the α line."""
+    plt = _plt()
+    cands = [c for c in diagnosis.candidates if c.applicable]
+    scores = [min(-np.log10(max(c.p_corrected, 1e-300)), 50.0) for c in cands]
+    fig, ax = plt.subplots(figsize=(7, 0.5 * len(cands) + 1.2))
+    colours = ["C3" if (diagnosis.cause == c.name) else "C0" for c in cands]
+    ax.barh([c.name for c in cands][::-1], scores[::-1], color=colours[::-1])
+    ax.axvline(-np.log10(diagnosis.alpha), color="k", ls="--", label=f"α = {diagnosis.alpha:g}")
+    ax.set_xlabel("evidence −log10(corrected p) (-), capped at 50")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
+    """Write ``out_dir/index.html`` and its figures; returns the page path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    d = diagnosis.to_dict()
+    m, sc = diagnosis.measurement, diagnosis.scenario
+    page = Page("podkrig model diagnosis")
+    page.paragraph(
+        f"Scenario {sc.name}; data {m.source} ({m.n_obs} readings, {len(m.sensor_names)} sensors at "
+        f"{', '.join(f'{v:g}' for v in m.load_levels)} {sc.load_unit}); noise: {noise_text or 'as given'}. "
+        f"Base model's free parameters: {', '.join(d['base']['parameters'])}. "
+        f"{d['n_fe_runs']} FE runs, {d['seconds']:.1f} s.", "meta")
+
+    page.heading("Verdict")
+    if d["verdict"] == "adequate":
+        page.success(
+            f"The calibrated base model explains the data within the noise: χ²/dof = {d['adequacy']['chi2_dof']:.2f} "
+            f"(p = {d['adequacy']['p_value']:.3g}) and no candidate cause improves the fit significantly at α = {diagnosis.alpha:g} "
+            "after correcting for the number of candidates and locations tried.")
+    elif d["cause"] is None:
+        page.warning(
+            f"The base model does not explain the data (χ²/dof = {d['adequacy']['chi2_dof']:.2f}, p = {d['adequacy']['p_value']:.2g}), "
+            "and no candidate cause in the library explains the residual.",
+            "check the noise level and the measurement file; look at the residual pattern below for an effect outside the library "
+            "(nonlinearity, a different test set-up), and extend the model accordingly.")
+    else:
+        det = d["detail"]
+        page.warning(
+            f"The base model does not explain the data. Cause: {d['cause']} at {det['location']} "
+            f"({det['parameter']} = {fmt(det['value'])} {det['unit']}, neutral {fmt(det['neutral'])}).",
+            "check the named effect on the specimen or the set-up; if confirmed, calibrate with the extended model "
+            "(its parameters are below) or repair the cause and test again.")
+        if det["alternatives"]:
+            page.warning(
+                "The data cannot tell this cause apart from: " + "; ".join(f"{a['cause']} at {a['location']}" for a in det["alternatives"]) + ".",
+                "add a sensor that separates them (e.g. near the named location) or inspect both on the specimen.")
+
+    page.heading("Residuals on the specimen")
+    page.figure(Path(plot_residuals_on_specimen(diagnosis, out / "residuals_specimen.png")).name,
+                "Standardised residuals (measured − model)/σ at the highest load: gauges coloured, displacement pairs as arrows; "
+                "left the calibrated base model, right the extended model with the named cause marked.")
+    page.figure(Path(plot_residuals_vs_load(diagnosis, out / "residuals_load.png")).name,
+                "Standardised residuals against load for the channels with the largest base residuals (grey band: ±2σ).")
+    st = d["residual_structure"]
+    rows = sorted(st["per_sensor"].items(), key=lambda kv: -kv[1]["chi2_share"])[:15]
+    page.table(["sensor", "share of χ² (%)", "growth with load (corr., -)", "residuals at each load (σ)"],
+               [[s, fmt(100 * v["chi2_share"]), "—" if v["growth_with_load"] is None else fmt(v["growth_with_load"]),
+                 ", ".join(f"{x:+.1f}" for x in v["standardised"])] for s, v in rows],
+               caption="Where the base model's residual sits (largest shares first).")
+
+    page.heading("Candidate causes")
+    page.figure(Path(plot_candidate_scores(diagnosis, out / "candidates.png")).name,
+                "Evidence for each candidate at its best location; bars beyond the dashed line are significant.")
+    crow = []
+    for c in d["candidates"]:
+        if not c["applicable"]:
+            crow.append([c["name"], "not applicable: " + c["reason"], "", "", "", "", ""])
+            continue
+        par = c["parameter"]
+        crow.append([c["name"], c["location"], f"{par['name']} = {fmt(par['value'])} {par['unit']}", c["n_locations"],
+                     fmt(c["delta_chi2"]), f"{c['p_corrected']:.2g}",
+                     "yes" if c["visible"] else "no: these sensors cannot see it"])
+    page.table(["candidate", "best location", "fitted parameter", "locations tried", "Δχ² (-)", "corrected p (-)",
+                "visible"], crow)
+    for c in d["candidates"]:
+        if c["applicable"]:
+            page.paragraph(f"{c['name']}: {c['description']} Signature: {c['signature']}")
+
+    page.heading("Base and extended fits")
+    rows = [["base", ", ".join(f"{k} = {fmt(v)}" for k, v in d["base"]["parameters"].items()), fmt(d["base"]["chi2"]),
+             fmt(d["base"]["chi2_dof"]), fmt(d["base"]["aic"]), fmt(d["base"]["bic"])]]
+    if d["extended"] is not None:
+        e = d["extended"]
+        rows.append(["extended", ", ".join(f"{k} = {fmt(v)}" for k, v in e["parameters"].items()) + f"; effect {fmt(e['effect'])}",
+                     fmt(e["chi2"]), fmt(e["chi2_dof"]), fmt(e["aic"]), fmt(e["bic"])])
+    page.table(["model", "parameters (N/mm³, MPa, -)", "χ² (-)", "χ²/dof (-)", "AIC (-)", "BIC (-)"], rows)
+    g = d["gain"]
+    if g is not None and "held_out" in g:
+        h = g["held_out"]
+        page.table(["held out", "RMS residual before (σ)", "RMS residual after (σ)", "max |error| before (mm)", "max |error| after (mm)"],
+                   [[h["held_out"], fmt(h["rms_before"]), fmt(h["rms_after"]), fmt(h["max_abs_mm_before"]), fmt(h["max_abs_mm_after"])]],
+                   caption="Both models fitted without the highest load level, then compared with it.")
+    import json
+
+    page.details("JSON", json.dumps(d, indent=1))
+    return page.write(out / "index.html")
