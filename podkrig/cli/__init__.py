@@ -3,7 +3,7 @@ outputs and turns domain errors into one-line messages with a hint and a non-zer
 
 import typer
 
-from . import invert, simulate, snapshots, surrogate
+from . import diagnose, invert, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -16,6 +16,7 @@ simulate.register(app)
 snapshots.register(app)
 surrogate.register(app)
 invert.register(app)
+diagnose.register(app)
 
 
 @app.callback()
