@@ -25,6 +25,8 @@ def register(app):
         noise_cov: Path = _NOISE_COV,
         candidates: str = typer.Option(None, "--candidates", help="Comma-separated candidate causes (default: all)."),
         alpha: float = typer.Option(0.01, "--alpha", help="Significance level of the tests (multiplicity-corrected)."),
+        model_tolerance: float = typer.Option(0.01, "--model-tolerance",
+                                              help="Relative model-form tolerance added to the noise (0.01 = 1 % of each reading)."),
         seed: int = typer.Option(0, "--seed", help="Seed of the surrogate design and the GA."),
         n_train: int = typer.Option(64, "--n-train", help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
@@ -54,7 +56,7 @@ def register(app):
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
             with _progress() as progress:
                 result = run_diagnosis(sc, measurement, noise, space, fixed=fixed, candidates=names, alpha=alpha,
-                                       rng=seed, n_train=n_train, progress=progress)
+                                       model_tolerance=model_tolerance, rng=seed, n_train=n_train, progress=progress)
             out = result.to_dict()
             if report is not None:
                 from ..reports.diagnosis import write_diagnosis_report

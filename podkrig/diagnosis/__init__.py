@@ -4,5 +4,13 @@ physical effects, fit the extended model and measure the gain (see :mod:`.engine
 from .candidates import CANDIDATES, Candidate, EffectParameter, FEContext, Location
 from .engine import Diagnosis, build_base_surrogate, diagnose
 
-__all__ = ["CANDIDATES", "Candidate", "EffectParameter", "FEContext", "Location", "Diagnosis", "build_base_surrogate",
-           "diagnose"]
+__all__ = [
+           "CANDIDATES",
+           "Candidate",
+           "Diagnosis",
+           "EffectParameter",
+           "FEContext",
+           "Location",
+           "build_base_surrogate",
+           "diagnose",
+]

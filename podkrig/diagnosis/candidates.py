@@ -194,7 +194,7 @@ class Candidate(abc.ABC):
 
     def not_applicable(self, ctx):
         """Why the candidate does not apply to this base model (str), or None."""
-        return None
+        return
 
     @abc.abstractmethod
     def locations(self, ctx):
@@ -293,7 +293,7 @@ class SupportCompliance(Candidate):
         return None
 
     def locations(self, ctx):
-        return [Location("supports", "all supports", {"nodes": int(len(ctx.scenario.supported_nodes))})]
+        return [Location("supports", "all supports", {"nodes": len(ctx.scenario.supported_nodes)})]
 
     def parameter(self, ctx, location):
         # compliance 1 mm³/N is a 10 mm layer of a 10 MPa material: a soft pad

@@ -384,16 +384,10 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     structure = residual_structure(fitter.whiten(base.readings), measurement, noise_std)
 
     # 2. screening and refits of every candidate
-    r = -fitter.whiten(base.readings)  # data − model, whitened
-    J = base.jacobian
-    Q, _ = np.linalg.qr(J)
-    def project(v):
-        return v - Q @ (Q.T @ v)
-    Pr = project(r)
     u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
+    screen = _Screen(fitter, base)
+    n_applicable = max(sum(CANDIDATES[n].not_applicable(ctx) is None for n in names), 1)
     scores = []
-    applicable = [CANDIDATES[n] for n in names if CANDIDATES[n].not_applicable(ctx) is None]
-    n_applicable = max(len(applicable), 1)
     for k, name in enumerate(names):
         cand = CANDIDATES[name]
         reason = cand.not_applicable(ctx)
@@ -401,48 +395,11 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
             scores.append(CandidateScore(name, cand.description, cand.signature, 0, False, reason))
             continue
         say(f"screening {name}", k, len(names))
-        locations = cand.locations(ctx)
-        score = CandidateScore(name, cand.description, cand.signature, len(locations), True)
-        screened = []
-        max_effect = 0.0
-        for loc in locations:
-            par = cand.parameter(ctx, loc)
-            Ps = project(fitter.whiten(cand.readings(ctx, base.values, loc, par.reference)) + r)
-            ss = float(Ps @ Ps)
-            a = float(Ps @ Pr) / ss if ss > 0 else 0.0
-            delta = a * float(Ps @ Pr) if (ss > 0 and (a > 0 or not par.one_sided)) else 0.0
-            screened.append((delta, loc, par))
-            # visibility: the largest χ² change the effect can make beyond the base parameters' span
-            # (for candidates with many locations the reference strength is near the extreme)
-            max_effect = max(max_effect, ss)
-            if len(locations) <= _EXACT_VISIBILITY:
-                for extreme in (par.lower, par.upper):
-                    if extreme != par.neutral:
-                        Pe = project(fitter.whiten(cand.readings(ctx, base.values, loc, extreme)) + r)
-                        max_effect = max(max_effect, float(Pe @ Pe))
-        screened.sort(key=lambda t: -t[0])
-        score.max_delta_chi2 = max_effect
-        score.visible = max_effect >= stats.chi2.isf(alpha / (n_applicable * len(locations)), 1)
-        n_refit = min(refit_locations, len(screened))
-        best = None
-        for delta_lin, loc, par in screened[:n_refit]:
-            fit = _refit(fitter, cand, loc, par, u_base, base)
-            delta = max(base.chi2 - fit.chi2, 0.0)
-            score.refitted.append((loc, par, delta_lin, fit, delta))
-            if best is None or fit.chi2 < best[3].chi2:
-                best = (loc, par, delta_lin, fit, delta)
-        loc, par, delta_lin, fit, delta = best
-        score.location, score.parameter, score.screening_delta_chi2, score.fit, score.delta_chi2 = loc, par, delta_lin, fit, delta
-        p = float(stats.chi2.sf(delta, 1)) if delta > 0 else 1.0
-        if par.one_sided:
-            p = 0.5 * p if delta > 0 else 1.0
-        score.p_value = p
-        score.p_corrected = min(1.0, p * n_applicable * len(locations))
-        neutral = cand.readings(ctx, fit.values, loc, par.off)
-        score.effect_size = float(np.max(np.abs((fit.readings - neutral).ravel()[fitter.idx]) / noise_std))
-        scores.append(score)
+        scores.append(_score_candidate(cand, ctx, fitter, screen, base, u_base, n_applicable, alpha,
+                                       refit_locations, noise_std))
 
-    ranked = sorted([s for s in scores if s.applicable], key=lambda s: (s.p_corrected, -s.delta_chi2))
+    ranked = sorted([s for s in scores if s.applicable],
+                    key=lambda s: (s.effect_size < MIN_EFFECT, s.p_corrected, -s.delta_chi2))
     inapplicable = [s for s in scores if not s.applicable]
     best = ranked[0] if ranked else None
     candidate_hit = best is not None and best.p_corrected < alpha and best.effect_size >= MIN_EFFECT
@@ -474,6 +431,67 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs,
         surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)}},
     )
+
+
+class _Screen:
+    """Whitened residual of the base fit and the projector off the span of its Jacobian."""
+
+    def __init__(self, fitter, base):
+        self.fitter = fitter
+        self.r = -fitter.whiten(base.readings)  # data − model, whitened
+        self._Q, _ = np.linalg.qr(base.jacobian)
+        self.Pr = self.project(self.r)
+
+    def project(self, v):
+        """``P v = v − Q Qᵀ v``: the part of ``v`` the base parameters cannot absorb."""
+        return v - self._Q @ (self._Q.T @ v)
+
+    def signature(self, readings):
+        """Projected whitened change of the readings from the base fit, ``P s``."""
+        return self.project(self.fitter.whiten(readings) + self.r)
+
+
+def _score_candidate(cand, ctx, fitter, screen, base, u_base, n_applicable, alpha, refit_locations, noise_std):
+    """Screen every location of a candidate, refit the best few, and return its :class:`CandidateScore`."""
+    locations = cand.locations(ctx)
+    score = CandidateScore(cand.name, cand.description, cand.signature, len(locations), True)
+    screened = []
+    max_effect = 0.0
+    for loc in locations:
+        par = cand.parameter(ctx, loc)
+        Ps = screen.signature(cand.readings(ctx, base.values, loc, par.reference))
+        ss = float(Ps @ Ps)
+        sr = float(Ps @ screen.Pr)
+        delta = sr * sr / ss if (ss > 0 and (sr > 0 or not par.one_sided)) else 0.0
+        screened.append((delta, loc, par))
+        # visibility: the largest χ² change the effect can make beyond the base parameters' span
+        # (for candidates with many locations the reference strength is near the extreme)
+        max_effect = max(max_effect, ss)
+        if len(locations) <= _EXACT_VISIBILITY:
+            for extreme in (par.lower, par.upper):
+                if extreme != par.neutral:
+                    Pe = screen.signature(cand.readings(ctx, base.values, loc, extreme))
+                    max_effect = max(max_effect, float(Pe @ Pe))
+    screened.sort(key=lambda t: -t[0])
+    score.max_delta_chi2 = max_effect
+    score.visible = max_effect >= stats.chi2.isf(alpha / (n_applicable * len(locations)), 1)
+    best = None
+    for delta_lin, loc, par in screened[:refit_locations]:
+        fit = _refit(fitter, cand, loc, par, u_base, base)
+        entry = (loc, par, delta_lin, fit, max(base.chi2 - fit.chi2, 0.0))
+        score.refitted.append(entry)
+        if best is None or fit.chi2 < best[3].chi2:
+            best = entry
+    loc, par, delta_lin, fit, delta = best
+    score.location, score.parameter, score.screening_delta_chi2, score.fit, score.delta_chi2 = best
+    p = float(stats.chi2.sf(delta, 1)) if delta > 0 else 1.0
+    if par.one_sided:  # ½χ²(0) + ½χ²(1) under the null
+        p = 0.5 * p if delta > 0 else 1.0
+    score.p_value = p
+    score.p_corrected = min(1.0, p * n_applicable * len(locations))
+    off = cand.readings(ctx, fit.values, loc, par.off)
+    score.effect_size = float(np.max(np.abs((fit.readings - off).ravel()[fitter.idx]) / noise_std))
+    return score
 
 
 @dataclass(frozen=True)

@@ -74,7 +74,9 @@ def _mark_cause(ax, diagnosis):
 
 
 def plot_residuals_on_specimen(diagnosis, path):
-    """Standardised residuals at the highest load level drawn on the specimen, before and after."""
+    """Standardised residuals at the highest load level drawn on the specimen, before and after:
+    gauges coloured by their residual, x/y displacement pairs (point sensors, DIC) as arrows of the
+    residual vector (same scale in both panels)."""
     plt = _plt()
     fits = [("base model", diagnosis.base)]
     if diagnosis.extended is not None:
@@ -88,38 +90,47 @@ def plot_residuals_on_specimen(diagnosis, path):
     norm = plt.Normalize(-vmax, vmax)
     cmap = plt.get_cmap("coolwarm")
     size = max(diagnosis.scenario.mesh.width, diagnosis.scenario.mesh.height)
+    pairs = [abs(r) for name, r in zip(m.sensor_names, residuals[0]) if geometry.get(name, ("",))[0] == "point"]
+    largest = max(pairs, default=1.0)
+    arrow_scale = 0.1 * size / max(largest, 1e-12)  # mm of drawing per σ: the largest arrow is 10 % of the wall
+    key_sigma = float(f"{largest / 2:.1g}") or 1.0
     for ax, (title, _), res in zip(axes[0], fits, residuals):
         _draw_wall(ax, diagnosis.scenario)
         values = dict(zip(m.sensor_names, res))
-        arrows = {}
+        arrows, short = {}, []
         for name, r in values.items():
             geom = geometry.get(name)
             if geom is None:
                 continue
             if geom[0] == "gauge":
                 ax.plot([geom[1][0], geom[2][0]], [geom[1][1], geom[2][1]], color=cmap(norm(r)), lw=4, zorder=4)
-                ax.annotate(f"{name} {r:+.1f}", 0.5 * (geom[1] + geom[2]), fontsize=7, zorder=7,
-                            xytext=(3, 3), textcoords="offset points")
+                if np.linalg.norm(geom[2] - geom[1]) >= 0.15 * size:
+                    ax.annotate(f"{name} {r:+.1f}", geom[2], fontsize=7, zorder=7, xytext=(3, 3), textcoords="offset points")
+                else:  # short gauges crowd each other: listed in a box
+                    short.append(f"{name} {r:+.1f}")
             else:
                 arrows.setdefault(tuple(np.round(geom[1], 6)), {})[geom[2]] = r
         if arrows:
             xy = np.array(list(arrows))
             ux = np.array([a.get("x", 0.0) for a in arrows.values()])
             uy = np.array([a.get("y", 0.0) for a in arrows.values()])
-            mag = np.hypot(ux, uy)
-            scale = 0.04 * size / vmax  # mm of drawing per σ
-            ax.quiver(xy[:, 0], xy[:, 1], ux * scale, uy * scale, mag, cmap="viridis", angles="xy", scale_units="xy",
-                      scale=1.0, width=0.004, zorder=4, clim=(0, vmax))
-            ax.plot(xy[:, 0], xy[:, 1], ".", color="k", ms=2, zorder=3)
+            q = ax.quiver(xy[:, 0], xy[:, 1], ux * arrow_scale, uy * arrow_scale, color="k", angles="xy",
+                          scale_units="xy", scale=1.0, width=0.004, zorder=4)
+            ax.quiverkey(q, 0.82, 1.02, key_sigma * arrow_scale, f"{key_sigma:g}σ", labelpos="E", coordinates="axes",
+                         fontproperties={"size": 8})
+            ax.plot(xy[:, 0], xy[:, 1], ".", color="#555", ms=2, zorder=3)
+        if short:
+            ax.text(0.98, 0.02, "short gauges (σ):\n" + "\n".join(short), transform=ax.transAxes, fontsize=7,
+                    ha="right", va="bottom", bbox={"fc": "white", "ec": "#999"}, zorder=8)
         if title != "base model":
             _mark_cause(ax, diagnosis)
         chi = np.sum(res**2)
-        ax.set_title(f"{title}\nresiduals at {m.load_levels[top]:g} {diagnosis.scenario.load_unit} (Σr² = {chi:.1f})", fontsize=10)
-        handles, labels = ax.get_legend_handles_labels()
+        ax.set_title(f"{title}\nresiduals at {m.load_levels[top]:g} {diagnosis.scenario.load_unit} (Σr² = {chi:.1f})", fontsize=10, pad=16)
+        handles, _ = ax.get_legend_handles_labels()
         if handles:
             ax.legend(fontsize=7, loc="upper left")
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, ax=axes[0].tolist(), shrink=0.7, label="gauge residual (measured − model)/σ (-); arrows: |r| (σ)")
+    fig.colorbar(sm, ax=axes[0].tolist(), shrink=0.7, label="gauge residual (measured − model)/σ (-)")
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
