@@ -21,4 +21,4 @@ def build_scenario(spec, solver="auto"):
     return SCENARIOS[spec.scenario](spec, solver=solver)
 
 
-__all__ = ["SCENARIOS", "build_scenario", "Scenario", "ScenarioSpec", "ParameterInfo"]
+__all__ = ["SCENARIOS", "ParameterInfo", "Scenario", "ScenarioSpec", "build_scenario"]

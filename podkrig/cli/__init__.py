@@ -3,7 +3,7 @@ outputs and turns domain errors into one-line messages with a hint and a non-zer
 
 import typer
 
-from . import diagnose, invert, simulate, snapshots, surrogate
+from . import diagnose, invert, run, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -17,6 +17,7 @@ snapshots.register(app)
 surrogate.register(app)
 invert.register(app)
 diagnose.register(app)
+run.register(app)
 
 
 @app.callback()

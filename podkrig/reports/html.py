@@ -62,6 +62,12 @@ class Page:
         """A collapsed block of preformatted text (e.g. the JSON behind the page)."""
         self._parts.append(f"<details><summary>{_e(summary)}</summary><pre>{_e(text)}</pre></details>")
 
+    def links(self, entries):
+        """A list of links, ``entries`` of (href, text): ``"#anchor"`` for a section of this page,
+        or a path relative to the page."""
+        items = "".join(f'<li><a href="{_e(href)}">{_e(text)}</a></li>' for href, text in entries)
+        self._parts.append(f"<ul>{items}</ul>")
+
     def figure(self, filename, caption):
         """A figure already saved beside the page (``filename`` relative to the page)."""
         self._parts.append(f'<figure><img src="{_e(filename)}" alt="{_e(caption)}"><figcaption>{_e(caption)}</figcaption></figure>')

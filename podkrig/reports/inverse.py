@@ -157,10 +157,8 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
     """
     from pathlib import Path
 
-    from ..ga import plot_history, plot_parameters, plot_statistics
     from .html import Page, fmt
 
-    plt = _plt()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     problem = result.problem
@@ -232,16 +230,33 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
         page.figure(Path(plot_rvc(rvc_results, out / "rvc.png")).name, "Spread of the outputs over the region of equivalence.")
 
     page.heading("Genetic algorithm")
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    plot_history(result.ga, ax=axes[0])
-    plot_statistics(result.ga, ax=axes[1])
-    fig.tight_layout()
-    fig.savefig(out / "ga_history.png", dpi=110)
-    plt.close(fig)
-    page.figure("ga_history.png", "Every evaluated individual's misfit by generation, and population statistics (thesis Fig. 3.17).")
-    axes = plot_parameters(result.ga)
-    fig = np.ravel(axes)[0].figure
-    fig.savefig(out / "ga_parameters.png", dpi=110)
-    plt.close(fig)
-    page.figure("ga_parameters.png", "Parameter values of evaluated individuals against misfit (thesis Fig. 3.23).")
+    page.figure(Path(plot_ga_history(result.ga, out / "ga_history.png")).name,
+                "Every evaluated individual's misfit by generation, and population statistics (thesis Fig. 3.17).")
+    page.figure(Path(plot_ga_parameters(result.ga, out / "ga_parameters.png")).name,
+                "Parameter values of evaluated individuals against misfit (thesis Fig. 3.23).")
     return page.write(out / "index.html")
+
+
+def plot_ga_history(ga, path):
+    """The GA's history: every evaluated misfit by generation, and population statistics."""
+    from ..ga import plot_history, plot_statistics
+
+    plt = _plt()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    plot_history(ga, ax=axes[0])
+    plot_statistics(ga, ax=axes[1])
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_ga_parameters(ga, path):
+    """Parameter values of the GA's evaluated individuals against their misfit."""
+    from ..ga import plot_parameters
+
+    plt = _plt()
+    fig = np.ravel(plot_parameters(ga))[0].figure
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,165 @@
+"""``podkrig run STUDY.toml`` and ``podkrig demo``: a whole calibration study, every stage cached."""
+
+from pathlib import Path
+
+import typer
+
+from ._common import configure_logging, user_errors
+
+DEMO_STUDY = "diagonal_compression.toml"
+
+
+def examples_dir():
+    """The ``examples/`` folder of the source tree podkrig runs from."""
+    return Path(__file__).resolve().parents[2] / "examples"
+
+
+def _rich_progress():
+    """A :class:`podkrig.study.pipeline.Progress` drawing one line or bar per stage on stderr."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+    )
+
+    from ..study.pipeline import Progress as StageProgress
+
+    console = Console(stderr=True)
+
+    class RichProgress(StageProgress):
+        def __init__(self):
+            self.bar = None
+            self.task = None
+
+        def stage_started(self, name, title, total=None):
+            if not console.is_terminal:  # a log file gets one line per finished stage
+                return
+            columns = [SpinnerColumn(), TextColumn("{task.description}")]
+            if total is not None:
+                columns += [BarColumn(), MofNCompleteColumn()]
+            self.bar = Progress(*columns, TimeElapsedColumn(), console=console, transient=True)
+            self.task = self.bar.add_task(title, total=total)
+            self.bar.start()
+
+        def advance(self, completed, total):
+            if self.bar is not None:
+                self.bar.update(self.task, completed=completed, total=total)
+
+        def stage_finished(self, record):
+            if self.bar is not None:
+                self.bar.stop()
+                self.bar = None
+            if record.cached:
+                console.print(f"[dim]· {record.title}: cached[/]")
+            else:
+                fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
+                console.print(f"[green]✓[/] {record.title}: {record.seconds:.1f} s{fe}")
+
+        def stop(self):
+            if self.bar is not None:
+                self.bar.stop()
+
+    return RichProgress()
+
+
+def _run(study_path, out):
+    """Load, run and summarise a study (inside the CLI's error handling)."""
+    from ..study import load_study, run_study
+
+    study = load_study(study_path)
+    out = Path("out") / study.name if out is None else out
+    progress = _rich_progress()
+    try:
+        result = run_study(study, out, progress=progress)
+    except KeyboardInterrupt:
+        typer.echo(f"interrupted: finished stages and FE runs are kept in {out}; rerun the same command to resume",
+                   err=True)
+        raise typer.Exit(code=130) from None
+    finally:
+        progress.stop()
+    _print_summary(result)
+
+
+def _print_summary(result):
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    inv = result.stage("inversion").result
+    region = result.stage("region").result
+    held = result.stage("held_out_validation").result
+    table = Table(title=f"{result.study.name}: identified parameters (χ²/dof = {inv['chi2_dof']:.3g})")
+    for col in ("parameter", "unit", "best fit", f"{100 * region['confidence']:.0f} % region of equivalence",
+                "identified"):
+        table.add_column(col, justify="right")
+    for name in region["names"]:
+        lo, hi = region["intervals"][name]
+        unit = inv["units"][name]
+        table.add_row(name, unit, f"{inv['parameters'][name]:.5g}", f"[{lo:.4g}, {hi:.4g}]",
+                      "yes" if region["identifiability"][name]["identifiable"] else "NO")
+    console.print(table)
+    numbers = Table(title="checks")
+    for col in ("quantity", "value"):
+        numbers.add_column(col, justify="right")
+    numbers.add_row("surrogate median error on held-out FE runs", f"{100 * held['rel_error']['median']:.3g} %")
+    fe = inv["fe_check"]
+    if fe is not None:
+        numbers.add_row("max |FE − surrogate| at the best fit", f"{fe['max_abs_diff']:.3g} mm "
+                                                                f"({fe['max_diff_over_noise']:.2f} σ)")
+    for model, r in result.stage("rvc").result["models"].items():
+        numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r['cv']):.3g} %")
+    if result.study.diagnosis.enabled:
+        d = result.stage("diagnosis").result
+        numbers.add_row("model diagnosis", d["verdict"] + (f": {d['cause']}" if d["cause"] else ""))
+    console.print(numbers)
+    stages = Table(title="stages")
+    for col in ("stage", "this run", "time (s)", "FE runs"):
+        stages.add_column(col, justify="right")
+    for r in result.stages:
+        stages.add_row(r.title, "cached" if r.cached else "ran", f"{r.seconds:.1f}", str(r.fe_runs))
+    console.print(stages)
+    for w in result.warnings:
+        console.print(f"[bold yellow]warning:[/] {w['what']}\n  what to do: {w['what_to_do']}")
+    console.print(f"{result.fe_runs} FE runs in {result.seconds:.1f} s; report: {result.report}")
+
+
+def register(app):
+    @app.command()
+    def run(
+        study: Path = typer.Argument(..., help="Study file (TOML): scenario, parameters, sampling, surrogate, "
+                                               "measurement, inversion, validation models."),
+        out: Path = typer.Option(None, "--out", help="Output folder (default: out/NAME with the study's name)."),
+        verbose: bool = typer.Option(False, "--verbose", "-v"),
+    ):
+        """Run a whole study: FE snapshots, surrogate, held-out check, inversion, region of equivalence, RVC, diagnosis.
+
+        Every stage is cached by a hash of its inputs: a rerun with nothing changed does no FE work, and a
+        new measurement file reruns only the online stages. Writes OUT/report/index.html.
+        """
+        configure_logging(verbose)
+        with user_errors():
+            _run(study, out)
+
+    @app.command()
+    def demo(
+        out: Path = typer.Option(Path("out/demo"), "--out", help="Output folder."),
+        verbose: bool = typer.Option(False, "--verbose", "-v"),
+    ):
+        """Run the bundled default study: a diagonal compression test with pseudo-measured data.
+
+        The study is examples/diagonal_compression.toml (see examples/README.md); writes
+        OUT/report/index.html. About a minute on two cores the first time, seconds when cached.
+        """
+        configure_logging(verbose)
+        with user_errors():
+            study = examples_dir() / DEMO_STUDY
+            if not study.is_file():
+                raise FileNotFoundError(
+                    f"the demo study {study} is missing: 'podkrig demo' runs from a source checkout "
+                    "(git clone, then pip install -e .); or run your own study with 'podkrig run STUDY.toml'"
+                )
+            _run(study, out)

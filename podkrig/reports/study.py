@@ -1,0 +1,315 @@
+"""The one-page HTML report of a study: a section per stage, numbers with units, warnings in plain
+words with what to do about them, and the figures the stages drew beside the page.
+
+Presentation only: :func:`write_study_report` reads the stage manifests of
+:func:`podkrig.study.run_study` (their JSON results) and the study settings; it computes nothing
+and draws nothing (the figures are stage outputs, already in the report folder).
+"""
+
+import json
+import math
+
+from .html import Page, fmt
+
+#: report sections: (anchor, heading), in page order
+SECTIONS = (
+    ("summary", "Summary"),
+    ("study", "The study"),
+    ("offline", "Offline stage: FE snapshots"),
+    ("surrogate", "Surrogate: POD + kriging"),
+    ("held-out", "Surrogate check on held-out FE runs"),
+    ("inversion", "Inversion"),
+    ("region", "Region of equivalence"),
+    ("rvc", "Response variability (RVC)"),
+    ("diagnosis", "Model diagnosis"),
+    ("provenance", "Provenance and cache"),
+)
+
+
+def _unit(unit):
+    return "-" if not unit else unit
+
+
+def _num(value, digits=4):
+    """A number for a table: ``digits`` significant digits, no exponent below 10⁶, an em dash for
+    a missing or non-finite one."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    text = fmt(value, digits)
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
+def _pct(value, digits=3):
+    return "—" if value is None or not math.isfinite(value) else f"{100 * value:.{digits}g}"
+
+
+def _finite(obj):
+    """``obj`` with non-finite floats replaced by None (for the JSON shown on the page)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    return obj
+
+
+def write_study_report(path, study, records, warnings):
+    """Write the study report page; returns its path.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``index.html`` in the folder holding the stages' figures.
+    study : podkrig.study.Study
+    records : sequence of podkrig.study.pipeline.StageRecord
+        Every stage of the run, in order.
+    warnings : sequence of dict
+        ``{"section", "what", "what_to_do"}`` (see :func:`podkrig.study.run_study`).
+    """
+    stages = {r.name: r for r in records}
+    res = {name: r.result for name, r in stages.items()}
+    page = Page(f"podkrig study: {study.name}")
+    page.paragraph(f"Study file {study.path}. Units: N, mm, MPa; interface stiffness N/mm³; loads in "
+                   f"{res['inversion']['measurement']['load_unit']}.", "meta")
+    page.links([(f"#{anchor}", title) for anchor, title in SECTIONS])
+    by_section = {}
+    for w in warnings:
+        by_section.setdefault(w["section"], []).append(w)
+
+    def section(anchor):
+        page.heading(dict(SECTIONS)[anchor], anchor=anchor)
+        for w in by_section.get(anchor, ()):
+            page.warning(w["what"], w["what_to_do"])
+
+    _summary(page, study, res, warnings)
+    section("study")
+    _study(page, study)
+    section("offline")
+    _offline(page, stages)
+    section("surrogate")
+    _surrogate(page, study, res["surrogate"])
+    section("held-out")
+    _held_out(page, res["held_out_validation"])
+    section("inversion")
+    _inversion(page, res["inversion"])
+    section("region")
+    _region(page, res["region"])
+    section("rvc")
+    _rvc(page, study, res["rvc"])
+    section("diagnosis")
+    _diagnosis(page, res.get("diagnosis"))
+    section("provenance")
+    _provenance(page, records)
+    return page.write(path)
+
+
+def _summary(page, study, res, warnings):
+    page.heading("Summary", anchor="summary")
+    inv, region = res["inversion"], res["region"]
+    held = res["held_out_validation"]
+    rows = []
+    for name in region["names"]:
+        lo, hi = region["intervals"][name]
+        ident = region["identifiability"][name]
+        rows.append([name, _unit(inv["units"][name]), _num(inv["parameters"][name]), f"[{_num(lo)}, {_num(hi)}]",
+                     "yes" if ident["identifiable"] else "NO", f"{100 * ident['share']:.0f}"])
+    page.table(["parameter", "unit", "best fit",
+                f"region of equivalence ({100 * region['confidence']:.0f} %)", "identified",
+                "share of search range (%)"], rows, caption="Identified parameters")
+    fe = inv["fe_check"]
+    numbers = [
+        ["χ²/dof at the best fit (-)", _num(inv["chi2_dof"], 3), "about 1 when the model explains the data within the noise"],
+        ["surrogate median error on held-out FE runs (%)", _pct(held["rel_error"]["median"]),
+         f"{held['n_held_out']} runs, {held['n_train']} training snapshots, {held['n_modes']} POD modes"],
+        ["max |FE − surrogate| at the best fit / noise σ (-)", _num(fe["max_diff_over_noise"], 3) if fe else "—",
+         "below 1: the surrogate is as good as the data there" if fe else "FE check switched off"],
+    ]
+    for model, r in res["rvc"]["models"].items():
+        numbers.append([f"largest output CV over the region, {model} (%)", _pct(max(r["cv"])),
+                        f"{len(r['outputs'])} outputs, {r['n_samples']} members of the region"])
+    page.table(["quantity", "value", "note"], numbers, caption="Key numbers")
+    if warnings:
+        page.paragraph(f"{len(warnings)} warning(s), each in its section below:")
+        for w in warnings:
+            page.warning(w["what"], w["what_to_do"])
+    else:
+        page.success("No warnings: the surrogate is accurate enough for the data, the calibrated model explains "
+                     "the measurements within the noise, and every free parameter is identified.")
+
+
+def _study(page, study):
+    spec = study.spec.to_dict()
+    fixed = spec.pop("parameters")
+    name = spec.pop("scenario")
+    page.paragraph(f"Scenario {name}; options: " + ", ".join(f"{k} = {v}" for k, v in spec.items() if v is not None) + ".")
+    page.table(["free parameter", "unit", "lower", "upper", "scale"],
+               [[p.name, _unit(p.unit), _num(p.lower), _num(p.upper), p.scale] for p in study.space.parameters])
+    if fixed:
+        page.table(["fixed parameter", "value"], [[k, _num(v)] for k, v in fixed.items()])
+    m = study.measurement
+    designs = [["training", study.train.n, study.train.method, study.train.seed],
+               ["held-out", study.held_out.n, study.held_out.method, study.held_out.seed]]
+    designs += [[f"validation model {v.name} ({v.spec.scenario})", v.design.n, v.design.method, v.design.seed]
+                for v in study.validation]
+    page.table(["FE design", "runs", "sampling", "seed"], designs)
+    s, i = study.surrogate, study.inversion
+    pod = f"{s.modes} modes" if s.modes is not None else f"energy {s.energy}" if s.energy is not None else "default energy"
+    page.table(["setting", "value"], [
+        ["measurement", f"{m.file.name} ({m.file})"],
+        ["noise model", m.noise_text()],
+        ["surrogate", (f"POD ({pod}); kriging: {s.variogram} semivariogram, β {s.beta}, criterion {s.criterion}, "
+                       f"nugget {s.nugget}")],
+        ["inversion", (f"GA population {i.population_size} × {i.generations} generations, {i.n_starts} "
+                       f"least-squares polishes, seed {i.seed}")],
+        ["region of equivalence", f"{i.region_method}, confidence {i.confidence}, {i.region_samples} samples per round"],
+        ["FE executor", f"Dask scheduler {study.scheduler}" if study.scheduler else
+                        "in this process" if study.workers == 1 else f"{study.workers} local worker processes"],
+    ])
+
+
+def _offline(page, stages):
+    rows = []
+    for r in stages.values():
+        if "done" not in r.result:
+            continue
+        x = r.result
+        rows.append([r.title, x["done"], x["failed"], x["total"], _num(x["fe_ms_per_run"], 3), x["n_dofs"],
+                     "cached" if r.cached else f"ran {r.fe_runs} FE runs"])
+    page.table(["stage", "done", "failed", "rows", "FE time per run (ms)", "dofs", "this run"], rows)
+    for r in stages.values():
+        for note in r.result.get("notes", []) if "done" in r.result else ():
+            page.paragraph(f"{r.title}: {note}", "meta")
+
+
+def _surrogate(page, study, r):
+    page.table(["training snapshots", "POD modes", "retained energy (-)", "β per mode (-)", "training time (s)"],
+               [[r["n_train"], r["n_modes"], f"{r['retained_energy']:.10f}", ", ".join(f"{b:.3g}" for b in r["beta"]),
+                 _num(r["training_seconds"], 3)]])
+    page.figure("energy.png", "POD energy decay: share of each mode and the energy left out (log scale).")
+    page.figure("modes.png", "First POD modes of the readings: one line per gauge over the load levels.")
+
+
+def _held_out(page, r):
+    page.paragraph(
+        "The surrogate against FE runs it was not trained on. Relative error per run: ‖ŷ − y‖ / ‖y‖ over all "
+        "readings; POD part: what the retained modes cannot represent; interpolation part: the kriging error."
+    )
+    page.table(["error (%)", "median", "95th percentile", "max"],
+               [[label] + [_pct(r[key][q]) for q in ("median", "p95", "max")]
+                for label, key in (("total", "rel_error"), ("POD truncation", "pod_error"),
+                                   ("interpolation", "interp_error"), ("leave-one-out (training)", "loo_error"))
+                if key in r])
+    page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
+               [[r["n_held_out"], _num(r["rms_abs_error_mm"], 3), _num(r["max_abs_error_mm"], 3),
+                 _pct(r["coverage_2sigma"])]])
+    page.figure("predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
+
+
+def _inversion(page, r):
+    m = r["measurement"]
+    page.paragraph(
+        f"Data: {m['file']} ({m['n_obs']} readings: gauges {', '.join(m['sensors'])} at "
+        f"{', '.join(f'{v:g}' for v in m['load_levels'])} {m['load_unit']})."
+    )
+    page.table(["parameter", "unit", "best fit"],
+               [[n, _unit(r["units"][n]), _num(v)] for n, v in r["parameters"].items()])
+    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "surrogate evaluations", "time (s)"],
+               [[_num(r["misfit"]), _num(r["chi2"]), r["dof"], _num(r["chi2_dof"], 3), r["n_evaluations"],
+                 _num(r["seconds"], 3)]])
+    fe = r["fe_check"]
+    if fe is not None:
+        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
+                    "χ²/dof of the FE model (-)"],
+                   [[_num(fe["max_abs_diff"], 3), _num(fe["max_diff_over_noise"], 3), _num(fe["rel_diff"], 3),
+                     _num(fe["chi2_dof_fe"], 3)]], caption="FE check at the best fit")
+        if fe["ok"]:
+            page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
+    page.figure("fit.png", "Measured readings (±2σ noise) and the calibrated model against load (mm).")
+    page.figure("residuals.png", "Standardised residuals (model − measured)/σ per gauge and load level (-).")
+    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics.")
+    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit.")
+
+
+def _region(page, r):
+    page.paragraph(
+        f"Parameter vectors whose misfit is statistically indistinguishable from the best fit "
+        f"({r['method']}, confidence {100 * r['confidence']:.0f} %; {r['n_members']} members of "
+        f"{r['n_evaluated']} surrogate evaluations, {r['seconds']:.2f} s)."
+    )
+    rows = []
+    for j, name in enumerate(r["names"]):
+        lo, hi = r["intervals"][name]
+        rows.append([name, _unit(r["units"][j]), _num(lo), _num(hi), f"{100 * r['identifiability'][name]['share']:.0f}",
+                     "yes" if r["identifiability"][name]["identifiable"] else "NO"])
+    page.table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows)
+    page.figure("region.png", "2-D projections of the region of equivalence, with the best fit (star).")
+
+
+def _rvc(page, study, r):
+    page.paragraph(
+        "How much the predictions of the calibration model and of the validation models vary over the region of "
+        "equivalence: a small coefficient of variation (CV) means the calibration pins down what these tests show."
+        + ("" if study.validation else " No validation model is configured: add a [[validation]] table to propagate "
+                                       "the calibration to another test.")
+    )
+    rows = []
+    for model, x in r["models"].items():
+        for k, out in enumerate(x["outputs"]):
+            rows.append([model, out, _num(x["mean"][k]), _num(x["min"][k]), _num(x["max"][k]), _pct(x["cv"][k]),
+                         _pct(x["range_ratio"][k])])
+    page.table(["model", "output (sensor@load)", "mean (mm)", "min (mm)", "max (mm)", "CV (%)", "(max − min)/mean (%)"],
+               rows)
+    page.figure("rvc.png", "Spread of each output over the region of equivalence, relative to its mean.")
+
+
+def _diagnosis(page, r):
+    page.paragraph(
+        "Does the calibrated model explain the data within the noise? If not, which physical effect does it leave "
+        "out? Each candidate cause (softer head joints, a weak joint, compliant supports, a faulty gauge, an "
+        "eccentric load, ...) is fitted as an extension of the model and tested, with a correction for the number "
+        "of candidates and locations tried."
+    )
+    if r is None:
+        page.paragraph("Switched off for this study: set [diagnosis] enabled = true in the study file to run it.")
+        return
+    a = r["adequacy"]
+    adequacy = f"{_num(a['chi2_dof'], 3)} (p = {_num(a['p_value'], 3)}, significance level {a['alpha']:g})"
+    rows = [["verdict", r["verdict"]], ["χ²/dof of the FE model at the base fit (-)", adequacy],
+            ["cause", r["cause"] or "none"]]
+    d = r["detail"]
+    if d:
+        unit = "" if d["unit"] == "-" else f" {d['unit']}"
+        where = f"{d['location']}: {d['parameter']} = {_num(d['value'])}{unit} (neutral {_num(d['neutral'])}{unit})"
+        rows.append(["where, and how strong", where])
+    g = r["gain"]
+    if g:
+        rows.append(["χ²/dof before → after (-)", f"{_num(g['chi2_dof_before'], 3)} → {_num(g['chi2_dof_after'], 3)}"])
+        rows.append(["AIC / BIC drop (-)", f"{_num(g['aic_drop'], 3)} / {_num(g['bic_drop'], 3)}"])
+        if "held_out_rms_before" in g:
+            rows.append(["held-out RMS residual before → after (σ)",
+                         f"{_num(g['held_out_rms_before'], 3)} → {_num(g['held_out_rms_after'], 3)}"])
+    rows.append(["FE runs, time (s)", f"{r['n_fe_runs']}, {_num(r['seconds'], 3)}"])
+    page.table(["quantity", "value"], rows)
+    if r["verdict"] == "adequate":
+        page.success("The calibrated model explains the data within the noise; no candidate cause improves the fit "
+                     "significantly.")
+    cands = [c for c in r["candidates"] if c["applicable"]]
+    page.table(["candidate cause", "best location", "Δχ² (-)", "corrected p (-)"],
+               [[c["name"], c["location"] or "—", _num(c["delta_chi2"], 3), _num(c["p_corrected"], 3)] for c in cands],
+               caption="Candidate causes, as ranked by the diagnosis")
+    page.links([("diagnosis/index.html",
+                 "The diagnosis report: residuals on the specimen and against load, candidate scores, before and after")])
+
+
+def _provenance(page, records):
+    page.paragraph("Each stage is cached by a hash of its inputs (settings and the files it reads); a cached stage "
+                   "was not run again. Manifests: stages/STAGE.json beside this report's folder.")
+    page.table(["stage", "this run", "time when run (s)", "FE runs when run", "finished", "input hash"],
+               [[r.title, "cached" if r.cached else "ran", _num(r.manifest["seconds"], 3), r.manifest["fe_runs"],
+                 r.manifest["finished"], r.manifest["input_hash"][:12]] for r in records])
+    notes = [f"{r.title}: {n}" for r in records if "done" not in r.result for n in r.result.get("notes", [])]
+    for note in notes:
+        page.paragraph(note, "meta")
+    data = {r.name: {"result": r.result, "inputs": r.manifest["inputs"]} for r in records}
+    page.details("every stage's numbers and inputs (JSON)", json.dumps(_finite(data), indent=2, ensure_ascii=False))

@@ -1,0 +1,20 @@
+"""Whole calibration studies: a TOML study file and the staged, cached pipeline that runs it.
+
+:func:`load_study` reads and validates a study file (:mod:`podkrig.study.schema`);
+:func:`run_study` runs its stages — offline FE snapshots, surrogate, held-out validation,
+inversion, region of equivalence, RVC (and model diagnosis) — caching each by a hash of its
+inputs (:mod:`podkrig.study.pipeline`), and writes one HTML report.
+
+Example
+-------
+>>> from podkrig.study import load_study, run_study
+>>> study = load_study("examples/diagonal_compression.toml")             # doctest: +SKIP
+>>> result = run_study(study, "out/demo")                                  # doctest: +SKIP
+>>> result.stage("region").result["intervals"]["kN_bj"]                    # doctest: +SKIP
+[68.27..., 71.61...]
+"""
+
+from .pipeline import Progress, StageRecord, StudyResult, run_study
+from .schema import Study, StudyError, key_lines, load_study
+
+__all__ = ["Progress", "StageRecord", "Study", "StudyError", "StudyResult", "key_lines", "load_study", "run_study"]

@@ -1,0 +1,276 @@
+"""``podkrig run``: a tiny study end to end, its stage cache, and the structure of its HTML report."""
+
+import html.parser
+import json
+import re
+import shutil
+import struct
+import zlib
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fe.scenarios import build_scenario
+from fe.scenarios.base import Scenario
+from podkrig.cli import app
+from podkrig.measurement import Measurement
+from podkrig.measurement_csv import write_measurement_csv
+from podkrig.reports.study import SECTIONS
+
+runner = CliRunner()
+
+#: a tiny study: coarse meshes, two free parameters, a few FE runs, small GA and region
+TINY = """\
+name = "tiny"
+
+[scenario]
+scenario = "diagonal_compression"
+nx = 2
+ny = 1
+
+[parameters]
+kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
+kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
+
+[fixed]
+E_b = 11000.0
+r_hj = 0.6
+
+[sampling]
+train = { n = 16, seed = 0 }
+held_out = { n = 4, seed = 1, method = "random" }
+workers = 1
+
+[surrogate]
+beta = "fit-shared"
+
+[measurement]
+file = "measured.csv"
+noise_rel = 0.01
+
+[inversion]
+population_size = 20
+generations = 10
+n_starts = 2
+region_samples = 4096
+
+[diagnosis]
+enabled = true
+
+[[validation]]
+name = "shear"
+scenario = { scenario = "shear_compression", nx = 2, ny = 1 }
+n = 8
+seed = 2
+outputs = ["top_ux@40", "D1@40"]
+"""
+
+TRUTH = {"E_b": 11000.0, "r_hj": 0.6, "kN_bj": 90.0, "kV_bj": 35.0}
+
+
+def _measured(path, seed):
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+    clean = sc.run(TRUTH).readings
+    noisy = clean * (1 + 0.01 * np.random.default_rng(seed).standard_normal(clean.shape))
+    write_measurement_csv(path, Measurement(noisy, sc.sensor_names, sc.load_levels))
+
+
+class _FECounter:
+    """Counts FE runs (``Scenario.run`` calls) in this process."""
+
+    def __init__(self, monkeypatch):
+        self.calls = 0
+        original = Scenario.run
+
+        def counted(scenario, *args, **kwargs):
+            self.calls += 1
+            return original(scenario, *args, **kwargs)
+
+        monkeypatch.setattr(Scenario, "run", counted)
+
+
+def _run(study, out):
+    result = runner.invoke(app, ["run", str(study), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    return result.output
+
+
+def _stages(out):
+    return {p.stem: json.loads(p.read_text()) for p in (out / "stages").glob("*.json")}
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """The tiny study run once: (study file, output folder, CLI output)."""
+    d = tmp_path_factory.mktemp("study")
+    (d / "study.toml").write_text(TINY)
+    _measured(d / "measured.csv", seed=0)
+    out = d / "out"
+    return d / "study.toml", out, _run(d / "study.toml", out)
+
+
+def test_run_writes_every_stage_and_a_summary(tiny):
+    _, out, text = tiny
+    assert "identified parameters" in text and "report:" in text and "FE runs" in text
+    stages = _stages(out)
+    assert set(stages) == {"offline", "held_out", "validation_model.shear", "surrogate", "held_out_validation",
+                           "inversion", "region", "rvc", "diagnosis"}
+    assert stages["offline"]["fe_runs"] == 16 and stages["held_out"]["fe_runs"] == 4
+    assert stages["validation_model.shear"]["fe_runs"] == 8 and stages["inversion"]["fe_runs"] == 1
+    for m in stages.values():  # every output file is recorded with its hash
+        for rel, sha in m["outputs"].items():
+            assert (out / rel).is_file() and len(sha) == 64
+    summary = json.loads((out / "summary.json").read_text())
+    params = summary["stages"]["inversion"]["parameters"]
+    assert set(params) == {"kN_bj", "kV_bj"}
+    for name, (lo, hi) in summary["stages"]["region"]["intervals"].items():
+        assert lo <= params[name] <= hi
+    assert summary["stages"]["rvc"]["models"]["shear"]["outputs"] == ["top_ux@40", "D1@40"]
+
+
+def test_rerun_with_nothing_changed_does_no_fe_work(tiny, monkeypatch):
+    study, out, _ = tiny
+    before = _stages(out)
+    counter = _FECounter(monkeypatch)
+    _run(study, out)
+    assert counter.calls == 0
+    after = _stages(out)
+    assert {k: v["finished"] for k, v in after.items()} == {k: v["finished"] for k, v in before.items()}
+
+
+def test_new_measurement_reruns_only_the_online_stages(tiny, tmp_path, monkeypatch):
+    study, _, _ = tiny
+    # a copy of the study and its cache, with another noise realisation in the measurement file
+    d = tmp_path / "copy"
+    shutil.copytree(study.parent, d)
+    before = _stages(d / "out")
+    _measured(d / "measured.csv", seed=1)
+    counter = _FECounter(monkeypatch)
+    _run(d / "study.toml", d / "out")
+    after = _stages(d / "out")
+    rerun = {k for k in after if after[k]["finished"] != before[k]["finished"] or after[k]["input_hash"] != before[k]["input_hash"]}
+    assert rerun == {"inversion", "region", "rvc", "diagnosis"}
+    # FE work only in the online stages: the check at the new optimum and the diagnosis' refits
+    assert 1 <= counter.calls <= after["inversion"]["fe_runs"] + after["diagnosis"]["fe_runs"]
+
+
+# ---------------------------------------------------------------------------------------------
+# the report: a structural check that fails on a broken page (no browser needed)
+
+_VOID = {"meta", "img", "br", "hr", "link", "input"}
+
+
+class _Page(html.parser.HTMLParser):
+    """Collects what the structural checks need and checks that tags are balanced."""
+
+    def __init__(self):
+        super().__init__(convert_charrefs=True)
+        self.stack, self.errors = [], []
+        self.images, self.ids, self.hrefs, self.tables, self.text = [], [], [], [], []
+        self._row = None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag not in _VOID:
+            self.stack.append(tag)
+        if tag == "img":
+            self.images.append(a.get("src"))
+            if not a.get("alt"):
+                self.errors.append(f"<img src={a.get('src')!r}> without alt text")
+        if "id" in a:
+            self.ids.append(a["id"])
+        if tag == "a":
+            self.hrefs.append(a.get("href"))
+        if tag == "table":
+            self.tables.append([])
+        if tag == "tr":
+            self._row = 0
+        if tag in ("td", "th") and self._row is not None:
+            self._row += 1
+
+    def handle_endtag(self, tag):
+        if tag in _VOID:
+            return
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes <{self.stack[-1] if self.stack else 'nothing'}>")
+            return
+        self.stack.pop()
+        if tag == "tr":
+            self.tables[-1].append(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        self.text.append(data)
+
+
+def _check_png(path):
+    """A PNG file that a decoder would accept: signature, chunks with valid CRCs, IHDR, IDAT, IEND."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", f"{path.name}: not a PNG"
+    pos, kinds = 8, []
+    while pos < len(data):
+        (length,) = struct.unpack(">I", data[pos:pos + 4])
+        kind, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + length]
+        (crc,) = struct.unpack(">I", data[pos + 8 + length:pos + 12 + length])
+        assert zlib.crc32(kind + body) == crc, f"{path.name}: bad CRC in chunk {kind!r}"
+        kinds.append(kind)
+        pos += 12 + length
+    assert kinds[0] == b"IHDR" and b"IDAT" in kinds and kinds[-1] == b"IEND", f"{path.name}: chunks {kinds}"
+    width, height = struct.unpack(">II", data[16:24])
+    assert width > 100 and height > 100, f"{path.name}: {width}x{height} px"
+
+
+def test_report_structure(tiny):
+    _, out, _ = tiny
+    page_path = out / "report" / "index.html"
+    source = page_path.read_text(encoding="utf-8")
+    page = _Page()
+    page.feed(source)
+    page.close()
+    assert not page.errors, page.errors
+    assert page.stack == [], f"unclosed tags: {page.stack}"
+    # every section, in order, reachable from the contents
+    headings = [i for i in page.ids if i in dict(SECTIONS)]
+    assert headings == [anchor for anchor, _ in SECTIONS]
+    internal = [h[1:] for h in page.hrefs if h.startswith("#")]
+    assert set(internal) <= set(page.ids) and len(internal) == len(SECTIONS)
+    # every figure exists beside the page and is a valid PNG; each stage's figures are shown
+    expected = {"energy.png", "modes.png", "predicted_vs_fe.png", "fit.png", "residuals.png", "ga_history.png",
+                "ga_parameters.png", "region.png", "rvc.png"}
+    assert set(page.images) == expected
+    for src in page.images:
+        _check_png(page_path.parent / src)
+    # links to other pages (the diagnosis report) lead to pages whose figures are valid too
+    pages = [h for h in page.hrefs if not h.startswith("#")]
+    assert pages == ["diagnosis/index.html"]
+    sub = _Page()
+    sub.feed((page_path.parent / pages[0]).read_text(encoding="utf-8"))
+    assert sub.images and not sub.errors
+    for src in sub.images:
+        _check_png(page_path.parent / "diagnosis" / src)
+    # tables: every row has as many cells as the header
+    assert len(page.tables) >= 10
+    for rows in page.tables:
+        assert rows and len(set(rows)) == 1, rows
+    # numbers are finite and carry units
+    text = " ".join(page.text)
+    assert not re.search(r"\bnan\b|\binf\b", source, re.IGNORECASE)
+    for unit in ("(mm)", "(%)", "(s)", "MPa", "N/mm³", "χ²/dof"):
+        assert unit in text, unit
+    assert "Warning:" in source or "No warnings" in source
+
+
+def test_report_warning_in_plain_words(tiny, tmp_path):
+    """Data the model cannot explain (a scaled gauge) raises a χ²/dof warning with what to do."""
+    study, _, _ = tiny
+    d = tmp_path / "bad"
+    shutil.copytree(study.parent, d)
+    lines = (d / "measured.csv").read_text().splitlines()
+    lines[1:] = [",".join([c.split(",")[0]] + [f"{1.3 * float(v):.8g}" if j == 0 else v
+                                               for j, v in enumerate(c.split(",")[1:])]) for c in lines[1:]]
+    (d / "measured.csv").write_text("\n".join(lines) + "\n")
+    _run(d / "study.toml", d / "out")
+    source = (d / "out" / "report" / "index.html").read_text()
+    assert "does not reproduce the data within the stated noise" in source
+    assert "What to do:" in source
