@@ -95,7 +95,7 @@ def _stderr_console():
 
 def _print_text(out):
     a = out["adequacy"]
-    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}, α = {a['alpha']:g})")
+    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}, χ² test at α = {a['alpha']:g})")
     typer.echo("base fit: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["base"]["parameters"].items()))
     if out["cause"] is not None:
         d = out["detail"]
