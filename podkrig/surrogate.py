@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from ._threads import one_blas_thread
 from .exceptions import NotFittedError, SchemaError, StoreError
 from .kriging import OrdinaryKriging
 from .parameters import ParameterSpace
@@ -271,11 +272,15 @@ class PODKriging:
             A, S = self.kriging_.predict(U, return_std=True)
         else:
             A = self.kriging_.predict(U)
-        Y = self.pod_.inverse_transform(A.reshape(len(U), -1))
-        shape = (len(U), *self.output_shape_) if reshape else Y.shape
-        if not return_std:
-            return Y.reshape(shape)
-        var = (S.reshape(len(U), -1) ** 2) @ (self.pod_.modes_**2) + self.residual_variance_
+        # the reconstruction is a skinny product (n_modes is small): a multi-threaded BLAS only
+        # adds wake-ups, and waits for a descheduled thread on a shared machine (8 ms instead of
+        # 0.1 ms for 10 000 x 6 x 24 while another process held one of two cores)
+        with one_blas_thread():
+            Y = self.pod_.inverse_transform(A.reshape(len(U), -1))
+            shape = (len(U), *self.output_shape_) if reshape else Y.shape
+            if not return_std:
+                return Y.reshape(shape)
+            var = (S.reshape(len(U), -1) ** 2) @ (self.pod_.modes_**2) + self.residual_variance_
         return Y.reshape(shape), np.sqrt(var).reshape(shape)
 
     # ------------------------------------------------------------------ persistence

@@ -12,8 +12,10 @@ in the unit cube) and judged on the same random held-out runs:
 - scikit-learn ``GaussianProcessRegressor`` with ``Matern(nu=0.5)`` (ARD) on the same POD coefficients.
 
 Columns: modes, median / p95 / max relative held-out error ‖ŷ − y‖/‖y‖ (-), training wall time (s),
-predictions per second on a batch of random points. BLAS pools (threadpoolctl) and numba are
-limited to ``--threads`` threads (default 1) so that timings are repeatable on a shared machine.
+predictions per second on one batch of random points, the same for every method (after a warm-up
+call, ``--repeat`` rounds timing every method once in turn; median over the rounds). BLAS pools
+(threadpoolctl) and numba are limited to ``--threads`` threads (default 1) so that timings are
+repeatable on a shared machine.
 Snapshots are cached in ``bench_out/`` (git-ignored). Missing peers are skipped with a note.
 
 Usage::
@@ -47,6 +49,8 @@ def parse_args(argv=None):
     p.add_argument("--batch", type=int, default=10000, help="Prediction batch for throughput (readings).")
     p.add_argument("--field-batch", type=int, default=1000, help="Prediction batch for throughput (fields).")
     p.add_argument("--threads", type=int, default=1, help="BLAS and numba threads (default 1).")
+    p.add_argument("--repeat", type=int, default=5,
+                   help="Rounds of timed prediction calls (every method once per round); median (default 5).")
     p.add_argument("--out", type=Path, default=Path("bench_out"), help="Cache directory (default bench_out/).")
     p.add_argument("--coarse", action="store_true", help="Coarse mesh (nx=2, ny=1) instead of the default one.")
     p.add_argument("--skip", nargs="*", default=[], help="Method names to skip (e.g. 'SMT PODI').")
@@ -183,7 +187,8 @@ def available(module):
         return False
 
 
-def bench(name, fit, U, Y, Uh, Yh, batch, rng):
+def bench(name, fit, U, Y, Uh, Yh):
+    """Fit one method and judge it on the held-out runs: (result row, predict function)."""
     from podkrig.validation import relative_errors, summarize
 
     with warnings.catch_warnings():
@@ -191,14 +196,29 @@ def bench(name, fit, U, Y, Uh, Yh, batch, rng):
         t0 = time.perf_counter()
         k, predict = fit(U, Y)
         train = time.perf_counter() - t0
-        pred = predict(Uh)
-        e = summarize(relative_errors(pred, Yh))
-        Ub = rng.random((batch, U.shape[1]))
-        predict(Ub[:10])  # warm-up (numba compilation is cached, first call loads it)
-        t0 = time.perf_counter()
-        predict(Ub)
-        rate = batch / (time.perf_counter() - t0)
-    return {"method": name, "modes": k, **e, "train_s": train, "pred_per_s": rate}
+        e = summarize(relative_errors(predict(Uh), Yh))
+    return {"method": name, "modes": k, **e, "train_s": train}, predict
+
+
+def throughput(fitted, Ub, repeat):
+    """Predictions per second of every fitted method on the batch ``Ub``: ``repeat`` rounds, each
+    timing every method once in turn (so that the load of a shared machine, which drifts over
+    minutes, weighs on all methods alike); median over the rounds."""
+    times = {name: [] for name in fitted}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for predict in fitted.values():
+            predict(Ub[:10])  # warm-up (numba compilation is cached, first call loads it)
+        for _ in range(max(1, repeat)):
+            for name, predict in fitted.items():
+                # let the previous method's thread pools go idle: OpenBLAS workers keep spinning
+                # after a call, and a numba parallel region started right after a two-thread
+                # OpenBLAS product ran at half speed (1.97e5 instead of 3.8e5 predictions/s)
+                time.sleep(0.2)
+                t0 = time.perf_counter()
+                predict(Ub)
+                times[name].append(time.perf_counter() - t0)
+    return {name: len(Ub) / float(np.median(t)) for name, t in times.items()}
 
 
 def table(rows, title):
@@ -215,8 +235,8 @@ def table(rows, title):
 
 def compare_methods(args, label, U, Y, Uh, Yh, batch, rng):
     """One result row per method on the same training and held-out sets (skipped or failed peers
-    get a note instead of stopping the comparison)."""
-    rows = []
+    get a note instead of stopping the comparison); throughput of all methods on one batch."""
+    rows, fitted = [], {}
     for name, (fit, module) in METHODS.items():
         if name in args.skip:
             continue
@@ -225,10 +245,16 @@ def compare_methods(args, label, U, Y, Uh, Yh, batch, rng):
             continue
         print(f"  {label}: {name} ...", flush=True)
         try:
-            rows.append(bench(name, fit, U, Y, Uh, Yh, batch, rng))
+            row, fitted[name] = bench(name, fit, U, Y, Uh, Yh)
+            rows.append(row)
         except Exception as e:  # noqa: BLE001 - a peer failing must not stop the comparison
             rows.append({"method": name, "note": f"failed: {type(e).__name__}: {str(e)[:80]}"})
         print(f"    {rows[-1]}", flush=True)
+    print(f"  {label}: throughput, {args.repeat} rounds ...", flush=True)
+    rates = throughput(fitted, rng.random((batch, U.shape[1])), args.repeat)
+    for row in rows:
+        if row["method"] in rates:
+            row["pred_per_s"] = rates[row["method"]]
     return rows
 
 
@@ -249,7 +275,7 @@ def main(argv=None):
     out = [
         (f"Date: {datetime.date.today().isoformat()}; machine: {platform.machine()}, {os.cpu_count()} cores "
          f"(shared), Python {platform.python_version()}; BLAS (threadpoolctl) and numba limited to {args.threads} "
-         "thread(s)."),
+         f"thread(s); predictions/s: median of {args.repeat} interleaved rounds."),
         f"Command: `{' '.join(['python scripts/bench_surrogate.py'] + list(sys.argv[1:] if argv is None else argv))}`",
         (f"Scenario: diagonal_compression ({'coarse mesh' if args.coarse else 'default mesh'}), 4 free parameters; "
          f"training: scrambled Sobol' (seed 0); held-out: {args.held_out} uniform random runs (seed 1). "

@@ -188,8 +188,91 @@ def test_vectorised_log_kernel_matches_numpy():
     XtT = np.vstack([10.0 ** rng.uniform(-15, 1, 500), rng.uniform(0, 1, 500), np.zeros(500)])
     xp = np.array([0.0, 0.3, 0.0])
     Lg = np.empty_like(XtT)
-    _kernels._fill_logs(Lg, xp, XtT)
+    _kernels._fill_logs(Lg, np.empty(500), xp, XtT)
     expected = np.log(np.abs(xp[:2, None] - XtT[:2]))
     # series truncated at z^23 (< 1e-19) plus rounding of a dozen operations
     assert np.all(np.abs(Lg[:2] - expected) <= 4e-15 * np.maximum(1.0, np.abs(expected)))
     assert np.all(Lg[2] < -700)  # |dx| = 0: a large negative number, clamped by the callers
+
+
+# exponents of the kernel tests: fitted ones just below 2 (one group around the base 2, per-output
+# polynomials), one shared exponent near 2 (polynomial folded into the powers), the fast exponents,
+# generic ones (base exp(beta log|dx|)) and a mixture that needs several groups
+KERNEL_BETAS = {
+    "fitted near 2": [1.99991, 1.99985, 1.9992, 1.995, 2.0, 1.97],
+    "shared near 2": [1.9999145] * 4,
+    "fast": [2.0, 1.5, 1.0, 2.0],
+    "generic": [1.8, 1.8, 1.8],
+    "mixed": [1.2, 1.8, 1.5, 0.6, 1.79, 1.999],
+}
+
+
+def _kernel_case(betas, seed=0, n=60, d=4, low=0.0, high=1.0):
+    rng = np.random.default_rng(seed)
+    beta = np.asarray(betas, float)
+    ranges = rng.uniform(0.4, 3.0, (len(beta), d))
+    return (rng.uniform(low, high, (300, d)), rng.random((n, d)), ranges ** -beta[:, None], beta,
+            rng.random((len(beta), n)), rng.standard_normal(len(beta)))
+
+
+@pytest.mark.parametrize("case", sorted(KERNEL_BETAS))
+@pytest.mark.parametrize("box", [(0.0, 1.0), (-1.0, 2.0)])
+def test_mean_kernel_equals_the_direct_formula(case, box):
+    """The grouped numba kernel (base exponent, Taylor polynomial of the exponent difference)
+    against the literal NumPy formula, inside the unit cube and extrapolating (|dx| up to 3)."""
+    from podkrig.kriging import _kernels
+
+    if _kernels.njit is None:
+        pytest.skip("numba not installed")
+    Xp, Xt, theta, beta, alpha, mu = _kernel_case(KERNEL_BETAS[case], low=box[0], high=box[1])
+    for kind in (0, 1):
+        got = _kernels.predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=True)
+        ref = _kernels.predict_mean_numpy(Xp, Xt, theta, beta, kind, alpha, mu)
+        # positive weights: no cancellation, so the relative error of the sums is that of the
+        # kernel entries. The expansion keeps the reduced distance s within 2^-53 (absolute) of the
+        # exact one; a generic base exp(beta log|dx|) is good to ~1e-14 relative, the polynomial
+        # exp(-s) to 7e-15, so exp(-s) to ~1e-14 * (1 + s) with s < 10 here; the clamp at exp(-40)
+        # (4e-18 standing for 0) adds an absolute floor of 1e-16 per weight
+        assert_allclose(got - mu, ref - mu, rtol=1e-13, atol=1e-16 * alpha.sum(axis=1).max())
+    for j in range(len(beta)):
+        got = _kernels.cross_covariance(Xp, Xt, theta[j], beta[j], 0, use_numba=True)
+        assert_allclose(got, _kernels.cross_covariance_numpy(Xp, Xt, theta[j], beta[j], 0), rtol=1e-13, atol=1e-16)
+
+
+def test_plan_groups_outputs_around_a_fast_base():
+    from podkrig.kriging._kernels import NQ, plan
+
+    theta = np.ones((6, 4))
+    fitted = plan(theta, np.array(KERNEL_BETAS["fitted near 2"]))
+    # a group with base 2 (no transcendental power) whose polynomials grow with the distance to 2
+    # (exactly 2 needs none); 1.97 would need more than degree 6: its own group, generic base
+    assert fitted["g_code"].tolist() == [3, 0] and fitted["g_base"].tolist() == [2.0, 1.97]
+    assert fitted["g_start"].tolist() == [0, 5, 6]
+    nq = dict(zip(fitted["order"].tolist(), fitted["nq"].tolist()))
+    assert nq[4] == 1 and nq[0] <= nq[1] <= nq[2] <= nq[3] <= NQ and nq[5] == 1
+    shared = plan(theta[:4], np.array(KERNEL_BETAS["shared near 2"]))
+    assert shared["g_code"].tolist() == [3] and shared["g_nfold"][0] > 1 and np.all(shared["nq"] == 1)
+    generic = plan(theta[:3], np.array(KERNEL_BETAS["generic"]))
+    assert generic["g_code"].tolist() == [0] and not np.any(generic["nq"] > 1)
+    fixed = plan(theta[:2], np.array([2.0, 2.0]))
+    assert not fixed["need_logs"]  # Gaussian: no logarithm at all
+
+
+def test_mean_kernel_is_deterministic_across_thread_counts():
+    """Each prediction point is computed by one thread in a fixed order: bitwise equal results."""
+    numba = pytest.importorskip("numba")
+    from podkrig.kriging import _kernels
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("one numba thread only")
+    Xp, Xt, theta, beta, alpha, mu = _kernel_case(KERNEL_BETAS["mixed"])
+    Xp = np.random.default_rng(1).random((1001, 4))
+    before = numba.get_num_threads()
+    try:
+        out = {}
+        for t in (1, 2):
+            numba.set_num_threads(t)
+            out[t] = _kernels.predict_mean(Xp, Xt, theta, beta, 0, alpha, mu, use_numba=True)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(out[1], out[2])

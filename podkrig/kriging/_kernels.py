@@ -9,19 +9,50 @@ Every kernel evaluates, for prediction points ``Xp`` ``(n_pred, d)`` and trainin
 
 and maps it to a (generalised) covariance: ``kind == 0`` (exponential family) gives the
 correlation :math:`\\exp(-s)`; ``kind == 1`` (power variogram) gives the generalised covariance
-:math:`-s` (the negated semivariogram).
+:math:`-s` (the negated semivariogram). The NumPy twins evaluate these formulas literally and are
+the reference of the tests.
 
-The fused mean kernel never forms the ``(n_pred, n)`` matrix: per prediction point it builds the
-``(d, n)`` block of powers :math:`|\\Delta_k|^\\beta` once and reuses it for every output that
-shares the exponent (exponents 1, 1.5 and 2 need no transcendental call), or, for other exponents,
-the block of :math:`\\log|\\Delta_k|` once for all outputs and
-:math:`\\theta_k |\\Delta_k|^\\beta = \\exp(\\beta (\\log|\\Delta_k| - \\log a_k))` per output;
-then it takes the dot product with the kriging weights. Its exponential is a
-branch-free polynomial (``_exp_neg``: Taylor series of :math:`e^{-s/64}` raised to the power
-64 by six squarings, relative error below 1e-14 for :math:`|s| \\le 40`; larger reduced distances
-are clamped to 40, i.e. a correlation of 4e-18 stands for 0) because the
-numba build has no vector math library, and a libm ``exp`` call per entry would keep the loop
-scalar; the NumPy twin uses ``np.exp`` and the tests compare the two.
+Evaluation plan of the numba kernels (:func:`plan`)
+----------------------------------------------------
+The outputs are sorted by exponent (largest first) and grouped around a *base* exponent
+:math:`\\beta_0`: one of the fast exponents 2, 1.5, 1 (powers :math:`\\Delta^2`,
+:math:`|\\Delta|\\sqrt{|\\Delta|}`, :math:`|\\Delta|`, no transcendental call) when it lies at most
+0.05 above the group's largest exponent, otherwise that exponent itself
+(:math:`|\\Delta|^{\\beta_0} = \\exp(\\beta_0 \\log|\\Delta|)`). Output :math:`j` of the group uses
+
+.. math::
+
+    |\\Delta|^{\\beta_j} = |\\Delta|^{\\beta_0} \\, e^{\\varepsilon_j \\log|\\Delta|}
+    \\approx |\\Delta|^{\\beta_0} \\sum_{m=0}^{M_j} \\frac{(\\varepsilon_j \\log|\\Delta|)^m}{m!},
+    \\qquad \\varepsilon_j = \\beta_j - \\beta_0 \\le 0,
+
+with the smallest degree :math:`M_j \\le 6` whose Lagrange remainder bound keeps the error of the
+reduced distance below :math:`2^{-53}` (absolute) for every :math:`0 < \\Delta \\le \\Delta_{max}`:
+for :math:`\\Delta \\le 1` the bound
+:math:`\\theta_{max} e^{\\beta_j u} |\\varepsilon_j u|^{M+1} / (M+1)!`, :math:`u = \\log\\Delta`,
+peaks at :math:`u = -(M+1)/\\beta_j`; for :math:`\\Delta > 1` (extrapolation) it grows with
+:math:`\\Delta` and is taken at :math:`\\Delta_{max}`. The expansion is therefore exact to rounding,
+not an approximation: its error is below that of the exponential itself. An output whose
+exponent needs more terms opens a new group. When every output of a group has the same exponent
+the polynomial is applied once to the block of powers.
+
+Why: fitted exponents of the (very smooth) elastic responses end just below 2 (1.999..., where the
+Gaussian correlation matrix reaches its conditioning limit), all different. The direct form costs
+:math:`d` exponentials per output and training point (:math:`|\\Delta|^{\\beta_j}` for each
+dimension); with base 2 and a polynomial of degree 3-5 it costs :math:`d` logarithms per training
+point for all outputs together, plus a few multiply-adds per output. The exponent cannot simply be
+rounded to 2: near the conditioning limit the terms of the kriging sums reach 1e7 times the
+outputs, and predicting with 2 instead of 1.99991 moves the readings by 2.6 % (median). For the
+same reason the kernels stay in float64.
+
+Arithmetic: the exponential is a branch-free polynomial (``_exp_neg``: Taylor series of
+:math:`e^{-s/64}` raised to the power 64 by six squarings, relative error below 1e-14 for
+:math:`|s| \\le 40`; larger reduced distances are clamped to 40, i.e. a correlation of 4e-18 stands
+for 0) and the logarithm works on the IEEE-754 bits without a division (``_fill_logs``) because the
+numba build has no vector math library, and a libm call per entry would keep the loops scalar. The
+prediction points are split into blocks of 32 over the numba threads (``prange``); each point is
+computed by one thread in a fixed order, so results do not depend on the number of threads, and
+no ``(n_pred, n)`` matrix is formed for the mean.
 
 Set the environment variable ``PODKRIG_DISABLE_NUMBA=1`` (or pass ``use_numba=False`` to the
 estimator) to use the NumPy twins only. First call of a numba kernel compiles it (a few seconds,
@@ -35,6 +66,10 @@ import numpy as np
 
 EXPONENTIAL, POWER = 0, 1
 _CHUNK = 512  # prediction points per block in the NumPy twins (bounds the (chunk, n, d) scratch)
+_FAST = ((2.0, 3), (1.5, 2), (1.0, 1))  # fast base exponents and their kernel codes (0: generic)
+_SNAP = 0.05  # largest gap between a fast base exponent and the group's largest exponent
+NQ = 7  # coefficients of the exponent polynomial at most (degree 6)
+_TOL = 2.0**-53  # bound of the expansion error of the reduced distance (absolute)
 
 
 def numba_enabled(use_numba=None):
@@ -105,6 +140,110 @@ def predict_mean_numpy(Xp, Xt, theta, beta, kind, alpha, mu):
     return out
 
 
+# ----------------------------------------------------------------------------- evaluation plan
+
+
+def _degree(theta_max, beta, base, log_dmax):
+    """Smallest degree ``M < NQ`` of the Taylor polynomial of ``exp((beta - base) log|dx|)`` whose
+    remainder keeps ``theta_max |dx|**base * remainder`` below ``_TOL`` for ``0 < |dx| <= e**log_dmax``;
+    ``None`` if even degree ``NQ - 1`` does not."""
+    a = base - beta
+    if a == 0.0:
+        return 0
+    for M in range(NQ):
+        q = M + 1
+        bound = theta_max * (q * a / (math.e * beta)) ** q / math.factorial(q)  # peak for |dx| <= 1
+        if log_dmax > 0.0:  # |dx| > 1 (extrapolation): increasing in |dx|
+            bound = max(bound, theta_max * math.exp(base * log_dmax) * (a * log_dmax) ** q / math.factorial(q))
+        if bound <= _TOL:
+            return M
+    return None
+
+
+def _taylor(eps, M):
+    """Coefficients ``eps**m / m!``, ``m = 0..M``, zero-padded to ``NQ``."""
+    c = np.zeros(NQ)
+    c[: M + 1] = [eps**m / math.factorial(m) for m in range(M + 1)]
+    return c
+
+
+def plan(theta, beta, delta_max=1.0):
+    """Grouping of the outputs for the numba kernels (see the module notes).
+
+    Parameters
+    ----------
+    theta : ndarray of shape (n_outputs, d)
+        :math:`a_k^{-\\beta}` per output.
+    beta : ndarray of shape (n_outputs,)
+    delta_max : float
+        Largest :math:`|x_k - x'_k|` of the batch (1 inside the unit cube; more when
+        extrapolating).
+
+    Returns
+    -------
+    dict
+        ``order`` (outputs by decreasing exponent), and in that order: ``theta``, ``coef``
+        ``(n_outputs, NQ)`` and ``nq`` ``(n_outputs,)`` (per-output polynomial), ``g_start``
+        ``(n_groups + 1,)``, ``g_code`` (0 generic base, 1/2/3 for the base 1/1.5/2), ``g_base``,
+        ``g_fold`` ``(n_groups, NQ)`` and ``g_nfold`` (polynomial applied to the block of powers),
+        ``need_logs``.
+    """
+    theta = np.asarray(theta, dtype=float).reshape(len(beta), -1)
+    beta = np.asarray(beta, dtype=float)
+    n_out = len(beta)
+    order = np.argsort(-beta, kind="stable")
+    log_dmax = math.log(delta_max) if delta_max > 1.0 else 0.0
+    thmax = theta.max(axis=1)
+    coef, nq = np.zeros((n_out, NQ)), np.ones(n_out, dtype=np.int64)
+    coef[:, 0] = 1.0
+    g_start, g_code, g_base, g_fold, g_nfold = [0], [], [], [], []
+    pos = 0
+    while pos < n_out:
+        b0 = float(beta[order[pos]])
+        base, code = b0, 0
+        for f, c in _FAST:
+            if 0.0 <= f - b0 <= _SNAP and _degree(thmax[order[pos]], b0, f, log_dmax) is not None:
+                base, code = f, c
+                break
+        start = pos
+        degrees = []
+        while pos < n_out:
+            j = order[pos]
+            M = _degree(thmax[j], float(beta[j]), base, log_dmax)
+            if M is None:
+                break
+            degrees.append(M)
+            pos += 1
+        members = order[start:pos]
+        if np.all(beta[members] == beta[members[0]]):  # one exponent: fold the polynomial into the powers
+            g_fold.append(_taylor(float(beta[members[0]]) - base, degrees[0]))
+            g_nfold.append(degrees[0] + 1)
+        else:
+            g_fold.append(_taylor(0.0, 0))
+            g_nfold.append(1)
+            for r, (j, M) in enumerate(zip(members, degrees)):
+                coef[start + r] = _taylor(float(beta[j]) - base, M)
+                nq[start + r] = M + 1
+        g_start.append(pos)
+        g_code.append(code)
+        g_base.append(base)
+    g_code = np.array(g_code, dtype=np.int64)
+    g_nfold = np.array(g_nfold, dtype=np.int64)
+    return {
+        "order": order, "theta": np.ascontiguousarray(theta[order]), "coef": coef, "nq": nq,
+        "g_start": np.array(g_start, dtype=np.int64), "g_code": g_code, "g_base": np.array(g_base),
+        "g_fold": np.array(g_fold), "g_nfold": g_nfold,
+        "need_logs": bool(np.any(g_code == 0) or np.any(g_nfold > 1) or np.any(nq > 1)),
+    }
+
+
+def _delta_max(Xp, Xt):
+    """Largest coordinate difference between the two point sets."""
+    if len(Xp) == 0:
+        return 1.0
+    return float(max(np.max(Xp.max(axis=0) - Xt.min(axis=0)), np.max(Xt.max(axis=0) - Xp.min(axis=0)), 0.0))
+
+
 # ----------------------------------------------------------------------------- numba kernels
 
 try:  # numba is a core dependency; the guard only keeps the NumPy path usable without it
@@ -147,40 +286,14 @@ if njit is not None:
         return p
 
     @njit(fastmath=True, inline="always", cache=True)
-    def _is_fast(beta):
-        return beta == 1.0 or beta == 1.5 or beta == 2.0
-
-    @njit(fastmath=True, inline="always", cache=True)
-    def _fill_powers(P, xp, XtT, beta):
-        # |x - x_i|^beta: the exponents 1, 1.5, 2 without a transcendental call; any other one
-        # (shared by several outputs, so the block is reused) as exp(beta log|dx|)
-        d, n = XtT.shape
-        for k in range(d):
-            x = xp[k]
-            if beta == 1.0:
-                for i in range(n):
-                    P[k, i] = abs(x - XtT[k, i])
-            elif beta == 2.0:
-                for i in range(n):
-                    a = x - XtT[k, i]
-                    P[k, i] = a * a
-            elif beta == 1.5:
-                for i in range(n):
-                    a = abs(x - XtT[k, i])
-                    P[k, i] = a * math.sqrt(a)
-            else:
-                for i in range(n):
-                    a = abs(x - XtT[k, i])
-                    P[k, i] = a**beta
-
-    @njit(fastmath=True, inline="always", cache=True)
-    def _fill_logs(Lg, xp, XtT):
-        # log|x - x_i|, shared by every output with a generic exponent. Branch-free so that LLVM
-        # vectorises it (a libm log per entry would keep the loop scalar): split the IEEE-754 bits
-        # into exponent e and mantissa m in [1, 2), fold m into [sqrt(1/2), sqrt(2)), then
-        # log m = 2 atanh(z), z = (m - 1)/(m + 1), |z| <= 0.1716, by its odd series to z^23
-        # (truncation < 1e-19). |dx| = 0 gives -1023 log 2 (about -709), which the callers clamp
-        # like the -inf of log(0).
+    def _fill_logs(Lg, E, xp, XtT):
+        # Lg[k, i] = log|xp[k] - XtT[k, i]|; E is (n,) scratch. Branch-free and division-free so
+        # that LLVM vectorises it (a libm log per entry would keep the loop scalar; a division
+        # costs as much as the rest of the loop): split the IEEE-754 bits into exponent e and
+        # mantissa m in [1, 2); scale m by 2^(-j/4), j = 0..4 chosen by comparisons, into
+        # [2^(-1/8), 2^(1/8)); log(1 + f), |f| <= 0.0906, by its Taylor series to f^16 (truncation
+        # < 2e-18). Error about 1e-16 absolute plus 2e-16 relative. |dx| = 0 gives about -709,
+        # which the callers clamp like the -inf of log(0), or multiply by a zero power.
         d, n = XtT.shape
         for k in range(d):
             x = xp[k]
@@ -188,139 +301,189 @@ if njit is not None:
             for i in range(n):
                 row[i] = abs(x - XtT[k, i])
             bits = row.view(np.int64)
-            expo = np.empty(n)
             for i in range(n):
                 b = bits[i]
-                expo[i] = ((b >> 52) & 0x7FF) - 1023
+                E[i] = ((b >> 52) & 0x7FF) - 1023
                 bits[i] = (b & 0x000FFFFFFFFFFFFF) | 0x3FF0000000000000  # mantissa, exponent 0
             for i in range(n):
                 m = row[i]
-                big = m > 1.4142135623730951
-                m = m * 0.5 if big else m
-                e = expo[i] + 1.0 if big else expo[i]
-                z = (m - 1.0) / (m + 1.0)
-                z2 = z * z
-                q = 2.0 / 23.0
-                q = q * z2 + 2.0 / 21.0
-                q = q * z2 + 2.0 / 19.0
-                q = q * z2 + 2.0 / 17.0
-                q = q * z2 + 2.0 / 15.0
-                q = q * z2 + 2.0 / 13.0
-                q = q * z2 + 2.0 / 11.0
-                q = q * z2 + 2.0 / 9.0
-                q = q * z2 + 2.0 / 7.0
-                q = q * z2 + 2.0 / 5.0
-                q = q * z2 + 2.0 / 3.0
-                q = q * z2 + 2.0
-                row[i] = e * 0.6931471805599453 + z * q
+                e = E[i]
+                c = 1.0
+                if m > 1.0905077326652577:  # 2^(1/8)
+                    c = 0.8408964152537145  # 2^(-1/4)
+                    e += 0.25
+                if m > 1.2968395546510096:  # 2^(3/8)
+                    c = 0.7071067811865476
+                    e += 0.25
+                if m > 1.5422108254079407:  # 2^(5/8)
+                    c = 0.5946035575013605
+                    e += 0.25
+                if m > 1.8340080864093424:  # 2^(7/8)
+                    c = 0.5
+                    e += 0.25
+                f = m * c - 1.0
+                q = -1.0 / 16.0
+                q = q * f + 1.0 / 15.0
+                q = q * f - 1.0 / 14.0
+                q = q * f + 1.0 / 13.0
+                q = q * f - 1.0 / 12.0
+                q = q * f + 1.0 / 11.0
+                q = q * f - 1.0 / 10.0
+                q = q * f + 1.0 / 9.0
+                q = q * f - 1.0 / 8.0
+                q = q * f + 1.0 / 7.0
+                q = q * f - 1.0 / 6.0
+                q = q * f + 1.0 / 5.0
+                q = q * f - 1.0 / 4.0
+                q = q * f + 1.0 / 3.0
+                q = q * f - 0.5
+                q = q * f + 1.0
+                row[i] = e * 0.6931471805599453 + f * q
 
     @njit(fastmath=True, inline="always", cache=True)
-    def _powers_from_logs(P, Lg, beta):
-        # |dx|^beta = exp(beta log|dx|) with the vectorisable exponential
-        d, n = Lg.shape
+    def _fill_base(P, Lg, xp, XtT, code, base):
+        # P[k, i] = |xp[k] - XtT[k, i]| ** base: codes 3, 2, 1 (base 2, 1.5, 1) without a
+        # transcendental call; code 0 as exp(base log|dx|), clamped to [4e-18, 2e17]
+        d, n = XtT.shape
         for k in range(d):
-            for i in range(n):
-                P[k, i] = _exp_neg(min(max(-beta * Lg[k, i], -40.0), 40.0))
+            x = xp[k]
+            if code == 3:
+                for i in range(n):
+                    a = x - XtT[k, i]
+                    P[k, i] = a * a
+            elif code == 2:
+                for i in range(n):
+                    a = abs(x - XtT[k, i])
+                    P[k, i] = a * math.sqrt(a)
+            elif code == 1:
+                for i in range(n):
+                    P[k, i] = abs(x - XtT[k, i])
+            else:
+                for i in range(n):
+                    P[k, i] = _exp_neg(min(max(-base * Lg[k, i], -40.0), 40.0))
 
     @njit(fastmath=True, inline="always", cache=True)
-    def _reduced(S, P, Lg, theta_j, logr_j, beta, fast):
-        # S_i = sum_k theta_k |dx_k|^beta = sum_k exp(beta (log|dx_k| - log a_k))
-        d, n = P.shape
-        if fast:
-            th = theta_j[0]
-            for i in range(n):
-                S[i] = th * P[0, i]
-            for k in range(1, d):
-                th = theta_j[k]
+    def _poly_terms(P, Lg, k, c, nc, t, S, accumulate):
+        # S[i] (+)= t * P[k, i] * sum_m c[m] Lg[k, i]**m, c[0] = 1, degree nc - 1 (<= 6). Branches
+        # of fixed degree 0, 2, 4, 6 (zero-padded coefficients) keep each loop straight-line code
+        # that LLVM vectorises.
+        n = P.shape[1]
+        if nc == 1:
+            if accumulate:
                 for i in range(n):
-                    S[i] += th * P[k, i]
+                    S[i] += t * P[k, i]
+            else:
+                for i in range(n):
+                    S[i] = t * P[k, i]
+        elif nc <= 3:
+            c1, c2 = c[1], c[2]
+            for i in range(n):
+                x = Lg[k, i]
+                v = t * P[k, i] * (1.0 + x * (c1 + x * c2))
+                S[i] = S[i] + v if accumulate else v
+        elif nc <= 5:
+            c1, c2, c3, c4 = c[1], c[2], c[3], c[4]
+            for i in range(n):
+                x = Lg[k, i]
+                v = t * P[k, i] * (1.0 + x * (c1 + x * (c2 + x * (c3 + x * c4))))
+                S[i] = S[i] + v if accumulate else v
         else:
+            c1, c2, c3, c4, c5, c6 = c[1], c[2], c[3], c[4], c[5], c[6]
             for i in range(n):
-                S[i] = 0.0
-            for k in range(d):
-                lr = logr_j[k]
-                for i in range(n):
-                    t = beta * (lr - Lg[k, i])
-                    S[i] += _exp_neg(min(max(t, -40.0), 40.0))
+                x = Lg[k, i]
+                v = t * P[k, i] * (1.0 + x * (c1 + x * (c2 + x * (c3 + x * (c4 + x * (c5 + x * c6))))))
+                S[i] = S[i] + v if accumulate else v
+
+    @njit(fastmath=True, inline="always", cache=True)
+    def _group_powers(P, Lg, xp, XtT, code, base, fold, nfold):
+        # block of |dx|^beta of a group: base powers, times the folded polynomial if any
+        _fill_base(P, Lg, xp, XtT, code, base)
+        if nfold > 1:
+            for k in range(P.shape[0]):
+                _poly_terms(P, Lg, k, fold, nfold, 1.0, P[k], False)
+
+    @njit(fastmath=True, inline="always", cache=True)
+    def _reduced(S, P, Lg, theta_j, coef_j, nq_j):
+        # S_i = sum_k theta_k |dx_k|^beta_j (base power times the output's polynomial)
+        for k in range(P.shape[0]):
+            _poly_terms(P, Lg, k, coef_j, nq_j, theta_j[k], S, k > 0)
 
     @njit(parallel=True, fastmath=True, cache=True)
-    def _predict_mean_numba(Xp, XtT, theta, logr, beta, kind, alpha, mu, out):
+    def _predict_mean_numba(Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
+                            need_logs, kind, alpha, mu, out):
         n_pred = Xp.shape[0]
         d, n = XtT.shape
-        n_out = theta.shape[0]
         block = 32
         n_blocks = (n_pred + block - 1) // block
         for b in prange(n_blocks):
             P = np.empty((d, n))
             Lg = np.empty((d, n))
             S = np.empty(n)
+            E = np.empty(n)
             for p in range(b * block, min(n_pred, (b + 1) * block)):
-                last_beta = -1.0
-                have_logs = False
-                fast = True
-                for j in range(n_out):
-                    if beta[j] != last_beta:
-                        last_beta = beta[j]
-                        # a block of powers pays off for a fast exponent or one shared with the
-                        # next output (outputs come sorted by beta); otherwise logs, shared by all
-                        exact = _is_fast(beta[j])
-                        fast = exact or (j + 1 < n_out and beta[j + 1] == beta[j])
-                        if exact:
-                            _fill_powers(P, Xp[p], XtT, beta[j])
+                if need_logs:
+                    _fill_logs(Lg, E, Xp[p], XtT)
+                for g in range(g_code.shape[0]):
+                    _group_powers(P, Lg, Xp[p], XtT, g_code[g], g_base[g], g_fold[g], g_nfold[g])
+                    for j in range(g_start[g], g_start[g + 1]):
+                        _reduced(S, P, Lg, theta[j], coef[j], nq[j])
+                        acc = 0.0
+                        if kind == 0:
+                            for i in range(n):
+                                acc += alpha[j, i] * _exp_neg(min(S[i], 40.0))
                         else:
-                            if not have_logs:
-                                _fill_logs(Lg, Xp[p], XtT)
-                                have_logs = True
-                            if fast:  # a generic exponent shared with the next output(s)
-                                _powers_from_logs(P, Lg, beta[j])
-                    _reduced(S, P, Lg, theta[j], logr[j], beta[j], fast)
-                    acc = 0.0
-                    if kind == 0:
-                        for i in range(n):
-                            acc += alpha[j, i] * _exp_neg(min(S[i], 40.0))
-                    else:
-                        for i in range(n):
-                            acc -= alpha[j, i] * S[i]
-                    out[p, j] = acc + mu[j]
+                            for i in range(n):
+                                acc -= alpha[j, i] * S[i]
+                        out[p, j] = acc + mu[j]
 
     @njit(parallel=True, fastmath=True, cache=True)
-    def _cross_covariance_numba(Xp, XtT, theta, logr, beta, kind, out):
+    def _cross_covariance_numba(Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out):
         n_pred = Xp.shape[0]
         d, n = XtT.shape
-        fast = _is_fast(beta)
         block = 32
         n_blocks = (n_pred + block - 1) // block
         for b in prange(n_blocks):
             P = np.empty((d, n))
             Lg = np.empty((d, n))
             S = np.empty(n)
+            E = np.empty(n)
             for p in range(b * block, min(n_pred, (b + 1) * block)):
-                if fast:
-                    _fill_powers(P, Xp[p], XtT, beta)
-                else:
-                    _fill_logs(Lg, Xp[p], XtT)
-                _reduced(S, P, Lg, theta, logr, beta, fast)
+                if need_logs:
+                    _fill_logs(Lg, E, Xp[p], XtT)
+                _group_powers(P, Lg, Xp[p], XtT, code, base, fold, nfold)
+                _reduced(S, P, Lg, theta, coef, nq)
                 for i in range(n):
                     out[p, i] = _exp_neg(min(S[i], 40.0)) if kind == 0 else -S[i]
 
 
-def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None):
+def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=None):
     """Kriging means of every output, ``(n_pred, n_outputs)``; see :func:`predict_mean_numpy`.
 
-    Outputs that share an exponent share one block of powers; order outputs by ``beta`` for speed.
+    The numba kernel follows :func:`plan` (outputs in any order). ``plans``, a dict owned by the
+    caller (one per set of hyperparameters), caches the plan of batches inside the unit cube: it
+    costs ~50 us, as much as predicting a few points.
     """
     Xp = np.ascontiguousarray(Xp, dtype=float)
     beta = np.ascontiguousarray(beta, dtype=float)
     if not numba_enabled(use_numba) or njit is None:
         return predict_mean_numpy(Xp, Xt, theta, beta, kind, alpha, mu)
-    out = np.empty((Xp.shape[0], theta.shape[0]))
-    theta = np.ascontiguousarray(theta, dtype=float)
-    logr = -np.log(theta) / beta[:, None]  # log ranges
+    dmax = max(_delta_max(Xp, Xt), 1.0)
+    pl = plans.get(dmax) if plans is not None else None
+    if pl is None:
+        pl = plan(theta, beta, dmax)
+        if plans is not None and dmax == 1.0:
+            plans[dmax] = pl
+    order = pl["order"]
+    out = np.empty((Xp.shape[0], len(beta)))
     _predict_mean_numba(
-        Xp, np.ascontiguousarray(Xt.T), theta, logr, beta, int(kind),
-        np.ascontiguousarray(alpha), np.ascontiguousarray(mu, dtype=float), out,
+        Xp, np.ascontiguousarray(Xt.T), pl["theta"], pl["coef"], pl["nq"], pl["g_start"], pl["g_code"],
+        pl["g_base"], pl["g_fold"], pl["g_nfold"], pl["need_logs"], int(kind),
+        np.ascontiguousarray(np.asarray(alpha, dtype=float)[order]),
+        np.ascontiguousarray(np.asarray(mu, dtype=float)[order]), out,
     )
-    return out
+    result = np.empty_like(out)
+    result[:, order] = out
+    return result
 
 
 def cross_covariance(Xp, Xt, theta, beta, kind, use_numba=None):
@@ -328,8 +491,10 @@ def cross_covariance(Xp, Xt, theta, beta, kind, use_numba=None):
     Xp = np.ascontiguousarray(Xp, dtype=float)
     if not numba_enabled(use_numba) or njit is None:
         return cross_covariance_numpy(Xp, Xt, theta, float(beta), kind)
+    pl = plan(np.reshape(theta, (1, -1)), np.array([float(beta)]), _delta_max(Xp, Xt))
     out = np.empty((Xp.shape[0], Xt.shape[0]))
-    theta = np.ascontiguousarray(theta, dtype=float)
-    _cross_covariance_numba(Xp, np.ascontiguousarray(Xt.T), theta, -np.log(theta) / float(beta),
-                            float(beta), int(kind), out)
+    _cross_covariance_numba(
+        Xp, np.ascontiguousarray(Xt.T), pl["theta"][0], pl["coef"][0], int(pl["nq"][0]), int(pl["g_code"][0]),
+        float(pl["g_base"][0]), pl["g_fold"][0], int(pl["g_nfold"][0]), pl["need_logs"], int(kind), out,
+    )
     return out

@@ -239,10 +239,12 @@ class OrdinaryKriging:
         on 200 held-out runs (4 free parameters, n = 256) the median relative error is 1.8e-3
         against 4.2e-3, 6.1e-3 and 9.8e-3 for the fixed 1.8, 1.5 and 1.2, with 95 % of the outputs
         inside ±2 sigma. ``"fit-shared"`` (one exponent per surrogate, as in the thesis) ties in
-        accuracy, trains 4x faster and predicts 2-3x faster (the outputs share one block of
-        powers), but its variance is less honest with few samples (n = 64: 87 % of held-out
-        outputs inside ±2 sigma against 90 %), which matters for the misfit's C_T. Exponents 1,
-        1.5 and 2 need no transcendental function in the kernels (see ``BENCHMARKS.md``).
+        accuracy and trains 4x faster, but its variance is less honest with few samples (n = 64:
+        87 % of held-out outputs inside ±2 sigma against 90 %), which matters for the misfit's
+        C_T; it predicts only ~1.2x faster. Exponents 1, 1.5 and 2 need no transcendental
+        function in the prediction kernel, and exponents within about 0.01 below 2 (as fitted
+        here) one logarithm per training point and dimension for all outputs together (see
+        :mod:`podkrig.kriging._kernels` and ``BENCHMARKS.md``).
     ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
         Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
         the values used when ``optimizer=None``.
@@ -312,8 +314,10 @@ class OrdinaryKriging:
 
     Cost: ``fit`` forms and factorises one ``n × n`` matrix per objective evaluation
     (:math:`O(n^3)`); ``predict`` of the mean is :math:`O(n_{pred} \\, n \\, d)` per output without
-    forming the cross-covariance matrix, ``return_std`` forms it and costs :math:`O(n_{pred} n^2)`
-    per output.
+    forming the cross-covariance matrix (one exponential per output and training point, plus one
+    logarithm per training point and dimension for exponents other than 1, 1.5 and 2; numba
+    threads split the prediction points, with results independent of their number);
+    ``return_std`` forms it and costs :math:`O(n_{pred} n^2)` per output.
 
     References
     ----------
@@ -432,6 +436,7 @@ class OrdinaryKriging:
             )
         kind, beta, ranges0, (lo, hi) = self._check_settings(d, Y.shape[1])
         self._ones_cache = None  # L⁻¹ 1 of the previous fit
+        self._plans = {}  # evaluation plans of the prediction kernel (see _kernels.plan)
         if self.nugget == 0:
             _check_duplicates(X)
         i, j = np.triu_indices(n, 1)
@@ -587,12 +592,8 @@ class OrdinaryKriging:
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
             raise ValueError(f"X must have shape (n_pred, {self.n_features_in_}); got {X.shape}")
-        order = np.argsort(self.beta_, kind="stable")  # outputs sharing beta share the power block
-        mean = np.empty((X.shape[0], self.n_outputs_))
-        mean[:, order] = _kernels.predict_mean(
-            X, self.X_, self.theta_[order], self.beta_[order], self.kind_, self.alpha_[order],
-            self.mu_[order], self.use_numba,
-        )
+        mean = _kernels.predict_mean(X, self.X_, self.theta_, self.beta_, self.kind_, self.alpha_, self.mu_,
+                                     self.use_numba, plans=self.__dict__.setdefault("_plans", {}))
         if not return_std:
             return mean[:, 0] if self._y_1d else mean
         var = self.predict_variance(X)
