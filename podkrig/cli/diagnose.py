@@ -104,6 +104,10 @@ def _print_text(out):
                    f"(neutral {d['neutral']:g}{unit})")
         for alt in d["alternatives"]:
             typer.echo(f"  equally supported: {alt['cause']} at {alt['location']}")
+        if not out["extended"]["fully_explained"]:
+            typer.echo(f"warning: the extended model still does not explain the data (χ²/dof = "
+                       f"{out['extended']['chi2_dof']:.2f}): more than one effect may be missing. The named cause is the "
+                       "best single explanation; fix it (or free its parameter) and diagnose again.")
         g = out["gain"]
         typer.echo(f"gain: χ²/dof {g['chi2_dof_before']:.2f} -> {g['chi2_dof_after']:.2f}, AIC −{g['aic_drop']:.1f}, "
                    f"BIC −{g['bic_drop']:.1f}")

@@ -131,6 +131,7 @@ class CandidateScore:
     delta_chi2: float = 0.0
     p_value: float = 1.0
     p_corrected: float = 1.0
+    log10_p_corrected: float = 0.0
     visible: bool = True
     max_delta_chi2: float = 0.0
     effect_size: float = 0.0
@@ -155,7 +156,7 @@ class CandidateScore:
             "delta_chi2": float(self.delta_chi2),
             "p_value": float(self.p_value),
             "p_corrected": float(self.p_corrected),
-            "score": float(-np.log10(max(self.p_corrected, 1e-300))),
+            "score": float(-self.log10_p_corrected),
             "visible": bool(self.visible),
             "max_delta_chi2": float(self.max_delta_chi2),
             "effect_size": float(self.effect_size),
@@ -184,6 +185,15 @@ class Diagnosis:
     seconds: float
     n_fe_runs: int
     surrogate_fit: dict
+    extended_p_value: float | None = None
+
+    @property
+    def fully_explained(self):
+        """Whether the extended model passes the χ² test (None without a named cause). When it does
+        not, more than one effect may be missing: the named one is the best single explanation."""
+        if self.extended_p_value is None:
+            return None
+        return self.extended_p_value >= self.alpha * CHI2_ALPHA_SHARE
 
     def residuals(self, fit):
         """Standardised residuals ``(d − g)/σ`` of a fit, ``(n_loads_obs, n_sensors_obs)``."""
@@ -224,7 +234,9 @@ class Diagnosis:
             "detail": self.detail(),
             "candidates": [c.to_dict() for c in self.candidates],
             "base": self.base.summary(),
-            "extended": None if self.extended is None else {**self.extended.summary(), "effect": self.best.fit.effect},
+            "extended": None if self.extended is None else {
+                **self.extended.summary(), "effect": self.best.fit.effect,
+                "p_value": self.extended_p_value, "fully_explained": self.fully_explained},
             "gain": self.gain(),
             "adequacy": {
                 "chi2": float(self.base.chi2), "dof": int(self.base.dof), "chi2_dof": float(self.base.chi2_dof),
@@ -404,7 +416,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
                                        refit_locations, noise_std))
 
     ranked = sorted([s for s in scores if s.applicable],
-                    key=lambda s: (s.effect_size < MIN_EFFECT, s.p_corrected, -s.delta_chi2))
+                    key=lambda s: (s.effect_size < MIN_EFFECT, s.log10_p_corrected, -s.delta_chi2))
     inapplicable = [s for s in scores if not s.applicable]
     best = ranked[0] if ranked else None
     candidate_hit = best is not None and best.p_corrected < alpha and best.effect_size >= MIN_EFFECT
@@ -423,6 +435,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
                 alternatives.append(_Alternative(best.name, loc, delta))
 
     extended = best.fit if cause is not None else None
+    extended_p = None if extended is None else float(stats.chi2.sf(extended.chi2, extended.dof))
     held_out = None
     if extended is not None and len(measurement.load_levels) >= 3:
         say("held-out check", 0, 1)
@@ -433,7 +446,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         scenario=scenario, measurement=measurement, noise_std=noise_std, alpha=alpha, base=base,
         extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=cause, best=best if cause else None,
         alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,
-        held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs,
+        held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs, extended_p_value=extended_p,
         surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)}},
     )
 
@@ -489,11 +502,14 @@ def _score_candidate(cand, ctx, fitter, screen, base, u_base, n_applicable, alph
             best = entry
     loc, par, delta_lin, fit, delta = best
     score.location, score.parameter, score.screening_delta_chi2, score.fit, score.delta_chi2 = best
-    p = float(stats.chi2.sf(delta, 1)) if delta > 0 else 1.0
-    if par.one_sided:  # ½χ²(0) + ½χ²(1) under the null
-        p = 0.5 * p if delta > 0 else 1.0
-    score.p_value = p
-    score.p_corrected = min(1.0, p * n_applicable * len(locations))
+    # in logs: strong effects underflow the p-values, and the ranking must still tell them apart
+    log_p = float(stats.chi2.logsf(delta, 1)) if delta > 0 else 0.0
+    if par.one_sided and delta > 0:  # ½χ²(0) + ½χ²(1) under the null
+        log_p += np.log(0.5)
+    log_p_corrected = min(0.0, log_p + np.log(n_applicable * len(locations)))
+    score.p_value = float(np.exp(log_p))
+    score.p_corrected = float(np.exp(log_p_corrected))
+    score.log10_p_corrected = log_p_corrected / np.log(10.0)
     off = cand.readings(ctx, fit.values, loc, par.off)
     score.effect_size = float(np.max(np.abs((fit.readings - off).ravel()[fitter.idx]) / noise_std))
     return score

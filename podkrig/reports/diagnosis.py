@@ -169,7 +169,7 @@ def plot_candidate_scores(diagnosis, path):
     """Evidence of each candidate: −log10 of its multiplicity-corrected p-value, with the α line."""
     plt = _plt()
     cands = [c for c in diagnosis.candidates if c.applicable]
-    scores = [min(-np.log10(max(c.p_corrected, 1e-300)), 50.0) for c in cands]
+    scores = [min(-c.log10_p_corrected, 50.0) for c in cands]
     fig, ax = plt.subplots(figsize=(7, 0.5 * len(cands) + 1.2))
     colours = ["C3" if (diagnosis.cause == c.name) else "C0" for c in cands]
     ax.barh([c.name for c in cands][::-1], scores[::-1], color=colours[::-1])
@@ -214,6 +214,11 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
             f"({det['parameter']} = {fmt(det['value'])} {det['unit']}, neutral {fmt(det['neutral'])}).",
             "check the named effect on the specimen or the set-up; if confirmed, calibrate with the extended model "
             "(its parameters are below) or repair the cause and test again.")
+        if not d["extended"]["fully_explained"]:
+            page.warning(
+                f"The extended model still does not explain the data (χ²/dof = {d['extended']['chi2_dof']:.2f}): "
+                "more than one effect may be missing, and the named cause is only the best single explanation.",
+                "add the named effect to the model (or free its parameter), diagnose again, and look at what remains.")
         if det["alternatives"]:
             page.warning(
                 "The data cannot tell this cause apart from: " + "; ".join(f"{a['cause']} at {a['location']}" for a in det["alternatives"]) + ".",
