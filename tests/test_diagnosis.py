@@ -114,7 +114,6 @@ def test_every_candidate_is_off_at_its_neutral_value(wall, shear_wall):
         sc = setup.scenario
         values = sc.resolve()
         ctx = FEContext(sc, setup.space.names, values)
-        ctx.offset_scale = 1.0
         base = ctx.readings(values)
         for cand in CANDIDATES.values():
             if cand.not_applicable(ctx):

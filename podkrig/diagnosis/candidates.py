@@ -99,12 +99,15 @@ class FEContext:
         The base model's free parameters.
     values : dict of str to float
         Every parameter's value in the base model (the fixed ones stay at these).
+    offset_scale : float
+        Range of a sensor offset, mm (the largest measured |reading|).
     """
 
-    def __init__(self, scenario, free, values):
+    def __init__(self, scenario, free, values, offset_scale=1.0):
         self.scenario = scenario
         self.free = tuple(free)
         self.values = dict(values)
+        self.offset_scale = float(offset_scale)
         self.n_runs = 0
         self._cache = {}
 

@@ -378,8 +378,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     if not 0 < alpha < 0.5:
         raise ValueError(f"alpha must be in (0, 0.5); got {alpha}")
     values0 = scenario.resolve(fixed)
-    ctx = FEContext(scenario, space.names, values0)
-    ctx.offset_scale = float(np.max(np.abs(measurement.values)))
+    ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)))
     if not 0 <= model_tolerance < 0.5:
         raise ValueError(f"model_tolerance must be in [0, 0.5) (a relative tolerance); got {model_tolerance}")
     fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), model_tolerance)

@@ -83,9 +83,9 @@ def make_trial(scenario, space, truth, cause=None, location=None, value=None, *,
     values = scenario.resolve(truth)
     ctx = FEContext(scenario, space.names, values)
     clean = ctx.readings(values)
+    ctx.offset_scale = float(np.max(np.abs(clean)))  # as diagnose() sets it from the data
     if cause is not None:
         cand = CANDIDATES[cause]
-        ctx.offset_scale = float(np.max(np.abs(clean)))
         if location is None:
             locations = cand.locations(ctx)
             location = locations[int(rng.integers(len(locations)))]
