@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, optimize, stats
 
-from ..inverse import InverseProblem, invert
+from ..inverse import InverseProblem, SurrogateModel, invert
 from ..kriging import OrdinaryKriging
 from ..measurement import Measurement
 from ..sampling import sobol
@@ -252,25 +252,18 @@ class Diagnosis:
         }
 
 
-class _SurrogateAdapter:
-    """A fitted PODKriging as an inversion model (space, sensor names, load levels, predict)."""
-
-    def __init__(self, surrogate, scenario):
-        self.surrogate = surrogate
-        self.space = surrogate.space
-        self.sensor_names = tuple(scenario.sensor_names)
-        self.load_levels = np.asarray(scenario.load_levels, dtype=float)
-
-    def predict(self, X, return_std=False):
-        return self.surrogate.predict(X, return_std=return_std)
-
-
 def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
     """A POD-kriging surrogate of the scenario's readings over ``space`` (others at ``values``):
     ``n_train`` Sobol' FE runs, exponent fitted on the dominant mode (``beta="fit-shared"``)."""
     X = space.from_unit(sobol(n_train, space.n_params, seed))
     Y = np.stack([scenario.run({**values, **space.as_params(x)}).readings for x in X])
-    return PODKriging(kriging=OrdinaryKriging(beta="fit-shared"), space=space).fit(X, Y)
+    sur = PODKriging(kriging=OrdinaryKriging(beta="fit-shared"), space=space).fit(X, Y)
+    sur.provenance_.update({  # what an inversion model needs to know (as fit_from_store records it)
+        "scenario_spec": scenario.spec.to_dict(), "sensor_names": list(scenario.sensor_names),
+        "load_levels": scenario.load_levels.tolist(), "load_unit": scenario.load_unit, "output": "readings",
+        "n_train": n_train,
+    })
+    return sur
 
 
 class _Fitter:
@@ -346,7 +339,8 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     fixed : dict of str to float, optional
         Values of non-free parameters that differ from the scenario's defaults.
     surrogate : PODKriging, optional
-        A surrogate of the scenario's readings over ``space`` (built here when not given:
+        A surrogate of the scenario's readings over ``space``, with its provenance (from
+        :func:`build_base_surrogate` or a store; built here when not given:
         ``n_train`` Sobol' FE runs, about a second for the default test).
     candidates : sequence of str, optional
         Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default: all).
@@ -390,7 +384,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         surrogate = build_base_surrogate(scenario, space, values0, n_train=n_train, seed=rng)
         ctx.n_runs += n_train
     say("calibration", 1, 3)
-    problem = InverseProblem(_SurrogateAdapter(surrogate, scenario), measurement, noise)
+    problem = InverseProblem(SurrogateModel(surrogate), measurement, noise)
     inv = invert(problem, rng=rng)
     say("calibration", 2, 3)
     base = fitter.fit(space.to_unit(inv.x[None])[0])

@@ -10,16 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .figures import pyplot
 from .html import Page, fmt
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _channel_geometry(scenario):
@@ -77,7 +69,7 @@ def plot_residuals_on_specimen(diagnosis, path):
     """Standardised residuals at the highest load level drawn on the specimen, before and after:
     gauges coloured by their residual, x/y displacement pairs (point sensors, DIC) as arrows of the
     residual vector (same scale in both panels)."""
-    plt = _plt()
+    plt = pyplot()
     fits = [("base model", diagnosis.base)]
     if diagnosis.extended is not None:
         fits.append((f"extended: {diagnosis.cause}", diagnosis.extended))
@@ -138,7 +130,7 @@ def plot_residuals_on_specimen(diagnosis, path):
 
 def plot_residuals_vs_load(diagnosis, path, max_channels=12):
     """Standardised residuals against load for the channels with the largest base residuals."""
-    plt = _plt()
+    plt = pyplot()
     m = diagnosis.measurement
     rb = diagnosis.residuals(diagnosis.base)
     re = None if diagnosis.extended is None else diagnosis.residuals(diagnosis.extended)
@@ -167,7 +159,7 @@ def plot_residuals_vs_load(diagnosis, path, max_channels=12):
 
 def plot_candidate_scores(diagnosis, path):
     """Evidence of each candidate: −log10 of its multiplicity-corrected p-value, with the α line."""
-    plt = _plt()
+    plt = pyplot()
     cands = [c for c in diagnosis.candidates if c.applicable]
     scores = [min(-c.log10_p_corrected, 50.0) for c in cands]
     fig, ax = plt.subplots(figsize=(7, 0.5 * len(cands) + 1.2))

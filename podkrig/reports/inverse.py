@@ -6,14 +6,7 @@ the path. Units on every axis.
 
 import numpy as np
 
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
+from .figures import pyplot
 
 
 def _label(name, unit):
@@ -22,7 +15,7 @@ def _label(name, unit):
 
 def plot_fit(result, path, *, load_unit="kN"):
     """Measured vs predicted readings per sensor against load, with ±2σ noise bars."""
-    plt = _plt()
+    plt = pyplot()
     meas = result.problem.measurement
     pred, std = result.predicted()
     sd = result.problem.misfit.noise_std.reshape(meas.values.shape)
@@ -50,7 +43,7 @@ def plot_fit(result, path, *, load_unit="kN"):
 
 def plot_residuals(result, path, *, load_unit="kN"):
     """Standardised residuals (model − measured)/σ per sensor and load level, as a heat map."""
-    plt = _plt()
+    plt = pyplot()
     meas = result.problem.measurement
     pred, _ = result.predicted()
     sd = result.problem.misfit.noise_std.reshape(meas.values.shape)
@@ -72,7 +65,7 @@ def plot_residuals(result, path, *, load_unit="kN"):
 def plot_region(region, path, *, best=None, truth=None, posterior=None, space=None):
     """2-D projections of the region of equivalence on every pair of parameters (thesis
     Figs. 5.17–5.21), with the best fit, the truth (when known) and posterior samples."""
-    plt = _plt()
+    plt = pyplot()
     p = len(region.names)
     X = region.samples
     if len(X) > 20000:
@@ -115,7 +108,7 @@ def plot_region(region, path, *, best=None, truth=None, posterior=None, space=No
 def plot_rvc(rvc_results, path):
     """Spread of model outputs over the region (thesis Figs. 5.16 / 7.27): per model and output,
     the normalised distribution (value / mean) as box plots, annotated with the CV."""
-    plt = _plt()
+    plt = pyplot()
     labels, data, cvs = [], [], []
     for model_name, res in rvc_results.items():
         vals = res["values"]
@@ -241,7 +234,7 @@ def plot_ga_history(ga, path):
     """The GA's history: every evaluated misfit by generation, and population statistics."""
     from ..ga import plot_history, plot_statistics
 
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     plot_history(ga, ax=axes[0])
     plot_statistics(ga, ax=axes[1])
@@ -255,7 +248,7 @@ def plot_ga_parameters(ga, path):
     """Parameter values of the GA's evaluated individuals against their misfit."""
     from ..ga import plot_parameters
 
-    plt = _plt()
+    plt = pyplot()
     fig = np.ravel(plot_parameters(ga))[0].figure
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -11,21 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .figures import pyplot
+
 logger = logging.getLogger(__name__)
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_energy(pod, path):
     """Energy decay of the POD: singular values² share and the unretained energy, log scale."""
-    plt = _plt()
+    plt = pyplot()
     s2 = pod.singular_values_**2
     k = np.arange(1, len(s2) + 1)
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -45,7 +38,7 @@ def plot_energy(pod, path):
 
 def plot_reading_modes(pod, sensor_names, load_levels, load_unit, path, n_show=4):
     """First POD modes of readings: one panel per mode, one line per sensor over the load levels."""
-    plt = _plt()
+    plt = pyplot()
     n_loads, n_sensors = len(load_levels), len(sensor_names)
     n_show = min(n_show, pod.n_modes_)
     fig, axes = plt.subplots(1, n_show, figsize=(3.2 * n_show, 3.4), squeeze=False)
@@ -67,7 +60,7 @@ def plot_reading_modes(pod, sensor_names, load_levels, load_unit, path, n_show=4
 
 def plot_field_modes(pod, nodes, path, n_show=3, load_index=-1):
     """First POD modes of displacement fields on the mesh (magnitude at one load level, coloured)."""
-    plt = _plt()
+    plt = pyplot()
     n_nodes = len(nodes)
     n_show = min(n_show, pod.n_modes_)
     fig, axes = plt.subplots(1, n_show, figsize=(4 * n_show, 3.8), squeeze=False)
@@ -89,7 +82,7 @@ def plot_field_modes(pod, nodes, path, n_show=3, load_index=-1):
 
 def plot_error_histograms(errors_by_label, path):
     """Histograms of held-out relative errors per semivariogram and exponent (cf. thesis Fig. 4.4)."""
-    plt = _plt()
+    plt = pyplot()
     labels = list(errors_by_label)
     fig, axes = plt.subplots(len(labels), 1, figsize=(6, 1.8 * len(labels) + 0.6), sharex=True, squeeze=False)
     allv = np.concatenate([np.asarray(v, float) for v in errors_by_label.values()])
@@ -113,7 +106,7 @@ def plot_error_histograms(errors_by_label, path):
 
 def plot_predicted_vs_fe(report, path, unit="mm"):
     """Surrogate prediction against the FE value for every held-out output, with ±2σ bars."""
-    plt = _plt()
+    plt = pyplot()
     y, p, s = report.Y_true.ravel(), report.Y_pred.ravel(), report.Y_std.ravel()
     if len(y) > 20000:  # keep the figure light for full fields
         idx = np.random.default_rng(0).choice(len(y), 20000, replace=False)
