@@ -25,12 +25,12 @@ TRUTH = {"E_b": 11500.0, "kN_bj": 85.0, "kV_bj": 33.0, "r_hj": 0.65}
 
 def setup(out, beta="fit"):
     from fe.scenarios import build_scenario
-    from podkrig.inverse import SurrogateModel
-    from podkrig.kriging import OrdinaryKriging
+    from podkrig.online.inverse import SurrogateModel
+    from podkrig.surrogate.kriging import OrdinaryKriging
     from podkrig.parameters import ParameterSpace
-    from podkrig.runner import run_snapshots
-    from podkrig.store import SnapshotStore
-    from podkrig.surrogate import fit_from_store
+    from podkrig.offline.runner import run_snapshots
+    from podkrig.offline.store import SnapshotStore
+    from podkrig.surrogate.podkriging import fit_from_store
 
     scenario = build_scenario("diagonal_compression")
     space = ParameterSpace.from_scenario(scenario, BOUNDS)
@@ -52,9 +52,9 @@ def main(argv=None):
 
     from threadpoolctl import threadpool_limits
 
-    from podkrig.inverse import FEModel, InverseProblem, invert
-    from podkrig.measurement import Measurement, NoiseModel
-    from podkrig.uncertainty import likelihood_ratio_region
+    from podkrig.online.inverse import FEModel, InverseProblem, invert
+    from podkrig.online.measurement import Measurement, NoiseModel
+    from podkrig.online.uncertainty import likelihood_ratio_region
 
     with threadpool_limits(1):
         scenario, space, model, fit_seconds = setup(args.out)

@@ -31,7 +31,7 @@ from pathlib import Path
 
 def _independent(spec_json, names, X, barrier, results):
     """One plain process (no Dask): build, wait for the others, time an FE loop over ``X``."""
-    from podkrig.runner import cached_scenario, limit_threads_to_one
+    from podkrig.offline.runner import cached_scenario, limit_threads_to_one
 
     limit_threads_to_one()
     sc = cached_scenario(spec_json)
@@ -54,7 +54,7 @@ def _parse_args(argv=None):
 
 def main(argv=None):
     args = _parse_args(argv)
-    from podkrig.runner import limit_threads_to_one
+    from podkrig.offline.runner import limit_threads_to_one
 
     limit_threads_to_one()  # before any scenario is built (PARDISO keeps its analysis thread count)
     import numpy as np
@@ -62,9 +62,9 @@ def main(argv=None):
 
     from fe.scenarios import build_scenario
     from podkrig.parameters import ParameterSpace
-    from podkrig.runner import run_chunk, run_snapshots, start_local_cluster
-    from podkrig.sampling import sobol
-    from podkrig.store import SnapshotStore
+    from podkrig.offline.runner import run_chunk, run_snapshots, start_local_cluster
+    from podkrig.offline.sampling import sobol
+    from podkrig.offline.store import SnapshotStore
 
     t = time.perf_counter()
     sc = build_scenario("diagonal_compression")

@@ -61,7 +61,7 @@ def snapshots(args, n_max, field):
     """Training (Sobol', seed 0) and held-out (uniform, seed 1) runs, cached as .npz."""
     from fe.scenarios import build_scenario
     from podkrig.parameters import ParameterSpace
-    from podkrig.sampling import sobol, uniform
+    from podkrig.offline.sampling import sobol, uniform
 
     spec = {"scenario": "diagonal_compression", "nx": 2, "ny": 1} if args.coarse else {"scenario": "diagonal_compression"}
     tag = f"{'coarse' if args.coarse else 'default'}_n{n_max}_h{args.held_out}{'_field' if field else ''}"
@@ -94,10 +94,10 @@ def snapshots(args, n_max, field):
 
 def ours(beta):
     def fit(U, Y):
-        from podkrig.kriging import OrdinaryKriging
+        from podkrig.surrogate.kriging import OrdinaryKriging
         from podkrig.parameters import Parameter, ParameterSpace
-        from podkrig.pod import POD
-        from podkrig.surrogate import PODKriging
+        from podkrig.surrogate.pod import POD
+        from podkrig.surrogate.podkriging import PODKriging
 
         # U already lies in the unit cube: an identity space keeps the same inputs as the peers
         unit = ParameterSpace(tuple(Parameter(f"u{k}", 0.0, 1.0) for k in range(U.shape[1])))
@@ -108,7 +108,7 @@ def ours(beta):
 
 
 def _pod(Y):
-    from podkrig.pod import POD
+    from podkrig.surrogate.pod import POD
 
     pod = POD(energy=ENERGY).fit(Y)
     return pod, pod.transform(Y)
@@ -189,7 +189,7 @@ def available(module):
 
 def bench(name, fit, U, Y, Uh, Yh):
     """Fit one method and judge it on the held-out runs: (result row, predict function)."""
-    from podkrig.validation import relative_errors, summarize
+    from podkrig.surrogate.validation import relative_errors, summarize
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

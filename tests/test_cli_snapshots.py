@@ -13,7 +13,7 @@ from numpy.testing import assert_array_equal
 from typer.testing import CliRunner
 
 from podkrig.cli import app
-from podkrig.store import SnapshotStore
+from podkrig.offline.store import SnapshotStore
 
 COARSE = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
 PARAMS = ["--param", "kN_bj=10:1000:log", "--param", "E_b=5000:20000"]

@@ -7,8 +7,8 @@ from typer.testing import CliRunner
 
 from podkrig.cli import app
 from podkrig.parameters import ParameterSpace
-from podkrig.runner import run_snapshots
-from podkrig.store import SnapshotStore
+from podkrig.offline.runner import run_snapshots
+from podkrig.offline.store import SnapshotStore
 
 runner = CliRunner()
 SPEC = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}

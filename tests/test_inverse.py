@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from podkrig.inverse import InverseProblem, invert
-from podkrig.measurement import Measurement, NoiseModel
+from podkrig.online.inverse import InverseProblem, invert
+from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import Parameter, ParameterSpace
-from podkrig.uncertainty import information_criteria, likelihood_ratio_region, nested_analyses, noise_monte_carlo_region, rvc
+from podkrig.online.uncertainty import information_criteria, likelihood_ratio_region, nested_analyses, noise_monte_carlo_region, rvc
 
 TRUTH = {"k": 12.0, "b": 0.4, "c": 0.5}
 
@@ -152,7 +152,7 @@ def test_nested_analyses_flag_overparameterisation():
 
 
 def test_mcmc_posterior_converges_and_sits_inside_the_region():
-    from podkrig.posterior import sample_posterior
+    from podkrig.online.posterior import sample_posterior
 
     model = AnalyticModel()
     sigma = 0.015

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from fe.scenarios import build_scenario
-from podkrig.inverse import InverseProblem, SurrogateModel, fe_check, invert
-from podkrig.measurement import Measurement, NoiseModel
+from podkrig.online.inverse import InverseProblem, SurrogateModel, fe_check, invert
+from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
-from podkrig.runner import run_snapshots
-from podkrig.store import SnapshotStore
-from podkrig.surrogate import fit_from_store
-from podkrig.uncertainty import likelihood_ratio_region
+from podkrig.offline.runner import run_snapshots
+from podkrig.offline.store import SnapshotStore
+from podkrig.surrogate.podkriging import fit_from_store
+from podkrig.online.uncertainty import likelihood_ratio_region
 
 SPEC = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}  # coarse mesh: same physics, fast
 BOUNDS = {"E_b": (6000, 18000), "kN_bj": (30, 300, "log"), "kV_bj": (10, 120, "log"), "r_hj": (0.2, 1.0)}

@@ -7,8 +7,8 @@ from numpy.testing import assert_allclose
 from scipy.optimize import approx_fprime
 
 from podkrig.exceptions import NotFittedError
-from podkrig.kriging import OrdinaryKriging, semivariogram
-from podkrig.kriging.ordinary import _Objective, _Pairs
+from podkrig.surrogate.kriging import OrdinaryKriging, semivariogram
+from podkrig.surrogate.kriging.ordinary import _Objective, _Pairs
 
 
 def _f(X):
@@ -180,7 +180,7 @@ def test_semivariogram_shapes():
 
 def test_vectorised_log_kernel_matches_numpy():
     """The branch-free log of the prediction kernel against numpy over 30 decades and at 0."""
-    from podkrig.kriging import _kernels
+    from podkrig.surrogate.kriging import _kernels
 
     if _kernels.njit is None:
         pytest.skip("numba not installed")
@@ -220,7 +220,7 @@ def _kernel_case(betas, seed=0, n=60, d=4, low=0.0, high=1.0):
 def test_mean_kernel_equals_the_direct_formula(case, box):
     """The grouped numba kernel (base exponent, Taylor polynomial of the exponent difference)
     against the literal NumPy formula, inside the unit cube and extrapolating (|dx| up to 3)."""
-    from podkrig.kriging import _kernels
+    from podkrig.surrogate.kriging import _kernels
 
     if _kernels.njit is None:
         pytest.skip("numba not installed")
@@ -240,7 +240,7 @@ def test_mean_kernel_equals_the_direct_formula(case, box):
 
 
 def test_plan_groups_outputs_around_a_fast_base():
-    from podkrig.kriging._kernels import NQ, plan
+    from podkrig.surrogate.kriging._kernels import NQ, plan
 
     theta = np.ones((6, 4))
     fitted = plan(theta, np.array(KERNEL_BETAS["fitted near 2"]))
@@ -261,7 +261,7 @@ def test_plan_groups_outputs_around_a_fast_base():
 def test_mean_kernel_is_deterministic_across_thread_counts():
     """Each prediction point is computed by one thread in a fixed order: bitwise equal results."""
     numba = pytest.importorskip("numba")
-    from podkrig.kriging import _kernels
+    from podkrig.surrogate.kriging import _kernels
 
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one numba thread only")

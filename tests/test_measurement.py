@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from podkrig.measurement import Measurement, NoiseModel
-from podkrig.measurement_csv import read_measurement_csv, write_measurement_csv
+from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.online.measurement_csv import read_measurement_csv, write_measurement_csv
 
 SENSORS = ("D1", "D2", "U1")
 LEVELS = (25.0, 50.0, 75.0, 100.0)

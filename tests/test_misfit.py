@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from podkrig.measurement import Measurement, NoiseModel
-from podkrig.misfit import Misfit
+from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.online.misfit import Misfit
 
 rng = np.random.default_rng(3)
 A = rng.normal(size=(6, 2))  # a linear "model": 3 loads × 2 sensors from 2 parameters

@@ -5,7 +5,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from podkrig.exceptions import NotFittedError
-from podkrig.pod import POD
+from podkrig.surrogate.pod import POD
 
 
 def _data(rng, n=40, m=30, rank=5, center=True):

@@ -8,8 +8,8 @@ from fe.exceptions import SolverError
 from fe.scenarios import Scenario, build_scenario
 from podkrig.exceptions import StoreError
 from podkrig.parameters import ParameterSpace
-from podkrig.runner import prepare_store, run_pending, run_snapshots
-from podkrig.store import DONE, FAILED, PENDING, SnapshotStore
+from podkrig.offline.runner import prepare_store, run_pending, run_snapshots
+from podkrig.offline.store import DONE, FAILED, PENDING, SnapshotStore
 
 COARSE = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
 

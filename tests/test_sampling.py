@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 
-from podkrig.sampling import METHODS, is_power_of_two, latin_hypercube, sample, sobol, uniform
+from podkrig.offline.sampling import METHODS, is_power_of_two, latin_hypercube, sample, sobol, uniform
 
 
 @pytest.mark.parametrize("method", METHODS)

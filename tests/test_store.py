@@ -10,8 +10,8 @@ from numpy.testing import assert_array_equal
 from podkrig import __version__
 from podkrig.exceptions import SchemaError, StoreError
 from podkrig.parameters import ParameterSpace
-from podkrig.sampling import sobol
-from podkrig.store import DONE, FAILED, PENDING, SnapshotStore
+from podkrig.offline.sampling import sobol
+from podkrig.offline.store import DONE, FAILED, PENDING, SnapshotStore
 
 
 @pytest.fixture(scope="module")

@@ -14,8 +14,8 @@ from typer.testing import CliRunner
 from fe.scenarios import build_scenario
 from fe.scenarios.base import Scenario
 from podkrig.cli import app
-from podkrig.measurement import Measurement
-from podkrig.measurement_csv import write_measurement_csv
+from podkrig.online.measurement import Measurement
+from podkrig.online.measurement_csv import write_measurement_csv
 from podkrig.reports.study import SECTIONS
 
 runner = CliRunner()

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from podkrig.kriging import OrdinaryKriging
+from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.parameters import ParameterSpace
-from podkrig.pod import POD
-from podkrig.sampling import sobol, uniform
-from podkrig.surrogate import PODKriging
-from podkrig.validation import held_out_errors, loo_errors, relative_errors
+from podkrig.surrogate.pod import POD
+from podkrig.offline.sampling import sobol, uniform
+from podkrig.surrogate.podkriging import PODKriging
+from podkrig.surrogate.validation import held_out_errors, loo_errors, relative_errors
 
 BOUNDS = {"kN_bj": (10, 1000, "log"), "kV_bj": (4, 400, "log"), "r_hj": (0.1, 1.0), "E_b": (5000, 20000)}
 

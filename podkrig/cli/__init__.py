@@ -3,7 +3,7 @@ outputs and turns domain errors into one-line messages with a hint and a non-zer
 
 import typer
 
-from . import diagnose, invert, run, simulate, snapshots, surrogate
+from podkrig.cli import diagnose, invert, run, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",

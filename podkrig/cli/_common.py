@@ -7,7 +7,7 @@ import typer
 
 from fe.exceptions import FEError
 
-from ..exceptions import PodkrigError
+from podkrig.exceptions import PodkrigError
 
 
 @contextlib.contextmanager

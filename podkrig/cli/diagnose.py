@@ -7,9 +7,9 @@ from pathlib import Path
 
 import typer
 
-from ._common import configure_logging, user_errors
-from .invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
-from .simulate import load_spec, parse_assignment
+from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli.invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
+from podkrig.cli.simulate import load_spec, parse_assignment
 
 
 def register(app):
@@ -39,9 +39,9 @@ def register(app):
         with user_errors():
             from fe.scenarios import build_scenario
 
-            from ..diagnosis import diagnose as run_diagnosis
-            from ..measurement_csv import read_measurement_csv
-            from ..parameters import ParameterSpace, parse_params
+            from podkrig.diagnosis import diagnose as run_diagnosis
+            from podkrig.online.measurement_csv import read_measurement_csv
+            from podkrig.parameters import ParameterSpace, parse_params
 
             if format not in ("text", "json"):
                 raise ValueError(f"--format must be text or json; got {format!r}")
@@ -59,7 +59,7 @@ def register(app):
                                        model_tolerance=model_tolerance, rng=seed, n_train=n_train, progress=progress)
             out = result.to_dict()
             if report is not None:
-                from ..reports.diagnosis import write_diagnosis_report
+                from podkrig.reports.diagnosis import write_diagnosis_report
 
                 out["report"] = str(write_diagnosis_report(result, report, noise_text=noise_text))
             if format == "json":

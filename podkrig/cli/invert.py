@@ -7,13 +7,13 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from ._common import configure_logging, user_errors
-from .simulate import parse_assignment
+from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli.simulate import parse_assignment
 
 
 def noise_model(noise_abs, noise_rel, noise_cov):
     """Build the NoiseModel from the CLI options (exactly one kind)."""
-    from ..measurement import NoiseModel
+    from podkrig.online.measurement import NoiseModel
 
     given = [bool(noise_abs), noise_rel is not None, noise_cov is not None]
     if sum(given) != 1:
@@ -37,9 +37,9 @@ def noise_model(noise_abs, noise_rel, noise_cov):
 
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix):
     """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text)."""
-    from ..inverse import InverseProblem, SurrogateModel
-    from ..measurement_csv import read_measurement_csv
-    from ..surrogate import PODKriging
+    from podkrig.online.inverse import InverseProblem, SurrogateModel
+    from podkrig.online.measurement_csv import read_measurement_csv
+    from podkrig.surrogate.podkriging import PODKriging
 
     model = SurrogateModel(PODKriging.load(surrogate_path))
     measurement = read_measurement_csv(data, model.sensor_names, model.load_levels, model.load_unit)
@@ -64,8 +64,8 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
 
 def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mcmc_steps, region_method="likelihood-ratio"):
     """Inversion + region + identifiability + FE check (+ MCMC); returns a dict of results."""
-    from ..inverse import fe_check, invert
-    from ..uncertainty import likelihood_ratio_region, noise_monte_carlo_region
+    from podkrig.online.inverse import fe_check, invert
+    from podkrig.online.uncertainty import likelihood_ratio_region, noise_monte_carlo_region
 
     if region_method not in ("likelihood-ratio", "noise-mc"):
         raise ValueError(f"--region-method must be likelihood-ratio or noise-mc; got {region_method!r}")
@@ -79,7 +79,7 @@ def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mc
     fe = fe_check(result, model.scenario()) if fe_check_on else None
     posterior = None
     if mcmc_steps:
-        from ..posterior import sample_posterior
+        from podkrig.online.posterior import sample_posterior
 
         posterior = sample_posterior(problem, result.x, n_steps=mcmc_steps, confidence=confidence, rng=seed)
     warnings = []
@@ -161,7 +161,7 @@ def register(app):
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
                                 fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)
             if report is not None:
-                from ..reports.inverse import write_inversion_report
+                from podkrig.reports.inverse import write_inversion_report
 
                 write_inversion_report(report, out["result"], out["region"], fe=out["fe"], identifiability=out["identifiability"],
                                        posterior=out["posterior"], load_unit=model.load_unit, noise_text=noise_text,
@@ -191,9 +191,9 @@ def register(app):
         """Response variability (RVC) of the calibration and validation models over the region of equivalence."""
         configure_logging(verbose)
         with user_errors():
-            from ..inverse import SurrogateModel
-            from ..surrogate import PODKriging
-            from ..uncertainty import rvc as rvc_of
+            from podkrig.online.inverse import SurrogateModel
+            from podkrig.surrogate.podkriging import PODKriging
+            from podkrig.online.uncertainty import rvc as rvc_of
 
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=2**17, fe_check_on=False, mcmc_steps=0)
@@ -207,7 +207,7 @@ def register(app):
                         raise ValueError(f"validation surrogate {path} varies {p.name!r}, which the calibration neither identifies nor fixes")
                 results[Path(path).stem] = rvc_of(out["region"], vmodel, fixed=fixed, rng=seed)
             if report is not None:
-                from ..reports.inverse import write_inversion_report
+                from podkrig.reports.inverse import write_inversion_report
 
                 write_inversion_report(report, out["result"], out["region"], identifiability=out["identifiability"],
                                        rvc_results=results, load_unit=model.load_unit, noise_text=noise_text, warnings=out["warnings"])
@@ -242,9 +242,9 @@ def register(app):
         """Nested analyses: compare sets of free parameters by misfit, AIC/BIC, interval widths and validation RVC."""
         configure_logging(verbose)
         with user_errors():
-            from ..inverse import SurrogateModel
-            from ..surrogate import PODKriging
-            from ..uncertainty import nested_analyses
+            from podkrig.online.inverse import SurrogateModel
+            from podkrig.surrogate.podkriging import PODKriging
+            from podkrig.online.uncertainty import nested_analyses
 
             free_sets = [tuple(n.strip() for n in s.split(",") if n.strip()) for s in sets]
 

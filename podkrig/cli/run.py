@@ -4,7 +4,7 @@ from pathlib import Path
 
 import typer
 
-from ._common import configure_logging, user_errors
+from podkrig.cli._common import configure_logging, user_errors
 
 DEMO_STUDY = "diagonal_compression.toml"
 
@@ -26,7 +26,7 @@ def _rich_progress():
         TimeElapsedColumn,
     )
 
-    from ..study.pipeline import Progress as StageProgress
+    from podkrig.study.pipeline import Progress as StageProgress
 
     console = Console(stderr=True)
 
@@ -68,7 +68,7 @@ def _rich_progress():
 
 def _run(study_path, out):
     """Load, run and summarise a study (inside the CLI's error handling)."""
-    from ..study import load_study, run_study
+    from podkrig.study import load_study, run_study
 
     study = load_study(study_path)
     out = Path("out") / study.name if out is None else out

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from ._common import configure_logging, user_errors
+from podkrig.cli._common import configure_logging, user_errors
 
 
 def parse_assignment(text, option="--set"):

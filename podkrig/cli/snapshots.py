@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from ._common import configure_logging, user_errors
+from podkrig.cli._common import configure_logging, user_errors
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -65,8 +65,8 @@ def run(
 
     from fe.scenarios import build_scenario
 
-    from ..parameters import ParameterSpace, parse_params
-    from ..runner import run_snapshots
+    from podkrig.parameters import ParameterSpace, parse_params
+    from podkrig.offline.runner import run_snapshots
 
     with user_errors():
         if workers is not None and scheduler is not None:
@@ -117,7 +117,7 @@ def info(
     format: str = typer.Option("text", "--format", help="Output format: text or json."),
 ):
     """Describe a snapshot store: provenance, scenario, parameters, sensors, row status."""
-    from ..store import SnapshotStore
+    from podkrig.offline.store import SnapshotStore
 
     with user_errors():
         if format not in ("text", "json"):
@@ -169,7 +169,7 @@ def export(
     csv_path: Path = typer.Option(..., "--csv", help="CSV file to write."),
 ):
     """Export a store as CSV: row, status, one column per parameter, one per SENSOR@LOAD (mm)."""
-    from ..store import STATUS_NAMES, SnapshotStore
+    from podkrig.offline.store import STATUS_NAMES, SnapshotStore
 
     with user_errors():
         with SnapshotStore.open(path) as store:

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from ._common import configure_logging, user_errors
+from podkrig.cli._common import configure_logging, user_errors
 
 surrogate_app = typer.Typer(
     name="surrogate",
@@ -26,9 +26,9 @@ def _beta(text):
 
 
 def _templates(energy, modes, variogram, beta, criterion, nugget):
-    from ..kriging import OrdinaryKriging
-    from ..pod import POD
-    from ..surrogate import DEFAULT_ENERGY
+    from podkrig.surrogate.kriging import OrdinaryKriging
+    from podkrig.surrogate.pod import POD
+    from podkrig.surrogate.podkriging import DEFAULT_ENERGY
 
     if energy is not None and modes is not None:
         raise ValueError("give either --energy or --modes, not both")
@@ -52,8 +52,8 @@ def build(
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
-        from ..store import SnapshotStore
-        from ..surrogate import fit_from_store
+        from podkrig.offline.store import SnapshotStore
+        from podkrig.surrogate.podkriging import fit_from_store
 
         pod, kriging = _templates(energy, modes, variogram, beta, criterion, nugget)
         t0 = time.perf_counter()
@@ -84,9 +84,9 @@ def validate(
     """Errors of the surrogate FILE on the held-out runs; optionally an HTML report."""
     configure_logging(verbose)
     with user_errors():
-        from ..store import SnapshotStore
-        from ..surrogate import PODKriging, training_data
-        from ..validation import compare_settings, held_out_errors
+        from podkrig.offline.store import SnapshotStore
+        from podkrig.surrogate.podkriging import PODKriging, training_data
+        from podkrig.surrogate.validation import compare_settings, held_out_errors
 
         if format not in ("table", "json"):
             raise ValueError(f"--format must be table or json; got {format!r}")
@@ -121,7 +121,7 @@ def validate(
 
 
 def _write_report(directory, sur, rep, summary, comparison):
-    from ..reports import surrogate as figs
+    from podkrig.reports import surrogate as figs
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
@@ -170,7 +170,7 @@ def refine(
     """Add FE runs where the surrogate is least certain until --target-error or --budget is reached."""
     configure_logging(verbose)
     with user_errors():
-        from ..refine import refine_surrogate
+        from podkrig.surrogate.refine import refine_surrogate
 
         result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
                                   batch=batch, n_candidates=candidates, seed=seed, workers=workers)

@@ -1,8 +1,8 @@
 """Model diagnosis: find what a calibrated FE model gets wrong, name the cause among candidate
 physical effects, fit the extended model and measure the gain (see :mod:`.engine`)."""
 
-from .candidates import CANDIDATES, Candidate, EffectParameter, FEContext, Location
-from .engine import Diagnosis, build_base_surrogate, diagnose
+from podkrig.diagnosis.candidates import CANDIDATES, Candidate, EffectParameter, FEContext, Location
+from podkrig.diagnosis.engine import Diagnosis, build_base_surrogate, diagnose
 
 __all__ = [
            "CANDIDATES",

@@ -37,12 +37,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, optimize, stats
 
-from ..inverse import InverseProblem, SurrogateModel, invert
-from ..kriging import OrdinaryKriging
-from ..measurement import Measurement
-from ..sampling import sobol
-from ..surrogate import PODKriging
-from .candidates import CANDIDATES, FEContext
+from podkrig.online.inverse import InverseProblem, SurrogateModel, invert
+from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.online.measurement import Measurement
+from podkrig.offline.sampling import sobol
+from podkrig.surrogate.podkriging import PODKriging
+from podkrig.diagnosis.candidates import CANDIDATES, FEContext
 
 logger = logging.getLogger(__name__)
 

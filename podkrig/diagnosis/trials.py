@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..measurement import Measurement, NoiseModel
-from .candidates import CANDIDATES, FEContext
-from .engine import _Fitter
+from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.diagnosis.candidates import CANDIDATES, FEContext
+from podkrig.diagnosis.engine import _Fitter
 
 
 @dataclass(frozen=True, eq=False)

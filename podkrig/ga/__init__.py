@@ -11,8 +11,8 @@ Conventions: ``X`` is ``(n_individuals, n_params)`` in physical units, objective
 ``(n_individuals,)``, lower is better.
 """
 
-from .core import GAResult, GeneticAlgorithm, minimize
-from .plotting import plot_history, plot_parameters, plot_statistics
+from podkrig.ga.core import GAResult, GeneticAlgorithm, minimize
+from podkrig.ga.plotting import plot_history, plot_parameters, plot_statistics
 
 __all__ = [
     "GAResult",

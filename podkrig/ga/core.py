@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
-from . import operators as ops
+from podkrig.ga import operators as ops
 
 logger = logging.getLogger(__name__)
 

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .figures import pyplot
-from .html import Page, fmt
+from podkrig.reports.figures import pyplot
+from podkrig.reports.html import Page, fmt
 
 
 def _channel_geometry(scenario):

@@ -6,7 +6,7 @@ the path. Units on every axis.
 
 import numpy as np
 
-from .figures import pyplot
+from podkrig.reports.figures import pyplot
 
 
 def _label(name, unit):
@@ -150,7 +150,7 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
     """
     from pathlib import Path
 
-    from .html import Page, fmt
+    from podkrig.reports.html import Page, fmt
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -232,7 +232,7 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
 
 def plot_ga_history(ga, path):
     """The GA's history: every evaluated misfit by generation, and population statistics."""
-    from ..ga import plot_history, plot_statistics
+    from podkrig.ga import plot_history, plot_statistics
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
@@ -246,7 +246,7 @@ def plot_ga_history(ga, path):
 
 def plot_ga_parameters(ga, path):
     """Parameter values of the GA's evaluated individuals against their misfit."""
-    from ..ga import plot_parameters
+    from podkrig.ga import plot_parameters
 
     plt = pyplot()
     fig = np.ravel(plot_parameters(ga))[0].figure

@@ -9,7 +9,7 @@ and draws nothing (the figures are stage outputs, already in the report folder).
 import json
 import math
 
-from .html import Page, fmt
+from podkrig.reports.html import Page, fmt
 
 #: report sections: (anchor, heading), in page order
 SECTIONS = (

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .figures import pyplot
+from podkrig.reports.figures import pyplot
 
 logger = logging.getLogger(__name__)
 
@@ -143,7 +143,7 @@ def write_html(directory, title, summary, figures, notes=()):
     -------
     Path of ``index.html``.
     """
-    from .html import Page, fmt
+    from podkrig.reports.html import Page, fmt
 
     page = Page(title)
     page.table(["quantity", "value"], [[k.replace("_", " "), fmt(v)] for k, v in summary.items() if not isinstance(v, (dict, list))])

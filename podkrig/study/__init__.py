@@ -14,7 +14,7 @@ Example
 [68.27..., 71.61...]
 """
 
-from .pipeline import Progress, StageRecord, StudyResult, run_study
-from .schema import Study, StudyError, key_lines, load_study
+from podkrig.study.pipeline import Progress, StageRecord, StudyResult, run_study
+from podkrig.study.schema import Study, StudyError, key_lines, load_study
 
 __all__ = ["Progress", "StageRecord", "Study", "StudyError", "StudyResult", "key_lines", "load_study", "run_study"]

@@ -39,8 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
-from ..exceptions import StoreError
+from podkrig import __version__
+from podkrig.exceptions import StoreError
 
 logger = logging.getLogger(__name__)
 
@@ -283,7 +283,7 @@ def run_study(study, out, *, progress=None):
     if study.diagnosis.enabled:
         _diagnosis(run)
     found = _warnings(run)
-    from ..reports.study import write_study_report
+    from podkrig.reports.study import write_study_report
 
     report = write_study_report(run.figures / "index.html", study, run.records, found)
     _write_json(run.out / "summary.json", {
@@ -297,7 +297,7 @@ def run_study(study, out, *, progress=None):
 
 def _run_store(run, path, spec, space, design):
     """Fill the store at ``path`` (resuming it; rebuilding one written for another design)."""
-    from ..runner import run_snapshots
+    from podkrig.offline.runner import run_snapshots
 
     kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method, "workers": run.study.workers,
               "scheduler": run.study.scheduler, "progress": run.progress.advance}
@@ -315,7 +315,7 @@ def _run_store(run, path, spec, space, design):
 
 
 def _store_result(path, summary, notes):
-    from ..store import SnapshotStore
+    from podkrig.offline.store import SnapshotStore
 
     with SnapshotStore.open(path) as store:
         wall = store.wall_times()
@@ -345,9 +345,9 @@ def _offline(run, name, title, filename, design):
 
 def _templates(settings):
     """POD and kriging templates of the surrogate settings."""
-    from ..kriging import OrdinaryKriging
-    from ..pod import POD
-    from ..surrogate import DEFAULT_ENERGY
+    from podkrig.surrogate.kriging import OrdinaryKriging
+    from podkrig.surrogate.pod import POD
+    from podkrig.surrogate.podkriging import DEFAULT_ENERGY
 
     pod = POD(n_modes=settings.modes) if settings.modes is not None else POD(energy=settings.energy or DEFAULT_ENERGY)
     kriging = OrdinaryKriging(variogram=settings.variogram, beta=settings.beta, criterion=settings.criterion,
@@ -357,8 +357,8 @@ def _templates(settings):
 
 def _fit(store_path, settings, out_path):
     """Fit and save a surrogate on a store; returns it and its training time (s)."""
-    from ..store import SnapshotStore
-    from ..surrogate import fit_from_store
+    from podkrig.offline.store import SnapshotStore
+    from podkrig.surrogate.podkriging import fit_from_store
 
     pod, kriging = _templates(settings)
     t0 = time.perf_counter()
@@ -397,7 +397,7 @@ def _validation_model(run, model):
 
 
 def _surrogate(run):
-    from ..reports import surrogate as figs
+    from podkrig.reports import surrogate as figs
 
     settings = run.study.surrogate
     inputs = {"settings": dataclasses.asdict(settings), "train": run.outputs("offline")}
@@ -414,10 +414,10 @@ def _surrogate(run):
 
 
 def _held_out_validation(run):
-    from ..reports import surrogate as figs
-    from ..store import SnapshotStore
-    from ..surrogate import PODKriging, training_data
-    from ..validation import held_out_errors
+    from podkrig.reports import surrogate as figs
+    from podkrig.offline.store import SnapshotStore
+    from podkrig.surrogate.podkriging import PODKriging, training_data
+    from podkrig.surrogate.validation import held_out_errors
 
     inputs = {"surrogate": run.outputs("surrogate"), "held_out": run.outputs("held_out")}
 
@@ -437,9 +437,9 @@ def _held_out_validation(run):
 
 def _problem(run):
     """The inverse problem of the study on its surrogate: (problem, model)."""
-    from ..inverse import InverseProblem, SurrogateModel
-    from ..measurement_csv import read_measurement_csv
-    from ..surrogate import PODKriging
+    from podkrig.online.inverse import InverseProblem, SurrogateModel
+    from podkrig.online.measurement_csv import read_measurement_csv
+    from podkrig.surrogate.podkriging import PODKriging
 
     model = SurrogateModel(PODKriging.load(run.out / "surrogate.h5"))
     m = run.study.measurement
@@ -455,8 +455,8 @@ def _online_inputs(run):
 
 
 def _inversion(run):
-    from ..inverse import fe_check, invert
-    from ..reports import inverse as figs
+    from podkrig.online.inverse import fe_check, invert
+    from podkrig.reports import inverse as figs
 
     s = run.study.inversion
     inputs = {**_online_inputs(run), "ga": {"seed": s.seed, "population_size": s.population_size,
@@ -495,8 +495,8 @@ def _inversion(run):
 
 
 def _region(run):
-    from ..reports import inverse as figs
-    from ..uncertainty import likelihood_ratio_region, noise_monte_carlo_region
+    from podkrig.reports import inverse as figs
+    from podkrig.online.uncertainty import likelihood_ratio_region, noise_monte_carlo_region
 
     s = run.study.inversion
     inv = run.manifest("inversion")
@@ -526,10 +526,10 @@ def _region(run):
 
 
 def _rvc(run):
-    from ..inverse import SurrogateModel
-    from ..reports import inverse as figs
-    from ..surrogate import PODKriging
-    from ..uncertainty import Region, rvc
+    from podkrig.online.inverse import SurrogateModel
+    from podkrig.reports import inverse as figs
+    from podkrig.surrogate.podkriging import PODKriging
+    from podkrig.online.uncertainty import Region, rvc
 
     study = run.study
     reg = run.manifest("region")
@@ -556,8 +556,8 @@ def _rvc(run):
 
 
 def _diagnosis(run):
-    from ..diagnosis import diagnose
-    from ..reports.diagnosis import write_diagnosis_report
+    from podkrig.diagnosis import diagnose
+    from podkrig.reports.diagnosis import write_diagnosis_report
 
     study = run.study
     inputs = {**_online_inputs(run), "seed": study.diagnosis.seed}

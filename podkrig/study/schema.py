@@ -61,9 +61,9 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..exceptions import PodkrigError
-from ..parameters import SCALES, Parameter, ParameterSpace
-from ..sampling import METHODS
+from podkrig.exceptions import PodkrigError
+from podkrig.parameters import SCALES, Parameter, ParameterSpace
+from podkrig.offline.sampling import METHODS
 
 VARIOGRAMS = ("exponential", "power")
 CRITERIA = ("ml", "loo")
@@ -114,7 +114,7 @@ class MeasurementSettings:
 
     def noise_model(self):
         """The :class:`~podkrig.measurement.NoiseModel` of these settings."""
-        from ..measurement import NoiseModel
+        from podkrig.online.measurement import NoiseModel
 
         if self.noise_rel is not None:
             return NoiseModel(delta=self.noise_rel)

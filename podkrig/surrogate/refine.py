@@ -82,11 +82,11 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
         ``added`` (FE runs), ``history`` (per round: ``n_train``, ``median``, ``p95``),
         ``stop_reason``.
     """
-    from .runner import run_pending
-    from .sampling import sobol
-    from .store import SnapshotStore
-    from .surrogate import PODKriging, fit_from_store, training_data
-    from .validation import held_out_errors
+    from podkrig.offline.runner import run_pending
+    from podkrig.offline.sampling import sobol
+    from podkrig.offline.store import SnapshotStore
+    from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
+    from podkrig.surrogate.validation import held_out_errors
 
     for name, v, least in (("budget", budget, 0), ("batch", batch, 1), ("n_candidates", n_candidates, 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:

@@ -52,11 +52,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .exceptions import PodkrigError, StoreError
-from .parameters import ParameterSpace
-from .sampling import METHODS, sample
-from .store import DONE, FAILED, SnapshotStore
+from podkrig import __version__
+from podkrig.exceptions import PodkrigError, StoreError
+from podkrig.parameters import ParameterSpace
+from podkrig.offline.sampling import METHODS, sample
+from podkrig.offline.store import DONE, FAILED, SnapshotStore
 
 logger = logging.getLogger(__name__)
 

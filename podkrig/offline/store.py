@@ -52,9 +52,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import __version__
-from .exceptions import SchemaError, StoreError
-from .parameters import ParameterSpace
+from podkrig import __version__
+from podkrig.exceptions import SchemaError, StoreError
+from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
 

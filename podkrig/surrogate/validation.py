@@ -189,8 +189,8 @@ def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
     dict
         Label (e.g. ``"exponential, beta=1.2"``) to ndarray of shape (n_held_out,) of relative errors.
     """
-    from .kriging import OrdinaryKriging
-    from .surrogate import PODKriging
+    from podkrig.surrogate.kriging import OrdinaryKriging
+    from podkrig.surrogate.podkriging import PODKriging
 
     out = {}
     for s in settings:

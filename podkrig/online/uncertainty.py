@@ -22,9 +22,9 @@ import numpy as np
 from scipy import stats
 from scipy.stats import qmc
 
-from ._threads import one_blas_thread
-from .inverse import InverseProblem, invert
-from .measurement import Measurement
+from podkrig._threads import one_blas_thread
+from podkrig.online.inverse import InverseProblem, invert
+from podkrig.online.measurement import Measurement
 
 logger = logging.getLogger(__name__)
 

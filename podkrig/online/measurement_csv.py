@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .measurement import Measurement
+from podkrig.online.measurement import Measurement
 
 
 def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN"):

@@ -24,9 +24,9 @@ import numpy as np
 from scipy import optimize
 from scipy.stats import qmc
 
-from ._threads import one_blas_thread
-from .misfit import Misfit
-from .parameters import ParameterSpace
+from podkrig._threads import one_blas_thread
+from podkrig.online.misfit import Misfit
+from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
 
@@ -300,7 +300,7 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
     -------
     InverseResult
     """
-    from .ga import minimize
+    from podkrig.ga import minimize
 
     t0 = time.perf_counter()
     with one_blas_thread(), warnings.catch_warnings():  # small BLAS calls: see podkrig._threads

@@ -30,7 +30,7 @@ import logging
 import numpy as np
 from scipy import linalg
 
-from .exceptions import NotFittedError
+from podkrig.exceptions import NotFittedError
 
 logger = logging.getLogger(__name__)
 

@@ -35,12 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from ._threads import one_blas_thread
-from .exceptions import NotFittedError, SchemaError, StoreError
-from .kriging import OrdinaryKriging
-from .parameters import ParameterSpace
-from .pod import POD
+from podkrig import __version__
+from podkrig._threads import one_blas_thread
+from podkrig.exceptions import NotFittedError, SchemaError, StoreError
+from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.parameters import ParameterSpace
+from podkrig.surrogate.pod import POD
 
 logger = logging.getLogger(__name__)
 

@@ -33,7 +33,7 @@ References
 
 import numpy as np
 
-from ._kernels import EXPONENTIAL, POWER, abs_power
+from podkrig.surrogate.kriging._kernels import EXPONENTIAL, POWER, abs_power
 
 VARIOGRAMS = {"exponential": EXPONENTIAL, "power": POWER}
 BETA_FIT_BOUNDS = {"exponential": (0.2, 2.0), "power": (0.2, 1.95)}

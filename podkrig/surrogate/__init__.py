@@ -1,0 +1,13 @@
+"""Surrogate stage: POD of the snapshots plus ordinary kriging of the POD coefficients.
+
+- :mod:`~podkrig.surrogate.pod` — proper orthogonal decomposition (thesis ch. 4);
+- :mod:`~podkrig.surrogate.kriging` — ordinary kriging with exponential-family semivariograms;
+- :mod:`~podkrig.surrogate.podkriging` — the POD-kriging surrogate, its file format and training
+  from a store;
+- :mod:`~podkrig.surrogate.validation` — held-out and leave-one-out errors;
+- :mod:`~podkrig.surrogate.refine` — adaptive enrichment of the training design.
+"""
+
+from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
+
+__all__ = ["PODKriging", "fit_from_store", "training_data"]
