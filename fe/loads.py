@@ -1,8 +1,36 @@
 """Consistent nodal forces of distributed boundary tractions."""
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from .exceptions import MeshError
+
+
+@dataclass(frozen=True)
+class LoadPerturbation:
+    """A way a scenario's applied load can depart from its intended position, exactly linear.
+
+    Two kinds, both built from one extra set of load patterns ``g = patterns()``
+    ``(n_dofs, n_patterns)`` with the scenario's own load coefficients:
+
+    - ``"shift"``: the loads become ``f + a g`` for an amplitude ``a`` in ``unit`` (e.g. a load
+      line offset by ``a`` mm with the contact pressure varying linearly), admissible for
+      ``|a| ≤ limit``;
+    - ``"turn"``: the loads become ``cos φ f + sin φ g`` for an angle φ, ``g`` being ``f`` turned
+      by +90° (``limit`` is then None: any angle is statically admissible).
+
+    Consumers (the model diagnosis, sensitivity studies) choose what amplitudes to try; ``fe``
+    only states the geometry of the perturbation.
+    """
+
+    name: str
+    kind: str
+    unit: str
+    limit: float | None
+    description: str
+    patterns: Callable[[], np.ndarray]
 
 
 def edge_traction(mesh, edges, traction, thickness, interval=None, axis=None, gradient=False):

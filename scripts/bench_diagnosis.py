@@ -21,6 +21,8 @@ time per diagnosis.
 """
 
 import argparse
+import pathlib
+import sys
 import os
 import platform
 import time
@@ -31,10 +33,12 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))  # the trial generator lives with the tests
+
+from diagnosis_trials import make_trial, noise_sigma  # noqa: E402
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
-from podkrig.diagnosis import build_base_surrogate, diagnose
-from podkrig.diagnosis.trials import make_trial
+from podkrig.diagnosis import CANDIDATES, FEContext, build_base_surrogate, diagnose
 from podkrig.parameters import ParameterSpace
 
 BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
@@ -56,9 +60,6 @@ def random_truth(rng):
 def visible_joints(setup, f=1e-3, threshold=3.0):
     """Joint segments whose opening (stiffness factor ``f``) moves some reading by ≥ ``threshold`` σ
     (σ = 1 % of the largest reading) at the default parameters."""
-    from podkrig.diagnosis import CANDIDATES, FEContext
-    from podkrig.diagnosis.trials import noise_sigma
-
     values = setup.scenario.resolve()
     ctx = FEContext(setup.scenario, setup.space.names, values)
     base = ctx.readings(values)

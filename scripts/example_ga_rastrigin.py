@@ -44,7 +44,8 @@ def main(argv=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from podkrig.ga import minimize, plot_history, plot_parameters, plot_statistics
+    from podkrig.ga import minimize
+    from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 
     args.out.mkdir(parents=True, exist_ok=True)
     results = {}

@@ -179,7 +179,7 @@ def main(argv=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from podkrig.ga import plot_history, plot_parameters, plot_statistics
+    from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 
     args.out.mkdir(parents=True, exist_ok=True)
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4), layout="constrained")

@@ -17,7 +17,7 @@ from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from fe.supports import spring_supported_model, support_areas
 from podkrig.diagnosis import CANDIDATES, FEContext, build_base_surrogate, diagnose
-from podkrig.diagnosis.trials import make_trial
+from diagnosis_trials import make_trial
 from podkrig.parameters import ParameterSpace
 
 BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
@@ -82,14 +82,14 @@ def test_eccentric_and_rotated_shoe_loads_obey_statics():
     x, y = sc.mesh.nodes[:, 0], sc.mesh.nodes[:, 1]
     W = sc.mesh.width
     f = sc.model.load_patterns[:, 0]
-    g = sc.eccentric_load_patterns()[:, 0]
+    g = sc.load_perturbations()["offset"].patterns()[:, 0]
     fx, fy = g[0::2], g[1::2]  # the top shoe loads only in y, the right shoe only in x
     assert_allclose([fy.sum(), fx.sum()], 0.0, atol=1e-12)
     L = sc.options.shoe_length
     # top shoe: resultant −F/√2 in y moved by −e in x → moment Σ fy (x − c) = +1/√2 per mm of e
     assert_allclose(np.sum(fy * (x - (W - L / 2))), 1 / np.sqrt(2), rtol=1e-12)
     assert_allclose(np.sum(fx * (y - (sc.mesh.height - L / 2))), -1 / np.sqrt(2), rtol=1e-12)
-    h = sc.rotated_load_patterns()[:, 0]
+    h = sc.load_perturbations()["rotation"].patterns()[:, 0]
     assert_allclose([h[0::2].sum(), h[1::2].sum()], [1 / np.sqrt(2), -1 / np.sqrt(2)], rtol=1e-12)
     assert_allclose([f[0::2].sum(), f[1::2].sum()], [-1 / np.sqrt(2), -1 / np.sqrt(2)], rtol=1e-12)
 

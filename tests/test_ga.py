@@ -474,7 +474,7 @@ def test_figures_have_labelled_axes():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from podkrig.ga import plot_history, plot_parameters, plot_statistics
+    from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 
     space = LogSpace([10.0, 1.0], [1000.0, 100.0])
     res = minimize(lambda X: np.sum(np.log(X / 30.0) ** 2, axis=1), space, rng=25,

@@ -66,8 +66,8 @@ class Scenario(abc.ABC):
     ``self.mesh``, ``self.sensors``, ``self.model`` (a :class:`fe.model.LinearModel`) and
     ``self.load_coefficients`` ``(n_loads, n_patterns)``, ``self.supported_nodes`` (nodes held
     fixed in x and y) and ``self.tie_groups`` (dof groups moving together), plus ``theta(values)``.
-    A scenario whose load line can be off its intended position also defines
-    ``eccentric_load_patterns()``, ``max_load_eccentricity`` and ``rotated_load_patterns()``.
+    A scenario whose load can be off its intended position says how in
+    ``load_perturbations()`` (:class:`fe.loads.LoadPerturbation`).
 
     ``Scenario(spec).run(params)`` is pure: it writes no files.
     """
@@ -171,17 +171,10 @@ class Scenario(abc.ABC):
     def theta(self, values):
         """Coefficients of the stiffness parts for a full parameter dict, ``(n_parts,)``."""
 
-    def eccentric_load_patterns(self):
-        """Derivative of the load patterns w.r.t. a load-line offset ``(n_dofs, n_patterns)`` N/mm,
-        or None when the scenario has no such notion (the default)."""
-        return None
-
-    max_load_eccentricity = 0.0
-
-    def rotated_load_patterns(self):
-        """The load patterns turned by +90° ``(n_dofs, n_patterns)`` (a load line rotated by φ has
-        ``cos φ f + sin φ f⊥``), or None when the scenario has no such notion (the default)."""
-        return None
+    def load_perturbations(self):
+        """Ways the applied load can depart from its intended position: a dict of name to
+        :class:`fe.loads.LoadPerturbation`; empty by default."""
+        return {}
 
     def run(self, params=None, *, field=False):
         """Run the virtual test.

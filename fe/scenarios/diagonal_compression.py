@@ -42,7 +42,7 @@ import numpy as np
 
 from ..constraints import constraint_transform
 from ..exceptions import SpecError
-from ..loads import edge_traction
+from ..loads import LoadPerturbation, edge_traction
 from ..model import LinearModel
 from ..sensors import Gauge, sensor_from_dict
 from .base import Scenario
@@ -125,25 +125,24 @@ class DiagonalCompression(Scenario):
                            gradient=gradient)
         return f
 
-    def rotated_load_patterns(self):
-        """The load patterns with every shoe traction turned by +90°, ``(n_dofs, 1)`` N per N of F.
+    def load_perturbations(self):
+        """The load line offset along the shoes (``"offset"``, mm) and rotated (``"rotation"``).
 
-        A load line rotated by φ (counter-clockwise, the shoes' tractions turning with it, e.g.
-        a misaligned actuator with friction at the shoes) has patterns ``cos φ f + sin φ f⊥``.
+        ``offset``: an offset e (mm) moves the resultant of each loading shoe along its face towards
+        the panel's top-left corner (the top shoe by −e in x, the right shoe by +e in y), i.e. the
+        load line by √2·e off the diagonal, with the shoe pressure varying linearly; loads are
+        exactly affine in e. Admissible while the pressure stays compressive:
+        ``|e| ≤ shoe_length / 6``. Patterns ``(n_dofs, 1)`` N/mm per N of F.
+
+        ``rotation``: every shoe traction turned by +90°, ``(n_dofs, 1)`` N per N of F; a load line
+        rotated by φ (counter-clockwise, the tractions turning with it, e.g. a misaligned actuator
+        with friction at the shoes) has patterns ``cos φ f + sin φ f⊥``.
         """
-        return self._shoe_loads(rotated=True)[:, None]
-
-    def eccentric_load_patterns(self):
-        """Derivative of the load patterns with respect to a load-line offset, ``(n_dofs, 1)`` N/mm.
-
-        The offset e (mm) moves the resultant of each loading shoe along its face towards the
-        panel's top-left corner (the top shoe by −e in x, the right shoe by +e in y), i.e. the load
-        line by √2·e off the diagonal, with the shoe pressure varying linearly; loads are exactly
-        affine in e. Admissible while the pressure stays compressive: ``|e| ≤ shoe_length / 6``.
-        """
-        return self._shoe_loads(gradient=True)[:, None]
-
-    @property
-    def max_load_eccentricity(self):
-        """Largest admissible load-line offset (mm): the shoe pressure stays compressive."""
-        return self.options.shoe_length / 6.0
+        return {
+            "offset": LoadPerturbation(
+                "offset", "shift", "mm", self.options.shoe_length / 6.0, "load line offset",
+                lambda: self._shoe_loads(gradient=True)[:, None]),
+            "rotation": LoadPerturbation(
+                "rotation", "turn", "degree", None, "load line rotated",
+                lambda: self._shoe_loads(rotated=True)[:, None]),
+        }

@@ -22,7 +22,7 @@ unit_stiffness         E_b, MPa (base)                         gauges on units, 
 ``head_joint_stiffness`` and ``unit_stiffness`` are candidates only when the base model keeps
 ``r_hj`` / ``E_b`` fixed; ``support_compliance`` and ``load_eccentricity`` only for scenarios
 with supports / a load line (:class:`fe.Scenario`'s ``supported_nodes``,
-``eccentric_load_patterns``, ``rotated_load_patterns``).
+``load_perturbations``).
 """
 
 import abc
@@ -351,32 +351,29 @@ class LoadEccentricity(Candidate):
     signature = ("Antisymmetric about the intended load line: sensors on one side lengthen, on the "
                  "other shorten; in proportion to the load.")
 
+    #: largest load-line rotation tried, degree (a visibly misaligned actuator; a choice)
+    max_rotation = 15.0
+
     def not_applicable(self, ctx):
-        sc = ctx.scenario
-        if sc.eccentric_load_patterns() is None and sc.rotated_load_patterns() is None:
-            return f"the {sc.name} scenario defines no load line that could be off"
+        if not ctx.scenario.load_perturbations():
+            return f"the {ctx.scenario.name} scenario defines no load line that could be off"
         return None
 
     def locations(self, ctx):
-        sc, out = ctx.scenario, []
-        if sc.eccentric_load_patterns() is not None:
-            out.append(Location("offset", "load line offset", {"kind": "offset"}))
-        if sc.rotated_load_patterns() is not None:
-            out.append(Location("rotation", "load line rotated", {"kind": "rotation"}))
-        return out
+        return [Location(p.name, p.description, {"kind": p.name})
+                for p in ctx.scenario.load_perturbations().values()]
 
     def parameter(self, ctx, location):
-        if location.detail["kind"] == "offset":
-            e = ctx.scenario.max_load_eccentricity
-            return EffectParameter("e", "mm", 0.0, -e, e, 0.5 * e)
-        return EffectParameter("phi", "degree", 0.0, -15.0, 15.0, 5.0)
+        p = ctx.scenario.load_perturbations()[location.detail["kind"]]
+        if p.kind == "shift":
+            return EffectParameter("e", p.unit, 0.0, -p.limit, p.limit, 0.5 * p.limit)
+        return EffectParameter("phi", "degree", 0.0, -self.max_rotation, self.max_rotation, 5.0)
 
     def readings(self, ctx, values, location, c):
-        sc = ctx.scenario
-        if location.detail["kind"] == "offset":
-            R0, R1 = ctx.readings_with_extra_loads(values, "offset", sc.eccentric_load_patterns)
+        p = ctx.scenario.load_perturbations()[location.detail["kind"]]
+        R0, R1 = ctx.readings_with_extra_loads(values, p.name, p.patterns)
+        if p.kind == "shift":
             return R0 + c * R1
-        R0, R1 = ctx.readings_with_extra_loads(values, "rotation", sc.rotated_load_patterns)
         phi = np.radians(c)
         return np.cos(phi) * R0 + np.sin(phi) * R1
 

@@ -4,21 +4,17 @@
   crossover and mutation on populations in the unit hypercube;
 - :mod:`podkrig.ga.core` — :class:`GeneticAlgorithm` (steppable), :func:`minimize`,
   :class:`GAResult`;
-- :mod:`podkrig.ga.plotting` — history, statistics and parameter–fitness figures (matplotlib is
-  imported only when a figure is drawn).
+
+Figures of a run (history, statistics, parameter–fitness) are in :mod:`podkrig.reports.ga`.
 
 Conventions: ``X`` is ``(n_individuals, n_params)`` in physical units, objective values are
 ``(n_individuals,)``, lower is better.
 """
 
 from podkrig.ga.core import GAResult, GeneticAlgorithm, minimize
-from podkrig.ga.plotting import plot_history, plot_parameters, plot_statistics
 
 __all__ = [
     "GAResult",
     "GeneticAlgorithm",
     "minimize",
-    "plot_history",
-    "plot_parameters",
-    "plot_statistics",
 ]

@@ -232,7 +232,7 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
 
 def plot_ga_history(ga, path):
     """The GA's history: every evaluated misfit by generation, and population statistics."""
-    from podkrig.ga import plot_history, plot_statistics
+    from podkrig.reports.ga import plot_history, plot_statistics
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
@@ -246,7 +246,7 @@ def plot_ga_history(ga, path):
 
 def plot_ga_parameters(ga, path):
     """Parameter values of the GA's evaluated individuals against their misfit."""
-    from podkrig.ga import plot_parameters
+    from podkrig.reports.ga import plot_parameters
 
     plt = pyplot()
     fig = np.ravel(plot_parameters(ga))[0].figure
