@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fe.exceptions import SpecError
+
 logger = logging.getLogger(__name__)
 
 SCALES = ("linear", "log")
@@ -293,8 +295,6 @@ class ParameterSpace:
             Unknown parameter name, malformed or unordered bounds, non-positive log bounds,
             or a bound outside the parameter's physical range.
         """
-        from fe.exceptions import SpecError
-
         known = scenario.parameters
         if not bounds:
             raise ValueError(f"no free parameters given; choose some of {list(known)}")

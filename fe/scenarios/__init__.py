@@ -1,5 +1,6 @@
 """Scenario registry: name → scenario class; :func:`build_scenario` rebuilds one from its spec."""
 
+from ..exceptions import SpecError
 from .base import ParameterInfo, Scenario
 from .diagonal_compression import DiagonalCompression
 from .shear_compression import ShearCompression
@@ -10,8 +11,6 @@ SCENARIOS = {cls.name: cls for cls in (DiagonalCompression, ShearCompression)}
 
 def build_scenario(spec, solver="auto"):
     """Build a scenario from a :class:`ScenarioSpec`, a plain dict, or a registered name."""
-    from ..exceptions import SpecError
-
     if isinstance(spec, str):
         spec = ScenarioSpec(spec)
     elif isinstance(spec, dict):

@@ -1,5 +1,12 @@
 """The ``podkrig`` command line: a thin layer that parses arguments, calls the library, writes
-outputs and turns domain errors into one-line messages with a hint and a non-zero exit code."""
+outputs and turns domain errors into one-line messages with a hint and a non-zero exit code.
+
+Each command module imports the stage it drives inside its command function, not at the top:
+importing every stage (Dask, matplotlib, the study pipeline) would take several times as long as
+``podkrig --help`` does now (measured 2026-11-24: ``import podkrig.cli`` about half the time of
+``import podkrig.study``, and matplotlib alone ≈ 0.5 s on an idle core), and every command would
+pay it.
+"""
 
 import typer
 

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fe.mesh.mesh import INTERFACE_KINDS
 from fe.supports import spring_supported_model
 
 
@@ -166,8 +167,6 @@ class FEContext:
 
 def _joint_segments(mesh):
     """Group the bed/head interface elements of a wall mesh by the pair of units they join."""
-    from fe.mesh.mesh import INTERFACE_KINDS
-
     units = mesh.block_unit[mesh.interface_blocks]
     segments = {}
     for i, (kind, (a, b)) in enumerate(zip(mesh.interface_kind, units)):

@@ -6,10 +6,12 @@ standardised residual (measured − model)/σ at the highest load level, before 
 extension; the named cause's location is marked.
 """
 
+import json
 from pathlib import Path
 
 import numpy as np
 
+from fe.mesh.mesh import INTERFACE_KINDS
 from podkrig.reports.figures import pyplot
 from podkrig.reports.html import Page, fmt
 
@@ -32,8 +34,6 @@ def _channel_geometry(scenario):
 
 def _draw_wall(ax, scenario):
     mesh = scenario.mesh
-    from fe.mesh.mesh import INTERFACE_KINDS
-
     for kind, colour, width in (("bed", "#999", 0.6), ("head", "#999", 0.6)):
         conn = mesh.interfaces[mesh.interface_kind == INTERFACE_KINDS.index(kind)]
         for e in conn:
@@ -261,7 +261,5 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
         page.table(["held out", "RMS residual before (σ)", "RMS residual after (σ)", "max |error| before (mm)", "max |error| after (mm)"],
                    [[h["held_out"], fmt(h["rms_before"]), fmt(h["rms_after"]), fmt(h["max_abs_mm_before"]), fmt(h["max_abs_mm_after"])]],
                    caption="Both models fitted without the highest load level, then compared with it.")
-    import json
-
     page.details("JSON", json.dumps(d, indent=1))
     return page.write(out / "index.html")

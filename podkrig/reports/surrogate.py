@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.reports.figures import pyplot
+from podkrig.reports.html import Page, fmt
 
 logger = logging.getLogger(__name__)
 
@@ -143,8 +144,6 @@ def write_html(directory, title, summary, figures, notes=()):
     -------
     Path of ``index.html``.
     """
-    from podkrig.reports.html import Page, fmt
-
     page = Page(title)
     page.table(["quantity", "value"], [[k.replace("_", " "), fmt(v)] for k, v in summary.items() if not isinstance(v, (dict, list))])
     page.paragraph(
