@@ -10,7 +10,8 @@ pay it.
 
 import typer
 
-from podkrig.cli import diagnose, invert, run, simulate, snapshots, surrogate
+from podkrig import __version__
+from podkrig.cli import diagnose, invert, run, scenarios, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -25,8 +26,18 @@ surrogate.register(app)
 invert.register(app)
 diagnose.register(app)
 run.register(app)
+scenarios.register(app)
+
+
+def _print_version(value: bool):
+    if value:
+        typer.echo(f"podkrig {__version__}")
+        raise typer.Exit()
 
 
 @app.callback()
-def main():
+def main(
+    version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                 help="Print the version and exit."),
+):
     """Surrogate-first inverse analysis of mesoscale masonry FE models (units: N, mm, MPa)."""

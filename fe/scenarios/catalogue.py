@@ -1,0 +1,114 @@
+"""What each registered scenario offers: parameters, options, sensors and load levels.
+
+:func:`describe_scenario` builds a scenario with its default options (a mesh and a factorisation
+pattern, well under a second) and reports what a user needs to write a spec or a study: every
+parameter with unit, default and admissible range; every option with its default; the default
+sensors with their definitions; the load levels and their unit. :data:`SENSOR_KINDS` gives the
+forms a sensor takes in a spec (TOML), e.g.::
+
+    [sensors]
+    D1  = { kind = "gauge", p1 = [302.2, 302.2], p2 = [867.8, 867.8] }
+    P   = { kind = "point", point = [585.0, 585.0], component = "y" }
+    DIC = { kind = "dic", x0 = 65.0, y0 = 32.5, x1 = 1105.0, y1 = 1072.5, nx = 9, ny = 9 }
+"""
+
+import dataclasses
+import inspect
+import sys
+from dataclasses import dataclass
+
+from . import SCENARIOS, build_scenario
+from .base import ParameterInfo
+
+#: sensor kind → (what it reads, its spec form in TOML)
+SENSOR_KINDS = {
+    "gauge": (
+        "LVDT / extensometer: relative displacement of two points along the line joining them, "
+        "mm, positive when they move apart",
+        '{ kind = "gauge", p1 = [x1, y1], p2 = [x2, y2] }',
+    ),
+    "point": (
+        "one displacement component of a point (absolute, mm)",
+        '{ kind = "point", point = [x, y], component = "x" }   # or "y"',
+    ),
+    "dic": (
+        "both displacement components on a regular nx × ny grid of points, as digital image "
+        "correlation gives them (mm); channels NAME[i,j]_x / _y",
+        '{ kind = "dic", x0 = 0.0, y0 = 0.0, x1 = 100.0, y1 = 100.0, nx = 5, ny = 5 }',
+    ),
+}
+
+
+@dataclass(frozen=True)
+class ScenarioDescription:
+    """A scenario's parameters, options, default sensors and load levels.
+
+    Attributes
+    ----------
+    name : str
+    summary : str
+        First line of the scenario's docstring.
+    load_unit : str
+    load_levels : tuple of float
+        Default load levels, in ``load_unit``.
+    parameters : tuple of ParameterInfo
+    options : dict
+        Option name → default value (lengths mm, loads in ``load_unit``).
+    sensors : dict
+        Default sensor name → definition dict (mm).
+    n_dofs : int
+        Degrees of freedom of the default mesh.
+    """
+
+    name: str
+    summary: str
+    load_unit: str
+    load_levels: tuple
+    parameters: tuple
+    options: dict
+    sensors: dict
+    n_dofs: int
+
+    def to_dict(self):
+        return {
+            "name": self.name, "summary": self.summary, "load_unit": self.load_unit,
+            "load_levels": list(self.load_levels),
+            "parameters": [dataclasses.asdict(p) for p in self.parameters],
+            "options": {k: list(v) if isinstance(v, tuple) else v for k, v in self.options.items()},
+            "sensors": self.sensors, "n_dofs": self.n_dofs,
+            "sensor_kinds": {k: {"reads": r, "toml": f} for k, (r, f) in SENSOR_KINDS.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, d):
+        return cls(d["name"], d["summary"], d["load_unit"], tuple(d["load_levels"]),
+                   tuple(ParameterInfo(**p) for p in d["parameters"]),
+                   {k: tuple(v) if isinstance(v, list) else v for k, v in d["options"].items()},
+                   dict(d["sensors"]), int(d["n_dofs"]))
+
+
+def describe_scenario(spec):
+    """Describe a registered scenario (a name, a spec dict or a :class:`ScenarioSpec`).
+
+    Raises
+    ------
+    SpecError
+        Unknown scenario or invalid options (the message lists what is allowed).
+    """
+    scenario = build_scenario(spec)
+    cls = SCENARIOS[scenario.name]
+    module_doc = inspect.getdoc(sys.modules[cls.__module__]) or ""
+    summary = module_doc.strip().splitlines()[0] if module_doc.strip() else cls.__name__
+    options = {f.name: getattr(scenario.options, f.name) for f in dataclasses.fields(scenario.options)
+               if f.name != "sensors"}
+    return ScenarioDescription(
+        name=scenario.name, summary=summary, load_unit=scenario.load_unit,
+        load_levels=tuple(float(v) for v in scenario.load_levels),
+        parameters=tuple(scenario.parameters.values()), options=options,
+        sensors=scenario.sensor_definitions(), n_dofs=int(scenario.n_dofs),
+    )
+
+
+def scenario_names():
+    """Registered scenario names, sorted."""
+    return sorted(SCENARIOS)
