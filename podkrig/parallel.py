@@ -12,8 +12,9 @@ numba threads against 0.65 s with one (issue 20). The rules of this module:
 - **Small batches on one thread** (:func:`threads_for`): a call runs on several threads only when
   each thread gets at least :data:`MIN_WORK_PER_THREAD` units of work (the caller's cost estimate,
   e.g. prediction points × training points × outputs for the kriging kernels), so that a parked
-  thread delays a large call by a small fraction at most. Below that, the kernels run a serial
-  twin (no thread pool involved at all).
+  thread delays a large call by a small fraction at most. Below that, a kernel runs on one
+  thread (``numba.set_num_threads(1)`` for the call: the pool is not woken; the same compiled
+  code as on several threads, so results stay bitwise independent of the thread count).
 - **Large batches in chunks** (:func:`chunk_size`): the points are cut into several chunks per
   thread, so a thread that runs while its peer is parked takes more of them.
 - **One owner of the cores**: in the online stage numba owns the cores and BLAS gets one thread
@@ -114,9 +115,14 @@ def max_numba_threads():
     return max(1, min(numba.get_num_threads(), numba.config.NUMBA_NUM_THREADS, available_cores()))
 
 
-def threads_for(work, min_work_per_thread=MIN_WORK_PER_THREAD):
+def threads_for(work, min_work_per_thread=None):
     """Threads worth using for a call of ``work`` units: as many as get ``min_work_per_thread``
-    units each (so 1 below ``2 × min_work_per_thread``), at most :func:`max_numba_threads`."""
+    units each (so 1 below ``2 × min_work_per_thread``), at most :func:`max_numba_threads`.
+    ``min_work_per_thread`` defaults to :data:`MIN_WORK_PER_THREAD` (read at the call)."""
+    if min_work_per_thread is None:
+        min_work_per_thread = MIN_WORK_PER_THREAD
+    if min_work_per_thread <= 0:
+        return max_numba_threads()
     return int(max(1, min(max_numba_threads(), work // min_work_per_thread)))
 
 

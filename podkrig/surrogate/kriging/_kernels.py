@@ -51,8 +51,8 @@ Arithmetic: the exponential is a branch-free polynomial (``_exp_neg``: Taylor se
 for 0) and the logarithm works on the IEEE-754 bits without a division (``_fill_logs``) because the
 numba build has no vector math library, and a libm call per entry would keep the loops scalar.
 
-Threads (:mod:`podkrig.parallel`): a small batch (a GA population) runs the serial entry point of
-a kernel, no thread pool involved; a large one is cut into chunks, several per thread, spread over
+Threads (:mod:`podkrig.parallel`): a small batch (a GA population) runs on one thread, without
+waking the pool; a large one is cut into chunks, several per thread, spread over
 the numba threads (``prange``), never more threads than cores available. Each point is computed by
 one thread in a fixed order, so results do not depend on the number of threads or the chunking,
 and no ``(n_pred, n)`` matrix is formed for the mean.
@@ -454,15 +454,10 @@ if njit is not None:
             for i in range(n):
                 out[p, i] = _exp_neg(min(S[i], 40.0)) if kind == 0 else -S[i]
 
-    # Serial and parallel entry points of each kernel: the serial one involves no thread pool
-    # (small batches, see podkrig.parallel); the parallel one splits the points into chunks of
-    # ``chunk`` over the numba threads. Each point is computed the same way by either.
-
-    @njit(fastmath=True, cache=True)
-    def _predict_mean_serial(Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
-                             need_logs, kind, alpha, mu, out):
-        _mean_rows(0, Xp.shape[0], Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
-                   need_logs, kind, alpha, mu, out)
+    # Entry points: the prediction points in chunks of ``chunk`` over the numba threads. On one
+    # thread (small batches, see podkrig.parallel) the same compiled code runs without waking the
+    # pool; a serial twin compiled apart would vectorise the fast-math sums differently and break
+    # the bitwise independence of the thread count.
 
     @njit(parallel=True, fastmath=True, cache=True)
     def _predict_mean_parallel(Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
@@ -471,10 +466,6 @@ if njit is not None:
         for b in prange((n_pred + chunk - 1) // chunk):
             _mean_rows(b * chunk, min(n_pred, (b + 1) * chunk), Xp, XtT, theta, coef, nq, g_start, g_code,
                        g_base, g_fold, g_nfold, need_logs, kind, alpha, mu, out)
-
-    @njit(fastmath=True, cache=True)
-    def _cross_covariance_serial(Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out):
-        _cov_rows(0, Xp.shape[0], Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out)
 
     @njit(parallel=True, fastmath=True, cache=True)
     def _cross_covariance_parallel(Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out,
@@ -485,15 +476,12 @@ if njit is not None:
                       nfold, need_logs, kind, out)
 
 
-def _launch(serial, parallel_kernel, work, n_pred, args, threads=None):
-    """Run ``serial(*args)`` or ``parallel_kernel(*args, chunk)`` on the threads
-    :func:`podkrig.parallel.threads_for` gives for ``work`` units (``threads`` overrides it)."""
+def _launch(kernel, work, n_pred, args, threads=None):
+    """Run ``kernel(*args, chunk)`` on the threads :func:`podkrig.parallel.threads_for` gives for
+    ``work`` units (``threads`` overrides it), in chunks of :func:`podkrig.parallel.chunk_size`."""
     threads = parallel.threads_for(work) if threads is None else int(threads)
-    if threads <= 1:
-        serial(*args)
-        return
     with parallel.numba_threads(threads):
-        parallel_kernel(*args, parallel.chunk_size(n_pred, threads))
+        kernel(*args, n_pred if threads <= 1 else parallel.chunk_size(n_pred, threads))
 
 
 def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=None, threads=None):
@@ -522,7 +510,7 @@ def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=Non
         np.ascontiguousarray(np.asarray(alpha, dtype=float)[order]),
         np.ascontiguousarray(np.asarray(mu, dtype=float)[order]), out,
     )
-    _launch(_predict_mean_serial, _predict_mean_parallel, Xp.shape[0] * Xt.shape[0] * len(beta), Xp.shape[0], args,
+    _launch(_predict_mean_parallel, Xp.shape[0] * Xt.shape[0] * len(beta), Xp.shape[0], args,
             threads)
     result = np.empty_like(out)
     result[:, order] = out
@@ -541,6 +529,6 @@ def cross_covariance(Xp, Xt, theta, beta, kind, use_numba=None, threads=None):
         Xp, np.ascontiguousarray(Xt.T), pl["theta"][0], pl["coef"][0], int(pl["nq"][0]), int(pl["g_code"][0]),
         float(pl["g_base"][0]), pl["g_fold"][0], int(pl["g_nfold"][0]), pl["need_logs"], int(kind), out,
     )
-    _launch(_cross_covariance_serial, _cross_covariance_parallel, Xp.shape[0] * Xt.shape[0], Xp.shape[0], args,
+    _launch(_cross_covariance_parallel, Xp.shape[0] * Xt.shape[0], Xp.shape[0], args,
             threads)
     return out
