@@ -64,6 +64,7 @@ def main(argv=None):
     ap.add_argument("--surrogate", type=Path, help="saved surrogate (.h5) for --background")
     ap.add_argument("--data", type=Path, help="measurement CSV for --background")
     ap.add_argument("--noise-rel", type=float, default=0.01, help="relative noise δ for --background")
+    ap.add_argument("--train", type=Path, help="snapshot store: with --background, also time fitting a surrogate on it")
     args = ap.parse_args(argv)
     if args.background is not None:
         if args.surrogate is None or args.data is None:
@@ -151,19 +152,32 @@ def split_every_call(on):
         parallel.MIN_WORK_PER_THREAD = before
 
 
-def time_online(problem, model, repeat):
-    """Seconds of the inversion (median of ``repeat``), region (2^20 evaluations) and RVC."""
+def time_online(problem, model, repeat, train=None):
+    """Seconds of the inversion (median of ``repeat``), region (2^20 evaluations) and RVC, and of a
+    surrogate fit on the store ``train`` (when given)."""
     from podkrig.online.inverse import invert
     from podkrig.online.uncertainty import likelihood_ratio_region, rvc
 
+    c0 = time.process_time()
     runs = [invert(problem, rng=seed) for seed in range(repeat)]
-    best = runs[0]
-    region = likelihood_ratio_region(problem, best.x, n_samples=2**20, rng=0)
+    c1 = time.process_time()
+    region = likelihood_ratio_region(problem, runs[0].x, n_samples=2**20, rng=0)
+    c2 = time.process_time()
     t0 = time.perf_counter()
     rvc(region, model, fixed=problem.fixed, rng=0)
-    return {"inversion": float(np.median([r.seconds for r in runs])), "evaluations": runs[0].n_evaluations,
-            "region": region.seconds, "region_evaluations": region.n_evaluated, "rvc": time.perf_counter() - t0,
-            "load": os.getloadavg()[0]}
+    t_rvc, c3 = time.perf_counter() - t0, time.process_time()
+    out = {"inversion": float(np.median([r.seconds for r in runs])), "evaluations": runs[0].n_evaluations,
+           "region": region.seconds, "region_evaluations": region.n_evaluated, "rvc": t_rvc,
+           "cpu": {"inversion": (c1 - c0) / repeat, "region": c2 - c1, "rvc": c3 - c2}, "load": os.getloadavg()[0]}
+    if train is not None:
+        from podkrig.offline.store import SnapshotStore
+        from podkrig.surrogate.podkriging import fit_from_store
+
+        t0 = time.perf_counter()
+        with SnapshotStore.open(train) as store:
+            fit_from_store(store)
+        out["training"], out["cpu"]["training"] = time.perf_counter() - t0, time.process_time() - c3
+    return out
 
 
 def under_load(args):
@@ -184,9 +198,9 @@ def under_load(args):
     results = {}
     for policy, split in (("podkrig.parallel", False), ("split every call", True)):
         with split_every_call(split):
-            results[policy, "idle"] = time_online(problem, model, args.repeat)
+            results[policy, "idle"] = time_online(problem, model, args.repeat, args.train)
             with cpu_hogs(args.background):
-                results[policy, "loaded"] = time_online(problem, model, args.repeat)
+                results[policy, "loaded"] = time_online(problem, model, args.repeat, args.train)
     blas = ", ".join(sorted({f"{i['internal_api']} {i['num_threads']}" for i in threadpool_info() if i["user_api"] == "blas"}))
     print(f"# Online stage under load: {args.surrogate} + {args.data}, δ = {args.noise_rel:g}; "
           f"{platform.machine()}, {os.cpu_count()} CPUs, {parallel.available_cores()} available "
@@ -195,16 +209,20 @@ def under_load(args):
           f"BLAS ({blas} by default) 1 thread in the online stage; one call split only above "
           f"{2 * parallel.MIN_WORK_PER_THREAD:.0e} work units; load average at start {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
     print(f"\n'loaded' = {args.background} single-threaded CPU hog(s) of this benchmark besides whatever else runs. "
-          "Seconds; ratio = loaded / idle.")
-    print("\n| rule | task | evaluations | idle s (load avg) | loaded s (load avg) | loaded / idle |")
-    print("|---|---|---|---|---|---|")
+          "Wall seconds (process CPU seconds); ratio = loaded / idle wall time.")
+    print("\n| rule | task | evaluations | idle s (CPU s) | loaded s (CPU s) | loaded / idle | load avg idle / loaded |")
+    print("|---|---|---|---|---|---|---|")
     for policy in ("podkrig.parallel", "split every call"):
         idle, loaded = results[policy, "idle"], results[policy, "loaded"]
         for task, label, n in (("inversion", f"GA inversion + polish (median of {args.repeat})", idle["evaluations"]),
                                ("region", "region of equivalence (likelihood ratio)", idle["region_evaluations"]),
-                               ("rvc", "RVC of the calibration model", "")):
-            print(f"| {policy} | {label} | {n} | {idle[task]:.3f} ({idle['load']:.1f}) | "
-                  f"{loaded[task]:.3f} ({loaded['load']:.1f}) | {loaded[task] / idle[task]:.2f} |")
+                               ("rvc", "RVC of the calibration model", ""),
+                               ("training", f"surrogate fit on {args.train}", "")):
+            if task not in idle:
+                continue
+            print(f"| {policy} | {label} | {n} | {idle[task]:.3f} ({idle['cpu'][task]:.2f}) | "
+                  f"{loaded[task]:.3f} ({loaded['cpu'][task]:.2f}) | {loaded[task] / idle[task]:.2f} | "
+                  f"{idle['load']:.1f} / {loaded['load']:.1f} |")
     print(f"\nload average at the end: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 
 
