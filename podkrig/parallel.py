@@ -136,9 +136,10 @@ def chunk_size(n_items, threads, minimum=32):
 def numba_threads(n):
     """Run numba parallel kernels on ``n`` threads inside the block, their ``prange`` iterations
     handed out one at a time (``numba.set_parallel_chunksize(1)``: a thread that runs while its
-    peer is parked takes more chunks). Both settings are thread-local and restored on exit."""
+    peer is parked takes more chunks). Both settings are thread-local and restored on exit. ``n``
+    is clipped to 1..size of numba's pool."""
     before = numba.get_num_threads()
-    numba.set_num_threads(int(n))
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
     chunks_before = numba.set_parallel_chunksize(1)
     try:
         yield

@@ -481,7 +481,7 @@ def _launch(kernel, work, n_pred, args, threads=None):
     ``work`` units (``threads`` overrides it), in chunks of :func:`podkrig.parallel.chunk_size`."""
     threads = parallel.threads_for(work) if threads is None else int(threads)
     with parallel.numba_threads(threads):
-        kernel(*args, n_pred if threads <= 1 else parallel.chunk_size(n_pred, threads))
+        kernel(*args, max(1, n_pred) if threads <= 1 else parallel.chunk_size(n_pred, threads))
 
 
 def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=None, threads=None):
