@@ -1,6 +1,7 @@
 """Thread rules of podkrig.parallel: cores available (affinity, cgroup quota), threads per batch,
 scoped numba settings, and the serial entry point of the kriging kernels for small batches."""
 
+import os
 import threading
 
 import numba
@@ -43,8 +44,6 @@ def test_cores_are_the_smaller_of_affinity_and_quota_rounded_up(affinity, quota,
 
 
 def test_available_cores_within_affinity():
-    import os
-
     assert 1 <= parallel.available_cores() <= len(os.sched_getaffinity(0))
 
 
@@ -67,11 +66,10 @@ def test_chunks_cover_several_per_thread():
 
 def test_numba_threads_scope_is_restored_and_thread_local():
     before = numba.get_num_threads()
-    with pytest.raises(RuntimeError):
-        with parallel.numba_threads(1):
-            assert numba.get_num_threads() == 1
-            assert numba.get_parallel_chunksize() == 1
-            raise RuntimeError("inside")
+    with pytest.raises(RuntimeError), parallel.numba_threads(1):
+        assert numba.get_num_threads() == 1
+        assert numba.get_parallel_chunksize() == 1
+        raise RuntimeError("inside")
     assert numba.get_num_threads() == before
     assert numba.get_parallel_chunksize() == 0
     seen = {}
