@@ -258,8 +258,9 @@ def test_plan_groups_outputs_around_a_fast_base():
     assert not fixed["need_logs"]  # Gaussian: no logarithm at all
 
 
-def test_mean_kernel_is_deterministic_across_thread_counts():
-    """Each prediction point is computed by one thread in a fixed order: bitwise equal results."""
+def test_kernels_are_deterministic_across_thread_counts_and_chunks():
+    """Each prediction point is computed by one thread in a fixed order: the serial entry point
+    and the parallel one on 2 threads (several chunk sizes) give bitwise equal results."""
     numba = pytest.importorskip("numba")
     from podkrig.surrogate.kriging import _kernels
 
@@ -267,12 +268,15 @@ def test_mean_kernel_is_deterministic_across_thread_counts():
         pytest.skip("one numba thread only")
     Xp, Xt, theta, beta, alpha, mu = _kernel_case(KERNEL_BETAS["mixed"])
     Xp = np.random.default_rng(1).random((1001, 4))
-    before = numba.get_num_threads()
-    try:
-        out = {}
-        for t in (1, 2):
-            numba.set_num_threads(t)
-            out[t] = _kernels.predict_mean(Xp, Xt, theta, beta, 0, alpha, mu, use_numba=True)
-    finally:
-        numba.set_num_threads(before)
+    out = {t: _kernels.predict_mean(Xp, Xt, theta, beta, 0, alpha, mu, use_numba=True, threads=t) for t in (1, 2)}
     np.testing.assert_array_equal(out[1], out[2])
+    cov = {t: _kernels.cross_covariance(Xp, Xt, theta[0], beta[0], 0, use_numba=True, threads=t) for t in (1, 2)}
+    np.testing.assert_array_equal(cov[1], cov[2])
+    XtT = np.ascontiguousarray(Xt.T)
+    pl = _kernels.plan(theta[:1], beta[:1])
+    args = (Xp, XtT, pl["theta"][0], pl["coef"][0], int(pl["nq"][0]), int(pl["g_code"][0]), float(pl["g_base"][0]),
+            pl["g_fold"][0], int(pl["g_nfold"][0]), pl["need_logs"], 0)
+    for chunk in (1, 7, 32, 2000):  # chunks of one point, uneven, default, one chunk for all
+        got = np.empty_like(cov[1])
+        _kernels._cross_covariance_parallel(*args, got, chunk)
+        np.testing.assert_array_equal(got, cov[1])

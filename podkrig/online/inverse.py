@@ -24,7 +24,7 @@ import numpy as np
 from scipy import optimize
 from scipy.stats import qmc
 
-from podkrig._threads import one_blas_thread
+from podkrig.parallel import one_blas_thread
 from podkrig.online.misfit import Misfit
 from podkrig.parameters import ParameterSpace
 
@@ -303,7 +303,7 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
     from podkrig.ga import minimize
 
     t0 = time.perf_counter()
-    with one_blas_thread(), warnings.catch_warnings():  # small BLAS calls: see podkrig._threads
+    with one_blas_thread(), warnings.catch_warnings():  # small BLAS calls: see podkrig.parallel
         # running the GA to its generation budget is the plan here: the polish finishes the job
         warnings.filterwarnings("ignore", message="GA stopped on its budget", category=RuntimeWarning)
         ga = minimize(

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from podkrig._threads import one_blas_thread
+from podkrig.parallel import one_blas_thread
 
 logger = logging.getLogger(__name__)
 

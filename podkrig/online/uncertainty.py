@@ -22,7 +22,7 @@ import numpy as np
 from scipy import stats
 from scipy.stats import qmc
 
-from podkrig._threads import one_blas_thread
+from podkrig.parallel import one_blas_thread
 from podkrig.online.inverse import InverseProblem, invert
 from podkrig.online.measurement import Measurement
 

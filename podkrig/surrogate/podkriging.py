@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig import __version__
-from podkrig._threads import one_blas_thread
+from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError, SchemaError, StoreError
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.parameters import ParameterSpace

@@ -49,10 +49,13 @@ Arithmetic: the exponential is a branch-free polynomial (``_exp_neg``: Taylor se
 :math:`e^{-s/64}` raised to the power 64 by six squarings, relative error below 1e-14 for
 :math:`|s| \\le 40`; larger reduced distances are clamped to 40, i.e. a correlation of 4e-18 stands
 for 0) and the logarithm works on the IEEE-754 bits without a division (``_fill_logs``) because the
-numba build has no vector math library, and a libm call per entry would keep the loops scalar. The
-prediction points are split into blocks of 32 over the numba threads (``prange``); each point is
-computed by one thread in a fixed order, so results do not depend on the number of threads, and
-no ``(n_pred, n)`` matrix is formed for the mean.
+numba build has no vector math library, and a libm call per entry would keep the loops scalar.
+
+Threads (:mod:`podkrig.parallel`): a small batch (a GA population) runs on one thread, without
+waking the pool; a large one is cut into chunks, several per thread, spread over
+the numba threads (``prange``), never more threads than cores available. Each point is computed by
+one thread in a fixed order, so results do not depend on the number of threads or the chunking,
+and no ``(n_pred, n)`` matrix is formed for the mean.
 
 Set the environment variable ``PODKRIG_DISABLE_NUMBA=1`` (or pass ``use_numba=False`` to the
 estimator) to use the NumPy twins only. First call of a numba kernel compiles it (a few seconds,
@@ -63,6 +66,8 @@ import math
 import os
 
 import numpy as np
+
+from podkrig import parallel
 
 EXPONENTIAL, POWER = 0, 1
 _CHUNK = 512  # prediction points per block in the NumPy twins (bounds the (chunk, n, d) scratch)
@@ -408,60 +413,84 @@ if njit is not None:
         for k in range(P.shape[0]):
             _poly_terms(P, Lg, k, coef_j, nq_j, theta_j[k], S, k > 0)
 
-    @njit(parallel=True, fastmath=True, cache=True)
-    def _predict_mean_numba(Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
-                            need_logs, kind, alpha, mu, out):
-        n_pred = Xp.shape[0]
+    @njit(fastmath=True, inline="always", cache=True)
+    def _mean_rows(p0, p1, Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
+                   need_logs, kind, alpha, mu, out):
+        # kriging means of the prediction points p0 <= p < p1, each in a fixed order
         d, n = XtT.shape
-        block = 32
-        n_blocks = (n_pred + block - 1) // block
-        for b in prange(n_blocks):
-            P = np.empty((d, n))
-            Lg = np.empty((d, n))
-            S = np.empty(n)
-            E = np.empty(n)
-            for p in range(b * block, min(n_pred, (b + 1) * block)):
-                if need_logs:
-                    _fill_logs(Lg, E, Xp[p], XtT)
-                for g in range(g_code.shape[0]):
-                    _group_powers(P, Lg, Xp[p], XtT, g_code[g], g_base[g], g_fold[g], g_nfold[g])
-                    for j in range(g_start[g], g_start[g + 1]):
-                        _reduced(S, P, Lg, theta[j], coef[j], nq[j])
-                        acc = 0.0
-                        if kind == 0:
-                            for i in range(n):
-                                acc += alpha[j, i] * _exp_neg(min(S[i], 40.0))
-                        else:
-                            for i in range(n):
-                                acc -= alpha[j, i] * S[i]
-                        out[p, j] = acc + mu[j]
+        P = np.empty((d, n))
+        Lg = np.empty((d, n))
+        S = np.empty(n)
+        E = np.empty(n)
+        for p in range(p0, p1):
+            if need_logs:
+                _fill_logs(Lg, E, Xp[p], XtT)
+            for g in range(g_code.shape[0]):
+                _group_powers(P, Lg, Xp[p], XtT, g_code[g], g_base[g], g_fold[g], g_nfold[g])
+                for j in range(g_start[g], g_start[g + 1]):
+                    _reduced(S, P, Lg, theta[j], coef[j], nq[j])
+                    acc = 0.0
+                    if kind == 0:
+                        for i in range(n):
+                            acc += alpha[j, i] * _exp_neg(min(S[i], 40.0))
+                    else:
+                        for i in range(n):
+                            acc -= alpha[j, i] * S[i]
+                    out[p, j] = acc + mu[j]
+
+    @njit(fastmath=True, inline="always", cache=True)
+    def _cov_rows(p0, p1, Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out):
+        # cross-covariance rows of the prediction points p0 <= p < p1
+        d, n = XtT.shape
+        P = np.empty((d, n))
+        Lg = np.empty((d, n))
+        S = np.empty(n)
+        E = np.empty(n)
+        for p in range(p0, p1):
+            if need_logs:
+                _fill_logs(Lg, E, Xp[p], XtT)
+            _group_powers(P, Lg, Xp[p], XtT, code, base, fold, nfold)
+            _reduced(S, P, Lg, theta, coef, nq)
+            for i in range(n):
+                out[p, i] = _exp_neg(min(S[i], 40.0)) if kind == 0 else -S[i]
+
+    # Entry points: the prediction points in chunks of ``chunk`` over the numba threads. On one
+    # thread (small batches, see podkrig.parallel) the same compiled code runs without waking the
+    # pool; a serial twin compiled apart would vectorise the fast-math sums differently and break
+    # the bitwise independence of the thread count.
 
     @njit(parallel=True, fastmath=True, cache=True)
-    def _cross_covariance_numba(Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out):
+    def _predict_mean_parallel(Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
+                               need_logs, kind, alpha, mu, out, chunk):
         n_pred = Xp.shape[0]
-        d, n = XtT.shape
-        block = 32
-        n_blocks = (n_pred + block - 1) // block
-        for b in prange(n_blocks):
-            P = np.empty((d, n))
-            Lg = np.empty((d, n))
-            S = np.empty(n)
-            E = np.empty(n)
-            for p in range(b * block, min(n_pred, (b + 1) * block)):
-                if need_logs:
-                    _fill_logs(Lg, E, Xp[p], XtT)
-                _group_powers(P, Lg, Xp[p], XtT, code, base, fold, nfold)
-                _reduced(S, P, Lg, theta, coef, nq)
-                for i in range(n):
-                    out[p, i] = _exp_neg(min(S[i], 40.0)) if kind == 0 else -S[i]
+        for b in prange((n_pred + chunk - 1) // chunk):
+            _mean_rows(b * chunk, min(n_pred, (b + 1) * chunk), Xp, XtT, theta, coef, nq, g_start, g_code,
+                       g_base, g_fold, g_nfold, need_logs, kind, alpha, mu, out)
+
+    @njit(parallel=True, fastmath=True, cache=True)
+    def _cross_covariance_parallel(Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out,
+                                   chunk):
+        n_pred = Xp.shape[0]
+        for b in prange((n_pred + chunk - 1) // chunk):
+            _cov_rows(b * chunk, min(n_pred, (b + 1) * chunk), Xp, XtT, theta, coef, nq, code, base, fold,
+                      nfold, need_logs, kind, out)
 
 
-def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=None):
+def _launch(kernel, work, n_pred, args, threads=None):
+    """Run ``kernel(*args, chunk)`` on the threads :func:`podkrig.parallel.threads_for` gives for
+    ``work`` units (``threads`` overrides it), in chunks of :func:`podkrig.parallel.chunk_size`."""
+    threads = parallel.threads_for(work) if threads is None else int(threads)
+    with parallel.numba_threads(threads):
+        kernel(*args, max(1, n_pred) if threads <= 1 else parallel.chunk_size(n_pred, threads))
+
+
+def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=None, threads=None):
     """Kriging means of every output, ``(n_pred, n_outputs)``; see :func:`predict_mean_numpy`.
 
     The numba kernel follows :func:`plan` (outputs in any order). ``plans``, a dict owned by the
     caller (one per set of hyperparameters), caches the plan of batches inside the unit cube: it
-    costs ~50 us, as much as predicting a few points.
+    costs ~50 us, as much as predicting a few points. ``threads``: numba threads to use (default
+    :func:`podkrig.parallel.threads_for` the batch: one for small batches).
     """
     Xp = np.ascontiguousarray(Xp, dtype=float)
     beta = np.ascontiguousarray(beta, dtype=float)
@@ -475,26 +504,31 @@ def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=Non
             plans[dmax] = pl
     order = pl["order"]
     out = np.empty((Xp.shape[0], len(beta)))
-    _predict_mean_numba(
+    args = (
         Xp, np.ascontiguousarray(Xt.T), pl["theta"], pl["coef"], pl["nq"], pl["g_start"], pl["g_code"],
         pl["g_base"], pl["g_fold"], pl["g_nfold"], pl["need_logs"], int(kind),
         np.ascontiguousarray(np.asarray(alpha, dtype=float)[order]),
         np.ascontiguousarray(np.asarray(mu, dtype=float)[order]), out,
     )
+    _launch(_predict_mean_parallel, Xp.shape[0] * Xt.shape[0] * len(beta), Xp.shape[0], args,
+            threads)
     result = np.empty_like(out)
     result[:, order] = out
     return result
 
 
-def cross_covariance(Xp, Xt, theta, beta, kind, use_numba=None):
-    """``(n_pred, n)`` cross-covariance of one output; see :func:`cross_covariance_numpy`."""
+def cross_covariance(Xp, Xt, theta, beta, kind, use_numba=None, threads=None):
+    """``(n_pred, n)`` cross-covariance of one output; see :func:`cross_covariance_numpy`.
+    ``threads`` as in :func:`predict_mean`."""
     Xp = np.ascontiguousarray(Xp, dtype=float)
     if not numba_enabled(use_numba) or njit is None:
         return cross_covariance_numpy(Xp, Xt, theta, float(beta), kind)
     pl = plan(np.reshape(theta, (1, -1)), np.array([float(beta)]), _delta_max(Xp, Xt))
     out = np.empty((Xp.shape[0], Xt.shape[0]))
-    _cross_covariance_numba(
+    args = (
         Xp, np.ascontiguousarray(Xt.T), pl["theta"][0], pl["coef"][0], int(pl["nq"][0]), int(pl["g_code"][0]),
         float(pl["g_base"][0]), pl["g_fold"][0], int(pl["g_nfold"][0]), pl["need_logs"], int(kind), out,
     )
+    _launch(_cross_covariance_parallel, Xp.shape[0] * Xt.shape[0], Xp.shape[0], args,
+            threads)
     return out

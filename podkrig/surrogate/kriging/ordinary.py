@@ -27,7 +27,7 @@ import numpy as np
 from scipy.linalg import lapack, solve_triangular
 from scipy.optimize import minimize
 
-from podkrig._threads import one_blas_thread
+from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import _kernels
 from podkrig.surrogate.kriging.variogram import BETA_FIT_BOUNDS, EXPONENTIAL, check_beta, check_variogram
