@@ -121,6 +121,15 @@ class KrigingHyperparameters:
             object.__setattr__(self, name, a)
         object.__setattr__(self, "nugget", float(self.nugget))
 
+    def __eq__(self, other):
+        """Value equality: same variogram and nugget, bitwise equal arrays."""
+        if not isinstance(other, KrigingHyperparameters):
+            return NotImplemented
+        return (self.variogram, self.nugget) == (other.variogram, other.nugget) and all(
+            np.array_equal(getattr(self, k), getattr(other, k)) for k in ("ranges", "beta", "mu", "sigma2"))
+
+    __hash__ = None  # mutable-looking arrays inside: not hashable
+
     @property
     def n_outputs(self):
         return len(self.beta)
