@@ -233,7 +233,11 @@ class SMTKriging(_PerModeBackend):
         return model, np.asarray(model.optimal_theta, dtype=float)
 
     def _rebuild_one(self, X, y, hyper):
-        model = self._model(theta0=list(hyper), hyper_opt="NoOp", n_start=1)
+        # SMT's log-scale optimum can sit an ulp outside its own theta bounds (20.000000000000004),
+        # and SMT replaces an out-of-bounds theta0 by a random one: widen the bounds to hold it
+        lo, hi = self._model().options["theta_bounds"]
+        model = self._model(theta0=list(hyper), hyper_opt="NoOp", n_start=1,
+                            theta_bounds=[min(lo, float(hyper.min())), max(hi, float(hyper.max()))])
         model.set_training_values(X, y)
         model.train()
         return model
@@ -302,7 +306,10 @@ class SklearnGPR(_PerModeBackend):
                                         random_state=int(self.random_state))
 
     def _fit_one(self, X, y):
-        gp = self._regressor(X.shape[1]).fit(X, y)
+        with warnings.catch_warnings():
+            # a length at its upper bound (1e3 in the unit cube) means "flat along that input": fine
+            warnings.filterwarnings("ignore", message=".*close to the specified upper bound")
+            gp = self._regressor(X.shape[1]).fit(X, y)
         return gp, np.asarray(gp.kernel_.theta, dtype=float)
 
     def _rebuild_one(self, X, y, hyper):
