@@ -22,12 +22,13 @@ _RNG_KEYWORD = "rng" if "rng" in inspect.signature(qmc.Sobol).parameters else "s
 def engine_options(rng):
     """Keyword argument giving ``rng`` to a :mod:`scipy.stats.qmc` engine on any scipy version.
 
-    ``rng``: a ``numpy.random.Generator`` (drawn from), or an integer (scipy's integer seeding).
+    ``rng``: a ``numpy.random.Generator`` (drawn from), an integer (scipy's integer seeding), or
+    None (fresh entropy, not reproducible).
     """
-    if isinstance(rng, np.random.Generator):
+    if rng is None or isinstance(rng, np.random.Generator):
         return {_RNG_KEYWORD: rng}
     if isinstance(rng, bool) or not isinstance(rng, (int, np.integer)):
-        raise TypeError(f"rng must be an integer or a numpy.random.Generator; got {rng!r}")
+        raise TypeError(f"rng must be an integer, a numpy.random.Generator or None; got {rng!r}")
     return {"seed": int(rng)}  # accepted without warning from scipy 1.12 to 1.17
 
 
@@ -39,7 +40,7 @@ def scrambled_sobol(n, d, rng, *, skip=0):
     n, d : int
         Number of points and dimension, >= 1 (checked by scipy; see
         :func:`podkrig.offline.sampling.sobol` for the checked design).
-    rng : int or numpy.random.Generator
+    rng : int, numpy.random.Generator or None
         Source of the scrambling (see :func:`engine_options`); a Generator is drawn from.
     skip : int
         Points skipped first (the engine is fast-forwarded).
