@@ -97,7 +97,7 @@ def test_backends_build_save_load_validate_invert(stores, tmp_path, backend):
     with SnapshotStore.open(stores / "train.h5") as s:
         sur = fit_from_store(s, kriging=kriging)
     with SnapshotStore.open(stores / "held.h5") as h:
-        Xh, Yh = training_data(h)
+        Xh, _ = training_data(h)
     mean, std = sur.predict(Xh, return_std=True)
     sur.save(tmp_path / "s.h5")
     with h5py.File(tmp_path / "s.h5") as f:

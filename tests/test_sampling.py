@@ -5,12 +5,18 @@ import warnings
 import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
-
 from scipy.spatial.distance import pdist
 
 from podkrig._qmc import scrambled_sobol
 from podkrig.ga.operators import initial_population
-from podkrig.offline.sampling import METHODS, is_power_of_two, latin_hypercube, sample, sobol, uniform
+from podkrig.offline.sampling import (
+    METHODS,
+    is_power_of_two,
+    latin_hypercube,
+    sample,
+    sobol,
+    uniform,
+)
 
 
 @pytest.mark.parametrize("method", METHODS)

@@ -39,6 +39,7 @@ from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import OrdinaryKriging
 
 DEFAULT_BACKEND = "podkrig"
+_SMT_NUGGET = 100.0 * float(np.finfo(float).eps)  # SMT's own default jitter
 
 
 class _PerModeBackend:
@@ -189,8 +190,7 @@ class SMTKriging(_PerModeBackend):
     library = "smt"
     _PARAMS = ("method", "corr", "n_comp", "n_start", "nugget", "random_state")
 
-    def __init__(self, method="krg", corr="squar_exp", n_comp=2, n_start=5, nugget=100.0 * np.finfo(float).eps,
-                 random_state=41):
+    def __init__(self, method="krg", corr="squar_exp", n_comp=2, n_start=5, nugget=_SMT_NUGGET, random_state=41):
         self.method, self.corr, self.n_comp = method, corr, n_comp
         self.n_start, self.nugget, self.random_state = n_start, nugget, random_state
 

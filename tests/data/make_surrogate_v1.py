@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+from podkrig.offline.sampling import sobol, uniform
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import PODKriging
-from podkrig.offline.sampling import sobol, uniform
 
 
 def snapshots(X):

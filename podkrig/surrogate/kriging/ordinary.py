@@ -31,7 +31,12 @@ from scipy.spatial.distance import pdist
 from podkrig._threads import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import _kernels
-from podkrig.surrogate.kriging.variogram import BETA_FIT_BOUNDS, EXPONENTIAL, check_beta, check_variogram
+from podkrig.surrogate.kriging.variogram import (
+    BETA_FIT_BOUNDS,
+    EXPONENTIAL,
+    check_beta,
+    check_variogram,
+)
 
 logger = logging.getLogger(__name__)
 
