@@ -104,10 +104,15 @@ def test_backends_build_save_load_validate_invert(stores, tmp_path, backend):
         assert f.attrs["backend"] == backend and f.attrs["backend_version"]
     loaded = PODKriging.load(tmp_path / "s.h5")
     assert loaded.backend_ == backend and type(loaded.kriging_) is type(sur.kriging_)
-    # rebuilt from training data + fitted hyperparameters (no pickle, no optimiser): same numbers
+    # rebuilt from training data + fitted hyperparameters (no pickle, no optimiser): ours bitwise;
+    # the libraries' refits agree to rounding (bitwise with numpy 2.4, 5e-13 relative for
+    # scikit-learn with numpy 1.26)
     m2, s2 = loaded.predict(Xh, return_std=True)
-    assert_array_equal(m2, mean)
-    assert_array_equal(s2, std)
+    if backend == "podkrig":
+        assert_array_equal(m2, mean)
+        assert_array_equal(s2, std)
+    np.testing.assert_allclose(m2, mean, rtol=0, atol=1e-11 * np.abs(mean).max())
+    np.testing.assert_allclose(s2, std, rtol=1e-9)
     assert np.all(std > 0)
     m3, _ = SurrogateModel(loaded).predict_unit(loaded.space.to_unit(Xh), return_std=True)
     np.testing.assert_allclose(m3, mean, rtol=0, atol=1e-9 * np.abs(mean).max())
