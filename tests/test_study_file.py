@@ -96,7 +96,7 @@ def test_valid_study_and_defaults(tmp_path):
                                                                  r"allowed: a number in \(0, 1\)"]),
         ("n = 16,", "n = 2,", "n = 2", [r"sampling\.train\.n: 2 is out of range", r"an integer >= 4"]),
         ('method = "random"', 'method = "halton"', "halton", [r"held_out\.method: 'halton' is out of range",
-                                                             r"allowed: sobol, lhs, random"]),
+                                                             r"allowed: sobol, lhs, lhs-ese, random"]),
         ('scale = "log" }\nkV', 'scale = "ln" }\nkV', '"ln"', [r"parameters\.kN_bj\.scale: 'ln' is out of range",
                                                              r"allowed: linear or log"]),
         ("upper = 300.0", "upper = 20.0", "upper = 20.0", [r"parameters\.kN_bj\.upper: must exceed lower = 30",

@@ -38,7 +38,7 @@ def run(
     seed: int = typer.Option(..., "--seed", help="Seed of the design (recorded in the store)."),
     scenario: str = typer.Option(None, "--scenario", help="Scenario name, e.g. diagonal_compression."),
     spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
-    sampling: str = typer.Option("sobol", "--sampling", help="Design: sobol, lhs or random."),
+    sampling: str = typer.Option("sobol", "--sampling", help="Design: sobol, lhs, lhs-ese (SMT's optimised Latin hypercube) or random."),
     workers: int = typer.Option(None, "--workers", help="Local worker processes; 1 runs in this process without Dask (default: one per core)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Existing Dask scheduler, e.g. tcp://HOST:8786."),
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),

@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize
-from scipy.stats import qmc
 
+from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.online.misfit import Misfit
 from podkrig.parameters import ParameterSpace
@@ -81,6 +81,10 @@ class SurrogateModel:
 
     def predict(self, X, return_std=False):
         return self.surrogate.predict(X, return_std=return_std)
+
+    def predict_unit(self, U, return_std=False):
+        """``predict`` at unit-cube coordinates of ``space`` (no round trip through physical units)."""
+        return self.surrogate.predict_unit(U, return_std=return_std)
 
     def scenario(self, solver="auto"):
         """The FE scenario the surrogate was trained on (rebuilt from its spec)."""
@@ -325,7 +329,7 @@ def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
     """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
     returns the best point and the updated evaluation count."""
     best_omega = ga.fun
-    screen = problem.free_space.from_unit(qmc.Sobol(problem.n_free, scramble=True, seed=rng_seed(rng)).random_base2(10))
+    screen = problem.free_space.from_unit(scrambled_sobol(1024, problem.n_free, rng_seed(rng)))
     screen_omega = problem.omega(screen)
     n_eval += len(screen)
     starts = np.vstack([x[None], _distinct_starts(problem, screen, screen_omega, n_starts - 1)])

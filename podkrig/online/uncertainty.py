@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
-from scipy.stats import qmc
 
+from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.online.inverse import InverseProblem, invert
 from podkrig.online.measurement import Measurement
@@ -141,8 +141,7 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
     n_eval = 0
     m = int(np.ceil(np.log2(max(n_samples, 2))))
     for round_ in range(max_grow + 1):
-        sobol = qmc.Sobol(p, scramble=True, seed=engine_seed)
-        U = lo + (hi - lo) * sobol.random_base2(m)
+        U = lo + (hi - lo) * scrambled_sobol(2**m, p, engine_seed)
         with one_blas_thread():
             om = np.concatenate([problem.omega_unit(U[i : i + batch]) for i in range(0, len(U), batch)])
         n_eval += len(U)

@@ -21,6 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
+from podkrig.surrogate.podkriging import PODKriging
+
 logger = logging.getLogger(__name__)
 
 
@@ -163,8 +166,11 @@ def loo_errors(surrogate):
 
     Returns
     -------
-    ndarray of shape (n_train,)
+    ndarray of shape (n_train,), or None
+        None for a backend without closed-form leave-one-out residuals (SMT, scikit-learn).
     """
+    if not hasattr(surrogate.kriging_, "loo_residuals_"):
+        return None
     E = surrogate.kriging_.loo_residuals_  # (n, n_modes): a_ik - a_hat_{-i}(x_i)
     # the truncation residual y_i - P y_i is orthogonal to the basis: Pythagoras
     err = np.sqrt(np.sum(E * E, axis=1) + surrogate.train_residual_norm_**2)
@@ -189,12 +195,9 @@ def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
     dict
         Label (e.g. ``"exponential, beta=1.2"``) to ndarray of shape (n_held_out,) of relative errors.
     """
-    from podkrig.surrogate.kriging import OrdinaryKriging
-    from podkrig.surrogate.podkriging import PODKriging
-
     out = {}
     for s in settings:
         sur = PODKriging(pod=pod, kriging=OrdinaryKriging(**s), space=space).fit(X, Y)
-        label = f"{s.get('variogram', 'exponential')}, beta={s.get('beta', 'fit')}"
+        label = f"{s.get('variogram', 'exponential')}, beta={s.get('beta', DEFAULT_BETA)}"
         out[label] = relative_errors(sur.predict(X_held), np.asarray(Y_held).reshape(len(Y_held), -1))
     return out
