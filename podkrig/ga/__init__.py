@@ -2,6 +2,8 @@
 
 - :mod:`podkrig.ga.operators` — vectorised initialisation, fitness scaling, selection,
   crossover and mutation on populations in the unit hypercube;
+- :mod:`podkrig.ga.options` — :class:`GAOptions`, every tuning option as one frozen, validated
+  value object, and :class:`GABudgetWarning`;
 - :mod:`podkrig.ga.core` — :class:`GeneticAlgorithm` (steppable), :func:`minimize`,
   :class:`GAResult`;
 - :mod:`podkrig.ga.plotting` — history, statistics and parameter–fitness figures (matplotlib is
@@ -12,9 +14,12 @@ Conventions: ``X`` is ``(n_individuals, n_params)`` in physical units, objective
 """
 
 from podkrig.ga.core import GAResult, GeneticAlgorithm, minimize
+from podkrig.ga.options import GABudgetWarning, GAOptions
 from podkrig.ga.plotting import plot_history, plot_parameters, plot_statistics
 
 __all__ = [
+    "GABudgetWarning",
+    "GAOptions",
     "GAResult",
     "GeneticAlgorithm",
     "minimize",

@@ -34,8 +34,6 @@ References
 
 from __future__ import annotations
 
-import difflib
-import inspect
 import logging
 import numbers
 import warnings
@@ -47,6 +45,7 @@ import numpy as np
 from scipy import optimize
 
 from podkrig.ga import operators as ops
+from podkrig.ga.options import GABudgetWarning, GAOptions
 
 logger = logging.getLogger(__name__)
 
@@ -112,6 +111,8 @@ class GAResult:
         From the parameter space's optional ``units`` attribute.
     seed : int or None
         The integer seed given as ``rng`` (None if a Generator or None was given).
+    n_restarts : int
+        Restarts after a stall (see ``on_stall`` of :class:`GeneticAlgorithm`).
     """
 
     x: np.ndarray
@@ -137,6 +138,7 @@ class GAResult:
     parameter_names: tuple[str, ...]
     parameter_units: tuple[str, ...] | None = None
     seed: int | None = None
+    n_restarts: int = 0
 
     def __post_init__(self):
         for value in vars(self).values():
@@ -262,23 +264,6 @@ class _PolishProblem:
         return -self._differences(u)[1]
 
 
-def _check_choice(name, value, allowed):
-    if value not in allowed:
-        raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
-
-
-def _check_range(name, value, low, high, *, low_open=False, high_open=False, integer=False):
-    kind = numbers.Integral if integer else numbers.Real
-    if isinstance(value, bool) or not isinstance(value, kind):
-        raise TypeError(f"{name} must be {'an integer' if integer else 'a number'}; got {value!r}")
-    too_low = value <= low if low_open else value < low
-    too_high = value >= high if high_open else value > high
-    if too_low or too_high or (not integer and not np.isfinite(value)):
-        lb = "(" if low_open else "["
-        hb = ")" if high_open else "]"
-        raise ValueError(f"{name} must be in {lb}{low}, {high}{hb}; got {value!r}")
-
-
 class GeneticAlgorithm:
     r"""Steppable genetic algorithm with the operators of the thesis, ch. 3 / TOSCA [1]_.
 
@@ -299,6 +284,12 @@ class GeneticAlgorithm:
         ``to_unit(X)`` and ``from_unit(U)`` (arrays of shape (n, n_params); e.g.
         ``podkrig.parameters.ParameterSpace``, linear or log scale) and optionally ``units``.
         Genes live in the unit cube, so log-scaled parameters get a log-uniform grid.
+    options : GAOptions or None
+        All the tuning options below (operators, stops, restarts, polish) as one frozen,
+        validated :class:`~podkrig.ga.options.GAOptions`. They may also be given as keywords
+        (``GeneticAlgorithm(fun, bounds, population_size=60)``); keywords replace the fields
+        of ``options``. The settled options (problem-dependent defaults filled in) are the
+        attribute ``options``.
     population_size : int, default 40
         Individuals per generation, >= 4. With half the population kept as elite, 40 found
         the global minimum of 10-D Rastrigin in 30/30 seeds with the fewest evaluations among
@@ -374,17 +365,29 @@ class GeneticAlgorithm:
     feasibility_tol : float, default 1e-6
         A total violation at or below this (constraint units) is recorded as 0, i.e.
         feasible: a local polish lands on active constraints only up to round-off.
-    max_generations : int, default 1000
-        Generations after the initial one, >= 0.
+    max_generations : int or None, default None
+        Generations after the initial one, >= 0. None means 1000 without ``max_evaluations``
+        and no limit with it (the evaluation budget governs).
     max_evaluations : int or None
         Budget of objective evaluations (polish included); never exceeded.
     target : float or None
         Stop at the first feasible evaluation with ``f <= target``.
     stall_generations : int or None, default 100
-        Stop when the best has not improved by more than ``stall_tol`` for this many
-        generations; None disables.
+        The population has stalled when the best has not improved by more than ``stall_tol``
+        for this many generations; None disables stall detection.
     stall_tol : float, default 0.0
         Absolute improvement of the best objective that resets the stall counter, >= 0.
+    on_stall : {"auto", "stop", "restart"}, default "auto"
+        What a stall does: ``"stop"`` ends the run (a success: converged); ``"restart"``
+        keeps the best individual and redraws the rest of the population like generation 0
+        (``init``), then goes on until the target, the evaluation budget or
+        ``max_generations``. ``"auto"`` restarts when both ``max_evaluations`` and ``target``
+        are given (the run has a goal and the means to keep looking: a user who gives a
+        budget and a target expects the budget to be used) and stops otherwise. On 10-D
+        Rastrigin with a 100 000 budget and ``target=1e-2`` the stall stop left 3 of seeds
+        1–10 at f ≈ 1–5 with 95 % of the budget unused; with restarts all 10 reach the target.
+        Keeping only the best individual escaped the hardest seed in 3 restarts, keeping the
+        elite half in 6.
     polish : {"periodic", "final", "none"}, default "periodic"
         Local polish of the best individual (a memetic step [5]_): ``"periodic"`` every
         ``polish_interval`` generations when the best has changed since the last polish, and
@@ -425,6 +428,10 @@ class GeneticAlgorithm:
     population : ndarray of shape (population_size, n_params)
         Current population, physical units.
     population_fun, population_violation : ndarray of shape (population_size,)
+    n_restarts : int
+        Restarts after a stall so far (``on_stall``).
+    options : GAOptions
+        The settled options.
     stop_reason : str or None
         Why the run stopped (see :class:`GAResult`), None while running.
 
@@ -449,45 +456,18 @@ class GeneticAlgorithm:
        Algorithms*, Springer (2005).
     """
 
+    _RESTART_KEEP = 1  # individuals kept by a restart (see ``on_stall``)
+
     def __init__(
         self,
         fun: Callable[[np.ndarray], np.ndarray],
         bounds,
+        options: GAOptions | None = None,
         *,
-        population_size: int = 40,
-        encoding: str = "integer",
-        n_grid=1000,
-        init: str = "sobol",
-        selection: str = "tournament",
-        tournament_size: int = 2,
-        scaling: str = "linear_ranking",
-        scaling_pressure: float = 2.0,
-        ranking_eta_plus: float = 1.5,
-        ranking_base: float = 0.9,
-        crossover: str = "blx",
-        crossover_probability: float = 0.9,
-        blx_alpha: float = 0.5,
-        crossover_lambda: float = 0.25,
-        mutation: str = "uniform",
-        mutation_probability: float | None = None,
-        mutation_scale: float = 0.1,
-        n_elite: int | None = None,
-        skip_duplicates: bool = True,
         constraints: Callable[[np.ndarray], np.ndarray] | None = None,
-        constraint_handling: str = "deb",
-        penalty: float = 1e3,
-        feasibility_tol: float = 1e-6,
-        max_generations: int = 1000,
-        max_evaluations: int | None = None,
-        target: float | None = None,
-        stall_generations: int | None = 100,
-        stall_tol: float = 0.0,
-        polish: str = "periodic",
-        polish_method: str | None = None,
-        polish_interval: int = 10,
-        polish_max_evaluations: int | None = None,
         rng=None,
         callback: Callable[[GeneticAlgorithm], bool | None] | None = None,
+        **keyword_options,
     ):
         if not callable(fun):
             raise TypeError(f"fun must be callable; got {type(fun).__name__}")
@@ -500,106 +480,36 @@ class GeneticAlgorithm:
         units = getattr(self._space, "units", None)
         self.parameter_names = names
         self.parameter_units = None if units is None else tuple(str(u) for u in units)
-
-        _check_range("population_size", population_size, 4, np.inf, integer=True)
-        _check_choice("encoding", encoding, ("integer", "real"))
-        _check_choice("init", init, ("sobol", "random"))
-        _check_choice("selection", selection, ("tournament", "roulette", "sus"))
-        _check_range("tournament_size", tournament_size, 1, population_size, integer=True)
-        _check_choice(
-            "scaling", scaling, ("none", "linear", "linear_ranking", "exponential_ranking")
-        )
-        _check_range("scaling_pressure", scaling_pressure, 1.0, np.inf, low_open=True)
-        _check_range("ranking_eta_plus", ranking_eta_plus, 1.0, 2.0)
-        _check_range("ranking_base", ranking_base, 0.0, 1.0, low_open=True, high_open=True)
-        _check_choice(
-            "crossover", crossover, ("blx", "single_point", "arithmetical", "fixed_arithmetical")
-        )
-        _check_range("crossover_probability", crossover_probability, 0.0, 1.0)
-        _check_range("blx_alpha", blx_alpha, 0.0, np.inf)
-        _check_range("crossover_lambda", crossover_lambda, 0.0, 1.0)
-        _check_choice("mutation", mutation, ("uniform", "gaussian"))
-        if mutation_probability is None:
-            mutation_probability = 1.0 / n_params
-        _check_range("mutation_probability", mutation_probability, 0.0, 1.0)
-        _check_range("mutation_scale", mutation_scale, 0.0, np.inf, low_open=True)
-        if n_elite is None:
-            n_elite = population_size // 2
-        _check_range("n_elite", n_elite, 0, population_size - 2, integer=True)
         if constraints is not None and not callable(constraints):
             raise TypeError(f"constraints must be callable or None; got {constraints!r}")
-        _check_choice("constraint_handling", constraint_handling, ("deb", "penalty"))
-        _check_range("penalty", penalty, 0.0, np.inf, low_open=True)
-        _check_range("feasibility_tol", feasibility_tol, 0.0, np.inf)
-        _check_range("max_generations", max_generations, 0, np.inf, integer=True)
-        if max_evaluations is not None:
-            _check_range("max_evaluations", max_evaluations, 1, np.inf, integer=True)
-        if target is not None:
-            _check_range("target", target, -np.inf, np.inf)
-        if stall_generations is not None:
-            _check_range("stall_generations", stall_generations, 1, np.inf, integer=True)
-        _check_range("stall_tol", stall_tol, 0.0, np.inf)
-        _check_choice("polish", polish, ("periodic", "final", "none"))
-        if polish_method is None:
-            polish_method = "L-BFGS-B" if constraints is None else "SLSQP"
-        _check_choice("polish_method", polish_method, ("L-BFGS-B", "Nelder-Mead", "SLSQP"))
-        if constraints is not None and polish != "none" and polish_method != "SLSQP":
-            raise ValueError(
-                f"polish_method={polish_method!r} cannot handle constraints; "
-                "use polish_method='SLSQP' or polish='none'"
-            )
-        _check_range("polish_interval", polish_interval, 1, np.inf, integer=True)
-        if polish_max_evaluations is None:
-            polish_max_evaluations = 20 * (n_params + 1)
-        _check_range("polish_max_evaluations", polish_max_evaluations, 1, np.inf, integer=True)
         if callback is not None and not callable(callback):
             raise TypeError(f"callback must be callable or None; got {callback!r}")
-
-        if encoding == "integer":
-            grid = np.broadcast_to(np.asarray(n_grid), (n_params,))
-            if not np.issubdtype(grid.dtype, np.integer) or np.any(grid < 1):
-                raise ValueError(
-                    f"n_grid must be an integer >= 1 or {n_params} of them; got {n_grid!r}"
-                )
-            self._n_grid = grid.astype(float)
-        else:
-            self._n_grid = None
-
+        opts = GAOptions.from_keywords(options, **keyword_options)
+        self.options: GAOptions = opts.resolve(n_params, constrained=constraints is not None)
+        o = self.options
+        self._n_grid = np.asarray(o.n_grid, dtype=float) if o.encoding == "integer" else None
         self._fun, self._constraints, self._callback = fun, constraints, callback
-        self._feasibility_tol = float(feasibility_tol)
         self.n_params = n_params
-        self.population_size = population_size
-        self._opts = {
-            "init": init, "selection": selection, "tournament_size": tournament_size,
-            "scaling": scaling, "scaling_pressure": scaling_pressure,
-            "ranking_eta_plus": ranking_eta_plus, "ranking_base": ranking_base,
-            "crossover": crossover,
-            "crossover_probability": crossover_probability, "blx_alpha": blx_alpha,
-            "crossover_lambda": crossover_lambda, "mutation": mutation,
-            "mutation_probability": mutation_probability, "mutation_scale": mutation_scale,
-            "n_elite": n_elite, "skip_duplicates": bool(skip_duplicates),
-            "constraint_handling": constraint_handling, "penalty": penalty,
-            "polish": polish, "polish_method": polish_method, "polish_interval": polish_interval,
-            "polish_max_evaluations": polish_max_evaluations,
-        }
-        self.max_generations = max_generations
-        self.max_evaluations = max_evaluations
-        self.target = target
-        self.stall_generations = stall_generations
-        self.stall_tol = stall_tol
+        self.population_size = o.population_size
+        self.max_generations = o.max_generations
+        self.max_evaluations = o.max_evaluations
+        self.target = o.target
+        self.stall_generations = o.stall_generations
+        self.stall_tol = o.stall_tol
         self.seed = int(rng) if isinstance(rng, numbers.Integral) else None
         self._rng = np.random.default_rng(rng)
 
         self.generation = -1
         self.nfev = 0
         self.stop_reason: str | None = None
-        self._history = _Buffer(n_params, 4 * population_size)
+        self._history = _Buffer(n_params, 4 * o.population_size)
         self._stats = np.empty((64, 4))  # best, mean, std, nfev per generation
         self.best_x = np.full(n_params, np.nan)
         self._best_u = np.full(n_params, np.nan)
         self.best_fun = np.inf
         self.best_violation = np.inf
         self._last_improvement = 0
+        self.n_restarts = 0
         self._polished_u: np.ndarray | None = None
         self._U = self._f = self._v = self._cost = None
 
@@ -632,7 +542,7 @@ class GeneticAlgorithm:
                     f"constraints must return shape ({n}, n_constraints); got {G.shape}"
                 )
             v = ops.constraint_violation(G)
-            v[v <= self._feasibility_tol] = 0.0
+            v[v <= self.options.feasibility_tol] = 0.0
         if self.target is not None:
             hit = (f <= self.target) & (v <= 0.0)
             if hit.any():
@@ -666,15 +576,15 @@ class GeneticAlgorithm:
     def _cost_of(self, f, v):
         if self._constraints is None:
             return f
-        if self._opts["constraint_handling"] == "deb":
+        if self.options.constraint_handling == "deb":
             return ops.deb_cost(f, v)
-        return ops.penalty_cost(f, v, self._opts["penalty"])
+        return ops.penalty_cost(f, v, self.options.penalty)
 
     # ----------------------------------------------------------------- one generation
     def _initialise(self):
         self.generation = 0
         U0 = ops.initial_population(
-            self.population_size, self.n_params, method=self._opts["init"], rng=self._rng
+            self.population_size, self.n_params, method=self.options.init, rng=self._rng
         )
         U0 = ops.snap_to_grid(U0, self._n_grid)
         U, f, v, _ = self._evaluate(U0)
@@ -687,51 +597,51 @@ class GeneticAlgorithm:
         self._cost = self._cost_of(f, v)
 
     def _select(self, n_select):
-        o, rng = self._opts, self._rng
-        if o["selection"] == "tournament":
-            return ops.select_tournament(self._cost, n_select, o["tournament_size"], rng)
+        o, rng = self.options, self._rng
+        if o.selection == "tournament":
+            return ops.select_tournament(self._cost, n_select, o.tournament_size, rng)
         fitness = ops.scale_fitness(
-            self._cost, o["scaling"], pressure=o["scaling_pressure"],
-            eta_plus=o["ranking_eta_plus"], base=o["ranking_base"],
+            self._cost, o.scaling, pressure=o.scaling_pressure,
+            eta_plus=o.ranking_eta_plus, base=o.ranking_base,
         )
-        if o["selection"] == "roulette":
+        if o.selection == "roulette":
             return ops.select_roulette(fitness, n_select, rng)
         return ops.select_sus(fitness, n_select, rng)
 
     def _offspring(self, n_offspring):
-        o, rng = self._opts, self._rng
+        o, rng = self.options, self._rng
         n_pairs = (n_offspring + 1) // 2
         parents = self._select(2 * n_pairs)
         P1, P2 = self._U[parents[:n_pairs]], self._U[parents[n_pairs:]]
-        kind = o["crossover"]
+        kind = o.crossover
         if kind == "blx":
-            C1, C2 = ops.crossover_blx(P1, P2, o["blx_alpha"], rng)
+            C1, C2 = ops.crossover_blx(P1, P2, o.blx_alpha, rng)
         elif kind == "single_point":
             C1, C2 = ops.crossover_single_point(P1, P2, rng)
         elif kind == "arithmetical":
             C1, C2 = ops.crossover_arithmetical(P1, P2, rng.random((n_pairs, 1)))
         else:
-            C1, C2 = ops.crossover_arithmetical(P1, P2, o["crossover_lambda"])
-        keep = (rng.random(n_pairs) >= o["crossover_probability"])[:, None]
+            C1, C2 = ops.crossover_arithmetical(P1, P2, o.crossover_lambda)
+        keep = (rng.random(n_pairs) >= o.crossover_probability)[:, None]
         children = np.concatenate([np.where(keep, P1, C1), np.where(keep, P2, C2)])
         children = children[:n_offspring]
-        if o["mutation"] == "uniform":
-            ops.mutate_uniform(children, o["mutation_probability"], self._n_grid, rng)
+        if o.mutation == "uniform":
+            ops.mutate_uniform(children, o.mutation_probability, self._n_grid, rng)
         else:
             ops.mutate_gaussian(
-                children, o["mutation_probability"], o["mutation_scale"], self._n_grid, rng
+                children, o.mutation_probability, o.mutation_scale, self._n_grid, rng
             )
         return ops.snap_to_grid(children, self._n_grid)
 
     def _next_generation(self):
         self.generation += 1
-        n_elite = self._opts["n_elite"]
+        n_elite = self.options.n_elite
         n_offspring = self.population_size - n_elite
         children = self._offspring(n_offspring)
         f_child = np.empty(n_offspring)
         v_child = np.empty(n_offspring)
         n_pop = self._U.shape[0]
-        if self._opts["skip_duplicates"]:
+        if self.options.skip_duplicates:
             # an offspring equal to a member of the population takes its known value; of
             # identical offspring only the first is evaluated (deterministic objective).
             # Rows are compared bytewise through a void view (sort-based, O(n log n)).
@@ -783,7 +693,35 @@ class GeneticAlgorithm:
             self.stall_generations is not None
             and self.generation - self._last_improvement >= self.stall_generations
         ):
-            self.stop_reason = "stall"
+            if self.options.on_stall == "restart":
+                self._restart()
+            else:
+                self.stop_reason = "stall"
+
+    def _restart(self):
+        """Keep the best individual, redraw the rest as a fresh initial population.
+
+        The best individual (by cost) survives; the others are replaced by new points drawn
+        like generation 0 and evaluated now (within the budget). The stall counter starts
+        again. If the evaluation stops early (target or budget), the best of the old
+        population fill the places left.
+        """
+        self.n_restarts += 1
+        order = np.argsort(self._cost, kind="stable")
+        n_keep = self._RESTART_KEEP
+        n_new = self.population_size - n_keep
+        U_new = ops.initial_population(n_new, self.n_params, method=self.options.init,
+                                       rng=self._rng)
+        U, f, v, _ = self._evaluate(ops.snap_to_grid(U_new, self._n_grid))
+        fill = order[n_keep: n_keep + n_new - f.size]
+        keep = np.concatenate([order[:n_keep], fill])
+        self._U = np.concatenate([self._U[keep], U])
+        self._f = np.concatenate([self._f[keep], f])
+        self._v = np.concatenate([self._v[keep], v])
+        self._cost = self._cost_of(self._f, self._v)
+        self._last_improvement = self.generation
+        logger.debug("restart %d at generation %d (nfev=%d, best f=%.6g)",
+                     self.n_restarts, self.generation, self.nfev, self.best_fun)
 
     def step(self):
         """Run one generation (the first call evaluates the initial population).
@@ -804,9 +742,9 @@ class GeneticAlgorithm:
         else:
             self._next_generation()
             if (
-                self._opts["polish"] == "periodic"
+                self.options.polish == "periodic"
                 and self.stop_reason is None
-                and self.generation % self._opts["polish_interval"] == 0
+                and self.generation % self.options.polish_interval == 0
             ):
                 self.polish()
         self._record_stats()
@@ -852,8 +790,8 @@ class GeneticAlgorithm:
         # scale-free polish: SLSQP and the L-BFGS-B gradient tolerance depend on the
         # magnitude of the objective, so it is normalised by its value at the start point
         scale = abs(f0) if np.isfinite(f0) and f0 != 0.0 else 1.0
-        problem = _PolishProblem(self, self._opts["polish_max_evaluations"], scale)
-        method = self._opts["polish_method"]
+        problem = _PolishProblem(self, self.options.polish_max_evaluations, scale)
+        method = self.options.polish_method
         kwargs: dict[str, Any] = {"bounds": [(0.0, 1.0)] * self.n_params}
         if method == "Nelder-Mead":
             kwargs["options"] = {"xatol": 1e-10, "fatol": 0.0}
@@ -902,7 +840,7 @@ class GeneticAlgorithm:
         """
         while self.stop_reason is None:
             self.step()
-        if self._opts["polish"] != "none" and self.stop_reason in (
+        if self.options.polish != "none" and self.stop_reason in (
             "stall", "max_generations",
         ):
             reason = self.stop_reason
@@ -943,18 +881,11 @@ class GeneticAlgorithm:
             population=self.population, population_fun=self.population_fun,
             population_violation=self.population_violation,
             parameter_names=self.parameter_names, parameter_units=self.parameter_units,
-            seed=self.seed,
+            seed=self.seed, n_restarts=self.n_restarts,
         )
 
 
-_GA_OPTIONS = tuple(
-    name
-    for name, p in inspect.signature(GeneticAlgorithm.__init__).parameters.items()
-    if p.kind is inspect.Parameter.KEYWORD_ONLY
-)
-
-
-def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constraints=None,
+def minimize(fun, bounds, options: GAOptions | None = None, *, rng=None, constraints=None,
              callback=None, **operator_options) -> GAResult:
     """Minimise ``fun`` over ``bounds`` with the genetic algorithm.
 
@@ -965,19 +896,18 @@ def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constr
         of shape (n_individuals,).
     bounds : sequence of (low, high) or parameter space
         See :class:`GeneticAlgorithm`.
+    options : GAOptions or None
+        Tuning options; keywords in ``operator_options`` replace its fields.
     rng : int, numpy.random.Generator or None
         Seed or generator.
-    max_evaluations : int or None
-        Evaluation budget, polish included.
-    target : float or None
-        Stop at the first feasible evaluation with ``f <= target``.
     constraints : callable or None
         ``constraints(X) -> G`` of shape (n_individuals, n_constraints), ``g <= 0`` feasible.
     callback : callable or None
         ``callback(ga)`` after each generation; returning True stops.
     **operator_options
-        Any keyword of :class:`GeneticAlgorithm` (``population_size``, ``selection``,
-        ``crossover``, …). An unknown name raises ``TypeError``.
+        Any field of :class:`~podkrig.ga.options.GAOptions` (``max_evaluations``, ``target``,
+        ``population_size``, ``selection``, …; documented on :class:`GeneticAlgorithm`). An
+        unknown name raises ``TypeError``.
 
     Returns
     -------
@@ -985,8 +915,9 @@ def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constr
 
     Warns
     -----
-    RuntimeWarning
-        If the run stopped because a budget (generations or evaluations) ran out.
+    GABudgetWarning
+        (a ``RuntimeWarning``) If the run stopped because a budget (generations or
+        evaluations) ran out.
 
     Raises
     ------
@@ -995,19 +926,10 @@ def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constr
     ValueError
         For an option value outside its allowed range.
     """
-    for name in operator_options:
-        if name not in _GA_OPTIONS:
-            close = difflib.get_close_matches(name, _GA_OPTIONS, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise TypeError(
-                f"unknown GA option {name!r}{hint}; allowed: {', '.join(_GA_OPTIONS)}"
-            )
-    ga = GeneticAlgorithm(
-        fun, bounds, rng=rng, max_evaluations=max_evaluations, target=target,
-        constraints=constraints, callback=callback, **operator_options,
-    )
+    ga = GeneticAlgorithm(fun, bounds, options, rng=rng, constraints=constraints,
+                          callback=callback, **operator_options)
     result = ga.run()
     if result.stop_reason in ("max_generations", "max_evaluations"):
-        warnings.warn(f"GA stopped on its budget: {result.message}", RuntimeWarning,
+        warnings.warn(f"GA stopped on its budget: {result.message}", GABudgetWarning,
                       stacklevel=2)
     return result
