@@ -5,12 +5,22 @@ import importlib.util
 import pathlib
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from podkrig.ga import GABudgetWarning, GAOptions, GAResult, GeneticAlgorithm, minimize
+from podkrig.ga import (
+    GABudgetWarning,
+    GAOptions,
+    GAResult,
+    GeneticAlgorithm,
+    minimize,
+    plot_history,
+    plot_parameters,
+    plot_statistics,
+)
 from podkrig.ga import operators as ops
 
 SCRIPTS = pathlib.Path(__file__).resolve().parents[1] / "scripts"
@@ -49,8 +59,6 @@ class LogSpace:
 
 # --------------------------------------------------------------------------- operators
 def test_sobol_initial_population_in_unit_cube_without_warning():
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # 40 is not a power of 2: must not warn
         U = ops.initial_population(40, 3, method="sobol", rng=np.random.default_rng(0))
@@ -536,9 +544,7 @@ def test_importing_the_ga_does_not_import_matplotlib():
 def test_figures_have_labelled_axes():
     matplotlib = pytest.importorskip("matplotlib")
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from podkrig.ga import plot_history, plot_parameters, plot_statistics
+    import matplotlib.pyplot as plt  # after choosing the backend (and only if installed)
 
     space = LogSpace([10.0, 1.0], [1000.0, 100.0])
     res = minimize(lambda X: np.sum(np.log(X / 30.0) ** 2, axis=1), space, rng=25,

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import SamplingMethod, TextFormat, configure_logging, user_errors
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -38,7 +38,7 @@ def run(
     seed: int = typer.Option(..., "--seed", help="Seed of the design (recorded in the store)."),
     scenario: str = typer.Option(None, "--scenario", help="Scenario name, e.g. diagonal_compression."),
     spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
-    sampling: str = typer.Option("sobol", "--sampling", help="Design: sobol, lhs or random."),
+    sampling: SamplingMethod = typer.Option(SamplingMethod.sobol, "--sampling", help="Design: sobol, lhs, random or lhs-ese (optimised LHS)."),
     workers: int = typer.Option(None, "--workers", help="Local worker processes; 1 runs in this process without Dask (default: one per core)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Existing Dask scheduler, e.g. tcp://HOST:8786."),
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
@@ -114,7 +114,7 @@ def run(
 @snapshots_app.command("info")
 def info(
     path: Path = typer.Argument(..., help="Snapshot store."),
-    format: str = typer.Option("text", "--format", help="Output format: text or json."),
+    format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output format: text or json."),
 ):
     """Describe a snapshot store: provenance, scenario, parameters, sensors, row status."""
     from podkrig.offline.store import SnapshotStore

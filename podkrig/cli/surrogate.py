@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import KrigingCriterion, TableFormat, Variogram, configure_logging, user_errors
 
 surrogate_app = typer.Typer(
     name="surrogate",
@@ -42,9 +42,9 @@ def build(
     out: Path = typer.Option(..., "--out", help="Surrogate file to write (HDF5)."),
     energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
     modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
-    variogram: str = typer.Option("exponential", "--variogram", help="Semivariogram: exponential or power."),
+    variogram: Variogram = typer.Option(Variogram.exponential, "--variogram", help="Semivariogram: exponential or power."),
     beta: str = typer.Option("fit", "--beta", help="Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all)."),
-    criterion: str = typer.Option("ml", "--criterion", help="Hyperparameters by 'ml' (likelihood) or 'loo'."),
+    criterion: KrigingCriterion = typer.Option(KrigingCriterion.ml, "--criterion", help="Hyperparameters by 'ml' (likelihood) or 'loo'."),
     nugget: float = typer.Option(0.0, "--nugget", help="Nugget relative to the sill (0: exact interpolation)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -75,7 +75,7 @@ def validate(
     file: Path = typer.Argument(..., help="Surrogate file written by 'podkrig surrogate build'."),
     held_out: Path = typer.Option(..., "--held-out", help="Snapshot store of held-out FE runs."),
     report: Path = typer.Option(None, "--report", help="Directory for index.html and the figures."),
-    format: str = typer.Option("table", "--format", help="Output format: table or json."),
+    format: TableFormat = typer.Option(TableFormat.table, "--format", help="Output format: table or json."),
     compare: bool = typer.Option(True, "--compare/--no-compare",
                                  help="Also refit with beta 1.2/1.5/1.8/fit and the power model for the "
                                       "error histograms (needs the training store)."),
