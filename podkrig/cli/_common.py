@@ -16,8 +16,16 @@ from fe.exceptions import FEError
 from podkrig.exceptions import PodkrigError
 
 __all__ = [
-    "LinearSolver", "RegionMethod", "ResponseFormat", "SamplingMethod", "SurrogateBackend",
-    "TableFormat", "TextFormat", "Variogram", "KrigingCriterion", "configure_logging",
+    "KrigingCriterion",
+    "LinearSolver",
+    "RegionMethod",
+    "ResponseFormat",
+    "SamplingMethod",
+    "SurrogateBackend",
+    "TableFormat",
+    "TextFormat",
+    "Variogram",
+    "configure_logging",
     "user_errors",
 ]
 

@@ -66,7 +66,7 @@ def register(app):
                 raise ValueError(f"unknown scenario {scenario!r}; available: {sorted(SCENARIOS)}")
             params = dict(parse_assignment(s) for s in set_)
             t0 = time.perf_counter()
-            sc = build_scenario(load_spec(scenario, spec), solver=solver)
+            sc = build_scenario(load_spec(scenario, spec), solver=solver.value)
             response = sc.run(params, field=field is not None)
             seconds = time.perf_counter() - t0
             values = sc.resolve(params)

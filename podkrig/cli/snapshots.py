@@ -90,7 +90,7 @@ def run(
 
         try:
             summary = run_snapshots(
-                store, sc, space, n=n, seed=seed, sampling=sampling, fields=fields, workers=workers,
+                store, sc, space, n=n, seed=seed, sampling=sampling.value, fields=fields, workers=workers,
                 scheduler=scheduler, retry_failed=retry_failed, chunk_size=chunk_size, progress=report,
             )
         except KeyboardInterrupt:

@@ -55,7 +55,7 @@ def build(
         from podkrig.offline.store import SnapshotStore
         from podkrig.surrogate.podkriging import fit_from_store
 
-        pod, kriging = _templates(energy, modes, variogram, beta, criterion, nugget)
+        pod, kriging = _templates(energy, modes, variogram.value, beta, criterion.value, nugget)
         t0 = time.perf_counter()
         with SnapshotStore.open(store) as s:
             sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
