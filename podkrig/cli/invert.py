@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, user_errors
 from podkrig.cli.simulate import parse_assignment
 
 
@@ -140,11 +140,11 @@ def register(app):
         free: list[str] = typer.Option([], "--free", help="Free parameters (comma-separated or repeated); default all."),
         fix: list[str] = typer.Option([], "--fix", help="Fixed parameter NAME=VALUE (repeatable)."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
-        format: str = typer.Option("table", "--format", help="table or json."),
+        format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
         seed: int = typer.Option(0, "--seed", help="Seed of the GA and of the region sampling."),
         confidence: float = typer.Option(0.95, "--confidence", help="Confidence of the region of equivalence."),
         region_samples: int = typer.Option(2**17, "--region-samples", help="Surrogate evaluations per region sampling round."),
-        region_method: str = typer.Option("likelihood-ratio", "--region-method",
+        region_method: RegionMethod = typer.Option(RegionMethod.likelihood_ratio, "--region-method",
                                           help="Region of equivalence: likelihood-ratio (χ² bound) or noise-mc (re-identify noisy copies)."),
         mcmc_steps: int = typer.Option(0, "--mcmc-steps", help="Also sample the Bayesian posterior by MCMC (steps; 0 = off)."),
         fe_check: bool = typer.Option(True, "--fe-check/--no-fe-check", help="Run the FE model once at the optimum."),
@@ -183,7 +183,7 @@ def register(app):
         free: list[str] = typer.Option([], "--free"),
         fix: list[str] = typer.Option([], "--fix"),
         report: Path = typer.Option(None, "--report"),
-        format: str = typer.Option("table", "--format"),
+        format: TableFormat = typer.Option(TableFormat.table, "--format"),
         seed: int = typer.Option(0, "--seed"),
         confidence: float = typer.Option(0.95, "--confidence"),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -234,7 +234,7 @@ def register(app):
         noise_abs: list[str] = _NOISE_ABS,
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
-        format: str = typer.Option("table", "--format"),
+        format: TableFormat = typer.Option(TableFormat.table, "--format"),
         seed: int = typer.Option(0, "--seed"),
         confidence: float = typer.Option(0.95, "--confidence"),
         verbose: bool = typer.Option(False, "--verbose", "-v"),

@@ -8,7 +8,9 @@ import numpy as np
 import typer
 
 from fe.scenarios import build_scenario
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import (
+    KrigingCriterion, SurrogateBackend, TableFormat, Variogram, configure_logging, user_errors,
+)
 from podkrig.offline.sampling import METHODS
 from podkrig.offline.store import SnapshotStore
 from podkrig.reports import surrogate as figs
@@ -67,13 +69,13 @@ def build(
     out: Path = typer.Option(..., "--out", help="Surrogate file to write (HDF5)."),
     energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
     modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
-    backend: str = typer.Option(DEFAULT_BACKEND, "--backend",
+    backend: SurrogateBackend = typer.Option(SurrogateBackend(DEFAULT_BACKEND), "--backend",
                                 help=f"Regressor of the POD coefficients: {', '.join(BACKENDS)} "
                                      "(podkrig: ours; smt-krg/smt-kpls: SMT's KRG/KPLS per mode; "
                                      "sklearn-gpr: scikit-learn's GaussianProcessRegressor per mode)."),
-    variogram: str = typer.Option(None, "--variogram", help="Semivariogram: exponential (default) or power (podkrig backend)."),
+    variogram: Variogram = typer.Option(None, "--variogram", help="Semivariogram: exponential (default) or power (podkrig backend)."),
     beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all; the default, {DEFAULT_BETA!r}) (podkrig backend)."),
-    criterion: str = typer.Option(None, "--criterion", help="Hyperparameters by 'ml' (likelihood, default) or 'loo' (podkrig backend)."),
+    criterion: KrigingCriterion = typer.Option(None, "--criterion", help="Hyperparameters by 'ml' (likelihood, default) or 'loo' (podkrig backend)."),
     nugget: float = typer.Option(None, "--nugget", help="Nugget relative to the sill (default 0: exact interpolation) (podkrig backend)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -81,7 +83,8 @@ def build(
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
-        pod, kriging = _templates(energy, modes, backend, variogram, beta, criterion, nugget)
+        pod, kriging = _templates(energy, modes, backend.value, variogram and variogram.value, beta,
+                                  criterion and criterion.value, nugget)
         t0 = time.perf_counter()
         with SnapshotStore.open(store) as s:
             sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
@@ -102,7 +105,7 @@ def validate(
     file: Path = typer.Argument(..., help="Surrogate file written by 'podkrig surrogate build'."),
     held_out: Path = typer.Option(..., "--held-out", help="Snapshot store of held-out FE runs."),
     report: Path = typer.Option(None, "--report", help="Directory for index.html and the figures."),
-    format: str = typer.Option("table", "--format", help="Output format: table or json."),
+    format: TableFormat = typer.Option(TableFormat.table, "--format", help="Output format: table or json."),
     compare: bool = typer.Option(True, "--compare/--no-compare",
                                  help="Also refit with beta 1.2/1.5/1.8/fit and the power model for the "
                                       "error histograms (needs the training store)."),
