@@ -25,7 +25,7 @@ TRUTH = {"E_b": 11500.0, "kN_bj": 85.0, "kV_bj": 33.0, "r_hj": 0.65}
 
 def setup(out, beta="fit"):
     from fe.scenarios import build_scenario
-    from podkrig.online.inverse import SurrogateModel
+    from podkrig.online.problem import SurrogateModel
     from podkrig.surrogate.kriging import OrdinaryKriging
     from podkrig.parameters import ParameterSpace
     from podkrig.offline.runner import run_snapshots
@@ -52,9 +52,10 @@ def main(argv=None):
 
     from threadpoolctl import threadpool_limits
 
-    from podkrig.online.inverse import FEModel, InverseProblem, invert
+    from podkrig.online.invert import invert
+    from podkrig.online.problem import FEModel, InverseProblem
     from podkrig.online.measurement import Measurement, NoiseModel
-    from podkrig.online.uncertainty import likelihood_ratio_region
+    from podkrig.online.region import likelihood_ratio_region
 
     with threadpool_limits(1):
         scenario, space, model, fit_seconds = setup(args.out)

@@ -258,7 +258,10 @@ def test_report_structure(tiny):
     assert not re.search(r"\bnan\b|\binf\b", source, re.IGNORECASE)
     for unit in ("(mm)", "(%)", "(s)", "MPa", "N/mm³", "χ²/dof"):
         assert unit in text, unit
-    assert "Warning:" in source or "No warnings" in source
+    # the page shows exactly the warnings of summary.json, or says there are none
+    warnings = json.loads((out / "summary.json").read_text(encoding="utf-8"))["warnings"]
+    assert source.count("<b>Warning:</b>") == 2 * len(warnings)  # in the summary and in its section
+    assert ("No warnings" in source) is (not warnings)
 
 
 def test_report_warning_in_plain_words(tiny, tmp_path):

@@ -4,7 +4,7 @@
 
 1. **Calibrate the base model** surrogate first: a POD-kriging surrogate over the free parameters
    (built here from a Sobol' design unless one is given), GA inversion with least-squares polish
-   (:func:`podkrig.inverse.invert`), then a least-squares polish with the FE model itself so that
+   (:func:`podkrig.online.invert.invert`), then a least-squares polish with the FE model itself so that
    the adequacy test is not blurred by surrogate error.
 2. **Adequacy**: χ² of the whitened residuals ``r = L⁻¹(d − g(m*))`` (``C_d = L Lᵀ``) against
    χ²(n_obs − n_free), and the residual structure across sensors and load levels.
@@ -37,7 +37,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, optimize, stats
 
-from podkrig.online.inverse import InverseProblem, SurrogateModel, invert
+from podkrig.online.invert import invert
+from podkrig.online.problem import InverseProblem, SurrogateModel
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.online.measurement import Measurement
 from podkrig.offline.sampling import sobol
