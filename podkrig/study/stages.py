@@ -65,7 +65,6 @@ class StudyRun(StageCache):
 
 def _run_store(run, path, spec, space, design):
     """Fill the store at ``path`` (resuming it; rebuilding one written for another design)."""
-
     kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method, "workers": run.study.workers,
               "scheduler": run.study.scheduler, "progress": run.progress.advance}
     notes = []
@@ -82,7 +81,6 @@ def _run_store(run, path, spec, space, design):
 
 
 def _store_result(path, summary, notes):
-
     with SnapshotStore.open(path) as store:
         wall = store.wall_times()
         failures = [f"row {i}: {e}" for i, e in store.errors().items()][:5] if summary.failed else []
@@ -98,6 +96,7 @@ def _store_result(path, summary, notes):
 
 
 def offline(run, name, title, filename, design):
+    """FE snapshots of a design into ``filename`` (training or held-out): the store's numbers."""
     study = run.study
     inputs = {"spec": study.spec.to_dict(), "space": study.space.to_dict(), "design": dataclasses.asdict(design)}
 
@@ -111,7 +110,6 @@ def offline(run, name, title, filename, design):
 
 def _templates(settings):
     """POD and kriging templates of the surrogate settings."""
-
     pod = POD(n_modes=settings.modes) if settings.modes is not None else POD(energy=settings.energy or DEFAULT_ENERGY)
     kriging = OrdinaryKriging(variogram=settings.variogram, beta=settings.beta, criterion=settings.criterion,
                               nugget=settings.nugget)
@@ -120,7 +118,6 @@ def _templates(settings):
 
 def _fit(store_path, settings, out_path):
     """Fit and save a surrogate on a store; returns it and its training time (s)."""
-
     pod, kriging = _templates(settings)
     t0 = time.perf_counter()
     with SnapshotStore.open(store_path) as store:
@@ -141,6 +138,7 @@ def _surrogate_result(sur, seconds):
 
 
 def validation_model(run, model):
+    """Snapshots and surrogate of a validation scenario: the store's numbers and the surrogate's."""
     study = run.study
     name = f"validation_model.{model.name}"
     store, surrogate = f"validation_{model.name}.h5", f"validation_{model.name}_surrogate.h5"
@@ -158,7 +156,7 @@ def validation_model(run, model):
 
 
 def surrogate(run):
-
+    """POD + kriging fit on the training store: sizes, retained energy, exponents, training time."""
     settings = run.study.surrogate
     inputs = {"settings": dataclasses.asdict(settings), "train": run.outputs("offline")}
 
@@ -167,14 +165,14 @@ def surrogate(run):
         prov = sur.provenance_
         surrogate_figures.plot_energy(sur.pod_, run.figures / "energy.png")
         surrogate_figures.plot_reading_modes(sur.pod_, prov["sensor_names"], prov["load_levels"], prov["load_unit"],
-                                run.figures / "modes.png")
+                                             run.figures / "modes.png")
         return _surrogate_result(sur, seconds), ["surrogate.h5", "report/energy.png", "report/modes.png"], 0
 
     run.stage("surrogate", "Surrogate fit (POD + kriging)", inputs, compute)
 
 
 def held_out_validation(run):
-
+    """The surrogate against the held-out FE runs: :meth:`HeldOutReport.summary` plus RMS and max errors (mm)."""
     inputs = {"surrogate": run.outputs("surrogate"), "held_out": run.outputs("held_out")}
 
     def compute():
@@ -280,7 +278,7 @@ def rvc_stage(run):
 
 
 def diagnosis(run):
-
+    """The model diagnosis on the FE model (its own report page): :meth:`Diagnosis.to_dict`."""
     study = run.study
     inputs = {**_online_inputs(run), "seed": study.diagnosis.seed}
 
