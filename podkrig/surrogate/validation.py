@@ -113,6 +113,24 @@ class HeldOutReport:
         out.update(self.extra)
         return out
 
+    _ARRAYS = ("rel_error", "pod_error", "interp_error", "X", "Y_true", "Y_pred", "Y_std")
+
+    def to_dict(self):
+        """Every field, arrays as nested lists (JSON-able; :meth:`from_dict` reads it back).
+        :meth:`summary` is the short form shown in reports."""
+        d = {name: np.asarray(getattr(self, name)).tolist() for name in self._ARRAYS}
+        d.update(coverage_2sigma=float(self.coverage_2sigma), n_train=int(self.n_train), n_modes=int(self.n_modes),
+                 loo_error=None if self.loo_error is None else np.asarray(self.loo_error).tolist(),
+                 extra=dict(self.extra))
+        return d
+
+    @classmethod
+    def from_dict(cls, d):
+        arrays = {name: np.asarray(d[name], dtype=float) for name in cls._ARRAYS}
+        loo = None if d.get("loo_error") is None else np.asarray(d["loo_error"], dtype=float)
+        return cls(coverage_2sigma=float(d["coverage_2sigma"]), n_train=int(d["n_train"]), n_modes=int(d["n_modes"]),
+                   loo_error=loo, extra=dict(d.get("extra", {})), **arrays)
+
 
 def held_out_errors(surrogate, X, Y, *, with_loo=True):
     """Compare a fitted :class:`~podkrig.surrogate.PODKriging` with held-out FE snapshots.
