@@ -3,7 +3,7 @@ outputs and turns domain errors into one-line messages with a hint and a non-zer
 
 import typer
 
-from podkrig.cli import diagnose, invert, run, simulate, snapshots, surrogate
+from podkrig.cli import diagnose, invert, run, sensors, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -18,6 +18,7 @@ surrogate.register(app)
 invert.register(app)
 diagnose.register(app)
 run.register(app)
+sensors.register(app)
 
 
 @app.callback()
