@@ -167,6 +167,6 @@ def register(app):
             comp.add_row(*row)
         console.print(comp)
         console.print(f"wrote {out}/layout.toml (spec for --spec), scenario_table.toml (study [scenario]), "
-                      "placement.json, comparison.md, layout.png")
+                      "placement.json, comparison.md, layout.png", markup=False)
 
     return sensors

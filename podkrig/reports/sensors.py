@@ -38,7 +38,8 @@ def plot_layout(result, path, *, show_candidates=True):
             ax.plot(pts[:, 0], pts[:, 1], "-o", color=col, lw=3, ms=4, zorder=3)
         else:
             ax.plot(pts[:, 0], pts[:, 1], "s", color=col, ms=7, zorder=3)
-        ax.annotate(cands.names[i], pts.mean(axis=0), fontsize=8, color="tab:red", xytext=(3, 3), textcoords="offset points")
+        where = pts[0] + 0.3 * (pts[-1] - pts[0])  # off the centre, where crossing gauges overlap
+        ax.annotate(cands.names[i], where, fontsize=8, color="tab:red", xytext=(3, 3), textcoords="offset points")
     sm = cm.ScalarMappable(norm=norm, cmap=cmap)
     fig.colorbar(sm, ax=ax, shrink=0.8, label=f"contribution: loss increase without the sensor ({result.criterion.upper()})")
     ax.set_xlim(-0.02 * W, 1.02 * W)
