@@ -16,11 +16,16 @@ from scipy.stats import spearmanr
 from typer.testing import CliRunner
 
 from fe.scenarios import ScenarioSpec, build_scenario
-from fe.sensors import Gauge, locate_points
+from fe.sensors import locate_points
 from podkrig.cli import app
 from podkrig.parameters import ParameterSpace
 from podkrig.sensors.candidates import CandidateSet, Zone, dic_points, gauge_grid, user_candidates
-from podkrig.sensors.criteria import LayoutCriterion, SensorNoise, fisher_per_candidate, pod_per_candidate
+from podkrig.sensors.criteria import (
+    LayoutCriterion,
+    SensorNoise,
+    fisher_per_candidate,
+    pod_per_candidate,
+)
 from podkrig.sensors.montecarlo import candidate_surrogate, monte_carlo
 from podkrig.sensors.placement import place_sensors, spec_toml
 from podkrig.sensors.search import PlacementProblem, choose_layout
@@ -237,7 +242,7 @@ def test_place_sensors_spec_is_accepted_by_the_scenario_and_the_study(scenario, 
     assert ScenarioSpec.from_dict(table) == spec
     # the study accepts the [scenario] table as it is written
     example = (Path(__file__).parents[1] / "examples" / "diagonal_compression.toml").read_text()
-    body = re.sub(r"\[scenario\].*?(?=\n\[parameters\])", "", example, flags=re.S)
+    body = re.sub(r"\[scenario\].*?(?=\n\[parameters\])", "", example, flags=re.DOTALL)
     study = tmp_path / "study.toml"
     study.write_text(body + "\n" + spec_toml(result.spec(), table="scenario"))
     shutil.copy(Path(__file__).parents[1] / "examples" / "diagonal_compression_measured.csv", tmp_path)

@@ -4,7 +4,6 @@ import json
 import tomllib
 from pathlib import Path
 
-import numpy as np
 import typer
 
 from podkrig.cli._common import configure_logging, user_errors
@@ -69,14 +68,25 @@ def register(app):
         """
         configure_logging(verbose)
         from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
         from rich.table import Table
 
         from fe.scenarios import SCENARIOS, build_scenario
         from podkrig.parameters import ParameterSpace, parse_params
         from podkrig.reports.sensors import comparison_markdown, comparison_rows, plot_layout
-        from podkrig.sensors.candidates import (CandidateSet, Zone, dic_points, gauge_grid, parse_range,
-                                                user_candidates)
+        from podkrig.sensors.candidates import (
+            Zone,
+            dic_points,
+            gauge_grid,
+            parse_range,
+            user_candidates,
+        )
         from podkrig.sensors.criteria import SensorNoise
         from podkrig.sensors.placement import place_sensors, spec_toml
 

@@ -9,7 +9,7 @@ def plot_layout(result, path, *, show_candidates=True):
     """The specimen (units outlined) with the candidates (faint), the current layout (dashed) and
     the chosen layout coloured by each sensor's contribution (loss increase when removed)."""
     plt = pyplot()
-    from matplotlib import cm, colors  # noqa: PLC0415 -- pyplot() chose the backend first
+    from matplotlib import cm, colors
 
     spec = result.specimen
     W, H = spec["width"], spec["height"]

@@ -7,12 +7,12 @@ points lie on a joint or unit mid-plane (where the displacement jumps), outside 
 forbidden zone are dropped when the set is built: :func:`valid_point_mask` says which.
 """
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fe.exceptions import SensorError
-from fe.sensors import DICGrid, Gauge, PointDisplacement, locate_points, sensor_from_dict
+from fe.sensors import DICGrid, Gauge, locate_points, sensor_from_dict
 
 KINDS = ("lvdt", "dic")
 
@@ -180,8 +180,8 @@ def gauge_grid(mesh, x, y, *, lengths, orientations=(0.0, 45.0, 90.0, 135.0), fo
     Returns
     -------
     CandidateSet
-        Gauges ordered by first end point, then second; the first end has the smaller
-        (y, x) lexicographic position... i.e. each unordered pair appears once.
+        Each unordered pair of admissible grid points at most once, ordered by the first point's
+        grid index (x-major), then the second's.
     """
     lo, hi = (float(v) for v in lengths)
     if not 0 < lo <= hi:
@@ -262,5 +262,14 @@ def parse_range(text, what="--grid-x"):
     return a + s * np.arange(int(np.floor((b - a) / s + 1e-9)) + 1)
 
 
-__all__ = ["CandidateSet", "KINDS", "PointDisplacement", "Zone", "current_candidates", "dic_points",
-           "gauge_grid", "parse_range", "user_candidates", "valid_point_mask"]
+__all__ = [
+    "KINDS",
+    "CandidateSet",
+    "Zone",
+    "current_candidates",
+    "dic_points",
+    "gauge_grid",
+    "parse_range",
+    "user_candidates",
+    "valid_point_mask",
+]

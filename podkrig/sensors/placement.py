@@ -9,7 +9,6 @@ chosen sensors, which ``podkrig simulate --spec``, ``podkrig snapshots run --spe
 ``[scenario]`` table accept directly (:func:`spec_toml` writes it).
 """
 
-import logging
 import math
 from dataclasses import dataclass, field
 
@@ -17,13 +16,17 @@ import numpy as np
 
 from fe.scenarios import ScenarioSpec
 from podkrig.sensors.candidates import current_candidates
-from podkrig.sensors.criteria import (CRITERIA, UNIFORM_PRIOR_INFORMATION, LayoutCriterion, SensorNoise,
-                                      fisher_per_candidate, pod_per_candidate)
+from podkrig.sensors.criteria import (
+    CRITERIA,
+    UNIFORM_PRIOR_INFORMATION,
+    LayoutCriterion,
+    SensorNoise,
+    fisher_per_candidate,
+    pod_per_candidate,
+)
 from podkrig.sensors.montecarlo import candidate_surrogate, interior_truths, monte_carlo
 from podkrig.sensors.search import METHODS, PlacementProblem, choose_layout
 from podkrig.sensors.sensitivity import candidate_sensitivities, prior_points
-
-logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,13 +105,6 @@ class PlacementResult:
 
     def score(self, label):
         return next(s for s in self.scores if s.label == label)
-
-    def random_median(self, key="mean_width"):
-        """Median over the random layouts of the mean linearised or Monte-Carlo width (unit coords)."""
-        randoms = [s for s in self.scores if s.label.startswith("random")]
-        if key == "mean_width":
-            return float(np.median([s.linearised_width.mean() for s in randoms]))
-        return float(np.median([s.monte_carlo.mean_width_unit for s in randoms if s.monte_carlo is not None]))
 
     def to_dict(self):
         return {
@@ -219,10 +215,9 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     named = [("chosen", layout.indices)]
     if include_current:
         named.append(("current", np.flatnonzero(candidates.is_current)))
-    rproblem = problem if k is not None else PlacementProblem(crit, candidates, k=len(layout.indices),
-                                                              must_include=tuple(must), min_spacing=min_spacing)
-    rproblem = PlacementProblem(crit, candidates, k=rproblem.k, must_include=rproblem.must_include,
-                                min_spacing=min_spacing, exclude=tuple(np.flatnonzero(candidates.is_current)))
+    # random layouts of the chosen size under the same constraints, from the new candidates only
+    rproblem = PlacementProblem(crit, candidates, k=len(layout.indices), must_include=tuple(must),
+                                min_spacing=min_spacing, exclude=tuple(set(np.flatnonzero(candidates.is_current).tolist()) - set(must)))
     named += [(f"random {i + 1}", L) for i, L in enumerate(random_layouts(rproblem, n_random, seed))]
 
     mc_sens = surrogate = truths = None

@@ -31,7 +31,7 @@ References
 import logging
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
@@ -194,10 +194,10 @@ def _greedy_fill(problem, counter, start):
         ok = problem.feasible(trial)
         if not ok.any():
             break
-        base = counter.loss(problem.full(np.array(chosen, dtype=np.intp)[None]))[0] if chosen or problem.must_include else None
         loss = counter.loss(trial[ok])
-        if problem.budget is not None and base is not None:
-            score = (loss - base) / cost[cand[ok]]  # gain per unit cost (negative = better)
+        if problem.budget is not None:  # gain per unit cost (negative = better)
+            base = counter.loss(problem.full(np.array(chosen + [-1], dtype=np.intp)[None]))[0]
+            score = (loss - base) / cost[cand[ok]]
         else:
             score = loss
         chosen.append(int(cand[ok][np.argmin(score)]))
