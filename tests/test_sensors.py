@@ -269,3 +269,19 @@ def test_cli_sensors_writes_a_usable_layout(tmp_path):
     assert len(sim.output.splitlines()[0].split(",")) == 4  # load + 3 chosen sensors
     bad = runner.invoke(app, args[:9] + ["--k", "3", "--out", str(out)])
     assert bad.exit_code == 2 and "no candidates" in bad.output
+
+
+def test_noise_per_sensor_kind_scales_the_information(scenario, space):
+    """A DIC point's information scales as 1/σ_dic², a gauge's as 1/σ_lvdt², independently; a DIC
+    point reads both displacement components (two channels)."""
+    cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(80, 90)).subset([0]) + dic_points(scenario.mesh, [210.0], [230.0])
+    sens = candidate_sensitivities(scenario, space, cand, prior_points(space, 4))
+    assert [len(sens.channels_of(i)) for i in range(2)] == [1, 2]
+    F1 = fisher_per_candidate(sens, SensorNoise(lvdt=0.002, dic=0.005))
+    F2 = fisher_per_candidate(sens, SensorNoise(lvdt=0.002, dic=0.010))
+    np.testing.assert_allclose(F2[:, 0], F1[:, 0], rtol=1e-14)
+    np.testing.assert_allclose(F2[:, 1], F1[:, 1] / 4, rtol=1e-12)
+    # relative noise: σ = δ |reading| per reading
+    rel = SensorNoise(relative=0.01, floor=1e-12)
+    J = sens.jacobian[:, :, :1, :] / (0.01 * np.abs(sens.readings[:, :, :1, None]))
+    np.testing.assert_allclose(fisher_per_candidate(sens, rel)[:, 0], np.einsum("nlcj,nlck->njk", J, J), rtol=1e-10)
