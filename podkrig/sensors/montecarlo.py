@@ -46,8 +46,9 @@ class LayoutModel:
 
     Parameters
     ----------
-    surrogate : PODKriging
-        From :func:`candidate_surrogate`.
+    surrogate : PODKriging or model
+        From :func:`candidate_surrogate`, or any model with ``predict(X) -> (n, n_loads *
+        n_channels)`` over all candidate channels.
     sens : Sensitivities
         Gives the channel names and which candidate owns each channel.
     layout : sequence of int

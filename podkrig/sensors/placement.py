@@ -26,7 +26,7 @@ from podkrig.sensors.criteria import (
 )
 from podkrig.sensors.montecarlo import candidate_surrogate, interior_truths, monte_carlo
 from podkrig.sensors.search import METHODS, PlacementProblem, choose_layout
-from podkrig.sensors.sensitivity import candidate_sensitivities, prior_points
+from podkrig.sensors.sensitivity import candidate_sensitivities, model_sensitivities, prior_points
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,7 +140,7 @@ def random_layouts(problem, n, rng=0, max_tries=10_000):
 def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=None, criterion="d", fixed=None,
                   n_points=64, seed=0, must_include=(), min_spacing=0.0, include_current=True,
                   methods=METHODS, n_random=20, n_monte_carlo=0, n_truths=1, surrogate_points=None,
-                  prior_information=UNIFORM_PRIOR_INFORMATION, progress=None):
+                  prior_information=UNIFORM_PRIOR_INFORMATION, model=None, progress=None):
     """Choose the sensor layout that minimises the expected identification uncertainty.
 
     Parameters
@@ -180,6 +180,12 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
         the criterion's points are reused when equal.
     prior_information : float
         ``1/s_0²`` of the prior information (see :mod:`podkrig.sensors.criteria`).
+    model : object, optional
+        A batched model of the candidates' readings (see
+        :func:`~podkrig.sensors.sensitivity.model_sensitivities`), e.g. a surrogate of snapshots whose
+        scenario spec lists every candidate (current sensors included when ``include_current``) as a
+        sensor: sensitivities by differences of it, and the Monte Carlo runs on it. Without it the
+        scenario's affine FE model gives exact sensitivities.
     progress : callable, optional
         ``progress(stage, done, total)``.
 
@@ -202,7 +208,10 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
         return None if progress is None else (lambda done, total: progress(name, done, total))
 
     X = prior_points(space, n_points, seed)
-    sens = candidate_sensitivities(scenario, space, candidates, X, fixed=fixed, progress=stage("sensitivities"))
+    if model is None:
+        sens = candidate_sensitivities(scenario, space, candidates, X, fixed=fixed, progress=stage("sensitivities"))
+    else:
+        sens = model_sensitivities(model, candidates, X, progress=stage("sensitivities"))
     F = fisher_per_candidate(sens, noise)
     criteria = {kind: LayoutCriterion(F, kind, prior_information) for kind in ("d", "a", "e")}
     criteria["pod"] = LayoutCriterion(pod_per_candidate(sens, noise)[0], "pod", 1.0)
@@ -221,7 +230,9 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     named += [(f"random {i + 1}", L) for i, L in enumerate(random_layouts(rproblem, n_random, seed))]
 
     mc_sens = surrogate = truths = None
-    if n_monte_carlo:
+    if n_monte_carlo and model is not None:
+        mc_sens, surrogate, truths = sens, model, interior_truths(space, n_truths, seed + 2)
+    elif n_monte_carlo:
         n_sur = surrogate_points or max(n_points, 128)
         mc_sens = sens if n_sur == n_points else candidate_sensitivities(
             scenario, space, candidates, prior_points(space, n_sur, seed + 1), fixed=fixed,

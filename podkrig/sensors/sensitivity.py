@@ -174,3 +174,54 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
     logger.info("sensitivities of %d candidates at %d points in %.2f s", len(candidates), len(X), seconds)
     return Sensitivities(X, readings, jac, channel_sensor, tuple(channel_names), candidates, space,
                          dict(fixed or {}), np.asarray(scenario.load_levels, float), scenario.load_unit, seconds)
+
+
+def model_sensitivities(model, candidates, X, *, step=1e-4, progress=None):
+    """Readings and sensitivities of the candidates from any batched model of their readings — a
+    POD-kriging surrogate (e.g. :class:`podkrig.online.inverse.SurrogateModel` of a store whose
+    scenario spec lists every candidate as a sensor) or :class:`podkrig.online.inverse.FEModel` —
+    by central differences in the unit cube (one-sided at the box faces). This is the path for
+    scenarios without an affine linear model (nonlinear ones): no solver internals are needed.
+
+    Parameters
+    ----------
+    model : object
+        ``space`` (the free parameters), ``sensor_names`` (the candidates' channel names, in
+        candidate order), ``load_levels`` and ``predict(X) -> (n, n_loads * n_channels)`` mm.
+    candidates : CandidateSet
+    X : array_like of shape (n_points, n_params)
+    step : float
+        Difference step in unit coordinates.
+    progress : callable, optional
+        ``progress(done, total)`` after each point.
+
+    Returns
+    -------
+    Sensitivities
+    """
+    t0 = time.perf_counter()
+    space = model.space
+    names = tuple(n for s in candidates.sensors for n in s.channel_names)
+    if tuple(model.sensor_names) != names:
+        raise ValueError("the model's sensors must be the candidates' channels in candidate order "
+                         f"(first expected {list(names[:3])}, got {list(model.sensor_names[:3])}): build its "
+                         "snapshots with the candidates as the scenario's sensors")
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    p, n_l, n_ch = space.n_params, len(model.load_levels), len(names)
+    readings = np.empty((len(X), n_l, n_ch))
+    jac = np.empty((len(X), n_l, n_ch, p))
+    for k, u in enumerate(space.to_unit(X)):
+        U = np.repeat(u[None], 1 + 2 * p, axis=0)
+        idx = np.arange(p)
+        U[1 + 2 * idx, idx] = np.minimum(u + step, 1.0)
+        U[2 + 2 * idx, idx] = np.maximum(u - step, 0.0)
+        Y = np.asarray(model.predict(space.from_unit(U))).reshape(1 + 2 * p, n_l, n_ch)
+        readings[k] = Y[0]
+        h = U[1 + 2 * idx, idx] - U[2 + 2 * idx, idx]
+        jac[k] = np.moveaxis((Y[1::2] - Y[2::2]) / h[:, None, None], 0, -1)
+        if progress is not None:
+            progress(k + 1, len(X))
+    channel_sensor = np.repeat(np.arange(len(candidates)), [len(s.channel_names) for s in candidates.sensors])
+    return Sensitivities(X, readings, jac, channel_sensor, names, candidates, space, {},
+                         np.asarray(model.load_levels, float), getattr(model, "load_unit", "kN"),
+                         time.perf_counter() - t0)
