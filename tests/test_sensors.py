@@ -71,7 +71,7 @@ def test_gauge_grid_lengths_orientations_joints_and_zones(scenario):
         d = np.subtract(s.p2, s.p1)
         assert 50 - 1e-9 <= s.length <= 160 + 1e-9
         assert abs(d[0]) < 1e-9 or abs(d[1]) < 1e-9  # horizontal or vertical only
-        assert not zone.contains(s.points).any()
+        assert not zone.contains(s.points).any() and not zone.crossed_by(s.p1, s.p2)[0]
         locate_points(scenario.mesh, s.points)  # raises on a joint or outside
     # a grid line on a bed joint (y = 65 mm) gives no end point there
     on_joint = gauge_grid(scenario.mesh, GRID, [65.0, 70.0, 100.0], lengths=(30, 35), orientations=(90,))
@@ -329,3 +329,13 @@ def test_place_sensors_through_a_batched_model_matches_the_exact_path(scenario, 
     via_model = place_sensors(scenario, space, twenty, model=fe_model, **opts)
     assert set(via_model.layout.indices) == set(exact.layout.indices)
     assert via_model.layout.value == pytest.approx(exact.layout.value, rel=1e-5)
+
+
+def test_current_sensor_in_a_forbidden_zone_is_scored_but_not_chosen(scenario, space):
+    zone = Zone(150.0, 150.0, 250.0, 250.0)  # the current gauge C (100,100)→(290,290) crosses it
+    cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(80, 160), forbidden=[zone])
+    free = place_sensors(scenario, space, cand, k=3, n_points=8, n_random=0, methods=("greedy",))
+    assert "C" in free.layout.names  # the best sensor when allowed
+    barred = place_sensors(scenario, space, cand, k=3, n_points=8, n_random=0, methods=("greedy",), forbidden=[zone])
+    assert "C" not in barred.layout.names and barred.score("current").names == ("C",)
+    assert barred.zones == (zone,)

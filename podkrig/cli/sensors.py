@@ -137,7 +137,7 @@ def register(app):
                     sc, space, cands, k=k, budget=budget, noise=noise, criterion=criterion, fixed=fixed,
                     n_points=n_points, seed=seed, must_include=tuple(must_include), min_spacing=min_spacing,
                     include_current=not no_current, n_random=n_random, n_monte_carlo=monte_carlo,
-                    n_truths=truths, progress=report,
+                    n_truths=truths, forbidden=zones, progress=report,
                 )
             finally:
                 progress.stop()

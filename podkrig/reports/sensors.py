@@ -6,8 +6,9 @@ from podkrig.reports.figures import pyplot
 
 
 def plot_layout(result, path, *, show_candidates=True):
-    """The specimen (units outlined) with the candidates (faint), the current layout (dashed) and
-    the chosen layout coloured by each sensor's contribution (loss increase when removed)."""
+    """The specimen (units outlined) with the candidates (faint), forbidden zones (hatched),
+    the current layout (dashed) and the chosen layout coloured by each sensor's contribution
+    (loss increase when removed)."""
     plt = pyplot()
     from matplotlib import cm, colors
 
@@ -16,6 +17,8 @@ def plot_layout(result, path, *, show_candidates=True):
     fig, ax = plt.subplots(figsize=(7.5, 7.5 * H / W + 0.6))
     for x0, y0, x1, y1 in spec["blocks"]:
         ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, lw=0.4, ec="0.7"))
+    for z in result.zones:
+        ax.add_patch(plt.Rectangle((z.x0, z.y0), z.x1 - z.x0, z.y1 - z.y0, fill=False, hatch="///", ec="tab:red", lw=0.8))
     cands = result.candidates
     if show_candidates:
         for s in cands.sensors:

@@ -34,9 +34,16 @@ class Zone:
             raise ValueError(f"forbidden zone needs x0 < x1 and y0 < y1 (mm); got {self}")
 
     def contains(self, points):
-        """Mask of points ``(n, 2)`` mm inside the zone, ``(n,)``."""
-        p = np.atleast_2d(points)
-        return (p[:, 0] >= self.x0) & (p[:, 0] <= self.x1) & (p[:, 1] >= self.y0) & (p[:, 1] <= self.y1)
+        """Mask of points ``(..., 2)`` mm inside the zone, ``(...)``."""
+        p = np.asarray(points, dtype=float)
+        return (p[..., 0] >= self.x0) & (p[..., 0] <= self.x1) & (p[..., 1] >= self.y0) & (p[..., 1] <= self.y1)
+
+    def crossed_by(self, p1, p2):
+        """Mask of segments ``p1 → p2`` (each ``(n, 2)`` mm) with a point in the zone, ``(n,)``
+        (the segment is sampled every 1/256 of its length: a gauge bridging the zone is refused)."""
+        t = np.linspace(0.0, 1.0, 257)[None, :, None]
+        p1, p2 = np.atleast_2d(p1)[:, None, :], np.atleast_2d(p2)[:, None, :]
+        return self.contains(p1 + t * (p2 - p1)).any(axis=1)
 
     @classmethod
     def parse(cls, text):
@@ -154,6 +161,8 @@ def valid_point_mask(mesh, points, forbidden=()):
 
 
 def _sensor_ok(mesh, sensor, forbidden):
+    if isinstance(sensor, Gauge) and any(z.crossed_by(sensor.p1, sensor.p2)[0] for z in forbidden):
+        return False
     return bool(valid_point_mask(mesh, sensor.points, forbidden).all())
 
 
@@ -172,6 +181,7 @@ def gauge_grid(mesh, x, y, *, lengths, orientations=(0.0, 45.0, 90.0, 135.0), fo
     orientations : sequence of float
         Directions in degrees from the x axis (mod 180°), matched within 0.5°.
     forbidden : sequence of Zone
+        No end point inside, and no gauge crossing one.
     cost : float
         Cost of each gauge.
     prefix : str
@@ -201,6 +211,9 @@ def gauge_grid(mesh, x, y, *, lengths, orientations=(0.0, 45.0, 90.0, 135.0), fo
     diff = np.minimum(diff, 180.0 - diff)
     keep = (length >= lo - 1e-9) & (length <= hi + 1e-9) & np.any(diff <= _ANGLE_TOL, axis=1)
     i, j = i[keep], j[keep]
+    for zone in forbidden:  # a gauge may not bridge a forbidden zone either
+        clear = ~zone.crossed_by(pts[i], pts[j])
+        i, j = i[clear], j[clear]
     sensors = tuple(Gauge(f"{prefix}{n}", tuple(pts[a]), tuple(pts[b])) for n, (a, b) in enumerate(zip(i, j)))
     if not sensors:
         raise ValueError(f"no gauge of length {lo:g}–{hi:g} mm along {list(orientations)}° fits the grid")

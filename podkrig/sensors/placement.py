@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fe.scenarios import ScenarioSpec
-from podkrig.sensors.candidates import current_candidates
+from podkrig.sensors.candidates import current_candidates, user_candidates
 from podkrig.sensors.criteria import (
     CRITERIA,
     UNIFORM_PRIOR_INFORMATION,
@@ -83,6 +83,8 @@ class PlacementResult:
     sensitivity_seconds : float
     specimen : dict
         ``width``, ``height`` (mm) and ``blocks`` ``[[x0, y0, x1, y1], ...]`` for figures.
+    zones : tuple of Zone
+        Forbidden zones (for figures; candidates were filtered by them).
     """
 
     base_spec: ScenarioSpec
@@ -96,6 +98,7 @@ class PlacementResult:
     n_points: int
     sensitivity_seconds: float
     specimen: dict = field(repr=False, default_factory=dict)
+    zones: tuple = ()
 
     def spec(self):
         """The base spec with the chosen sensors (``sensors`` option, name → definition)."""
@@ -140,7 +143,7 @@ def random_layouts(problem, n, rng=0, max_tries=10_000):
 def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=None, criterion="d", fixed=None,
                   n_points=64, seed=0, must_include=(), min_spacing=0.0, include_current=True,
                   methods=METHODS, n_random=20, n_monte_carlo=0, n_truths=1, surrogate_points=None,
-                  prior_information=UNIFORM_PRIOR_INFORMATION, model=None, progress=None):
+                  prior_information=UNIFORM_PRIOR_INFORMATION, forbidden=(), model=None, progress=None):
     """Choose the sensor layout that minimises the expected identification uncertainty.
 
     Parameters
@@ -180,6 +183,9 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
         the criterion's points are reused when equal.
     prior_information : float
         ``1/s_0²`` of the prior information (see :mod:`podkrig.sensors.criteria`).
+    forbidden : sequence of Zone
+        Forbidden zones: current sensors inside or crossing one are scored but never chosen (build
+        the candidates with the same zones).
     model : object, optional
         A batched model of the candidates' readings (see
         :func:`~podkrig.sensors.sensitivity.model_sensitivities`), e.g. a surrogate of snapshots whose
@@ -217,7 +223,10 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     criteria["pod"] = LayoutCriterion(pod_per_candidate(sens, noise)[0], "pod", 1.0)
     crit = criteria[criterion]
     must = candidates.index(must_include) if must_include else ()
-    problem = PlacementProblem(crit, candidates, k=k, budget=budget, must_include=tuple(must), min_spacing=min_spacing)
+    barred = [i for i in np.flatnonzero(candidates.is_current)
+              if not _clear_of(candidates.sensors[i], forbidden, scenario.mesh)]
+    problem = PlacementProblem(crit, candidates, k=k, budget=budget, must_include=tuple(must), min_spacing=min_spacing,
+                               exclude=tuple(barred))
     layout = choose_layout(problem, methods=methods, rng=seed)
     contributions = crit.contributions(layout.indices)
 
@@ -250,7 +259,12 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     mesh = scenario.mesh
     specimen = {"width": float(mesh.width), "height": float(mesh.height), "blocks": mesh.block_bounds.tolist()}
     return PlacementResult(scenario.spec, space, candidates, criterion, noise, layout, contributions,
-                           tuple(scores), n_points, sens.seconds, specimen)
+                           tuple(scores), n_points, sens.seconds, specimen, tuple(forbidden))
+
+
+def _clear_of(sensor, zones, mesh):
+    """True when ``sensor`` is admissible under the forbidden ``zones``."""
+    return user_candidates(mesh, {sensor.name: sensor.to_dict()}, forbidden=zones, strict=False).sensors != ()
 
 
 def _toml_value(v):
