@@ -339,3 +339,19 @@ def test_current_sensor_in_a_forbidden_zone_is_scored_but_not_chosen(scenario, s
     barred = place_sensors(scenario, space, cand, k=3, n_points=8, n_random=0, methods=("greedy",), forbidden=[zone])
     assert "C" not in barred.layout.names and barred.score("current").names == ("C",)
     assert barred.zones == (zone,)
+
+
+def test_two_load_patterns_shear_compression_readings_match():
+    """Shear-compression has two load patterns (pre-compression and shear) combined per load level;
+    candidate readings still equal the FE readings."""
+    sc = build_scenario({"scenario": "shear_compression", "nx": 2, "ny": 1})
+    assert sc.load_coefficients.shape[1] == 2
+    space = ParameterSpace.from_scenario(sc, {"kN_bj": (10, 1000, "log"), "r_hj": (0.1, 1.0)})
+    g = np.arange(20.0, 980.0, 70.0)
+    cand = gauge_grid(sc.mesh, g, g, lengths=(60, 150))
+    cand = cand.subset([0, 5, len(cand) // 2, len(cand) - 1])
+    x = np.array([80.0, 0.6])
+    sens = candidate_sensitivities(sc, space, cand, x[None])
+    ref = build_scenario({"scenario": "shear_compression", "nx": 2, "ny": 1,
+                          "sensors": {c.name: c.to_dict() for c in cand.sensors}}).run(space.as_params(x)).readings
+    np.testing.assert_allclose(sens.readings[0], ref, rtol=1e-10, atol=1e-14)
