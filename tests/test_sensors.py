@@ -355,3 +355,10 @@ def test_two_load_patterns_shear_compression_readings_match():
     ref = build_scenario({"scenario": "shear_compression", "nx": 2, "ny": 1,
                           "sensors": {c.name: c.to_dict() for c in cand.sensors}}).run(space.as_params(x)).readings
     np.testing.assert_allclose(sens.readings[0], ref, rtol=1e-10, atol=1e-14)
+
+
+def test_budget_through_place_sensors_prices_current_sensors_like_candidates(scenario, space):
+    cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(80, 160), cost=2.5)
+    result = place_sensors(scenario, space, cand, budget=8.0, n_points=8, n_random=2, methods=("greedy",))
+    assert result.candidates.cost[result.candidates.is_current].tolist() == [2.5]
+    assert len(result.layout.indices) == 3 and result.candidates.cost[result.layout.indices].sum() <= 8.0

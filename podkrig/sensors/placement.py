@@ -169,7 +169,8 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     min_spacing : float
         Smallest distance between chosen sensor centres, mm.
     include_current : bool
-        Append the scenario's current sensors as candidates (choosable) and score the current layout.
+        Append the scenario's current sensors as candidates (choosable; each costs the mean cost of
+        the candidates of its kind, else 1) and score the current layout.
     methods : sequence of str
         Search starts (see :func:`podkrig.sensors.search.choose_layout`).
     n_random : int
@@ -208,7 +209,12 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
         clash = [n for n in current_names if n in taken]
         if clash:
             raise ValueError(f"candidate names {clash} clash with the scenario's current sensors; rename them")
-        candidates = candidates + current_candidates(scenario, cost=1.0)
+        current = current_candidates(scenario)
+        for kind in set(current.kinds):  # the current sensors cost what the candidates of their kind cost
+            same = [c for c, k in zip(candidates.cost, candidates.kinds) if k == kind]
+            if same:
+                current = current.with_cost(kind, float(np.mean(same)))
+        candidates = candidates + current
 
     def stage(name):
         return None if progress is None else (lambda done, total: progress(name, done, total))
