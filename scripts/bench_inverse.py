@@ -189,7 +189,7 @@ def under_load(args):
     from podkrig import parallel
     from podkrig.cli.invert import build_problem
     from podkrig.online.invert import invert
-    from podkrig.online.uncertainty import likelihood_ratio_region
+    from podkrig.online.region import likelihood_ratio_region
 
     problem, model, _ = build_problem(args.surrogate, args.data, [], args.noise_rel, None, [], [])
     with parallel.one_blas_thread():  # warm-up: numba compilation of both entry points

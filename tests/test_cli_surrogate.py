@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from podkrig.cli import app
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.store import SnapshotStore
-from podkrig.online.inverse import SurrogateModel
+from podkrig.online.problem import SurrogateModel
 from podkrig.parameters import ParameterSpace
 from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data

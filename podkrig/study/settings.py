@@ -257,7 +257,7 @@ class MeasurementSettings:
 
 @_settings
 class InversionSettings:
-    """GA inversion and region of equivalence settings (see :func:`podkrig.online.inverse.invert`)."""
+    """GA inversion and region of equivalence settings (see :func:`podkrig.online.invert.invert`)."""
 
     seed: Seed = 0
     population_size: Annotated[StrictInt, _allowed("an integer >= 4", ge=4)] = 100
