@@ -8,7 +8,7 @@ from scipy.optimize import approx_fprime
 
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import OrdinaryKriging, semivariogram
-from podkrig.surrogate.kriging.ordinary import _Objective, _Pairs
+from podkrig.surrogate.kriging.system import Objective, Pairs
 
 
 def _f(X):
@@ -45,7 +45,7 @@ def test_analytic_gradient_matches_finite_differences(data, kind, criterion, bet
     i, j = np.triu_indices(n, 1)
     A = np.abs(X[i] - X[j])
     logA = np.log(A)
-    obj = _Objective(_Pairs(n, (i, j), A, logA, {}), Y[:, 0], kind, 0.0, criterion, beta)
+    obj = Objective(Pairs(n, (i, j), A, logA, {}), Y[:, 0], kind, 0.0, criterion, beta)
     p = np.log([0.4, 0.7, 1.3])
     if beta is None:
         p = np.append(p, 1.3)

@@ -9,7 +9,7 @@ independently; they share the training points and the batched prediction kernel.
 Example
 -------
 >>> import numpy as np
->>> from podkrig.kriging import OrdinaryKriging
+>>> from podkrig.surrogate.kriging import OrdinaryKriging
 >>> rng = np.random.default_rng(0)
 >>> X = rng.random((30, 2))
 >>> Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1], X[:, 0] * X[:, 1]])
@@ -24,13 +24,14 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack, solve_triangular
+from scipy.linalg import solve_triangular
 from scipy.optimize import minimize
 from scipy.spatial.distance import pdist
 
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import _kernels
+from podkrig.surrogate.kriging.system import FAIL, Objective, Pairs, SingularSystemError
 from podkrig.surrogate.kriging.variogram import (
     BETA_FIT_BOUNDS,
     EXPONENTIAL,
@@ -42,48 +43,7 @@ logger = logging.getLogger(__name__)
 
 DEFAULT_BETA = "fit-shared"  # why: see the ``beta`` parameter of OrdinaryKriging
 CRITERIA = ("ml", "loo")
-RCOND_MIN = 1e-12  # smallest admissible reciprocal condition number of the kriging matrix
-_FAIL = 1e10  # objective value returned where the (generalised) covariance matrix is singular
 
-
-
-class SingularSystemError(ValueError):
-    """Internal: a factorisation failed at some hyperparameters (caught by the optimiser)."""
-
-
-@dataclass
-class _Pairs:
-    """Pairwise data of the training points shared by every output: ``i < j`` pairs only."""
-
-    n: int
-    iu: tuple
-    A: np.ndarray  # (n_pairs, d) |x_i - x_j| per dimension
-    logA: np.ndarray | None = None  # (n_pairs, d) log|x_i - x_j|, 0 where the difference is 0
-    powers: dict | None = None  # beta -> (n_pairs, d) |x_i - x_j| ** beta
-
-    def power(self, beta):
-        if beta not in self.powers:
-            if len(self.powers) > 8:
-                self.powers.clear()
-            self.powers[beta] = _kernels.abs_power(self.A, beta)
-        return self.powers[beta]
-
-
-@dataclass
-class _State:
-    """Factorised kriging system of one output at given hyperparameters."""
-
-    L: np.ndarray  # Cholesky factor: of R (exponential) or of Z^T K Z (power)
-    Q: np.ndarray  # (n, n) projected precision, bordered-system inverse block
-    Kinv_like: np.ndarray  # R^-1 (exponential) or Q (power): d log det / dK
-    alpha: np.ndarray  # Q y
-    mu: float
-    sigma2: float
-    logdet: float
-    m: int  # degrees of freedom of sigma2: n (exponential) or n - 1 (power)
-    q1: np.ndarray
-    c0: float
-    K: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,148 +115,6 @@ class KrigingHyperparameters:
         return cls(d["variogram"], d["nugget"], d["ranges"], d["beta"], d["mu"], d["sigma2"])
 
 
-def _symmetrize_lower(M):
-    """Full symmetric matrix from the lower triangle of ``M`` (LAPACK ``potri`` output)."""
-    iu = np.triu_indices(M.shape[0], 1)
-    M[iu] = M.T[iu]
-    return M
-
-
-def _check_rcond(L, anorm, what):
-    """Treat a numerically singular matrix (1-norm reciprocal condition < RCOND_MIN) as singular.
-
-    Without this guard the likelihood, evaluated through a Cholesky factor that barely exists,
-    is dominated by rounding and the optimiser walks to ranges whose weights are noise.
-    """
-    rcond, info = lapack.dpocon(L, anorm, uplo="L")
-    if info != 0 or not rcond > RCOND_MIN:
-        raise SingularSystemError(f"{what} ill-conditioned (reciprocal condition number {rcond:.2g})")
-
-
-def _factor(Svals, pairs, kind, nugget, y):
-    """Build, factorise and solve the kriging system for reduced distances ``Svals`` on the pairs.
-
-    Notes
-    -----
-    With the bordered matrix :math:`M = [[K, 1], [1^T, 0]]` of ordinary kriging, the block
-    :math:`Q` of :math:`M^{-1}` is :math:`Z (Z^T K Z)^{-1} Z^T` for any orthonormal basis :math:`Z`
-    of :math:`1^\\perp`; for a positive definite :math:`K = R` it equals
-    :math:`R^{-1} - R^{-1} 1 1^T R^{-1} / (1^T R^{-1} 1)`. The exponential family uses the Cholesky
-    factor of :math:`R`; the power model (only conditionally positive definite) that of
-    :math:`Z^T K Z`, with :math:`Z` from a Householder reflection.
-    """
-    n = pairs.n
-    i, j = pairs.iu
-    K = np.empty((n, n))
-    off = np.exp(-Svals) if kind == EXPONENTIAL else -Svals
-    K[i, j] = off
-    K[j, i] = off
-    if kind == EXPONENTIAL:
-        # (10 + n) eps on the diagonal as in DACE: rounding-level regularisation only
-        np.fill_diagonal(K, 1.0 + nugget + (10 + n) * np.finfo(float).eps)
-        L, info = lapack.dpotrf(K, lower=1, clean=1)
-        if info != 0:
-            raise SingularSystemError(f"correlation matrix not positive definite (pivot {info})")
-        _check_rcond(L, np.abs(K).sum(axis=0).max(), "correlation matrix")
-        Rinv, info = lapack.dpotri(L, lower=1)
-        if info != 0:
-            raise SingularSystemError(f"correlation matrix singular (pivot {info})")
-        Rinv = _symmetrize_lower(Rinv)
-        r1 = Rinv.sum(axis=1)
-        s = r1.sum()
-        if not s > 0:
-            raise SingularSystemError("1^T R^-1 1 <= 0: correlation matrix numerically singular")
-        Q = Rinv - np.outer(r1, r1) / s
-        q1 = r1 / s  # 1/n - Q K 1/n, simplified
-        c0 = 1.0 / s
-        Kinv_like, m = Rinv, n
-    else:
-        scale = np.abs(off).max() if off.size else 1.0
-        np.fill_diagonal(K, nugget + (10 + n) * np.finfo(float).eps * scale)
-        v = np.ones(n)
-        v[0] += np.sqrt(n)
-        c = 2.0 / (v @ v)
-        Kv = K @ v
-        HKH = K - c * np.outer(v, Kv) - c * np.outer(Kv, v) + c * c * (v @ Kv) * np.outer(v, v)
-        L, info = lapack.dpotrf(HKH[1:, 1:], lower=1, clean=1)
-        if info != 0:
-            raise SingularSystemError(f"projected variogram matrix not positive definite (pivot {info})")
-        _check_rcond(L, np.abs(HKH[1:, 1:]).sum(axis=0).max(), "projected variogram matrix")
-        Ainv, info = lapack.dpotri(L, lower=1)
-        if info != 0:
-            raise SingularSystemError(f"projected variogram matrix singular (pivot {info})")
-        B = np.zeros((n, n))
-        B[1:, 1:] = _symmetrize_lower(Ainv)
-        HB = B - c * np.outer(v, v @ B)
-        Q = HB - c * np.outer(HB @ v, v)
-        Q = 0.5 * (Q + Q.T)
-        b = K.sum(axis=1) / n
-        q1 = 1.0 / n - Q @ b
-        c0 = float(b @ q1)
-        Kinv_like, m = Q, n - 1
-    alpha = Q @ y
-    mu = float(np.mean(y - K @ alpha))
-    sigma2 = max(float(y @ alpha), 0.0) / m
-    logdet = 2.0 * float(np.sum(np.log(np.diag(L))))
-    return _State(L, Q, Kinv_like, alpha, mu, sigma2, logdet, m, q1, c0, K)
-
-
-class _Objective:
-    """Criterion and its analytic gradient for one output over ``params = [log a_1..log a_d, (beta)]``."""
-
-    def __init__(self, pairs, y, kind, nugget, criterion, beta):
-        self.pairs, self.y, self.kind, self.nugget = pairs, y, kind, nugget
-        self.criterion, self.beta = criterion, beta  # beta: float, or None when fitted
-        self.yscale = max(float(np.sum((y - y.mean()) ** 2)), np.finfo(float).tiny)
-
-    def split(self, params):
-        d = self.pairs.A.shape[1]
-        psi = params[:d]
-        beta = self.beta if self.beta is not None else float(params[d])
-        return psi, beta
-
-    def state(self, params):
-        psi, beta = self.split(params)
-        theta = np.exp(-beta * psi)
-        P = self.pairs.power(beta) if self.beta is not None else _kernels.abs_power(self.pairs.A, beta)
-        return _factor(P @ theta, self.pairs, self.kind, self.nugget, self.y), P, theta, psi, beta
-
-    def value(self, st):
-        if self.criterion == "ml":
-            # concentrated likelihood (Sacks et al. 1989): -2 log L = m log sigma2 + log det + const
-            return st.m * np.log(max(st.sigma2, 1e-300)) + st.logdet
-        e = st.alpha / np.diag(st.Q)  # Dubrule (1983): LOO residuals y_i - yhat_{-i}(x_i)
-        return float(e @ e) / self.yscale
-
-    def __call__(self, params):
-        try:
-            st, P, theta, psi, beta = self.state(params)
-        except SingularSystemError:
-            return _FAIL, np.zeros_like(params)
-        f = self.value(st)
-        # dF = sum_ij G_ij dK_ij for symmetric dK
-        if self.criterion == "ml":
-            G = st.Kinv_like - np.outer(st.alpha, st.alpha) / max(st.sigma2, 1e-300)
-        else:
-            dq = np.diag(st.Q)
-            e = st.alpha / dq
-            v, w = e / dq, e * e / dq
-            Qv = st.Q @ v
-            G = 2.0 * (st.Q * w) @ st.Q - np.outer(Qv, st.alpha) - np.outer(st.alpha, Qv)
-            G /= self.yscale
-        i, j = self.pairs.iu
-        H = 2.0 * G[i, j]  # two symmetric entries per pair
-        if self.kind == EXPONENTIAL:
-            H = H * st.K[i, j]  # dK/dS = -R (exponential); -1 (power)
-        # dS/dpsi_k = -beta theta_k P_k  ->  dK/dpsi_k = +beta theta_k P_k (times R for exponential)
-        g_psi = beta * theta * (H @ P)
-        if self.beta is not None:
-            return f, g_psi
-        # dS/dbeta = sum_k theta_k P_k (log|dx_k| - psi_k)
-        g_beta = -float(H @ ((P * (self.pairs.logA - psi)) @ theta))
-        return f, np.append(g_psi, g_beta)
-
-
 class OrdinaryKriging:
     """Ordinary kriging with exponential-family or power semivariograms, one fit per output.
 
@@ -356,7 +174,7 @@ class OrdinaryKriging:
         Kriging weights :math:`Q y`.
     L_ : ndarray of shape (n_outputs, m, m)
         Lower Cholesky factors (``m = n_samples`` for the exponential family, ``n_samples - 1`` for
-        the power model, see ``_factor``).
+        the power model, see ``factor``).
     Q_ : ndarray of shape (n_outputs, n_samples, n_samples)
         Projected precision (block of the inverse bordered kriging matrix), used for variances.
     loo_residuals_ : ndarray of shape (n_samples, n_outputs)
@@ -517,7 +335,7 @@ class OrdinaryKriging:
         if beta is None:
             with np.errstate(divide="ignore"):
                 logA = np.where(A > 0, np.log(np.where(A > 0, A, 1.0)), 0.0)
-        pairs = _Pairs(n, (i, j), A, logA, {})
+        pairs = Pairs(n, (i, j), A, logA, {})
         rng = np.random.default_rng(self.random_state)
         fit_beta = beta is None
         bfit_lo, bfit_hi = BETA_FIT_BOUNDS[self.variogram]
@@ -544,7 +362,7 @@ class OrdinaryKriging:
                 # "fit-shared": the exponent of the first (dominant) output serves every output
                 beta, fit_beta, bounds = float(betas[0]), False, bounds[:d]
                 previous = None if previous is None else previous[:d]
-            obj = _Objective(pairs, y, kind, float(self.nugget), self.criterion, beta)
+            obj = Objective(pairs, y, kind, float(self.nugget), self.criterion, beta)
             start = np.log(np.clip(ranges0[col], lo, hi))
             if fit_beta:
                 start = np.append(start, beta0)
@@ -565,7 +383,7 @@ class OrdinaryKriging:
                     res = minimize(obj, s, jac=True, method="L-BFGS-B", bounds=bounds,
                                    options={"maxiter": 200})
                     self.n_evaluations_[col] += res.nfev
-                    if res.fun < _FAIL and (best is None or res.fun < best.fun):
+                    if res.fun < FAIL and (best is None or res.fun < best.fun):
                         best = res
                 if best is None:
                     raise self._singular(X, col, start, d, None)
@@ -574,7 +392,7 @@ class OrdinaryKriging:
                     # L-BFGS-B stops just short of an active upper bound: polish the ranges at the
                     # bound and keep it unless clearly worse (0.01 in -2 log L, or 0.1 % of the LOO
                     # error); an exact 2.0 also uses the fast kernel path
-                    fixed = _Objective(pairs, y, kind, float(self.nugget), self.criterion, bfit_hi)
+                    fixed = Objective(pairs, y, kind, float(self.nugget), self.criterion, bfit_hi)
                     res = minimize(fixed, params[:-1], jac=True, method="L-BFGS-B", bounds=bounds[:-1],
                                    options={"maxiter": 50})
                     self.n_evaluations_[col] += res.nfev
