@@ -636,3 +636,39 @@ class Phase3Check:
 
     def to_dict(self):
         return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in dataclasses.asdict(self).items()}
+
+
+def homogeneous_slot_spec(size_factor, nx=4, ny=2, slot_length=260.0, spacing=None, gauge_offsets=(32.5, 97.5, 162.5, 292.5), x0=0.0):
+    """Spec of a verification panel (reference §5.10 items 1, 2, 4): stiff joints (kN = kV = 10⁷
+    N/mm³, the homogeneous limit), E_b = 4000 MPa, ν = 0.2, Km = 1, σ0 = 0, one horizontal slot of
+    ``slot_length`` (mm) at the panel centre, or two (``spacing`` mm apart, a multiple of the
+    course height, centred), in a square-ish panel ``size_factor`` × the slot length wide and high,
+    refined around the slots; one step with 1 MPa in every jack.
+
+    Gauges ``P{k}`` are vertical pin pairs at ``x = centre + x0 + 1`` mm (1 mm off the head-joint
+    line through the centre) and heights ``±gauge_offsets[k]`` about the slot (single slot) or
+    about the mid-line between the slots (two slots), mm.
+    """
+    H, L = 65.0, 260.0
+    units = float(np.ceil(size_factor * slot_length / L))
+    courses = int(np.ceil(size_factor * slot_length / H))
+    courses += courses % 2
+    xc, yc = round(units * L / 2 / 130.0) * 130.0, (courses // 2) * H
+    a = slot_length / 2
+    if spacing is None:
+        slots = [{"name": "H", "orientation": "horizontal", "at": yc, "start": xc - a, "end": xc + a}]
+        half = 2 * H
+    else:
+        s = spacing / 2
+        slots = [{"name": n, "orientation": "horizontal", "at": yc + d, "start": xc - a, "end": xc + a}
+                 for n, d in (("H", -s), ("H2", s))]
+        half = s + 2 * H
+    sensors = {f"P{k}": {"kind": "gauge", "p1": [xc + x0 + 1.0, yc - y], "p2": [xc + x0 + 1.0, yc + y]}
+               for k, y in enumerate(gauge_offsets)}
+    return {
+        "scenario": "flat_jack", "units_per_course": units, "n_courses": courses, "nx": nx, "ny": ny,
+        "refine": [xc - 2 * a, xc + 2 * a, yc - half - 2 * H, yc + half + 2 * H], "slots": slots,
+        "schedule": [{"name": "1", "steps": [{sl["name"]: 1.0 for sl in slots}]}], "layout": "none",
+        "sensors": sensors,
+        "parameters": {"E_b": 4000.0, "nu_b": 0.2, "kN_bj": 1e7, "kV_bj": 1e7, "r_hj": 1.0, "Km": 1.0, "sigma0": 0.0},
+    }
