@@ -75,6 +75,7 @@ from ..exceptions import MeshError, SpecError
 from ..loads import edge_traction
 from ..materials import D0, D1, plane_stress_coefficients
 from ..mesh import BrickWallLayout
+from ..mesh.ring import add_ring
 from ..model import LinearModel
 from ..response import Response
 from ..sensors import DICGrid, Gauge, SlipGauge, sensor_from_dict
@@ -89,6 +90,30 @@ FLAT_JACK_PARAMETERS = tuple(
     ParameterInfo("Km", 0.85, "-", 0.0, 1.5, "jack efficiency: effective / gauge pressure (calibration)", lower_open=True),
     ParameterInfo("sigma0", 0.30, "MPa", 0.0, 20.0, "in-situ vertical pre-compression (magnitude)"),
 )
+
+#: the orthotropic plane-stress matrix as Σ c_k D_k: coefficients (D11, D22, D12, D33)
+RING_PARTS = {
+    "ring_D11": np.diag([1.0, 0.0, 0.0]),
+    "ring_D22": np.diag([0.0, 1.0, 0.0]),
+    "ring_D12": np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 0.0]]),
+    "ring_D33": np.diag([0.0, 0.0, 1.0]),
+}
+
+
+def ring_moduli(values, unit_height, unit_length):
+    """Coefficients ``(D11, D22, D12, D33)`` (MPa) of the ring's homogenised orthotropic material
+    (reference §2.5, INFERRED): ``1/E_y = 1/E_b + 1/(h kN)`` (series across bed joints),
+    ``1/E_x = 1/E_b + 1/(l r kN)`` (a lower bound for running bond), ``1/G = 1/G_b + 1/(h kV)``,
+    ``ν_xy = ν_b``, ``ν_yx = ν_xy E_y/E_x``; plane stress. The same moduli as
+    :func:`podkrig.analytical.flat_jack.homogenised_moduli`."""
+    Eb, nu = values["E_b"], values["nu_b"]
+    Ey = 1.0 / (1.0 / Eb + 1.0 / (unit_height * values["kN_bj"]))
+    Ex = 1.0 / (1.0 / Eb + 1.0 / (unit_length * values["r_hj"] * values["kN_bj"]))
+    G = 1.0 / (2.0 * (1.0 + nu) / Eb + 1.0 / (unit_height * values["kV_bj"]))
+    nu_yx = nu * Ey / Ex
+    c = 1.0 / (1.0 - nu * nu_yx)
+    return c * Ex, c * Ey, c * nu * Ey, G
+
 
 # --- §5 geometry ---------------------------------------------------------------------------------
 
@@ -238,7 +263,11 @@ class FlatJackOptions:
     ``frp`` stiffens the units at the ends of the vertical slots (x = at ± 130 mm, one course
     beyond each end) by a bonded fabric of in-plane stiffness ``frp_stiffness`` (N/mm, E_f × total
     fabric thickness over both faces; default one 0.17 mm CFRP ply of 230 GPa per face, INFERRED)
-    smeared over the wall thickness.
+    smeared over the wall thickness. ``ring_width > 0`` surrounds the panel's sides and top with a
+    homogenised elastic ring of that width (mm; reference §5.1 suggests 1000), ``ring_layers``
+    elements across, graded (see :mod:`fe.mesh.ring`), of the orthotropic material of reference
+    §2.5: ``1/E_y = 1/E_b + 1/(h kN)``, ``1/E_x = 1/E_b + 1/(l r kN)``, ``1/G = 1/G_b + 1/(h kV)``,
+    ``ν_xy = ν_b`` (INFERRED); σ0 then acts on the ring's top.
     """
 
     preset: str = "chisari"
@@ -262,6 +291,8 @@ class FlatJackOptions:
     release: str = "nominal"
     frp: bool = False
     frp_stiffness: float = 2 * 230000.0 * 0.17
+    ring_width: float = 0.0
+    ring_layers: int = 6
 
     def __post_init__(self):
         if self.preset not in PRESETS:
@@ -274,6 +305,8 @@ class FlatJackOptions:
             raise ValueError(f"thickness must be > 0 mm; got {self.thickness}")
         if not self.frp_stiffness >= 0:
             raise ValueError(f"frp_stiffness must be >= 0 N/mm; got {self.frp_stiffness}")
+        if not self.ring_width >= 0 or self.ring_layers < 1:
+            raise ValueError(f"ring_width must be >= 0 mm and ring_layers >= 1; got {self.ring_width}, {self.ring_layers}")
         if self.layout.startswith(("L6", "L18", "DIC")) and self.preset != "chisari" and self.slots is None:
             raise ValueError(f"layout {self.layout!r} belongs to the chisari preset; use layout = 'standard' for {self.preset!r}")
 
@@ -301,20 +334,30 @@ class FlatJack(Scenario):
         for idx in self.slot_interfaces.values():
             cut[idx] = True
         self._cut = cut
+        ties = []
+        self._ring_quads = np.zeros(len(mesh.quads), bool)
+        if o.ring_width > 0:
+            self.mesh, self._ring_quads, ties = add_ring(mesh, o.ring_width, o.ring_layers)
+            mesh = self.mesh
         self._frp_quads = self._frp_quads_mask(mesh)
         bottom = mesh.node_sets["bottom"]
         # u_x = 0 at the bottom node(s) closest to the middle: both faces of a head joint there,
-        # so that the support is symmetric about x = W/2
-        dist = np.abs(mesh.nodes[bottom, 0] - 0.5 * mesh.width)
+        # so that the support is symmetric about the panel's centre line
+        x = mesh.nodes[bottom, 0]
+        dist = np.abs(x - 0.5 * (mesh.nodes[:, 0].min() + mesh.nodes[:, 0].max()))
         pin = bottom[dist <= dist.min() + 1e-9]
         fixed = np.concatenate([2 * bottom + 1, 2 * pin])
-        self.supported_nodes, self.tie_groups = pin, []
+        # ring–wall ties in x and y; a y tie on the supported bottom line is already fixed
+        self.tie_groups = [2 * g for g in ties] + [2 * g + 1 for g in ties if mesh.nodes[g[0], 1] > 1e-9]
+        self.supported_nodes = pin  # held in x (and y); the other bottom nodes are held in y only
         self.sensors = self._sensors()
         patterns = np.column_stack([self._release_pattern()] + [self._jack_pattern(s) for s in self.slots]
                                    + [self._top_pattern()])
-        self.model = LinearModel(mesh, self._parts(mesh), constraint_transform(mesh.n_dofs, fixed), patterns,
-                                 self.sensors, solver=self._solver_name)
+        transform = constraint_transform(mesh.n_dofs, fixed, ties=self.tie_groups)
+        self.model = LinearModel(mesh, self._parts(mesh), transform, patterns, self.sensors, solver=self._solver_name)
         self._n_jack_patterns = 1 + len(self.slots)  # release + jacks; the last column is σ0 on the top
+        # the step multipliers of the patterns at the default σ0 and Km, for code that combines the
+        # model's pattern readings itself (they depend on σ0 and Km: use step_coefficients(values))
         self.load_coefficients = np.hstack([self.step_coefficients(self.resolve()), np.zeros((len(self.steps), 1))])
 
     # --- geometry -------------------------------------------------------------------------------
@@ -435,11 +478,16 @@ class FlatJack(Scenario):
         o = self.options
         quad = QUADS[mesh.element]
         parts = []
-        for prefix, mask in (("units", ~self._frp_quads), ("frp_units", self._frp_quads)):
+        wall = ~self._ring_quads
+        for prefix, mask in (("units", wall & ~self._frp_quads), ("frp_units", self._frp_quads)):
             conn = mesh.quads[mask]
             coords, qdofs = mesh.nodes[conn], element_dofs(conn)
             parts.append(StiffnessPart(f"{prefix}_D0", qdofs, quad.stiffness(coords, D0, o.thickness)))
             parts.append(StiffnessPart(f"{prefix}_D1", qdofs, quad.stiffness(coords, D1, o.thickness)))
+        conn = mesh.quads[self._ring_quads]
+        coords, qdofs = mesh.nodes[conn], element_dofs(conn)
+        for name, D in RING_PARTS.items():
+            parts.append(StiffnessPart(name, qdofs, quad.stiffness(coords, D, o.thickness)))
         iface = IL6 if mesh.element == "Q8" else IL4
         for state, mask in (("", ~self._cut), ("slot_", self._cut)):
             for kind in ("bed", "head", "brick"):
@@ -450,13 +498,15 @@ class FlatJack(Scenario):
         return parts
 
     def theta(self, values, cut=True):
-        """Coefficients of the stiffness parts, ``(16,)``: after the cut (default) the slot
+        """Coefficients of the stiffness parts, ``(20,)``: units, FRP units, ring (see
+        :func:`ring_moduli`), kept joints, slot joints. After the cut (default) the slot
         interfaces carry nothing; ``cut=False`` gives the pre-cut panel."""
         c0, c1 = plane_stress_coefficients(values["E_b"], values["nu_b"])
         f0, f1 = plane_stress_coefficients(values["E_b"] + self.options.frp_stiffness / self.options.thickness, values["nu_b"])
+        ring = ring_moduli(values, self.options.unit_height, self.options.unit_length)
         r = values["r_hj"]
         joints = [values["kN_bj"], values["kV_bj"], r * values["kN_bj"], r * values["kV_bj"], values["kN_bb"], values["kV_bb"]]
-        return np.array([c0, c1, f0, f1] + joints + ([0.0] * 6 if cut else joints))
+        return np.array([c0, c1, f0, f1, *ring] + joints + ([0.0] * 6 if cut else joints))
 
     def _face_loads(self, slot, traction_b, interval):
         """Nodal forces (N) of a uniform traction ``traction_b`` (MPa, vector) on face B of the

@@ -25,7 +25,8 @@ def _joints(ax, mesh, colour="#bbb", lw=0.4):
     from matplotlib.collections import LineCollection  # matplotlib is imported lazily via pyplot()
 
     ax.add_collection(LineCollection(np.concatenate(segs), colors=colour, linewidths=lw, zorder=1))
-    ax.plot([0, mesh.width, mesh.width, 0, 0], [0, 0, mesh.height, mesh.height, 0], color="#444", lw=1.0, zorder=1)
+    (x0, y0), (x1, y1) = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
+    ax.plot([x0, x1, x1, x0, x0], [y0, y0, y1, y1, y0], color="#444", lw=1.0, zorder=1)
 
 
 def _sensors(ax, scenario, fontsize=6):
@@ -94,9 +95,10 @@ def plot_setup(scenario, path):
             ax.set_title("test region")
             ax.legend(fontsize=7, loc="upper right")
         else:
-            ax.set_xlim(-20, mesh.width + 20)
-            ax.set_ylim(-20, mesh.height + 20)
-            ax.set_title(f"{scenario.name}: {mesh.width:g} × {mesh.height:g} mm")
+            (x0, y0), (x1, y1) = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
+            ax.set_xlim(x0 - 20, x1 + 20)
+            ax.set_ylim(y0 - 20, y1 + 20)
+            ax.set_title(f"{scenario.name}: {x1 - x0:g} × {y1 - y0:g} mm")
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
