@@ -24,7 +24,11 @@ from threadpoolctl import threadpool_limits
 
 from fe.scenarios import build_scenario
 from podkrig.analytical.flat_jack import (
-    Slot, elliptical_hole_field, slot_opening_axis, slot_stress_axis, solve_slots,
+    Slot,
+    elliptical_hole_field,
+    slot_opening_axis,
+    slot_stress_axis,
+    solve_slots,
 )
 
 
@@ -67,25 +71,29 @@ def fe(repeat):
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     rng = np.random.default_rng(1)
     for layout, release in (("L18", "nominal"), ("DIC", "nominal"), ("L18", "exact")):
-        t0 = time.perf_counter()
-        sc = build_scenario({"scenario": "flat_jack", "layout": layout, "release": release})
-        sc.run()
-        setup = time.perf_counter() - t0
-        samples = iter(rng.uniform([6000, 30, 15, 0.3, 0.8], [14000, 150, 80, 1.0, 0.9], (10 * repeat + 10, 5)))
+        _fe_case(layout, release, repeat, rng)
 
-        def params():
-            E, kN, kV, r, km = next(samples)
-            return {"E_b": E, "kN_bj": kN, "kV_bj": kV, "r_hj": r, "Km": km}
 
-        values = sc.resolve(params())
-        theta = sc.theta(values)
-        t_sum = best_of(lambda: sc.model.stiffness.values(theta), repeat)[0]
-        t_solve = best_of(lambda: sc.pattern_solution(values), repeat)[0]
-        q = sc.pattern_solution(values)
-        t_read = best_of(lambda: sc.step_coefficients(values) @ sc.model.readings(q), repeat)[0]
-        b, m = best_of(lambda: sc.run(params()), repeat)
-        n_ch = len(sc.sensor_names)
-        print(f"| chisari | {layout} | {release} | {sc.n_dofs} | {len(sc.steps)} × {n_ch} | {setup:.1f} | {t_sum:.2f} | {t_solve:.1f} | {t_read:.2f} | **{b:.1f}** | {m:.1f} |")
+def _fe_case(layout, release, repeat, rng):
+    t0 = time.perf_counter()
+    sc = build_scenario({"scenario": "flat_jack", "layout": layout, "release": release})
+    sc.run()
+    setup = time.perf_counter() - t0
+    samples = iter(rng.uniform([6000, 30, 15, 0.3, 0.8], [14000, 150, 80, 1.0, 0.9], (10 * repeat + 10, 5)))
+
+    def params():
+        E, kN, kV, r, km = next(samples)
+        return {"E_b": E, "kN_bj": kN, "kV_bj": kV, "r_hj": r, "Km": km}
+
+    values = sc.resolve(params())
+    theta = sc.theta(values)
+    t_sum = best_of(lambda: sc.model.stiffness.values(theta), repeat)[0]
+    t_solve = best_of(lambda: sc.pattern_solution(values), repeat)[0]
+    q = sc.pattern_solution(values)
+    t_read = best_of(lambda: sc.step_coefficients(values) @ sc.model.readings(q), repeat)[0]
+    b, m = best_of(lambda: sc.run(params()), repeat)
+    n_ch = len(sc.sensor_names)
+    print(f"| chisari | {layout} | {release} | {sc.n_dofs} | {len(sc.steps)} × {n_ch} | {setup:.1f} | {t_sum:.2f} | {t_solve:.1f} | {t_read:.2f} | **{b:.1f}** | {m:.1f} |", flush=True)
 
 
 def main():

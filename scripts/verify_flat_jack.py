@@ -21,7 +21,12 @@ import numpy as np
 
 from fe.scenarios import build_scenario
 from fe.scenarios.flat_jack import homogeneous_slot_spec
-from podkrig.analytical.flat_jack import Slot, elliptical_hole_field, sliding_pressure_difference, solve_slots
+from podkrig.analytical.flat_jack import (
+    Slot,
+    elliptical_hole_field,
+    sliding_pressure_difference,
+    solve_slots,
+)
 
 E, NU = 4000.0, 0.2
 OFFSETS = (32.5, 97.5, 162.5, 292.5)

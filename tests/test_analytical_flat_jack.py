@@ -17,13 +17,13 @@ from podkrig.analytical.flat_jack import (
     insitu_stress,
     jack_efficiency,
     shear_lag_opening,
+    sliding_pressure_difference,
     slot_cod,
     slot_opening_axis,
     slot_pin_change,
     slot_stress_ahead,
     slot_stress_axis,
     slot_stress_intensity,
-    sliding_pressure_difference,
     solve_slots,
 )
 
@@ -92,7 +92,7 @@ def test_far_field_and_nan_inside():
 def test_superposition_and_symmetry():
     rng = np.random.default_rng(0)
     x, y = rng.uniform(3, 9, 50) * rng.choice([-1, 1], 50), rng.uniform(2, 9, 50) * rng.choice([-1, 1], 50)
-    kw = dict(E=4000.0, nu=0.2)
+    kw = {"E": 4000.0, "nu": 0.2}
     parts = [elliptical_hole_field(x, y, 3.0, 1.0, **{k: v}, **kw) for k, v in (("sx", 0.2), ("sy", -0.9), ("p", 0.6))]
     whole = elliptical_hole_field(x, y, 3.0, 1.0, sx=0.2, sy=-0.9, p=0.6, **kw)
     for name in ("sxx", "syy", "sxy", "ux", "uy"):
@@ -126,7 +126,7 @@ def _axes_closed_forms(t, m, p=0.0, S_y=0.0, S_x=0.0):
 @pytest.mark.parametrize("a,b", [(2.0, 1.0), (5.0, 0.5), (3.0, 3.0)])
 def test_axis_closed_forms(a, b):
     R, m = (a + b) / 2, (a - b) / (a + b)
-    loads = dict(p=0.7, S_y=-1.1, S_x=0.25)
+    loads = {"p": 0.7, "S_y": -1.1, "S_x": 0.25}
     y = np.linspace(b * 1.001, 8 * a, 40)
     eta = (y / R + np.sqrt((y / R) ** 2 + 4 * m)) / 2
     x = np.linspace(a * 1.001, 8 * a, 40)

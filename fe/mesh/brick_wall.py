@@ -12,6 +12,7 @@ Example
 (520.0, 130.0)
 """
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -139,7 +140,7 @@ class BrickWallLayout:
             Two lines closer than a tenth of the regular spacing (a sliver element).
         """
         h = self.unit_length / self.nx
-        n = int(round(self.width / h))
+        n = round(self.width / h)
         lines = [np.arange(n + 1) * h, np.array(self.x_lines), np.array([c[0] for c in self.cuts])]
         if self.refine:
             x0, x1 = self.refine[:2]
@@ -223,7 +224,7 @@ def brick_wall(layout=BrickWallLayout()):
             full = abs((ux1 - ux0) - L) < 1e-9
             splits = [ux0, 0.5 * (ux0 + ux1), ux1] if full and layout.brick_interfaces else [ux0, ux1]
             splits = sorted(set(np.round(splits + [x for x in cuts if ux0 + 1e-9 < x < ux1 - 1e-9], _ROUND)))
-            for bx0, bx1 in zip(splits[:-1], splits[1:]):
+            for bx0, bx1 in itertools.pairwise(splits):
                 xs = lines[(lines >= bx0 - 1e-9) & (lines <= bx1 + 1e-9)]
                 xy, q, index = _block_grid(xs, ys, quadratic)
                 block = len(bounds)
@@ -288,7 +289,7 @@ def _match_interfaces(edges, block_unit, quadratic):
             continue  # an outer boundary edge
         if len(group) != 2:
             raise MeshError(f"{len(group)} block edges coincide at {key[1:]}; expected 2")
-        (b1, s1, *e1), (b2, s2, *e2) = group
+        (b1, s1, *e1), (b2, _s2, *e2) = group
         horizontal = key[0]
         # face A is below (horizontal joints) or left (vertical joints); A's tangent is +x for
         # horizontal joints and -y for vertical ones, so the normal (-s_y, s_x) points A -> B.

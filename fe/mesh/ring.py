@@ -72,7 +72,7 @@ def add_ring(mesh, width, n_layers=6):
     side = np.cumsum(_graded(width, np.diff(ys_wall).max(), n_layers))
     xs = np.concatenate([-side[::-1], xs_wall, W + side])
     ys = np.concatenate([ys_wall, H + side])
-    nodes, quads, index = _block_grid(xs, ys, quadratic)
+    nodes, quads, _index = _block_grid(xs, ys, quadratic)
     # keep the quads outside the wall
     centre = nodes[quads[:, :4]].mean(axis=1)
     outside = ~((centre[:, 0] > 0) & (centre[:, 0] < W) & (centre[:, 1] < H))

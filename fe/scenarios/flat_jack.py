@@ -125,7 +125,7 @@ CHISARI_SLOTS = (
 
 
 def _ramp(lo, hi, step):
-    n = int(round((hi - lo) / step))
+    n = round((hi - lo) / step)
     return [round(lo + k * step, 10) for k in range(n + 1)]
 
 

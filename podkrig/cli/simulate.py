@@ -74,7 +74,9 @@ def register(app):
             if field is not None:
                 write_field(field, sc, response)
             if report is not None:
-                from podkrig.reports.flat_jack import write_simulation_report  # matplotlib: ~0.5 s import
+                from podkrig.reports.flat_jack import (
+                    write_simulation_report,  # matplotlib: ~0.5 s import
+                )
 
                 page = write_simulation_report(sc, response, values, report, seconds=seconds)
         _print(sc, response, values, seconds, format)

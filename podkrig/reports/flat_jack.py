@@ -5,6 +5,7 @@ its joints, supports, slots and jacks (the loaded length shaded), FRP zones, gau
 the readings per step with the loading phases shaded; the deformed shape at a chosen step.
 """
 
+import itertools
 import json
 from pathlib import Path
 
@@ -112,7 +113,7 @@ def _phase_bands(ax, scenario):
         return
     phases = [s.phase for s in steps]
     bounds = [0] + [i for i in range(1, len(phases)) if phases[i] != phases[i - 1]] + [len(phases)]
-    for k, (i, j) in enumerate(zip(bounds[:-1], bounds[1:])):
+    for k, (i, j) in enumerate(itertools.pairwise(bounds)):
         ax.axvspan(i + 0.5, j + 0.5, color=("#f2f2f2", "#dedede")[k % 2], zorder=0)
         ax.text(0.5 * (i + j) + 0.5, 1.0, f"phase {phases[i]}", transform=ax.get_xaxis_transform(),
                 ha="center", va="bottom", fontsize=8)
