@@ -289,7 +289,7 @@ def _match_interfaces(edges, block_unit, quadratic):
             continue  # an outer boundary edge
         if len(group) != 2:
             raise MeshError(f"{len(group)} block edges coincide at {key[1:]}; expected 2")
-        (b1, s1, *e1), (b2, _s2, *e2) = group
+        (b1, s1, *e1), (b2, s2, *e2) = group
         horizontal = key[0]
         # face A is below (horizontal joints) or left (vertical joints); A's tangent is +x for
         # horizontal joints and -y for vertical ones, so the normal (-s_y, s_x) points A -> B.

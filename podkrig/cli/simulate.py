@@ -74,9 +74,8 @@ def register(app):
             if field is not None:
                 write_field(field, sc, response)
             if report is not None:
-                from podkrig.reports.flat_jack import (
-                    write_simulation_report,  # matplotlib: ~0.5 s import
-                )
+                # local import: it pulls in fe and scipy, 2.0 s under load 20 (python -X importtime)
+                from podkrig.reports.flat_jack import write_simulation_report
 
                 page = write_simulation_report(sc, response, values, report, seconds=seconds)
         _print(sc, response, values, seconds, format)
