@@ -215,7 +215,30 @@ def write_simulation_report(scenario, response, values, out_dir, *, seconds=None
         page.table([response.load_unit] + gauge_names,
                    [[fmt(level)] + [f"{1000 * response.reading(n)[k]:+.2f}" for n in gauge_names] for k, level in enumerate(response.load_levels)],
                    caption="gauge readings (µm)")
+    if steps and "3" in phases and hasattr(scenario, "phase3_check"):
+        _phase3_table(page, scenario, values)
     for caption, path in figures:
         page.figure(Path(path).name, caption)
     page.details("scenario spec (JSON)", json.dumps(scenario.spec.to_dict(), indent=2))
     return page.write(out / "index.html")
+
+
+def _phase3_table(page, scenario, values, c=0.25, tan_phi=0.70):
+    """Phase 3, elastic: the block's top bed joint against the statics of reference §5.4."""
+    try:
+        chk = scenario.phase3_check(values, c=c, tan_phi=tan_phi)
+    except ValueError as e:  # not the three-jack set-up
+        page.paragraph(f"phase 3 check not available: {e}", "meta")
+        return
+    ph3 = chk.phase == "3"
+    page.paragraph(
+        "Phase 3 runs elastic here (sliding needs the nonlinear interfaces). The mean stresses on the "
+        "block's top bed joint equal the statics by equilibrium; local Mohr–Coulomb exceedance "
+        f"(c = {c:g} MPa, tanφ = {tan_phi:g}, the §5.2 defaults) marks where progressive slip would start; "
+        "the statics estimate of the critical gauge Δp_V is (L_H/h_V)(c + Km p_H tanφ)/Km.")
+    page.table(["step", "Δp_V (MPa)", "mean τ FE (MPa)", "statics τ (MPa)", "peak τ (MPa)", "mean σ_n FE (MPa)",
+                "statics σ_n (MPa)", "local slip", "statics Δp_V,crit (MPa)"],
+               [[int(chk.steps[i]), fmt(chk.delta_p_V[i]), fmt(chk.mean_shear[i]), fmt(chk.statics_shear[i]),
+                 fmt(chk.peak_shear[i]), fmt(chk.mean_normal[i]), fmt(chk.statics_normal[i]),
+                 "yes" if chk.local_slip[i] else "no", fmt(chk.delta_p_V_crit[i])] for i in np.flatnonzero(ph3)],
+               caption="phase 3 (elastic) vs statics")
