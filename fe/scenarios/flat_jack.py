@@ -59,6 +59,13 @@ nonlinear issue.
 
 Load levels are step numbers 1, 2, … (``load_unit = "step"``); :attr:`FlatJack.steps` gives each
 step's phase and jack pressures.
+
+Simplifications (reference §5.9): a 2D plane-stress slot is a through-thickness cut, whereas real
+semicircular jacks load a circular segment, so 2D over-predicts the displacements (treat Km·Ka as
+a nuisance, as the example study does); the jack's stiffness and welded edges are ignored (Ka < 1
+removes the edges from the loaded length); collar joints and other wythes are ignored; the slot
+faces never touch (the closure at the cut is ≈ 0.09 mm at σ0 = 0.3 MPa, far below a 3–10 mm
+slot, so no contact is modelled).
 """
 
 import dataclasses
