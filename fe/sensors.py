@@ -2,6 +2,7 @@
 
 - :class:`Gauge` (LVDT / extensometer): relative displacement of two points along the line
   joining them, positive when they move apart (DESIGN sign convention).
+- :class:`SlipGauge`: relative displacement of two points along a fixed direction (joint slip).
 - :class:`PointDisplacement`: one displacement component of a point.
 - :class:`DICGrid`: both displacement components on a regular grid of points, as digital image
   correlation would give them.
@@ -58,6 +59,31 @@ class Gauge:
 
     def to_dict(self):
         return {"kind": "gauge", "p1": list(self.p1), "p2": list(self.p2)}
+
+
+@dataclass(frozen=True)
+class SlipGauge(Gauge):
+    """A gauge with anchors ``p1``, ``p2`` reading ``(u(p2) − u(p1))·e`` along a fixed unit
+    ``direction`` e (default +x) instead of along the line joining them: e.g. the slip of a bed
+    joint read by two anchors one above the other (mm)."""
+
+    direction: tuple = (1.0, 0.0)
+
+    kind = "slip"
+
+    def __post_init__(self):
+        super().__post_init__()
+        d = np.asarray(self.direction, float)
+        if d.shape != (2,) or not np.linalg.norm(d) > 0:
+            raise SensorError(f"slip gauge {self.name!r}: direction must be a non-zero (x, y); got {self.direction}")
+        object.__setattr__(self, "direction", tuple(float(v) for v in d / np.linalg.norm(d)))
+
+    def weights(self):
+        e = np.asarray(self.direction)
+        return np.zeros(4, np.intp), np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1]), np.r_[-e, e]
+
+    def to_dict(self):
+        return {"kind": "slip", "p1": list(self.p1), "p2": list(self.p2), "direction": list(self.direction)}
 
 
 @dataclass(frozen=True)
@@ -139,7 +165,7 @@ class DICGrid:
 
 def sensor_from_dict(name, d):
     """Rebuild a sensor from its ``to_dict()`` form."""
-    kinds = {"gauge": Gauge, "point": PointDisplacement, "dic": DICGrid}
+    kinds = {"gauge": Gauge, "slip": SlipGauge, "point": PointDisplacement, "dic": DICGrid}
     d = dict(d)
     kind = d.pop("kind", None)
     if kind not in kinds:

@@ -77,3 +77,17 @@ def test_csv_output_is_a_valid_measurement_file(tmp_path):
     import numpy as np
 
     np.testing.assert_allclose(m.values, sc.run().readings, rtol=1e-7, atol=0)
+
+
+def test_flat_jack_report(tmp_path):
+    spec = tmp_path / "single.toml"
+    spec.write_text('scenario = "flat_jack"\npreset = "single"\nlayout = "standard"\n')
+    out = tmp_path / "report"
+    result = runner.invoke(app, ["simulate", "flat_jack", "--spec", str(spec), "--report", str(out), "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    rows = result.output.strip().splitlines()
+    assert rows[0] == "load,S1,S2,S3" and len(rows) == 1 + 13  # the cut, then 12 pressure steps
+    assert float(rows[1].split(",")[1]) < 0  # the cut closes the gauges
+    names = {p.name for p in out.iterdir()}
+    assert {"index.html", "setup.png", "readings.png", "deformed_step1.png", "deformed_step13.png"} <= names
+    assert "loading steps" in (out / "index.html").read_text()

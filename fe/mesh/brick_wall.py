@@ -12,6 +12,7 @@ Example
 (520.0, 130.0)
 """
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,6 +45,18 @@ class BrickWallLayout:
         Continuum element; interfaces are 6-node or 4-node to match.
     brick_interfaces : bool
         Put an interface on the vertical mid-plane of every full unit.
+    x_lines : tuple of float
+        Extra vertical node lines (mm) through the whole wall, e.g. at the ends of a slot that
+        do not fall on the regular grid of ``nx`` elements per unit.
+    cuts : tuple of (x, y0, y1)
+        Vertical lines (mm) splitting every unit they cross in the courses between ``y0`` and
+        ``y1`` (course boundaries) into two blocks joined by a ``"brick"`` interface, e.g. the
+        line of a vertical slot through units; ``x`` is also a node line through the wall.
+    refine : tuple
+        ``()`` or a window ``(x0, x1, y0, y1)`` (mm) meshed twice as finely: extra node lines at
+        half the spacing for ``x0 < x < x1`` through the whole wall (lines must run through every
+        course to keep the bed-joint faces matching) and ``2 ny`` elements across the courses
+        inside ``[y0, y1]``.
     """
 
     unit_length: float = 260.0
@@ -55,6 +68,9 @@ class BrickWallLayout:
     ny: int = 2
     element: str = "Q8"
     brick_interfaces: bool = True
+    x_lines: tuple = ()
+    cuts: tuple = ()
+    refine: tuple = ()
 
     def __post_init__(self):
         for name in ("unit_length", "unit_height"):
@@ -74,6 +90,26 @@ class BrickWallLayout:
             raise MeshError(f"ny must be an integer >= 1; got {self.ny}")
         if self.element not in ("Q4", "Q8"):
             raise MeshError(f"element must be 'Q4' or 'Q8'; got {self.element!r}")
+        object.__setattr__(self, "x_lines", tuple(float(x) for x in self.x_lines))
+        object.__setattr__(self, "cuts", tuple(tuple(float(v) for v in c) for c in self.cuts))
+        object.__setattr__(self, "refine", tuple(float(v) for v in self.refine))
+        for x in self.x_lines:
+            if not 0 < x < self.width:
+                raise MeshError(f"x_lines: {x} mm is outside the wall (0, {self.width:g})")
+        for c in self.cuts:
+            if len(c) != 3:
+                raise MeshError(f"cuts: each cut is (x, y0, y1) in mm; got {c}")
+            x, y0, y1 = c
+            if not 0 < x < self.width:
+                raise MeshError(f"cuts: x = {x} mm is outside the wall (0, {self.width:g})")
+            k0, k1 = y0 / self.unit_height, y1 / self.unit_height
+            if not (0 <= k0 < k1 <= self.n_courses and abs(k0 - round(k0)) < 1e-9 and abs(k1 - round(k1)) < 1e-9):
+                raise MeshError(
+                    f"cuts: ({x:g}, {y0:g}, {y1:g}) mm must span whole courses: y0 < y1 multiples of "
+                    f"the unit height {self.unit_height:g} mm within the wall"
+                )
+        if self.refine and (len(self.refine) != 4 or not (self.refine[0] < self.refine[1] and self.refine[2] < self.refine[3])):
+            raise MeshError(f"refine must be () or (x0, x1, y0, y1) with x0 < x1, y0 < y1 (mm); got {self.refine}")
 
     @property
     def width(self):
@@ -94,15 +130,57 @@ class BrickWallLayout:
         x = np.array(x)
         return np.column_stack([x[:-1], x[1:]])
 
+    def vertical_lines(self):
+        """x of every vertical element edge through the wall (mm), sorted: the regular grid of
+        ``nx`` elements per unit, the refinement lines, ``x_lines`` and the cut lines.
 
-def _block_grid(x0, y0, x1, y1, mx, my, quadratic):
-    """Nodes and connectivity of one rectangular block of mx × my elements.
+        Raises
+        ------
+        MeshError
+            Two lines closer than a tenth of the regular spacing (a sliver element).
+        """
+        h = self.unit_length / self.nx
+        n = round(self.width / h)
+        lines = [np.arange(n + 1) * h, np.array(self.x_lines), np.array([c[0] for c in self.cuts])]
+        if self.refine:
+            x0, x1 = self.refine[:2]
+            lines.append(np.arange(2 * n + 1)[1::2] * (h / 2))
+            lines[-1] = lines[-1][(lines[-1] > x0) & (lines[-1] < x1)]
+        x = np.unique(np.round(np.concatenate(lines), _ROUND))
+        close = np.flatnonzero(np.diff(x) < 0.1 * h * (0.5 if self.refine else 1.0))
+        if len(close):
+            i = close[0]
+            raise MeshError(
+                f"vertical node lines at x = {x[i]:g} and {x[i + 1]:g} mm are too close (sliver "
+                f"elements); move the slot end or the line onto the element grid (spacing {h:g} mm)"
+            )
+        return x
+
+    def course_ny(self, course):
+        """Elements across the height of a course: ``2 ny`` inside the refinement window."""
+        if self.refine:
+            y0, y1 = course * self.unit_height, (course + 1) * self.unit_height
+            if y0 >= self.refine[2] - 1e-9 and y1 <= self.refine[3] + 1e-9:
+                return 2 * self.ny
+        return self.ny
+
+    def course_cuts(self, course):
+        """x of the cuts through the units of a course (mm)."""
+        y0, y1 = course * self.unit_height, (course + 1) * self.unit_height
+        return [c[0] for c in self.cuts if c[1] <= y0 + 1e-9 and y1 <= c[2] + 1e-9]
+
+
+def _block_grid(xs, ys, quadratic):
+    """Nodes and connectivity of one rectangular block with element edges at ``xs`` × ``ys``.
 
     Returns node coordinates, quads (local numbering) and the full-grid index map.
     """
     k = 2 if quadratic else 1
-    gx = np.linspace(x0, x1, k * mx + 1)
-    gy = np.linspace(y0, y1, k * my + 1)
+    mx, my = len(xs) - 1, len(ys) - 1
+    gx, gy = np.asarray(xs, float), np.asarray(ys, float)
+    if quadratic:
+        gx = np.insert(gx, np.arange(1, len(gx)), 0.5 * (gx[1:] + gx[:-1]))
+        gy = np.insert(gy, np.arange(1, len(gy)), 0.5 * (gy[1:] + gy[:-1]))
     I, J = np.meshgrid(np.arange(len(gx)), np.arange(len(gy)), indexing="ij")
     keep = ~((I % 2 == 1) & (J % 2 == 1)) if quadratic else np.ones_like(I, bool)
     index = -np.ones(I.shape, np.intp)
@@ -137,14 +215,18 @@ def brick_wall(layout=BrickWallLayout()):
     nodes, quads, quad_block, block_unit, bounds = [], [], [], [], []
     edges = []  # (block, side, start, end, mid, key) for every block-boundary element edge
     n_nodes = n_units = 0
+    lines = layout.vertical_lines()
     for course in range(layout.n_courses):
         y0, y1 = course * H, (course + 1) * H
+        ys = np.linspace(y0, y1, layout.course_ny(course) + 1)
+        cuts = layout.course_cuts(course)
         for ux0, ux1 in layout.course_units(course):
             full = abs((ux1 - ux0) - L) < 1e-9
             splits = [ux0, 0.5 * (ux0 + ux1), ux1] if full and layout.brick_interfaces else [ux0, ux1]
-            for bx0, bx1 in zip(splits[:-1], splits[1:]):
-                mx = int(round(layout.nx * (bx1 - bx0) / L))
-                xy, q, index = _block_grid(bx0, y0, bx1, y1, mx, layout.ny, quadratic)
+            splits = sorted(set(np.round(splits + [x for x in cuts if ux0 + 1e-9 < x < ux1 - 1e-9], _ROUND)))
+            for bx0, bx1 in itertools.pairwise(splits):
+                xs = lines[(lines >= bx0 - 1e-9) & (lines <= bx1 + 1e-9)]
+                xy, q, index = _block_grid(xs, ys, quadratic)
                 block = len(bounds)
                 nodes.append(xy)
                 quads.append(q + n_nodes)

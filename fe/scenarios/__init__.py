@@ -3,10 +3,11 @@
 from ..exceptions import SpecError
 from .base import ParameterInfo, Scenario
 from .diagonal_compression import DiagonalCompression
+from .flat_jack import FlatJack
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 
-SCENARIOS = {cls.name: cls for cls in (DiagonalCompression, ShearCompression)}
+SCENARIOS = {cls.name: cls for cls in (DiagonalCompression, ShearCompression, FlatJack)}
 
 
 def build_scenario(spec, solver="auto"):

@@ -67,7 +67,7 @@ def wall_mesh(options):
     """The wall mesh of a scenario's options (fields of :class:`~fe.mesh.BrickWallLayout` plus
     ``continuum``: merge the units into one homogeneous body without joints, the stiff-joint
     limit used for verification)."""
-    layout = BrickWallLayout(**{f.name: getattr(options, f.name) for f in fields(BrickWallLayout)})
+    layout = BrickWallLayout(**{f.name: getattr(options, f.name) for f in fields(BrickWallLayout) if hasattr(options, f.name)})
     mesh = brick_wall(layout)
     return mesh.without_interfaces() if options.continuum else mesh
 

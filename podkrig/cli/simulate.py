@@ -53,6 +53,7 @@ def register(app):
         format: ResponseFormat = typer.Option(ResponseFormat.table, "--format", help="Output format: table, json or csv."),
         field: Path = typer.Option(None, "--field", help="Also write the displacement field to this CSV file."),
         solver: LinearSolver = typer.Option(LinearSolver.auto, "--solver", help="Linear solver: auto, pardiso or superlu."),
+        report: Path = typer.Option(None, "--report", help="Also write figures and an HTML page to this directory."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run one virtual test of SCENARIO and print the sensor readings (mm) per load level."""
@@ -67,12 +68,19 @@ def register(app):
             params = dict(parse_assignment(s) for s in set_)
             t0 = time.perf_counter()
             sc = build_scenario(load_spec(scenario, spec), solver=solver.value)
-            response = sc.run(params, field=field is not None)
+            response = sc.run(params, field=field is not None or report is not None)
             seconds = time.perf_counter() - t0
             values = sc.resolve(params)
             if field is not None:
                 write_field(field, sc, response)
+            if report is not None:
+                # local import: it pulls in fe and scipy, 2.0 s under load 20 (python -X importtime)
+                from podkrig.reports.flat_jack import write_simulation_report
+
+                page = write_simulation_report(sc, response, values, report, seconds=seconds)
         _print(sc, response, values, seconds, format)
+        if report is not None and format == "table":
+            typer.echo(f"report: {page}")
 
     return simulate
 
