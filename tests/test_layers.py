@@ -84,3 +84,16 @@ def test_cycle_finder_finds_cycles(graph_edges, expected):
             return set(graph_edges[m])
 
     assert _cycles(Graph) == expected
+
+
+def test_public_api_resolves_every_name():
+    """Every name ``podkrig`` advertises exists where it says, and ``import podkrig`` stays light."""
+    import subprocess
+    import sys as _sys
+
+    import podkrig
+
+    for name in podkrig.__all__:
+        assert getattr(podkrig, name) is not None, name
+    code = "import sys, podkrig; assert 'numba' not in sys.modules and 'podkrig.online' not in sys.modules"
+    subprocess.run([_sys.executable, "-c", code], check=True, cwd=ROOT)
