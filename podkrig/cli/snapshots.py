@@ -9,6 +9,7 @@ from pathlib import Path
 import typer
 
 from podkrig.cli._common import configure_logging, user_errors
+from podkrig.exceptions import StoreError
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -161,6 +162,52 @@ def info(
     for failure in d["failures"]:
         lines.append(f"failed row {failure['row']}: {failure['error']}")
     typer.echo("\n".join(lines))
+
+
+@snapshots_app.command("verify")
+def verify(
+    path: Path = typer.Argument(..., help="Snapshot store."),
+    rehash: bool = typer.Option(False, "--rehash", help="Add checksums to a store written by an older podkrig "
+                                                      "(its current content is taken as correct)."),
+    format: str = typer.Option("text", "--format", help="Output format: text or json."),
+):
+    """Check every row of a store against its checksums; exit code 1 names the damaged rows."""
+    from podkrig.offline.store import SnapshotStore
+
+    with user_errors():
+        if format not in ("text", "json"):
+            raise ValueError(f"--format must be text or json; got {format!r}")
+        if rehash:
+            with SnapshotStore.open(path, "r+") as store:
+                store.rehash()
+            typer.echo(f"added checksums to {path} ({store.n_rows} rows)")
+            return
+        try:
+            with SnapshotStore.open(path) as store:
+                report = store.verify()
+        except StoreError as e:  # damaged metadata or a row read at opening
+            if format == "json":
+                typer.echo(json.dumps({"path": str(path), "ok": False, "error": str(e)}, indent=2))
+            else:
+                typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(code=1) from None
+    if format == "json":
+        typer.echo(json.dumps(report.to_dict(), indent=2))
+    elif not report.checksummed:
+        typer.echo(f"{path}: no checksums: written by an older podkrig, damage cannot be detected; "
+                   f"run 'podkrig snapshots verify --rehash {path}' on a store you trust", err=True)
+    elif report.ok:
+        extra = (f"; rows {report.unsealed_rows} were being written when a job stopped and are resealed "
+                 "by the next run") if report.unsealed_rows else ""
+        typer.echo(f"{path}: {report.rows} rows match their checksums{extra}")
+    else:
+        for name, rows in report.bad_rows.items():
+            shown = ", ".join(map(str, rows[:50])) + (f" and {len(rows) - 50} more" if len(rows) > 50 else "")
+            typer.echo(f"{path}: dataset {name!r}: rows {shown} do not match their checksums", err=True)
+        typer.echo("the store was damaged after it was written: rebuild the damaged rows' store or restore a copy",
+                   err=True)
+    if not report.ok:
+        raise typer.Exit(code=1)
 
 
 @snapshots_app.command("export")
