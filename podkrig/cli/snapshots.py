@@ -201,6 +201,8 @@ def verify(
                  "by the next run") if report.unsealed_rows else ""
         typer.echo(f"{path}: {report.rows} rows match their checksums{extra}")
     else:
+        if not report.metadata_ok:
+            typer.echo(f"{path}: the datasets' attributes (units, names) do not match their checksum", err=True)
         for name, rows in report.bad_rows.items():
             shown = ", ".join(map(str, rows[:50])) + (f" and {len(rows) - 50} more" if len(rows) > 50 else "")
             typer.echo(f"{path}: dataset {name!r}: rows {shown} do not match their checksums", err=True)

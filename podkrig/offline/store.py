@@ -56,9 +56,10 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from fe.exceptions import FEError
 from podkrig import __version__
 from podkrig.exceptions import IntegrityError, SchemaError, StoreError, StoreInUseError
-from podkrig.h5integrity import metadata_digest, row_digests
+from podkrig.h5integrity import attrs_digest, metadata_digest, row_digests
 from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
@@ -78,8 +79,9 @@ _ROOT_ATTRS = (
 _JSON_ATTRS = ("software", "scenario_spec", "parameter_space", "sensor_names", "sensor_definitions",
                "run_arguments", "history")
 _ROW_DATASETS = ("parameters", "unit_parameters", "readings", "status", "error", "wall_time", "cpu_time")
-_CHECKSUMS = "checksums"  # group: rows (n, 7) uint64, fields (n,) uint64, writing (n,) int8; attr metadata
-_VERIFIED_AT_OPEN = ("parameters", "unit_parameters", "status")  # small; the rest when read
+_CHECKSUMS = "checksums"  # group: rows (n + 1, 8) uint64, fields (n,) uint64 (see _write_checksums)
+_WRITING = len(_ROW_DATASETS)  # last column of checksums/rows: 1 while the row is being written
+_VERIFIED_AT_OPEN = ("parameters", "status")  # small and always needed; the rest when read
 _DISK_MARGIN = 256 * 1024  # bytes kept free beyond a batch's estimate (HDF5 metadata, other writers)
 REHASH_HINT = "run 'podkrig snapshots verify --rehash {path}' to add them"
 
@@ -255,20 +257,38 @@ def _publish(tmp, path):
 
 
 def _write_checksums(f, fields):
-    """(Re)compute every checksum of an open store from its content (creation, extend, rehash)."""
+    """(Re)compute every checksum of an open store from its content (creation, extend, rehash).
+
+    ``/checksums/rows`` (n + 1, 8) uint64: row ``i < n`` holds the digests of row ``i`` of each
+    dataset of :data:`_ROW_DATASETS`, then 1 while a writer fills the row (else 0); row ``n``
+    holds the SHA-256 of the root attributes (4 words, checked at every opening) and of the
+    datasets' own attributes, dtypes and shapes (4 words, checked by :meth:`SnapshotStore.verify`).
+    One table, read once at opening. ``/checksums/fields`` (n,): a digest per row of fields.
+    """
     n = f["status"].shape[0]
     g = f.require_group(_CHECKSUMS)
-    for name in ("rows", "fields", "writing"):
+    for name in ("rows", "fields"):
         if name in g:
             del g[name]
-    rows = _early((n, len(_ROW_DATASETS)), "<u8", 0, g, "rows", datasets=json.dumps(_ROW_DATASETS),
-                  method="multilinear 64-bit per row (podkrig.h5integrity.row_digests)")
-    rows[...] = np.stack([row_digests(f[name][...]) for name in _ROW_DATASETS], axis=1)
+    table = np.zeros((n + 1, _WRITING + 1), dtype="<u8")
+    table[:n, :_WRITING] = np.stack([row_digests(f[name][...]) for name in _ROW_DATASETS], axis=1)
+    table[n, :4] = _sha_words(attrs_digest({k: f.attrs[k] for k in _ROOT_ATTRS}))
+    table[n, 4:] = _sha_words(metadata_digest(f, _datasets(fields)))
+    _early(table.shape, "<u8", 0, g, "rows", columns=json.dumps([*_ROW_DATASETS, "writing"]),
+           method="multilinear 64-bit digest per row (podkrig.h5integrity.row_digests); last row: "
+                  "SHA-256 of the root attributes, SHA-256 of the datasets' attributes")[...] = table
     if fields:
         fd = _early((n,), "<u8", 0, g, "fields")
         fd[...] = [row_digests(f["fields"][i][None])[0] for i in range(n)]
-    _early((n,), "i1", 0, g, "writing")
-    g.attrs["metadata"] = metadata_digest(f, _ROW_DATASETS + (("fields",) if fields else ()))
+
+
+def _sha_words(digest):
+    """``"sha256:<hex>"`` as 4 little-endian uint64 words."""
+    return np.frombuffer(bytes.fromhex(digest.split(":", 1)[1]), dtype="<u8")
+
+
+def _datasets(fields):
+    return _ROW_DATASETS + (("fields",) if fields else ())
 
 
 @dataclass
@@ -352,8 +372,22 @@ class SnapshotStore:
     def __init__(self, file, path):
         self._f = file
         self.path = Path(path)
-        a = {k: self._f.attrs[k] for k in _ROOT_ATTRS}
-        a = {k: json.loads(v) if k in _JSON_ATTRS else v for k, v in a.items()}
+        self._raw_attrs = {k: self._f.attrs[k] for k in _ROOT_ATTRS}
+        self._table = self._f.get(f"{_CHECKSUMS}/rows")
+        self.checksummed = self._table is not None
+        self._digests = self._meta_words = None  # checksums/rows, read once at opening
+        if self.checksummed:  # before any attribute is interpreted
+            table = self._table[...]
+            if table.ndim != 2 or table.shape[1] != _WRITING + 1 or len(table) < 1:
+                raise StoreError(f"{self.path}: the checksum table has shape {table.shape}")
+            self._digests, self._meta_words = table[:-1], table[-1]
+            if not np.array_equal(self._meta_words[:4], _sha_words(attrs_digest(self._raw_attrs))):
+                raise IntegrityError(
+                    f"{self.path}: the store's metadata (scenario, parameter space, sensors, load "
+                    "levels, units, history) does not match its checksum: the file was damaged after it "
+                    "was written; check it with 'podkrig snapshots verify' and rebuild it or restore a copy"
+                )
+        a = {k: json.loads(v) if k in _JSON_ATTRS else v for k, v in self._raw_attrs.items()}
         from fe.scenarios import ScenarioSpec
 
         self.schema_version = int(a["schema_version"])
@@ -374,9 +408,9 @@ class SnapshotStore:
         self.history = a["history"]
         self.n_rows = int(self._f["status"].shape[0])
         self.has_fields = "fields" in self._f
-        self.checksummed = _CHECKSUMS in self._f
         self._locked = False
         self._unsealed = np.zeros(0, dtype=np.int64)
+        self._cache = {}  # verified parameters, unit_parameters, status (kept current by writes)
 
     # ------------------------------------------------------------------ opening and creating
     @classmethod
@@ -464,7 +498,7 @@ class SnapshotStore:
         except StoreError:
             f.close()
             raise
-        except (OSError, KeyError, ValueError, TypeError) as e:
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError, FEError) as e:
             f.close()
             raise StoreError(f"{path} is a damaged snapshot store ({type(e).__name__}: {e}); {hint}") from e
         return store
@@ -482,19 +516,10 @@ class SnapshotStore:
                     f"{self.path}: dataset {name!r} has shape {self._f[name].shape}, expected {shp}"
                 )
         if self.checksummed:
-            g = self._f[_CHECKSUMS]
-            if (g["rows"].shape != (n, len(_ROW_DATASETS)) or g["writing"].shape != (n,)
-                    or (self.has_fields and g["fields"].shape != (n,))):
+            if (self._table.shape != (n + 1, _WRITING + 1)
+                    or (self.has_fields and self._f[f"{_CHECKSUMS}/fields"].shape != (n,))):
                 raise StoreError(f"{self.path}: the checksum datasets do not match the {n} rows")
-            self._unsealed = np.flatnonzero(g["writing"][...])
-            stored = g.attrs.get("metadata")
-            actual = metadata_digest(self._f, _ROW_DATASETS + (("fields",) if self.has_fields else ()))
-            if stored != actual:
-                raise IntegrityError(
-                    f"{self.path}: the store's metadata (scenario, parameter space, sensors, load "
-                    "levels, units) does not match its checksum: the file was damaged after it was "
-                    "written; check it with 'podkrig snapshots verify' and rebuild it or restore a copy"
-                )
+            self._unsealed = np.flatnonzero(self._digests[:, _WRITING])
             if len(self._unsealed) and self._f.mode == "r":
                 logger.warning(
                     "%s: rows %s were being written when the last writer stopped; they are not "
@@ -503,9 +528,9 @@ class SnapshotStore:
             logger.warning(
                 "%s has no checksums: written by an older podkrig, so damage cannot be detected; "
                 + REHASH_HINT.format(path=self.path), self.path)
-        for name in _VERIFIED_AT_OPEN:
-            self._read(name)  # reads the data: a damaged file fails here, not later
-        codes = self._read("status")
+        for name in _VERIFIED_AT_OPEN:  # reads the data: a damaged file fails here, not later
+            self._cache[name] = self._read(name)
+        codes = self._cache["status"]
         if not np.isin(codes, list(STATUS_NAMES)).all():
             raise StoreError(f"{self.path}: dataset 'status' holds codes other than {STATUS_NAMES}")
 
@@ -694,7 +719,9 @@ class SnapshotStore:
         IntegrityError
             Rows whose content does not match their checksum (named in the message).
         """
-        data = self._f[name][...]
+        if name in self._cache:
+            return self._cache[name].copy()
+        data = self._h5read(name, ...)
         if self.checksummed:
             bad = self._mismatched(name, data)
             if len(bad):
@@ -705,9 +732,19 @@ class SnapshotStore:
                 )
         return data
 
+    def _h5read(self, name, index):
+        """``self._f[name][index]``; an HDF5 read error (a damaged file) becomes a StoreError."""
+        try:
+            return self._f[name][index]
+        except (OSError, RuntimeError, KeyError, ValueError) as e:
+            raise StoreError(
+                f"{self.path}: dataset {name!r} cannot be read ({type(e).__name__}: {e}): the file is damaged; "
+                "check it with 'podkrig snapshots verify', then rebuild it or restore a copy"
+            ) from e
+
     def _mismatched(self, name, data):
         col = _ROW_DATASETS.index(name)
-        bad = row_digests(data) != self._f[_CHECKSUMS]["rows"][:, col]
+        bad = row_digests(data) != self._digests[:, col]
         bad[self._unsealed] = False
         return np.flatnonzero(bad)
 
@@ -715,9 +752,9 @@ class SnapshotStore:
         """Fields of the given rows, ndarray (len(rows), n_loads, n_nodes, 2), each row verified."""
         out = np.empty((len(rows), self.n_loads, self.n_nodes, 2))
         for j, i in enumerate(rows):  # row by row: one chunk each, no full-dataset read
-            out[j] = self._f["fields"][i]
+            out[j] = self._h5read("fields", i)
         if self.checksummed and len(rows):
-            bad = row_digests(out) != self._f[_CHECKSUMS]["fields"][...][rows]
+            bad = row_digests(out) != self._h5read(f"{_CHECKSUMS}/fields", ...)[rows]
             bad &= ~np.isin(rows, self._unsealed)
             if bad.any():
                 raise IntegrityError(
@@ -736,17 +773,17 @@ class SnapshotStore:
             return
         rows = self._unsealed
         g = self._f[_CHECKSUMS]
-        digests = g["rows"][...]
         for col, name in enumerate(_ROW_DATASETS):
-            digests[rows, col] = row_digests(self._f[name][...][rows])
-        g["rows"][...] = digests
+            self._digests[rows, col] = row_digests(self._f[name][...][rows])
+        self._table[:self.n_rows] = self._digests
         if self.has_fields:
             fd = g["fields"][...]
             for i in rows:
                 fd[i] = row_digests(self._f["fields"][i][None])[0]
             g["fields"][...] = fd
         self._f.flush()
-        g["writing"][...] = 0
+        self._digests[:, _WRITING] = 0
+        self._table[:self.n_rows] = self._digests
         self._f.flush()
         logger.info("%s: resealed rows %s left by an interrupted write", self.path, _rows_text(rows))
         self._unsealed = np.zeros(0, dtype=np.int64)
@@ -763,16 +800,18 @@ class SnapshotStore:
                               unsealed_rows=[int(i) for i in self._unsealed])
         if not self.checksummed:
             return report
+        report.metadata_ok = np.array_equal(self._meta_words[4:],
+                                            _sha_words(metadata_digest(self._f, _datasets(self.has_fields))))
         for name in _ROW_DATASETS:
-            bad = self._mismatched(name, self._f[name][...])
+            bad = self._mismatched(name, self._h5read(name, ...))
             if len(bad):
                 report.bad_rows[name] = [int(i) for i in bad]
         if self.has_fields:
-            stored = self._f[_CHECKSUMS]["fields"][...]
+            stored = self._h5read(f"{_CHECKSUMS}/fields", ...)
             bad = []
             for start in range(0, self.n_rows, 256):
                 rows = np.arange(start, min(start + 256, self.n_rows))
-                block = np.stack([self._f["fields"][i] for i in rows])
+                block = np.stack([self._h5read("fields", i) for i in rows])
                 bad += [int(i) for i in rows[row_digests(block) != stored[rows]] if i not in self._unsealed]
             if bad:
                 report.bad_rows["fields"] = bad
@@ -799,6 +838,9 @@ class SnapshotStore:
         try:
             _write_checksums(self._f, self.has_fields)
             self._f.flush()
+            self._table = self._f[f"{_CHECKSUMS}/rows"]
+            table = self._table[...]
+            self._digests, self._meta_words = table[:self.n_rows], table[self.n_rows]
         except (OSError, RuntimeError) as e:
             raise StoreError(f"cannot add checksums to {self.path}: {_io_reason(e)}") from e
         self.checksummed = True
@@ -1036,7 +1078,7 @@ class SnapshotStore:
         sel = slice(int(rows[0]), int(rows[-1]) + 1) if contiguous else rows
         g = self._f[_CHECKSUMS] if self.checksummed else None
         if g is not None:
-            g["writing"][sel] = 1  # a crash from here on leaves these rows to be resealed
+            self._table[sel, _WRITING] = 1  # a crash from here on leaves these rows to be resealed
             self._f.flush()
         self._f["readings"][sel] = readings
         self._f["error"][sel] = text
@@ -1049,15 +1091,18 @@ class SnapshotStore:
         self._f.flush()
         self._f["status"][sel] = status
         self._f.flush()
+        self._cache["status"][sel] = status
         if g is None:
             return
-        digests = np.stack([row_digests(self._f[name][sel]) for name in _ROW_DATASETS], axis=1)
-        g["rows"][sel] = digests
+        digests = np.stack([row_digests(self._f[name][sel]) for name in _ROW_DATASETS] + [np.ones(k, "u8")], axis=1)
+        self._table[sel] = digests  # still marked as being written
+        self._digests[sel] = digests
         if self.has_fields:
             fd = g["fields"]
             for j, i in enumerate(rows):
                 if status[j] == DONE:
                     fd[i] = row_digests(np.ascontiguousarray(fields[j], dtype="<f8")[None])[0]
         self._f.flush()
-        g["writing"][sel] = 0
+        self._table[sel, _WRITING] = 0
+        self._digests[sel, _WRITING] = 0
         self._f.flush()

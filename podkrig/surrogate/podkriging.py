@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig import __version__
+from podkrig import __version__, h5integrity
 from podkrig._threads import one_blas_thread
 from podkrig.exceptions import NotFittedError, SchemaError, StoreError
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -329,6 +329,7 @@ class PODKriging:
                 g.attrs["y_1d"] = bool(kr._y_1d)
                 for name in _KRIGING_ARRAYS:
                     g.create_dataset(name.rstrip("_"), data=getattr(kr, name))
+            h5integrity.seal(tmp)
             tmp.replace(path)
         finally:
             tmp.unlink(missing_ok=True)
@@ -349,6 +350,8 @@ class PODKriging:
         path = Path(path)
         if not path.is_file():
             raise StoreError(f"no surrogate file at {path}; build one with 'podkrig surrogate build'")
+        if not h5integrity.verify(path, "surrogate"):
+            logger.warning("%s has no checksum (written by an older podkrig): damage cannot be detected; rebuild it", path)
         try:
             f = h5py.File(path, "r")
         except OSError as e:
