@@ -9,6 +9,7 @@ import typer
 
 from podkrig.cli._common import configure_logging, user_errors
 from podkrig.cli.simulate import parse_assignment
+from podkrig.limits import check_region_samples
 
 
 def noise_model(noise_abs, noise_rel, noise_cov):
@@ -157,6 +158,7 @@ def register(app):
                 raise ValueError(f"--format must be table or json; got {format!r}")
             if not 0 < confidence < 1:
                 raise ValueError(f"--confidence must be in (0, 1); got {confidence}")
+            check_region_samples(region_samples)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
                                 fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)

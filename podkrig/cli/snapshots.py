@@ -10,6 +10,7 @@ import typer
 
 from podkrig.cli._common import configure_logging, user_errors
 from podkrig.exceptions import StoreError
+from podkrig.limits import CONFIRM_ROWS, check_rows, human_bytes
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -45,6 +46,7 @@ def run(
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="Rerun rows whose FE run failed."),
     chunk_size: int = typer.Option(None, "--chunk-size", help="Rows per task (default: adapted to the work, at most 32)."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=f"Do not ask before creating a store of more than {CONFIRM_ROWS} rows."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Run a scenario at N sampled parameter vectors into a snapshot store.
@@ -68,6 +70,7 @@ def run(
 
     from podkrig.parameters import ParameterSpace, parse_params
     from podkrig.offline.runner import run_snapshots
+    from podkrig.offline.store import store_bytes_per_row
 
     with user_errors():
         if workers is not None and scheduler is not None:
@@ -75,6 +78,11 @@ def run(
         bounds = parse_params(param)
         sc = build_scenario(_scenario_spec(scenario, spec))
         space = ParameterSpace.from_scenario(sc, bounds)
+        size = check_rows(n, store_bytes_per_row(space.n_params, len(sc.load_levels), len(sc.sensor_names),
+                                                  sc.mesh.n_nodes, fields))
+        if n > CONFIRM_ROWS and not yes and not store.exists():
+            typer.confirm(f"--n {n}: {n} FE runs and a store of about {human_bytes(size)}; continue? "
+                          "(--yes skips this question)", abort=True, err=True)
         progress = Progress(
             TextColumn("snapshots"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),

@@ -184,6 +184,34 @@ def release_lock(path):
         os.close(held[0])
 
 
+def move_aside(path):
+    """Rename an unusable store to ``NAME.unusable-YYYYmmddTHHMMSSZ[-k].SUFFIX`` beside it, under the
+    store's lock; never replaces a file. Returns the new path.
+
+    Raises
+    ------
+    StoreInUseError
+        Another process writes the store.
+    """
+    path = Path(path)
+    acquire_lock(path)
+    try:
+        stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%SZ")
+        for k in range(1000):
+            target = path.with_name(f"{path.stem}.unusable-{stamp}{f'-{k}' if k else ''}{path.suffix}")
+            try:
+                os.link(path, target)  # fails if target exists, unlike a rename
+            except FileExistsError:
+                continue
+            path.unlink()
+            return target
+        raise StoreError(f"cannot find a free name to keep {path} aside")
+    except OSError as e:
+        raise StoreError(f"cannot move {path} aside: {_io_reason(e)}") from e
+    finally:
+        release_lock(path)
+
+
 def _remove_orphans(path):
     """Delete temporary files of an interrupted create/extend of ``path`` (call with the lock held)."""
     for tmp in path.parent.glob(f".{path.name}.tmp-*"):
@@ -223,10 +251,14 @@ def _row_bytes(n_params, n_loads, n_sensors):
     return 16 * n_params + 8 * n_loads * n_sensors + 1 + ERROR_BYTES + 16 + 8 * len(_ROW_DATASETS) + 9
 
 
+def store_bytes_per_row(n_params, n_loads, n_sensors, n_nodes=0, fields=False):
+    """Upper estimate of a store's bytes on disk per row (fields counted uncompressed)."""
+    return _row_bytes(n_params, n_loads, n_sensors) + (16 * n_loads * n_nodes + 8 if fields else 0)
+
+
 def estimate_store_bytes(n, n_params, n_loads, n_sensors, n_nodes=0, fields=False):
     """Upper estimate of a store's size on disk, bytes (fields counted uncompressed)."""
-    per_row = _row_bytes(n_params, n_loads, n_sensors) + (16 * n_loads * n_nodes + 8 if fields else 0)
-    return int(n) * per_row + 64 * 1024
+    return int(n) * store_bytes_per_row(n_params, n_loads, n_sensors, n_nodes, fields) + 64 * 1024
 
 
 def _io_reason(e):

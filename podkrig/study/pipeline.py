@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig import __version__
-from podkrig.exceptions import StoreError
+from podkrig.exceptions import StoreError, StoreInUseError
 
 logger = logging.getLogger(__name__)
 
@@ -296,21 +296,25 @@ def run_study(study, out, *, progress=None):
 
 
 def _run_store(run, path, spec, space, design):
-    """Fill the store at ``path`` (resuming it; rebuilding one written for another design)."""
-    from podkrig.offline.runner import run_snapshots
+    """Fill the store at ``path``: resume it, or build a new one next to a store that cannot be used
+    (written for another design, damaged), which is kept under a timestamped name — never deleted."""
+    from podkrig.offline.runner import prepare_store, run_snapshots
+    from podkrig.offline.store import move_aside
 
-    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method, "workers": run.study.workers,
-              "scheduler": run.study.scheduler, "progress": run.progress.advance}
+    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method}
     notes = []
     try:
-        summary = run_snapshots(path, spec, space, **kwargs)
+        prepare_store(path, spec, space, **kwargs)
+    except StoreInUseError:  # another run is filling it: never touch it
+        raise
     except StoreError as e:
         if not path.exists():
             raise
-        notes.append(f"{path.name} was rebuilt: the existing file did not match this stage's design or was unusable")
-        logger.warning("rebuilding %s: %s", path, e)
-        path.unlink()
-        summary = run_snapshots(path, spec, space, **kwargs)
+        kept = move_aside(path)
+        notes.append(f"{path.name} could not be used ({e}); it was kept as {kept.name} and a new store was built")
+        logger.warning("%s could not be used (%s); kept it as %s and building a new store", path, e, kept)
+    summary = run_snapshots(path, spec, space, workers=run.study.workers, scheduler=run.study.scheduler,
+                            progress=run.progress.advance, **kwargs)
     return summary, notes
 
 
