@@ -203,3 +203,17 @@ def test_huge_n_is_refused_with_an_estimate(tmp_path):
     result = runner.invoke(app, [*args, "--n", str(2**20)], input="n\n")
     assert result.exit_code != 0 and "FE runs" in result.output
     assert not (tmp_path / "s.h5").exists()
+
+
+@pytest.mark.parametrize("option, message", [
+    ({"thickness": 1e-300}, "thickness must be > 0 mm"), ({"load_levels": [float("nan")]}, "load_levels must be"),
+    ({"sensors": {}}, "at least one sensor"), ({"nx": 10**9}, "nx must be an integer in"),
+    ({"nx": 64, "ny": 64}, "elements"), ({"load_levels": [1e300]}, "load_levels must be"),
+])
+def test_scenario_options_out_of_range_are_refused(option, message):
+    """Finding 7: thickness 1e-300, load_levels = [nan], sensors = {} and nx = 10**9 were accepted."""
+    from fe.exceptions import FEError
+    from fe.scenarios import build_scenario
+
+    with pytest.raises(FEError, match=message):
+        build_scenario({"scenario": "diagonal_compression", **option})
