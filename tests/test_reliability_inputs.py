@@ -209,6 +209,7 @@ def test_huge_n_is_refused_with_an_estimate(tmp_path):
     ({"thickness": 1e-300}, "thickness must be > 0 mm"), ({"load_levels": [float("nan")]}, "load_levels must be"),
     ({"sensors": {}}, "at least one sensor"), ({"nx": 10**9}, "nx must be an integer in"),
     ({"nx": 64, "ny": 64}, "elements"), ({"load_levels": [1e300]}, "load_levels must be"),
+    ({"sensors": {"$D_1$": {"type": "displacement"}}}, "sensor name '\\$D_1\\$'"),
 ])
 def test_scenario_options_out_of_range_are_refused(option, message):
     """Finding 7: thickness 1e-300, load_levels = [nan], sensors = {} and nx = 10**9 were accepted."""

@@ -6,6 +6,7 @@ Head joints have ``r_hj`` times the bed-joint stiffness.
 """
 
 import math
+import re
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -91,6 +92,10 @@ class WallOptions:
                              f"<= {MAX_LOAD:g}; got {str(self.load_levels)[:200]}")
         if self.sensors is not None and not self.sensors:
             raise ValueError("sensors must define at least one sensor (leave it out for the scenario's default set)")
+        for name in self.sensors or ():
+            if not isinstance(name, str) or re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,39}", name, re.ASCII) is None:
+                raise ValueError(f"sensor name {name!r}: use 1-40 letters, digits, '_', '-' or '.' (it becomes a "
+                                 "CSV column, an HDF5 key and a figure label)")
         if len(set(self.load_levels)) != len(self.load_levels):
             raise ValueError(f"load_levels must be distinct; got {self.load_levels}")
         object.__setattr__(self, "load_levels", tuple(float(v) for v in self.load_levels))

@@ -22,6 +22,9 @@ Layout (``n`` rows, ``d`` free parameters, readings in mm, loads in the scenario
     /cpu_time             (n,) float64, s; CPU time of the thread that ran it (below wall time when
                           the worker waited for a core), NaN until run
     /fields               (n, n_loads, n_nodes, 2) float64, mm; optional, gzip, one chunk per row
+    /checksums/rows       (n + 1, 8) uint64: per-row digests of the 7 datasets above + "being
+                          written" flag; last row: SHA-256 of the root and of the dataset attributes
+    /checksums/fields     (n,) uint64: digest of each row's fields (with fields only)
 
 Crash safety. A store is created in a temporary file and renamed into place, so it either exists
 whole or not at all; growing it (Sobol' append) rewrites it the same way. Every per-row dataset
@@ -29,6 +32,21 @@ except ``fields`` is contiguous with its space allocated at creation, so writing
 raw bytes only, never the file's structure. :meth:`SnapshotStore.write_results` writes the data,
 flushes, then writes the status and flushes again: a process killed at any moment leaves a file
 whose ``done`` rows are complete, and an unfinished row stays ``pending``.
+
+One writer. A writer (create, extend, ``mode="r+"``) holds an exclusive ``fcntl.flock`` on
+``.NAME.lock`` beside the store for its lifetime; a second writer is refused with the first one's
+PID and changes nothing. Creation publishes the temporary file with ``os.link``, which fails
+rather than replace a file that appeared meanwhile; temporary files left by a killed creation are
+removed by the next writer. Before each batch the free disk space is checked, and any HDF5 write
+error stops the run with "disk full: N rows written ..." while the batch's rows stay pending.
+
+Checksums (``/checksums``, absent in stores written before them, which still load with a warning):
+a 64-bit multilinear digest per row of every per-row dataset and of each row's fields
+(:func:`podkrig.h5integrity.row_digests`), and SHA-256 digests of the root attributes and of the
+datasets' attributes. Parameters, status and metadata are verified at every opening, the other
+datasets whenever they are read, everything by :meth:`SnapshotStore.verify`. A row being written
+is marked in the digest table first and unmarked after its digests: a writer killed in between
+leaves rows that the next writer reseals (they were verified just before the write began).
 
 Example
 -------
@@ -203,6 +221,11 @@ def move_aside(path):
                 os.link(path, target)  # fails if target exists, unlike a rename
             except FileExistsError:
                 continue
+            except OSError as e:
+                if e.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK) or target.exists():
+                    raise
+                os.rename(path, target)  # no hard links on this file system; target checked just now
+                return target
             path.unlink()
             return target
         raise StoreError(f"cannot find a free name to keep {path} aside")

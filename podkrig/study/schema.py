@@ -410,10 +410,12 @@ def load_study(path):
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise StudyError(f"cannot read study file {path}: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise StudyError(f"{path}: not UTF-8 text at byte {e.start}; save it as UTF-8") from None
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise StudyError(f"{path}: not valid TOML: {e}") from e
+    except (tomllib.TOMLDecodeError, RecursionError) as e:
+        raise StudyError(f"{path}: not valid TOML: {e if isinstance(e, tomllib.TOMLDecodeError) else 'nested too deeply'}") from None
     r = _Reader(path, text)
     top = ("name", "scenario", "parameters", "fixed", "sampling", "surrogate", "measurement", "inversion",
            "validation", "diagnosis")
