@@ -481,7 +481,7 @@ def _scenario(r, value, path, folder, fixed):
     if not isinstance(value, dict):
         r.fail(path, f"must be a scenario name, a file name or a table; got {_type(value)} {value!r}", allowed)
     name = value.get("scenario")
-    if name not in SCENARIOS:
+    if not isinstance(name, str) or name not in SCENARIOS:  # a list is unhashable: check the type first
         r.fail((*path, "scenario"), "missing key 'scenario'" if name is None else f"unknown scenario {name!r}", names)
     cls = SCENARIOS[name]
     info = {p.name: p for p in cls.PARAMETERS}
