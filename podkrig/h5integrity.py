@@ -133,7 +133,7 @@ def metadata_digest(f, datasets):
             _update(h, "@" + key, f.attrs[key])
     for name in datasets:
         ds = f[name]
-        h.update(f"D{name}{ds.dtype.str}{ds.shape}".encode("utf-8"))
+        h.update(f"D{name}{ds.dtype.str}{ds.shape}".encode())
         for key in sorted(ds.attrs):
             _update(h, "@" + key, ds.attrs[key])
     return "sha256:" + h.hexdigest()

@@ -18,18 +18,16 @@ import traceback
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, seed, settings
+from hypothesis import strategies as st
+from typer.testing import CliRunner
 
-hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, seed, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-from typer.testing import CliRunner  # noqa: E402
-
-from fe.exceptions import FEError  # noqa: E402
-from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario  # noqa: E402
-from podkrig.cli import app  # noqa: E402
-from podkrig.exceptions import PodkrigError  # noqa: E402
-from podkrig.online.measurement_csv import read_measurement_csv  # noqa: E402
-from podkrig.study import load_study  # noqa: E402
+from fe.exceptions import FEError
+from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
+from podkrig.cli import app
+from podkrig.exceptions import PodkrigError
+from podkrig.online.measurement_csv import read_measurement_csv
+from podkrig.study import load_study
 
 EXAMPLES = int(os.environ.get("PODKRIG_FUZZ_EXAMPLES", "150"))
 SEED = 13_2026

@@ -47,8 +47,8 @@ def test_pipeline_never_deletes_a_store_another_run_is_writing(tmp_path, coarse_
     path = tmp_path / "train.h5"
     SnapshotStore.create(path, coarse_diagonal, space, sobol(8, 1, seed=0), sampling="sobol", seed=0).close()
     holder = subprocess.Popen(  # the first run, filling the store (HDF5 holds its lock)
-        [sys.executable, "-c", f"import h5py, time; f = h5py.File({str(path)!r}, 'r+'); print('open', flush=True); "
-                               "time.sleep(120)"], stdout=subprocess.PIPE, text=True)
+        [sys.executable, "-c", (f"import h5py, time; f = h5py.File({str(path)!r}, 'r+'); "
+                                "print('open', flush=True); time.sleep(120)")], stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "open"
         before = path.read_bytes()  # as the holder left it (opening sets a superblock flag)
@@ -179,7 +179,7 @@ def test_read_only_folder_gives_a_message(tmp_path):
 def test_top_level_handler_turns_an_escaped_os_error_into_a_message(tmp_path):
     """An OSError outside a command's own handling (here: writing the export CSV into a missing folder)."""
     done = subprocess.run([sys.executable, "-c", "from podkrig.cli import app; app(prog_name='podkrig')",
-                           "snapshots", "info", str(tmp_path)], capture_output=True, text=True)
+                           "snapshots", "info", str(tmp_path)], capture_output=True, text=True, check=False)
     assert done.returncode == 2 and "Traceback" not in done.stderr and "error:" in done.stderr
 
 

@@ -498,7 +498,7 @@ class SnapshotStore:
         acquire_lock(path)
         try:
             cls._open_checked(path, "r").close()
-            store = cls._open_checked(path, "r+")
+            store = cls._open_checked(path, "r+", warn=False)  # the read-only check above warned
         except BaseException:
             release_lock(path)
             raise
@@ -507,7 +507,7 @@ class SnapshotStore:
         return store
 
     @classmethod
-    def _open_checked(cls, path, mode):
+    def _open_checked(cls, path, mode, warn=True):
         hint = "it was left untouched; move it away or choose another store path"
         if not path.exists():
             raise StoreError(f"no snapshot store at {path}")
@@ -549,7 +549,7 @@ class SnapshotStore:
             if missing:
                 raise StoreError(f"{path} is an incomplete snapshot store: missing {missing}; {hint}")
             store = cls(f, path)
-            store._check_consistency()
+            store._check_consistency(warn)
         except StoreError:
             f.close()
             raise
@@ -558,7 +558,7 @@ class SnapshotStore:
             raise StoreError(f"{path} is a damaged snapshot store ({type(e).__name__}: {e}); {hint}") from e
         return store
 
-    def _check_consistency(self):
+    def _check_consistency(self, warn=True):
         n, d = self.n_rows, self.space.n_params
         shape = (n, len(self.load_levels), len(self.sensor_names))
         expected = {"parameters": (n, d), "unit_parameters": (n, d), "readings": shape,
@@ -575,11 +575,11 @@ class SnapshotStore:
                     or (self.has_fields and self._f[f"{_CHECKSUMS}/fields"].shape != (n,))):
                 raise StoreError(f"{self.path}: the checksum datasets do not match the {n} rows")
             self._unsealed = np.flatnonzero(self._digests[:, _WRITING])
-            if len(self._unsealed) and self._f.mode == "r":
+            if len(self._unsealed) and self._f.mode == "r" and warn:
                 logger.warning(
                     "%s: rows %s were being written when the last writer stopped; they are not "
                     "verified until the store is resumed", self.path, _rows_text(self._unsealed))
-        else:
+        elif warn:
             logger.warning(
                 "%s has no checksums: written by an older podkrig, so damage cannot be detected; "
                 + REHASH_HINT.format(path=self.path), self.path)
