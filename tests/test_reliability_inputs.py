@@ -218,3 +218,16 @@ def test_scenario_options_out_of_range_are_refused(option, message):
 
     with pytest.raises(FEError, match=message):
         build_scenario({"scenario": "diagonal_compression", **option})
+
+
+@pytest.mark.parametrize("line, message", [
+    ("noise_rel = inf", "inf is not a finite number"), ("noise_rel = nan", "nan is not a finite number"),
+    ("noise_rel = 1" + "0" * 400, "a number of 401 digits is not a finite number"),
+])
+def test_study_numbers_must_be_finite(tmp_path, line, message):
+    """Finding 7: `noise_abs = inf` and integers too large for a float were accepted or crashed."""
+    from podkrig.study import StudyError, load_study
+    from tests.test_study_file import VALID, _write
+
+    with pytest.raises(StudyError, match=message):
+        load_study(_write(tmp_path, VALID.replace("noise_rel = 0.01", line)))

@@ -56,6 +56,7 @@ Example
 
 import dataclasses
 import difflib
+import math
 import re
 import tomllib
 from dataclasses import dataclass
@@ -376,9 +377,20 @@ class _Reader:
         if not ok:
             expected = {"int": "an integer", "float": "a number", "bool": "true or false", "str": "a string"}[kind]
             self.fail(full, f"must be {expected}; got {_type(v)} {v!r}", allowed)
+        if (kind == "float" and not _finite(v)) or (kind == "int" and abs(v) >= 2**63):
+            shown = repr(v) if len(repr(v)) < 30 else f"a number of {len(repr(v))} digits"
+            self.fail(full, f"{shown} is not a finite number of ordinary size", allowed)
         if check is not None and not check(float(v) if kind == "float" else v):
             self.fail(full, f"{v!r} is out of range", allowed)
         return float(v) if kind == "float" else v
+
+
+def _finite(v):
+    """Finite as a float (an integer too large for one is not)."""
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
 
 
 def _type(v):
