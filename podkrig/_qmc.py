@@ -5,7 +5,7 @@ and as ``seed=`` before (the same points on both); an integer given as ``seed=``
 integer seeding, also the same on every version (and not the sequence of
 ``numpy.random.default_rng(seed)``). Every Sobol' design of the package (offline designs, the GA's
 initial population, the inversion's screen, the region sampling) comes from
-:func:`scrambled_sobol`. It sits at the bottom of the package (like ``_threads``) so that the GA
+:func:`scrambled_sobol`. It sits at the bottom of the package (like ``parallel``) so that the GA
 can use it; :func:`podkrig.offline.sampling.sobol` is the checked public form for designs.
 """
 

@@ -15,3 +15,11 @@ class StoreError(PodkrigError):
 
 class SchemaError(StoreError):
     """A store written with an unknown or incompatible schema version."""
+
+
+class StoreInUseError(StoreError):
+    """A store held by another writer (its lock file names the process)."""
+
+
+class IntegrityError(StoreError):
+    """A file whose content does not match the checksums stored with it (damaged after writing)."""

@@ -5,6 +5,8 @@ zero-thickness interfaces with uncoupled elastic stiffness diag(kV, kN) (thesis 
 Head joints have ``r_hj`` times the bed-joint stiffness.
 """
 
+import math
+import re
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -27,6 +29,18 @@ MASONRY_PARAMETERS = (
     ParameterInfo("kN_bb", 1e5, "N/mm³", 0.0, _BIG, "normal stiffness of unit mid-plane interfaces", lower_open=True),
     ParameterInfo("kV_bb", 1e5, "N/mm³", 0.0, _BIG, "shear stiffness of unit mid-plane interfaces", lower_open=True),
 )
+
+
+#: Input limits of the wall options: lengths in mm (below a micrometre or above 100 m is a unit
+#: error), mesh divisions per unit and courses (the element count bounds memory: ~8 unknowns per
+#: element, and a sparse factorisation of 10^5 elements already takes a few GiB), load levels.
+MIN_LENGTH_MM, MAX_LENGTH_MM = 1e-3, 1e5
+MAX_UNITS_PER_COURSE = 200
+MAX_COURSES = 500
+MAX_DIVISIONS = 64
+MAX_ELEMENTS = 100_000
+MAX_LOAD_LEVELS = 1000
+MAX_LOAD = 1e9
 
 
 @dataclass(frozen=True)
@@ -54,10 +68,34 @@ class WallOptions:
     sensors: dict | None = None
 
     def __post_init__(self):
-        if not self.thickness > 0:
-            raise ValueError(f"thickness must be > 0 mm; got {self.thickness}")
-        if not self.load_levels or any(not isinstance(v, (int, float)) for v in self.load_levels):
+        for name in ("unit_length", "unit_height", "thickness"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and MIN_LENGTH_MM <= v <= MAX_LENGTH_MM):
+                raise ValueError(f"{name} must be > 0 mm (a length in [{MIN_LENGTH_MM:g}, {MAX_LENGTH_MM:g}] mm); got {v!r}")
+        if not (math.isfinite(self.units_per_course) and 0.5 <= self.units_per_course <= MAX_UNITS_PER_COURSE):
+            raise ValueError(f"units_per_course must be in [0.5, {MAX_UNITS_PER_COURSE}]; got {self.units_per_course!r}")
+        for name, upper in (("n_courses", MAX_COURSES), ("nx", MAX_DIVISIONS), ("ny", MAX_DIVISIONS)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not 1 <= v <= upper:
+                raise ValueError(f"{name} must be an integer in [1, {upper}]; got {v!r}")
+        elements = self.n_courses * math.ceil(self.units_per_course + 1) * self.nx * self.ny
+        if elements > MAX_ELEMENTS:
+            raise ValueError(
+                f"the mesh would have about {elements} elements (~{8 * elements} unknowns, several GiB for the "
+                f"factorisation); at most {MAX_ELEMENTS}: reduce nx, ny or the wall size"
+            )
+        if not self.load_levels or any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in self.load_levels):
             raise ValueError(f"load_levels must be a non-empty list of numbers; got {self.load_levels}")
+        if len(self.load_levels) > MAX_LOAD_LEVELS or any(not (math.isfinite(v) and abs(v) <= MAX_LOAD)
+                                                          for v in self.load_levels):
+            raise ValueError(f"load_levels must be at most {MAX_LOAD_LEVELS} finite numbers of magnitude "
+                             f"<= {MAX_LOAD:g}; got {str(self.load_levels)[:200]}")
+        if self.sensors is not None and not self.sensors:
+            raise ValueError("sensors must define at least one sensor (leave it out for the scenario's default set)")
+        for name in self.sensors or ():
+            if not isinstance(name, str) or re.fullmatch(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,39}", name, re.ASCII) is None:
+                raise ValueError(f"sensor name {name!r}: use 1-40 letters, digits, '_', '-' or '.' (it becomes a "
+                                 "CSV column, an HDF5 key and a figure label)")
         if len(set(self.load_levels)) != len(self.load_levels):
             raise ValueError(f"load_levels must be distinct; got {self.load_levels}")
         object.__setattr__(self, "load_levels", tuple(float(v) for v in self.load_levels))

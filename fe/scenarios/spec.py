@@ -82,13 +82,16 @@ class ScenarioSpec:
         """Read a spec from a ``.toml`` or ``.json`` file."""
         path = Path(path)
         try:
-            text = path.read_text()
+            text = path.read_text(encoding="utf-8")
         except OSError as e:
             raise SpecError(f"cannot read scenario spec {path}: {e.strerror}") from e
+        except UnicodeDecodeError as e:
+            raise SpecError(f"{path}: not UTF-8 text at byte {e.start}; save it as UTF-8") from None
         try:
             d = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
-        except (ValueError, tomllib.TOMLDecodeError) as e:
-            raise SpecError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'TOML'}: {e}") from e
+        except (ValueError, tomllib.TOMLDecodeError, RecursionError) as e:
+            reason = "nested too deeply" if isinstance(e, RecursionError) else e
+            raise SpecError(f"{path}: not valid {'JSON' if path.suffix == '.json' else 'TOML'}: {reason}") from None
         return cls.from_dict(d, source=str(path))
 
     def to_json(self):

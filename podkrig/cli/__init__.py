@@ -8,12 +8,30 @@ importing every stage (Dask, matplotlib, the study pipeline) would take several 
 pay it.
 """
 
+import sys
+
 import typer
 
 from podkrig import __version__
 from podkrig.cli import diagnose, invert, run, scenarios, sensors, simulate, snapshots, surrogate
+from podkrig.cli._common import error_message
 
-app = typer.Typer(
+
+class _App(typer.Typer):
+    """The ``podkrig`` app: an OS or format error that escapes a command is one line, not a traceback."""
+
+    def __call__(self, *args, **kwargs):
+        try:
+            return super().__call__(*args, **kwargs)
+        except Exception as e:  # noqa: BLE001 - re-raised unless it has a message for the user
+            message = error_message(e)
+            if message is None:
+                raise
+            typer.echo(f"error: {message}", err=True)
+            sys.exit(2)
+
+
+app = _App(
     name="podkrig",
     help="Surrogate-first inverse analysis of mesoscale masonry FE models.",
     no_args_is_help=True,

@@ -12,6 +12,7 @@ from rich.table import Table
 
 from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, user_errors
 from podkrig.cli.simulate import parse_assignment
+from podkrig.limits import check_region_samples
 from podkrig.online.findings import inversion_findings
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement import NoiseModel
@@ -147,6 +148,7 @@ def register(app):
                 raise ValueError(f"--format must be table or json; got {format!r}")
             if not 0 < confidence < 1:
                 raise ValueError(f"--confidence must be in (0, 1); got {confidence}")
+            check_region_samples(region_samples)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
                                 fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)

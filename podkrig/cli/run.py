@@ -5,6 +5,7 @@ from pathlib import Path
 import typer
 
 from podkrig.cli._common import configure_logging, user_errors
+from podkrig.limits import check_name, check_output_folder
 
 DEMO_STUDY = "diagonal_compression.toml"
 
@@ -71,7 +72,9 @@ def _run(study_path, out):
     from podkrig.study import load_study, run_study
 
     study = load_study(study_path)
-    out = Path("out") / study.name if out is None else out
+    if out is None:  # the study's name becomes a folder: a name, never a path
+        out = Path("out") / check_name(study.name, f"the study name in {study_path}")
+    check_output_folder(out)
     progress = _rich_progress()
     try:
         result = run_study(study, out, progress=progress)

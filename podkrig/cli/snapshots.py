@@ -9,6 +9,8 @@ from pathlib import Path
 import typer
 
 from podkrig.cli._common import SamplingMethod, TextFormat, configure_logging, user_errors
+from podkrig.exceptions import StoreError
+from podkrig.limits import CONFIRM_ROWS, check_rows, human_bytes
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -44,6 +46,7 @@ def run(
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="Rerun rows whose FE run failed."),
     chunk_size: int = typer.Option(None, "--chunk-size", help="Rows per task (default: adapted to the work, at most 32)."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=f"Do not ask before creating a store of more than {CONFIRM_ROWS} rows."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Run a scenario at N sampled parameter vectors into a snapshot store.
@@ -67,6 +70,7 @@ def run(
 
     from podkrig.parameters import ParameterSpace, parse_params
     from podkrig.offline.runner import run_snapshots
+    from podkrig.offline.store import store_bytes_per_row
 
     with user_errors():
         if workers is not None and scheduler is not None:
@@ -74,6 +78,11 @@ def run(
         bounds = parse_params(param)
         sc = build_scenario(_scenario_spec(scenario, spec))
         space = ParameterSpace.from_scenario(sc, bounds)
+        size = check_rows(n, store_bytes_per_row(space.n_params, len(sc.load_levels), len(sc.sensor_names),
+                                                  sc.mesh.n_nodes, fields))
+        if n > CONFIRM_ROWS and not yes and not store.exists():
+            typer.confirm(f"--n {n}: {n} FE runs and a store of about {human_bytes(size)}; continue? "
+                          "(--yes skips this question)", abort=True, err=True)
         progress = Progress(
             TextColumn("snapshots"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
@@ -161,6 +170,54 @@ def info(
     for failure in d["failures"]:
         lines.append(f"failed row {failure['row']}: {failure['error']}")
     typer.echo("\n".join(lines))
+
+
+@snapshots_app.command("verify")
+def verify(
+    path: Path = typer.Argument(..., help="Snapshot store."),
+    rehash: bool = typer.Option(False, "--rehash", help="Add checksums to a store written by an older podkrig "
+                                                      "(its current content is taken as correct)."),
+    format: str = typer.Option("text", "--format", help="Output format: text or json."),
+):
+    """Check every row of a store against its checksums; exit code 1 names the damaged rows."""
+    from podkrig.offline.store import SnapshotStore
+
+    with user_errors():
+        if format not in ("text", "json"):
+            raise ValueError(f"--format must be text or json; got {format!r}")
+        if rehash:
+            with SnapshotStore.open(path, "r+") as store:
+                store.rehash()
+            typer.echo(f"added checksums to {path} ({store.n_rows} rows)")
+            return
+        try:
+            with SnapshotStore.open(path) as store:
+                report = store.verify()
+        except StoreError as e:  # damaged metadata or a row read at opening
+            if format == "json":
+                typer.echo(json.dumps({"path": str(path), "ok": False, "error": str(e)}, indent=2))
+            else:
+                typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(code=1) from None
+    if format == "json":
+        typer.echo(json.dumps(report.to_dict(), indent=2))
+    elif not report.checksummed:
+        typer.echo(f"{path}: no checksums: written by an older podkrig, damage cannot be detected; "
+                   f"run 'podkrig snapshots verify --rehash {path}' on a store you trust", err=True)
+    elif report.ok:
+        extra = (f"; rows {report.unsealed_rows} were being written when a job stopped and are resealed "
+                 "by the next run") if report.unsealed_rows else ""
+        typer.echo(f"{path}: {report.rows} rows match their checksums{extra}")
+    else:
+        if not report.metadata_ok:
+            typer.echo(f"{path}: the datasets' attributes (units, names) do not match their checksum", err=True)
+        for name, rows in report.bad_rows.items():
+            shown = ", ".join(map(str, rows[:50])) + (f" and {len(rows) - 50} more" if len(rows) > 50 else "")
+            typer.echo(f"{path}: dataset {name!r}: rows {shown} do not match their checksums", err=True)
+        typer.echo("the store was damaged after it was written: rebuild the damaged rows' store or restore a copy",
+                   err=True)
+    if not report.ok:
+        raise typer.Exit(code=1)
 
 
 @snapshots_app.command("export")

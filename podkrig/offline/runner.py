@@ -56,7 +56,7 @@ from podkrig import __version__
 from podkrig.exceptions import PodkrigError, StoreError
 from podkrig.parameters import ParameterSpace
 from podkrig.offline.sampling import METHODS, sample
-from podkrig.offline.store import DONE, FAILED, SnapshotStore
+from podkrig.offline.store import DONE, FAILED, SnapshotStore, acquire_lock, release_lock
 
 logger = logging.getLogger(__name__)
 
@@ -72,6 +72,10 @@ LOCAL_DASK_CONFIG = {
     "distributed.worker.memory.monitor-interval": "1s",
 }
 MAX_CHUNK = 32
+#: Upper bounds of the executor arguments: more local processes than this on one machine only
+#: thrash, and a task of more rows than this loses finished work on a crash.
+MAX_WORKERS = 1024
+MAX_CHUNK_SIZE = 4096
 
 _SCENARIO_CACHE = {}  # (spec JSON, thread id) -> Scenario: each worker thread builds a scenario once
 _SCENARIO_CACHE_SIZE = 8
@@ -396,11 +400,30 @@ def run_snapshots(path, spec, space, *, n, seed, sampling="sobol", fields=False,
         dying; every finished row is kept and a rerun resumes.
     """
     t0 = time.perf_counter()
+    _check_executor(workers, scheduler, chunk_size)  # before the store exists: a bad call leaves nothing
     scenario = _scenario_of(spec)
-    action = prepare_store(path, scenario, space, n=n, seed=seed, sampling=sampling, fields=fields)
-    summary = run_pending(path, workers=workers, scheduler=scheduler, retry_failed=retry_failed,
-                          chunk_size=chunk_size, progress=progress, scenario=scenario)
+    acquire_lock(path)  # one writer from the first check to the last row: no other run interleaves
+    try:
+        action = prepare_store(path, scenario, space, n=n, seed=seed, sampling=sampling, fields=fields)
+        summary = run_pending(path, workers=workers, scheduler=scheduler, retry_failed=retry_failed,
+                              chunk_size=chunk_size, progress=progress, scenario=scenario)
+    finally:
+        release_lock(path)
     return dataclasses.replace(summary, seconds=time.perf_counter() - t0, action=action)
+
+
+def _check_executor(workers, scheduler, chunk_size):
+    if scheduler is not None and workers is not None:
+        raise ValueError("give either workers (a local cluster) or scheduler (an existing one), not both")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
+    if workers is not None and workers > MAX_WORKERS:
+        raise ValueError(f"workers must be at most {MAX_WORKERS} local processes; got {workers} "
+                         "(use --scheduler for a cluster of more machines)")
+    if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1):
+        raise ValueError(f"chunk_size must be an integer >= 1; got {chunk_size!r}")
+    if chunk_size is not None and chunk_size > MAX_CHUNK_SIZE:
+        raise ValueError(f"chunk_size must be at most {MAX_CHUNK_SIZE} rows per task; got {chunk_size}")
 
 
 def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk_size=None,
@@ -415,14 +438,9 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
     RunSummary
     """
     t0 = time.perf_counter()
-    if scheduler is not None and workers is not None:
-        raise ValueError("give either workers (a local cluster) or scheduler (an existing one), not both")
+    _check_executor(workers, scheduler, chunk_size)
     if workers is None and scheduler is None:
         workers = os.cpu_count() or 1
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
-    if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1):
-        raise ValueError(f"chunk_size must be an integer >= 1; got {chunk_size!r}")
     path = Path(path)
     with SnapshotStore.open(path, "r+") as store:
         spec_json = store.spec.to_json()

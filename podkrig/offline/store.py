@@ -22,6 +22,9 @@ Layout (``n`` rows, ``d`` free parameters, readings in mm, loads in the scenario
     /cpu_time             (n,) float64, s; CPU time of the thread that ran it (below wall time when
                           the worker waited for a core), NaN until run
     /fields               (n, n_loads, n_nodes, 2) float64, mm; optional, gzip, one chunk per row
+    /checksums/rows       (n + 1, 8) uint64: per-row digests of the 7 datasets above + "being
+                          written" flag; last row: SHA-256 of the root and of the dataset attributes
+    /checksums/fields     (n,) uint64: digest of each row's fields (with fields only)
 
 Crash safety. A store is created in a temporary file and renamed into place, so it either exists
 whole or not at all; growing it (Sobol' append) rewrites it the same way. Every per-row dataset
@@ -29,6 +32,21 @@ except ``fields`` is contiguous with its space allocated at creation, so writing
 raw bytes only, never the file's structure. :meth:`SnapshotStore.write_results` writes the data,
 flushes, then writes the status and flushes again: a process killed at any moment leaves a file
 whose ``done`` rows are complete, and an unfinished row stays ``pending``.
+
+One writer. A writer (create, extend, ``mode="r+"``) holds an exclusive ``fcntl.flock`` on
+``.NAME.lock`` beside the store for its lifetime; a second writer is refused with the first one's
+PID and changes nothing. Creation publishes the temporary file with ``os.link``, which fails
+rather than replace a file that appeared meanwhile; temporary files left by a killed creation are
+removed by the next writer. Before each batch the free disk space is checked, and any HDF5 write
+error stops the run with "disk full: N rows written ..." while the batch's rows stay pending.
+
+Checksums (``/checksums``, absent in stores written before them, which still load with a warning):
+a 64-bit multilinear digest per row of every per-row dataset and of each row's fields
+(:func:`podkrig.h5integrity.row_digests`), and SHA-256 digests of the root attributes and of the
+datasets' attributes. Parameters, status and metadata are verified at every opening, the other
+datasets whenever they are read, everything by :meth:`SnapshotStore.verify`. A row being written
+is marked in the digest table first and unmarked after its digests: a writer killed in between
+leaves rows that the next writer reseals (they were verified just before the write began).
 
 Example
 -------
@@ -42,18 +60,24 @@ References
 """
 
 import datetime
+import errno
+import fcntl
 import hashlib
 import json
 import logging
 import os
+import socket
 import sys
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from fe.exceptions import FEError
 from podkrig import __version__
-from podkrig.exceptions import SchemaError, StoreError
+from podkrig.exceptions import IntegrityError, SchemaError, StoreError, StoreInUseError
+from podkrig.h5integrity import attrs_digest, metadata_digest, row_digests
 from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
@@ -73,6 +97,11 @@ _ROOT_ATTRS = (
 _JSON_ATTRS = ("software", "scenario_spec", "parameter_space", "sensor_names", "sensor_definitions",
                "run_arguments", "history")
 _ROW_DATASETS = ("parameters", "unit_parameters", "readings", "status", "error", "wall_time", "cpu_time")
+_CHECKSUMS = "checksums"  # group: rows (n + 1, 8) uint64, fields (n,) uint64 (see _write_checksums)
+_WRITING = len(_ROW_DATASETS)  # last column of checksums/rows: 1 while the row is being written
+_VERIFIED_AT_OPEN = ("parameters", "status")  # small and always needed; the rest when read
+_DISK_MARGIN = 256 * 1024  # bytes kept free beyond a batch's estimate (HDF5 metadata, other writers)
+REHASH_HINT = "run 'podkrig snapshots verify --rehash {path}' to add them"
 
 
 def software_versions():
@@ -95,6 +124,267 @@ def _now():
 
 def _tmp_path(path):
     return path.with_name(f".{path.name}.tmp-{os.getpid()}")
+
+
+def lock_path(path):
+    """The lock file of the store at ``path``: ``.NAME.lock`` beside it, holding the writer's PID."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.lock")
+
+
+_HELD = {}  # resolved lock path -> [fd, count]: a process takes a store's lock once, then counts
+
+
+def _lock_holder(lock):
+    try:
+        return lock.read_text(encoding="utf-8", errors="replace").strip()[:200] or "an unknown process"
+    except OSError:
+        return "an unknown process"
+
+
+def acquire_lock(path):
+    """Take the exclusive writer lock of the store at ``path`` (re-entrant within a process).
+
+    The lock is an advisory ``fcntl.flock`` on ``.NAME.lock``, held until :func:`release_lock`;
+    the operating system drops it when the process dies, so a killed job never leaves a stale lock.
+
+    Raises
+    ------
+    StoreInUseError
+        Another process holds it (the message gives its PID and host).
+    StoreError
+        The lock file cannot be created (read-only folder, ...).
+    """
+    lock = lock_path(path)
+    key = str(lock.resolve())
+    if key in _HELD:
+        _HELD[key][1] += 1
+        return
+    while True:
+        try:
+            lock.parent.mkdir(parents=True, exist_ok=True)
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            raise StoreError(f"cannot create the lock file {lock}: {e.strerror}; is the folder writable?") from e
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as e:
+            os.close(fd)
+            if e.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                raise StoreInUseError(
+                    f"{path} is in use by {_lock_holder(lock)} (lock {lock.name}); wait for that job to "
+                    "finish or stop it — nothing was changed"
+                ) from None
+            raise StoreError(f"cannot lock {lock}: {e.strerror}") from e
+        try:  # the holder we waited for may have removed the file: lock the one on disk
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    os.ftruncate(fd, 0)
+    os.write(fd, f"PID {os.getpid()} on {socket.gethostname()}\n".encode())
+    _HELD[key] = [fd, 1]
+
+
+def release_lock(path):
+    """Release one :func:`acquire_lock` of this process; the last one removes the lock file."""
+    lock = lock_path(path)
+    key = str(lock.resolve())
+    held = _HELD.get(key)
+    if held is None:
+        return
+    held[1] -= 1
+    if held[1] == 0:
+        del _HELD[key]
+        lock.unlink(missing_ok=True)  # while still locked: a waiter re-checks the path (see acquire_lock)
+        os.close(held[0])
+
+
+def move_aside(path):
+    """Rename an unusable store to ``NAME.unusable-YYYYmmddTHHMMSSZ[-k].SUFFIX`` beside it, under the
+    store's lock; never replaces a file. Returns the new path.
+
+    Raises
+    ------
+    StoreInUseError
+        Another process writes the store.
+    """
+    path = Path(path)
+    acquire_lock(path)
+    try:
+        stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%SZ")
+        for k in range(1000):
+            target = path.with_name(f"{path.stem}.unusable-{stamp}{f'-{k}' if k else ''}{path.suffix}")
+            try:
+                os.link(path, target)  # fails if target exists, unlike a rename
+            except FileExistsError:
+                continue
+            except OSError as e:
+                if e.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK) or target.exists():
+                    raise
+                os.rename(path, target)  # no hard links on this file system; target checked just now
+                return target
+            path.unlink()
+            return target
+        raise StoreError(f"cannot find a free name to keep {path} aside")
+    except OSError as e:
+        raise StoreError(f"cannot move {path} aside: {_io_reason(e)}") from e
+    finally:
+        release_lock(path)
+
+
+def _remove_orphans(path):
+    """Delete temporary files of an interrupted create/extend of ``path`` (call with the lock held)."""
+    for tmp in path.parent.glob(f".{path.name}.tmp-*"):
+        try:
+            tmp.unlink()
+            logger.warning("removed %s, left by an interrupted creation of %s", tmp, path)
+        except OSError as e:
+            logger.warning("cannot remove the leftover %s: %s", tmp, e.strerror)
+
+
+def _free_bytes(folder):
+    try:
+        st = os.statvfs(folder)
+    except OSError:
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def _check_disk_space(folder, need, what):
+    free = _free_bytes(folder)
+    if free is not None and free < need + _DISK_MARGIN:
+        raise StoreError(
+            f"disk full: {what} needs about {_human(need)} but {folder} has {_human(free)} free; "
+            "free some space and rerun"
+        )
+
+
+def _human(nbytes):
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if abs(nbytes) < 1024 or unit == "TiB":
+            return f"{nbytes:.0f} {unit}" if unit == "B" else f"{nbytes:.1f} {unit}"
+        nbytes /= 1024
+
+
+def _row_bytes(n_params, n_loads, n_sensors):
+    """Bytes per row of the contiguous datasets (checksums included)."""
+    return 16 * n_params + 8 * n_loads * n_sensors + 1 + ERROR_BYTES + 16 + 8 * len(_ROW_DATASETS) + 9
+
+
+def store_bytes_per_row(n_params, n_loads, n_sensors, n_nodes=0, fields=False):
+    """Upper estimate of a store's bytes on disk per row (fields counted uncompressed)."""
+    return _row_bytes(n_params, n_loads, n_sensors) + (16 * n_loads * n_nodes + 8 if fields else 0)
+
+
+def estimate_store_bytes(n, n_params, n_loads, n_sensors, n_nodes=0, fields=False):
+    """Upper estimate of a store's size on disk, bytes (fields counted uncompressed)."""
+    return int(n) * store_bytes_per_row(n_params, n_loads, n_sensors, n_nodes, fields) + 64 * 1024
+
+
+def _io_reason(e):
+    """A short reason for an OS or HDF5 I/O error, with what to do."""
+    text = str(e)
+    code = getattr(e, "errno", None)
+    if code == errno.ENOSPC or "errno = 28" in text or "No space left" in text:
+        return "disk full (no space left on device); free some space and rerun"
+    if code in (errno.EACCES, errno.EPERM) or "Permission denied" in text:
+        return "permission denied; choose a folder you can write to"
+    if code == errno.EROFS or "Read-only file system" in text:
+        return "read-only file system; choose a writable folder"
+    return f"{type(e).__name__}: {text[:300]}"
+
+
+def _publish(tmp, path):
+    """Move a finished temporary file to ``path``, never replacing an existing file."""
+    try:
+        os.link(tmp, path)  # atomic and fails if path exists, unlike a rename
+    except FileExistsError:
+        raise StoreError(f"{path} already exists; a store is never overwritten") from None
+    except OSError as e:
+        if e.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK):
+            raise StoreError(f"cannot create {path}: {_io_reason(e)}") from e
+        if path.exists():  # no hard links here (some network file systems); we hold the lock
+            raise StoreError(f"{path} already exists; a store is never overwritten") from None
+        os.replace(tmp, path)
+
+
+def _write_checksums(f, fields):
+    """(Re)compute every checksum of an open store from its content (creation, extend, rehash).
+
+    ``/checksums/rows`` (n + 1, 8) uint64: row ``i < n`` holds the digests of row ``i`` of each
+    dataset of :data:`_ROW_DATASETS`, then 1 while a writer fills the row (else 0); row ``n``
+    holds the SHA-256 of the root attributes (4 words, checked at every opening) and of the
+    datasets' own attributes, dtypes and shapes (4 words, checked by :meth:`SnapshotStore.verify`).
+    One table, read once at opening. ``/checksums/fields`` (n,): a digest per row of fields.
+    """
+    n = f["status"].shape[0]
+    g = f.require_group(_CHECKSUMS)
+    for name in ("rows", "fields"):
+        if name in g:
+            del g[name]
+    table = np.zeros((n + 1, _WRITING + 1), dtype="<u8")
+    table[:n, :_WRITING] = np.stack([row_digests(f[name][...]) for name in _ROW_DATASETS], axis=1)
+    table[n, :4] = _sha_words(attrs_digest({k: f.attrs[k] for k in _ROOT_ATTRS}))
+    table[n, 4:] = _sha_words(metadata_digest(f, _datasets(fields)))
+    _early(table.shape, "<u8", 0, g, "rows", columns=json.dumps([*_ROW_DATASETS, "writing"]),
+           method="multilinear 64-bit digest per row (podkrig.h5integrity.row_digests); last row: "
+                  "SHA-256 of the root attributes, SHA-256 of the datasets' attributes")[...] = table
+    if fields:
+        fd = _early((n,), "<u8", 0, g, "fields")
+        fd[...] = [row_digests(f["fields"][i][None])[0] for i in range(n)]
+
+
+def _sha_words(digest):
+    """``"sha256:<hex>"`` as 4 little-endian uint64 words."""
+    return np.frombuffer(bytes.fromhex(digest.split(":", 1)[1]), dtype="<u8")
+
+
+def _datasets(fields):
+    return _ROW_DATASETS + (("fields",) if fields else ())
+
+
+@dataclass
+class VerifyReport:
+    """Outcome of :meth:`SnapshotStore.verify`.
+
+    Attributes
+    ----------
+    path : str
+    checksummed : bool
+        False for a store written before checksums existed.
+    metadata_ok : bool
+        Root and dataset attributes match their digest.
+    bad_rows : dict
+        ``{dataset: [row, ...]}`` rows whose content does not match their checksum.
+    unsealed_rows : list of int
+        Rows being written when a writer stopped; resealed by the next run on the store.
+    rows : int
+    """
+
+    path: str
+    checksummed: bool
+    metadata_ok: bool = True
+    bad_rows: dict = field(default_factory=dict)
+    unsealed_rows: list = field(default_factory=list)
+    rows: int = 0
+
+    @property
+    def ok(self):
+        return self.checksummed and self.metadata_ok and not self.bad_rows
+
+    def to_dict(self):
+        return {"path": self.path, "checksummed": self.checksummed, "metadata_ok": self.metadata_ok,
+                "bad_rows": self.bad_rows, "unsealed_rows": self.unsealed_rows, "rows": self.rows,
+                "ok": self.ok}
+
+
+def _rows_text(rows, limit=20):
+    rows = [int(r) for r in rows]
+    more = f" and {len(rows) - limit} more" if len(rows) > limit else ""
+    return ", ".join(map(str, rows[:limit])) + more
 
 
 def _early(shape, dtype, fillvalue, parent, name, **attrs):
@@ -137,8 +427,22 @@ class SnapshotStore:
     def __init__(self, file, path):
         self._f = file
         self.path = Path(path)
-        a = {k: self._f.attrs[k] for k in _ROOT_ATTRS}
-        a = {k: json.loads(v) if k in _JSON_ATTRS else v for k, v in a.items()}
+        self._raw_attrs = {k: self._f.attrs[k] for k in _ROOT_ATTRS}
+        self._table = self._f.get(f"{_CHECKSUMS}/rows")
+        self.checksummed = self._table is not None
+        self._digests = self._meta_words = None  # checksums/rows, read once at opening
+        if self.checksummed:  # before any attribute is interpreted
+            table = self._table[...]
+            if table.ndim != 2 or table.shape[1] != _WRITING + 1 or len(table) < 1:
+                raise StoreError(f"{self.path}: the checksum table has shape {table.shape}")
+            self._digests, self._meta_words = table[:-1], table[-1]
+            if not np.array_equal(self._meta_words[:4], _sha_words(attrs_digest(self._raw_attrs))):
+                raise IntegrityError(
+                    f"{self.path}: the store's metadata (scenario, parameter space, sensors, load "
+                    "levels, units, history) does not match its checksum: the file was damaged after it "
+                    "was written; check it with 'podkrig snapshots verify' and rebuild it or restore a copy"
+                )
+        a = {k: json.loads(v) if k in _JSON_ATTRS else v for k, v in self._raw_attrs.items()}
         from fe.scenarios import ScenarioSpec
 
         self.schema_version = int(a["schema_version"])
@@ -159,6 +463,9 @@ class SnapshotStore:
         self.history = a["history"]
         self.n_rows = int(self._f["status"].shape[0])
         self.has_fields = "fields" in self._f
+        self._locked = False
+        self._unsealed = np.zeros(0, dtype=np.int64)
+        self._cache = {}  # verified parameters, unit_parameters, status (kept current by writes)
 
     # ------------------------------------------------------------------ opening and creating
     @classmethod
@@ -186,14 +493,21 @@ class SnapshotStore:
         if mode not in ("r", "r+"):
             raise ValueError(f"mode must be 'r' or 'r+'; got {mode!r}")
         path = Path(path)
-        store = cls._open_checked(path, "r")
         if mode == "r":
-            return store
-        store.close()
-        return cls._open_checked(path, "r+")
+            return cls._open_checked(path, "r")
+        acquire_lock(path)
+        try:
+            cls._open_checked(path, "r").close()
+            store = cls._open_checked(path, "r+", warn=False)  # the read-only check above warned
+        except BaseException:
+            release_lock(path)
+            raise
+        store._locked = True
+        store._reseal()
+        return store
 
     @classmethod
-    def _open_checked(cls, path, mode):
+    def _open_checked(cls, path, mode, warn=True):
         hint = "it was left untouched; move it away or choose another store path"
         if not path.exists():
             raise StoreError(f"no snapshot store at {path}")
@@ -209,8 +523,11 @@ class SnapshotStore:
             f = h5py.File(path, mode)
         except OSError as e:
             if isinstance(e, BlockingIOError) or "unable to lock file" in str(e):
-                raise StoreError(
-                    f"{path} is in use by another process (HDF5 file lock); wait for that job to "
+                lock = lock_path(path)
+                mine = str(lock.resolve()) in _HELD
+                holder = _lock_holder(lock) if lock.exists() and not mine else "another process"
+                raise StoreInUseError(
+                    f"{path} is in use by {holder} (HDF5 file lock); wait for that job to "
                     "finish or stop it"
                 ) from e
             raise StoreError(f"{path} cannot be opened: truncated or corrupt HDF5 file ({e}); {hint}") from e
@@ -232,16 +549,16 @@ class SnapshotStore:
             if missing:
                 raise StoreError(f"{path} is an incomplete snapshot store: missing {missing}; {hint}")
             store = cls(f, path)
-            store._check_consistency()
+            store._check_consistency(warn)
         except StoreError:
             f.close()
             raise
-        except (OSError, KeyError, ValueError, TypeError) as e:
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError, FEError) as e:
             f.close()
             raise StoreError(f"{path} is a damaged snapshot store ({type(e).__name__}: {e}); {hint}") from e
         return store
 
-    def _check_consistency(self):
+    def _check_consistency(self, warn=True):
         n, d = self.n_rows, self.space.n_params
         shape = (n, len(self.load_levels), len(self.sensor_names))
         expected = {"parameters": (n, d), "unit_parameters": (n, d), "readings": shape,
@@ -253,7 +570,22 @@ class SnapshotStore:
                 raise StoreError(
                     f"{self.path}: dataset {name!r} has shape {self._f[name].shape}, expected {shp}"
                 )
-        codes = self._f["status"][...]  # reads the data: a damaged file fails here, not later
+        if self.checksummed:
+            if (self._table.shape != (n + 1, _WRITING + 1)
+                    or (self.has_fields and self._f[f"{_CHECKSUMS}/fields"].shape != (n,))):
+                raise StoreError(f"{self.path}: the checksum datasets do not match the {n} rows")
+            self._unsealed = np.flatnonzero(self._digests[:, _WRITING])
+            if len(self._unsealed) and self._f.mode == "r" and warn:
+                logger.warning(
+                    "%s: rows %s were being written when the last writer stopped; they are not "
+                    "verified until the store is resumed", self.path, _rows_text(self._unsealed))
+        elif warn:
+            logger.warning(
+                "%s has no checksums: written by an older podkrig, so damage cannot be detected; "
+                + REHASH_HINT.format(path=self.path), self.path)
+        for name in _VERIFIED_AT_OPEN:  # reads the data: a damaged file fails here, not later
+            self._cache[name] = self._read(name)
+        codes = self._cache["status"]
         if not np.isin(codes, list(STATUS_NAMES)).all():
             raise StoreError(f"{self.path}: dataset 'status' holds codes other than {STATUS_NAMES}")
 
@@ -295,6 +627,18 @@ class SnapshotStore:
         U = np.asarray(unit_samples, dtype=float)
         if U.ndim != 2 or U.shape[1] != space.n_params or U.shape[0] < 1:
             raise ValueError(f"unit_samples must have shape (n_samples >= 1, {space.n_params}); got {U.shape}")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        acquire_lock(path)
+        try:
+            return cls._create_locked(path, scenario, space, U, sampling, seed, fields)
+        finally:
+            release_lock(path)  # the returned store holds its own
+
+    @classmethod
+    def _create_locked(cls, path, scenario, space, U, sampling, seed, fields):
+        _remove_orphans(path)
+        if path.exists():  # created by another writer since the check above
+            raise StoreError(f"{path} already exists; a store is never overwritten")
         n_loads, n_sensors = len(scenario.load_levels), len(scenario.sensor_names)
         attrs = {
             "format": FORMAT,
@@ -315,12 +659,18 @@ class SnapshotStore:
             "run_arguments": {"n": int(U.shape[0]), "seed": int(seed), "sampling": sampling, "fields": bool(fields)},
             "history": [{"time": _now(), "event": "created", "rows": int(U.shape[0])}],
         }
-        path.parent.mkdir(parents=True, exist_ok=True)
+        n_nodes = int(scenario.mesh.n_nodes)
+        _check_disk_space(path.parent, estimate_store_bytes(U.shape[0], space.n_params, n_loads, n_sensors),
+                          f"a store of {U.shape[0]} rows")
         tmp = _tmp_path(path)
         try:
-            with h5py.File(tmp, "w") as f:
-                _write_layout(f, attrs, space, U, n_loads, n_sensors, int(scenario.mesh.n_nodes), fields)
-            os.replace(tmp, path)
+            try:
+                with h5py.File(tmp, "w") as f:
+                    _write_layout(f, attrs, space, U, n_loads, n_sensors, n_nodes, fields)
+                    _write_checksums(f, fields)
+            except (OSError, RuntimeError) as e:
+                raise StoreError(f"cannot create {path}: {_io_reason(e)}") from e
+            _publish(tmp, path)
         finally:
             tmp.unlink(missing_ok=True)
         logger.info("created snapshot store %s with %d pending rows", path, U.shape[0])
@@ -348,6 +698,15 @@ class SnapshotStore:
             The store cannot be opened (see :meth:`open`).
         """
         path = Path(path)
+        acquire_lock(path)
+        try:
+            _remove_orphans(path)
+            cls._extend_locked(path, unit_samples, source)
+        finally:
+            release_lock(path)
+
+    @classmethod
+    def _extend_locked(cls, path, unit_samples, source):
         tmp = _tmp_path(path)
         with cls.open(path, "r") as old:
             U_new = np.asarray(unit_samples, dtype=float)
@@ -363,26 +722,38 @@ class SnapshotStore:
                 {"time": _now(), "event": "extended", "rows": n, "source": str(source),
                  "software": software_versions()}
             ]
-            U = np.vstack([src["unit_parameters"][...], U_new])
+            U = np.vstack([old._read("unit_parameters"), U_new])
+            _check_disk_space(path.parent, path.stat().st_size + estimate_store_bytes(
+                n, old.space.n_params, old.n_loads, old.n_sensors), f"growing the store to {n} rows")
             try:
                 with h5py.File(tmp, "w") as f:
                     _write_layout(f, attrs, old.space, U, len(old.load_levels), len(old.sensor_names),
                                   old.n_nodes, old.has_fields)
-                    f["parameters"][:n_old] = src["parameters"][...]  # the stored values, bit for bit
+                    f["parameters"][:n_old] = old._read("parameters")  # the stored values, bit for bit
                     for name in ("readings", "error", "wall_time", "cpu_time", "status"):
-                        f[name][:n_old] = src[name][...]
+                        f[name][:n_old] = old._read(name)  # verified against their checksums
                     if old.has_fields:
-                        for i in np.flatnonzero(src["status"][...] == DONE):
-                            f["fields"][i] = src["fields"][i]
-                os.replace(tmp, path)
+                        done = np.flatnonzero(old.done_mask())
+                        for start in range(0, len(done), 64):
+                            rows = done[start:start + 64]
+                            f["fields"][rows] = old._read_fields(rows)
+                    _write_checksums(f, old.has_fields)
+                os.replace(tmp, path)  # we hold the store's lock: nobody else writes it
+            except (OSError, RuntimeError) as e:
+                raise StoreError(f"cannot grow {path} (it is unchanged): {_io_reason(e)}") from e
             finally:
                 tmp.unlink(missing_ok=True)
         logger.info("extended snapshot store %s from %d to %d rows", path, n_old, n)
 
     def close(self):
-        """Flush and close the file (idempotent)."""
-        if self._f.id.valid:
-            self._f.close()
+        """Flush and close the file and release the writer's lock (idempotent)."""
+        try:
+            if self._f.id.valid:
+                self._f.close()
+        finally:
+            if self._locked:
+                self._locked = False
+                release_lock(self.path)
 
     def __enter__(self):
         return self
@@ -393,6 +764,141 @@ class SnapshotStore:
     def __repr__(self):
         state = "open" if self._f.id.valid else "closed"
         return f"<SnapshotStore {str(self.path)!r} ({state}, {self.n_rows} rows)>"
+
+    # ------------------------------------------------------------------ checksums
+    def _read(self, name):
+        """A whole per-row dataset, verified against its row checksums.
+
+        Raises
+        ------
+        IntegrityError
+            Rows whose content does not match their checksum (named in the message).
+        """
+        if name in self._cache:
+            return self._cache[name].copy()
+        data = self._h5read(name, ...)
+        if self.checksummed:
+            bad = self._mismatched(name, data)
+            if len(bad):
+                raise IntegrityError(
+                    f"{self.path}: rows {_rows_text(bad)} of dataset {name!r} do not match their checksums: "
+                    "the file was damaged after it was written; the store is refused (check it with "
+                    "'podkrig snapshots verify', then rebuild it or restore a copy)"
+                )
+        return data
+
+    def _h5read(self, name, index):
+        """``self._f[name][index]``; an HDF5 read error (a damaged file) becomes a StoreError."""
+        try:
+            return self._f[name][index]
+        except (OSError, RuntimeError, KeyError, ValueError) as e:
+            raise StoreError(
+                f"{self.path}: dataset {name!r} cannot be read ({type(e).__name__}: {e}): the file is damaged; "
+                "check it with 'podkrig snapshots verify', then rebuild it or restore a copy"
+            ) from e
+
+    def _mismatched(self, name, data):
+        col = _ROW_DATASETS.index(name)
+        bad = row_digests(data) != self._digests[:, col]
+        bad[self._unsealed] = False
+        return np.flatnonzero(bad)
+
+    def _read_fields(self, rows):
+        """Fields of the given rows, ndarray (len(rows), n_loads, n_nodes, 2), each row verified."""
+        out = np.empty((len(rows), self.n_loads, self.n_nodes, 2))
+        for j, i in enumerate(rows):  # row by row: one chunk each, no full-dataset read
+            out[j] = self._h5read("fields", i)
+        if self.checksummed and len(rows):
+            bad = row_digests(out) != self._h5read(f"{_CHECKSUMS}/fields", ...)[rows]
+            bad &= ~np.isin(rows, self._unsealed)
+            if bad.any():
+                raise IntegrityError(
+                    f"{self.path}: the displacement fields of rows {_rows_text(np.asarray(rows)[bad])} do not "
+                    "match their checksums: the file was damaged after it was written; the store is refused"
+                )
+        return out
+
+    def _reseal(self):
+        """Recompute the checksums of rows a killed writer left half-written (writers only).
+
+        Such rows were verified just before that write began (see :meth:`write_results`); their
+        status is written last, so a row that did not reach ``done`` is rerun anyway.
+        """
+        if not self.checksummed or not len(self._unsealed):
+            return
+        rows = self._unsealed
+        g = self._f[_CHECKSUMS]
+        for col, name in enumerate(_ROW_DATASETS):
+            self._digests[rows, col] = row_digests(self._f[name][...][rows])
+        self._table[:self.n_rows] = self._digests
+        if self.has_fields:
+            fd = g["fields"][...]
+            for i in rows:
+                fd[i] = row_digests(self._f["fields"][i][None])[0]
+            g["fields"][...] = fd
+        self._f.flush()
+        self._digests[:, _WRITING] = 0
+        self._table[:self.n_rows] = self._digests
+        self._f.flush()
+        logger.info("%s: resealed rows %s left by an interrupted write", self.path, _rows_text(rows))
+        self._unsealed = np.zeros(0, dtype=np.int64)
+
+    def verify(self):
+        """Check every row of every dataset (fields included) against its checksum.
+
+        Returns
+        -------
+        VerifyReport
+            Never raises for a mismatch: the report names the rows.
+        """
+        report = VerifyReport(str(self.path), self.checksummed, rows=self.n_rows,
+                              unsealed_rows=[int(i) for i in self._unsealed])
+        if not self.checksummed:
+            return report
+        report.metadata_ok = np.array_equal(self._meta_words[4:],
+                                            _sha_words(metadata_digest(self._f, _datasets(self.has_fields))))
+        for name in _ROW_DATASETS:
+            bad = self._mismatched(name, self._h5read(name, ...))
+            if len(bad):
+                report.bad_rows[name] = [int(i) for i in bad]
+        if self.has_fields:
+            stored = self._h5read(f"{_CHECKSUMS}/fields", ...)
+            bad = []
+            for start in range(0, self.n_rows, 256):
+                rows = np.arange(start, min(start + 256, self.n_rows))
+                block = np.stack([self._h5read("fields", i) for i in rows])
+                bad += [int(i) for i in rows[row_digests(block) != stored[rows]] if i not in self._unsealed]
+            if bad:
+                report.bad_rows["fields"] = bad
+        return report
+
+    def rehash(self):
+        """Add checksums to a store written before they existed (open with ``mode="r+"``).
+
+        The current content is taken as correct: run it only on a store you trust.
+
+        Raises
+        ------
+        StoreError
+            The store already has checksums (rehashing would hide damage) or is open read-only.
+        """
+        if self._f.mode != "r+":
+            raise StoreError(f"{self.path} is open read-only; open it with mode='r+' to add checksums")
+        if self.checksummed:
+            raise StoreError(
+                f"{self.path} already has checksums; they are never recomputed (that would hide damage). "
+                "Use 'podkrig snapshots verify' to check it"
+            )
+        _check_disk_space(self.path.parent, self.n_rows * 9 * 8, "adding checksums")
+        try:
+            _write_checksums(self._f, self.has_fields)
+            self._f.flush()
+            self._table = self._f[f"{_CHECKSUMS}/rows"]
+            table = self._table[...]
+            self._digests, self._meta_words = table[:self.n_rows], table[self.n_rows]
+        except (OSError, RuntimeError) as e:
+            raise StoreError(f"cannot add checksums to {self.path}: {_io_reason(e)}") from e
+        self.checksummed = True
 
     # ------------------------------------------------------------------ reading
     @property
@@ -405,7 +911,7 @@ class SnapshotStore:
 
     def status(self):
         """Per-row status codes, ndarray of shape (n_rows,) int8 (see :data:`STATUS_NAMES`)."""
-        return self._f["status"][...].astype(np.int8)
+        return self._read("status").astype(np.int8)
 
     def done_mask(self):
         """Rows that hold a finished snapshot, bool ndarray of shape (n_rows,)."""
@@ -430,19 +936,19 @@ class SnapshotStore:
         rows = np.flatnonzero(self.failed_mask())
         if not len(rows):
             return {}
-        raw = self._f["error"][...]
+        raw = self._read("error")
         return {int(i): raw[i].decode("utf-8", errors="replace") for i in rows}
 
     def wall_times(self):
         """Wall time of each row's FE run, ndarray of shape (n_rows,), s; NaN where not run."""
-        return self._f["wall_time"][...]
+        return self._read("wall_time")
 
     def cpu_times(self):
         """CPU time of each row's FE run (the running thread's), ndarray of shape (n_rows,), s; NaN where not run."""
-        return self._f["cpu_time"][...]
+        return self._read("cpu_time")
 
     def _select(self, name, only_done):
-        data = self._f[name][...]
+        data = self._read(name)
         return data[self.done_mask()] if only_done else data
 
     def parameters(self, physical=True, only_done=True):
@@ -478,10 +984,7 @@ class SnapshotStore:
         if not self.has_fields:
             raise StoreError(f"{self.path} holds no displacement fields; rerun into a new store with --fields")
         rows = np.flatnonzero(self.done_mask()) if only_done else np.arange(self.n_rows)
-        out = np.empty((len(rows), self.n_loads, self.n_nodes, 2))
-        for j, i in enumerate(rows):  # row by row: one chunk each, no full-dataset read
-            out[j] = self._f["fields"][i]
-        return out
+        return self._read_fields(rows)
 
     def snapshot_matrix(self):
         """Finished snapshots as rows, ndarray of shape (n_done, n_loads * n_sensors), mm.
@@ -501,8 +1004,8 @@ class SnapshotStore:
         done = self.done_mask()
         h = hashlib.sha256(b"podkrig.snapshots.content/1")
         h.update(np.flatnonzero(done).astype("<i8").tobytes())
-        h.update(np.ascontiguousarray(self._f["parameters"][done], dtype="<f8").tobytes())
-        h.update(np.ascontiguousarray(self._f["readings"][done], dtype="<f8").tobytes())
+        h.update(np.ascontiguousarray(self._read("parameters")[done], dtype="<f8").tobytes())
+        h.update(np.ascontiguousarray(self._read("readings")[done], dtype="<f8").tobytes())
         return "sha256:" + h.hexdigest()
 
     def info(self):
@@ -537,6 +1040,7 @@ class SnapshotStore:
             "cpu_time_s": {"total": float(cpu.sum()), "mean": float(cpu.mean()) if len(cpu) else None},
             "failures": [{"row": i, "error": e} for i, e in list(errors.items())[:20]],
             "content_hash": self.content_hash(),
+            "checksums": self.checksummed,
         }
 
     # ------------------------------------------------------------------ writing
@@ -589,25 +1093,71 @@ class SnapshotStore:
         text = np.array([errors[i].encode("utf-8")[:ERROR_BYTES] for i in order], dtype=f"S{ERROR_BYTES}")
         wall = np.asarray(wall_times, dtype=float)[order]
         cpu = np.full(k, np.nan) if cpu_times is None else np.asarray(cpu_times, dtype=float)[order]
-        current = self._f["status"][...][rows]
+        current = self.status()[rows]
         if np.any(current == DONE):
             raise StoreError(
                 f"{self.path}: rows {rows[current == DONE].tolist()} are already done; finished rows "
                 "are never rewritten"
             )
+        if self.has_fields:
+            if fields is None:
+                raise ValueError(f"{self.path} stores fields; pass fields of shape ({k}, {self.n_loads}, {self.n_nodes}, 2)")
+            fields = np.asarray(fields, dtype=float)[order]
+            need = int((status == DONE).sum()) * fields[0].nbytes * 101 // 100  # gzip never grows more than ~0.03 %
+        else:
+            need = 0
+        free = _free_bytes(self.path.parent)
+        if free is not None and free < need + _DISK_MARGIN:
+            raise StoreError(self._stopped(
+                f"disk full: {_human(free)} free in {self.path.parent}, the next {k} rows need about "
+                f"{_human(need + _DISK_MARGIN)}"))
+        try:
+            self._write_rows(rows, status, readings, text, wall, cpu, fields)
+        except (OSError, RuntimeError) as e:
+            reason = _io_reason(e)
+            head = "disk full" if reason.startswith("disk full") else f"cannot write {self.path} ({reason})"
+            raise StoreError(self._stopped(head)) from e
+
+    def _stopped(self, head):
+        try:
+            done = int((self._f["status"][...] == DONE).sum())
+        except (OSError, RuntimeError):
+            done = "the finished"
+        return (f"{head}: {done} rows written and kept in {self.path}; the rows of this batch stay "
+                "pending — fix the cause (free space) and rerun the same command to resume")
+
+    def _write_rows(self, rows, status, readings, text, wall, cpu, fields):
+        """Journal, data, status, checksums, each step flushed (see the module's crash safety)."""
+        k = len(rows)
         contiguous = rows[-1] - rows[0] + 1 == k
         sel = slice(int(rows[0]), int(rows[-1]) + 1) if contiguous else rows
+        g = self._f[_CHECKSUMS] if self.checksummed else None
+        if g is not None:
+            self._table[sel, _WRITING] = 1  # a crash from here on leaves these rows to be resealed
+            self._f.flush()
         self._f["readings"][sel] = readings
         self._f["error"][sel] = text
         self._f["wall_time"][sel] = wall
         self._f["cpu_time"][sel] = cpu
         if self.has_fields:
-            if fields is None:
-                raise ValueError(f"{self.path} stores fields; pass fields of shape ({k}, {self.n_loads}, {self.n_nodes}, 2)")
-            fields = np.asarray(fields, dtype=float)[order]
             for j, i in enumerate(rows):
                 if status[j] == DONE:
                     self._f["fields"][i] = fields[j]
         self._f.flush()
         self._f["status"][sel] = status
+        self._f.flush()
+        self._cache["status"][sel] = status
+        if g is None:
+            return
+        digests = np.stack([row_digests(self._f[name][sel]) for name in _ROW_DATASETS] + [np.ones(k, "u8")], axis=1)
+        self._table[sel] = digests  # still marked as being written
+        self._digests[sel] = digests
+        if self.has_fields:
+            fd = g["fields"]
+            for j, i in enumerate(rows):
+                if status[j] == DONE:
+                    fd[i] = row_digests(np.ascontiguousarray(fields[j], dtype="<f8")[None])[0]
+        self._f.flush()
+        self._table[sel, _WRITING] = 0
+        self._digests[sel, _WRITING] = 0
         self._f.flush()

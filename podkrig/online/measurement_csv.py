@@ -4,12 +4,21 @@ Every problem is reported with the file, the row (1-based, header = row 1) and t
 """
 
 import csv
+import io
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 
+from podkrig.limits import MAX_ABS_READING_MM
 from podkrig.online.measurement import Measurement
+
+#: A measurement file is one row per load level: 16 MiB is thousands of times more than needed.
+MAX_FILE_BYTES = 16 * 2**20
+#: Longest cell, characters (a number needs < 30).
+MAX_CELL_CHARS = 4096
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 
 
 def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN"):
@@ -36,11 +45,7 @@ def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN"):
         duplicate or unknown load levels — naming file, row and column.
     """
     path = Path(path)
-    try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as e:
-        raise ValueError(f"cannot read measurement file {path}: {e.strerror}") from e
+    rows = _read_rows(path)
     rows = [r for r in rows if any(c.strip() for c in r)]
     if not rows:
         raise ValueError(f"{path}: empty file; expected a header 'load,<sensor>,...'")
@@ -63,12 +68,17 @@ def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN"):
             raise ValueError(f"{path}, row {i}: {len(row)} cells, expected {len(header)} (one per column of the header)")
         numbers = []
         for j, (cell, name) in enumerate(zip(row, header), start=1):
-            try:
-                v = float(cell)
-            except ValueError:
-                raise ValueError(f"{path}, row {i}, column {j} ({name}): {cell.strip()!r} is not a number") from None
-            if not math.isfinite(v):
-                raise ValueError(f"{path}, row {i}, column {j} ({name}): {cell.strip()!r} is not a finite number")
+            text = cell.strip()
+            if text.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+                raise ValueError(f"{path}, row {i}, column {j} ({name}): {text!r} is not a finite number")
+            if _NUMBER.fullmatch(text) is None:  # float() also takes '2_5' and non-ASCII digits
+                shown = repr(text) if len(text) <= 40 else repr(text[:40]) + "…"
+                raise ValueError(f"{path}, row {i}, column {j} ({name}): {shown} is not a number "
+                                 "(write plain decimals such as 0.125 or -1.5e-3)")
+            v = float(text)
+            if not math.isfinite(v) or (j > 1 and abs(v) > MAX_ABS_READING_MM):
+                raise ValueError(f"{path}, row {i}, column {j} ({name}): {text!r} is out of range "
+                                 f"(readings are mm, at most {MAX_ABS_READING_MM:g} in magnitude)")
             numbers.append(v)
         level = numbers[0]
         if not np.any(np.isclose(levels_all, level, rtol=1e-9, atol=1e-12)):
@@ -83,6 +93,41 @@ def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN"):
     if not loads:
         raise ValueError(f"{path}: no data rows after the header")
     return Measurement(np.array(values), tuple(sensors), np.array(loads), source=str(path))
+
+
+def _read_rows(path):
+    """The CSV rows of a measurement file, read with bounded size and cell length.
+
+    Raises
+    ------
+    ValueError
+        Unreadable, larger than :data:`MAX_FILE_BYTES`, not UTF-8 (with the byte offset), or a
+        malformed CSV (with the row) — naming the file.
+    """
+    try:
+        with path.open("rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)  # bounded: /dev/zero or a huge log stops here
+    except OSError as e:
+        raise ValueError(f"cannot read measurement file {path}: {e.strerror or e}") from e
+    if len(raw) > MAX_FILE_BYTES:
+        raise ValueError(f"{path}: larger than {MAX_FILE_BYTES // 2**20} MiB; a measurement file holds one "
+                         "row per load level — pass the readings, not a raw data log")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        line = raw[:e.start].count(b"\n") + 1
+        raise ValueError(f"{path}: not UTF-8 text at byte {e.start} (line {line}); save it as UTF-8 (or plain ASCII)") from None
+    limit = csv.field_size_limit()
+    try:
+        csv.field_size_limit(MAX_CELL_CHARS)
+        reader = csv.reader(io.StringIO(text, newline=""))
+        try:
+            return list(reader)
+        except csv.Error as e:
+            raise ValueError(f"{path}, row {reader.line_num}: malformed CSV ({e}); cells hold at most "
+                             f"{MAX_CELL_CHARS} characters") from None
+    finally:
+        csv.field_size_limit(limit)
 
 
 def write_measurement_csv(path, measurement):

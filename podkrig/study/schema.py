@@ -65,6 +65,7 @@ Example
 
 import dataclasses
 import difflib
+import math
 import tomllib
 import typing
 from pathlib import Path
@@ -225,6 +226,22 @@ class _Reader:
 # reading and checking
 
 
+def _check_numbers(r, value, path=()):
+    """Refuse a non-finite number (TOML's ``inf``, ``nan``) or an integer too large for 64 bits
+    anywhere in the file, with its line and key, before any declaration sees it."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_numbers(r, v, (*path, k))
+    elif isinstance(value, list):
+        for v in value:
+            _check_numbers(r, v, path)
+    elif isinstance(value, bool):
+        return
+    elif (isinstance(value, float) and not math.isfinite(value)) or (isinstance(value, int) and abs(value) >= 2**63):
+        shown = repr(value) if len(repr(value)) < 30 else f"a number of {len(repr(value))} digits"
+        r.fail(path, f"{shown} is not a finite number of ordinary size")
+
+
 def load_study(path):
     """Read and validate a study file.
 
@@ -249,11 +266,14 @@ def load_study(path):
         text = path.read_text(encoding="utf-8")
     except OSError as e:
         raise StudyError(f"cannot read study file {path}: {e.strerror}") from e
+    except UnicodeDecodeError as e:
+        raise StudyError(f"{path}: not UTF-8 text at byte {e.start}; save it as UTF-8") from None
     try:
         data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise StudyError(f"{path}: not valid TOML: {e}") from e
+    except (tomllib.TOMLDecodeError, RecursionError) as e:
+        raise StudyError(f"{path}: not valid TOML: {e if isinstance(e, tomllib.TOMLDecodeError) else 'nested too deeply'}") from None
     r = _Reader(path, text)
+    _check_numbers(r, data)
     try:
         f = _STUDY_FILE.validate_python(data, context={"folder": path.parent})
     except ValidationError as e:
@@ -294,7 +314,7 @@ def _scenario(r, value, path, folder, fixed):
     if not isinstance(value, dict):
         r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {value!r}", allowed)
     name = value.get("scenario")
-    if name not in SCENARIOS:
+    if not isinstance(name, str) or name not in SCENARIOS:  # a list is unhashable: check the type first
         r.fail((*path, "scenario"), "missing key 'scenario'" if name is None else f"unknown scenario {name!r}", names)
     cls = SCENARIOS[name]
     info = {p.name: p for p in cls.PARAMETERS}

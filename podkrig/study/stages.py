@@ -26,9 +26,9 @@ import numpy as np
 
 from fe.scenarios import build_scenario
 from podkrig.diagnosis import diagnose
-from podkrig.exceptions import StoreError
-from podkrig.offline.runner import run_snapshots
-from podkrig.offline.store import SnapshotStore
+from podkrig.exceptions import StoreError, StoreInUseError
+from podkrig.offline.runner import prepare_store, run_snapshots
+from podkrig.offline.store import SnapshotStore, move_aside
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement_csv import read_measurement_csv
 from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
@@ -65,19 +65,23 @@ class StudyRun(StageCache):
 
 
 def _run_store(run, path, spec, space, design):
-    """Fill the store at ``path`` (resuming it; rebuilding one written for another design)."""
-    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method, "workers": run.study.workers,
-              "scheduler": run.study.scheduler, "progress": run.progress.advance}
+    """Fill the store at ``path``: resume it, or build a new one next to a store that cannot be used
+    (written for another design, damaged), which is kept under a timestamped name — never deleted.
+    A store another run is filling is never touched (:class:`StoreInUseError` propagates)."""
+    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method}
     notes = []
     try:
-        summary = run_snapshots(path, spec, space, **kwargs)
+        prepare_store(path, spec, space, **kwargs)
+    except StoreInUseError:
+        raise
     except StoreError as e:
         if not path.exists():
             raise
-        notes.append(f"{path.name} was rebuilt: the existing file did not match this stage's design or was unusable")
-        logger.warning("rebuilding %s: %s", path, e)
-        path.unlink()
-        summary = run_snapshots(path, spec, space, **kwargs)
+        kept = move_aside(path)
+        notes.append(f"{path.name} could not be used ({e}); it was kept as {kept.name} and a new store was built")
+        logger.warning("%s could not be used (%s); kept it as %s and building a new store", path, e, kept)
+    summary = run_snapshots(path, spec, space, workers=run.study.workers, scheduler=run.study.scheduler,
+                            progress=run.progress.advance, **kwargs)
     return summary, notes
 
 

@@ -36,7 +36,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from podkrig import __version__
+from podkrig import __version__, h5integrity
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError, SchemaError, StoreError
 from podkrig.parameters import ParameterSpace
@@ -379,6 +379,7 @@ class PODKriging:
                 g.attrs.update(attrs)
                 for name, data in arrays.items():
                     g.create_dataset(name, data=data)
+            h5integrity.seal(tmp)
             tmp.replace(path)
         finally:
             tmp.unlink(missing_ok=True)
@@ -400,6 +401,8 @@ class PODKriging:
         path = Path(path)
         if not path.is_file():
             raise StoreError(f"no surrogate file at {path}; build one with 'podkrig surrogate build'")
+        if not h5integrity.verify(path, "surrogate"):
+            logger.warning("%s has no checksum (written by an older podkrig): damage cannot be detected; rebuild it", path)
         try:
             f = h5py.File(path, "r")
         except OSError as e:
