@@ -137,3 +137,16 @@ def test_continuum_mesh_merges_coincident_nodes():
     # stack of 2 units × 2 elements, Q4: a 3 × 3 node grid
     assert cont.n_nodes == 9 and len(cont.interfaces) == 0
     assert np.unique(cont.quads).size == 9
+
+
+def test_plain_wall_nodes_are_linspace_grids_bit_for_bit():
+    """Every block of a plain wall has its nodes on ``linspace`` grids over the block, exactly: the
+    options that add node lines (slots, refinement) must not move a default mesh's nodes by a
+    rounding, or every stored snapshot and reference reading would change."""
+    mesh = brick_wall(BrickWallLayout(nx=6, ny=2, element="Q8"))
+    for b in range(mesh.quad_block.max() + 1):
+        nodes = mesh.nodes[np.unique(mesh.quads[mesh.quad_block == b])]
+        for axis in (0, 1):
+            values = np.unique(nodes[:, axis])
+            expected = np.linspace(values[0], values[-1], len(values))
+            assert np.array_equal(values, expected), (b, axis)

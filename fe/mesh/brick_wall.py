@@ -170,17 +170,28 @@ class BrickWallLayout:
         return [c[0] for c in self.cuts if c[1] <= y0 + 1e-9 and y1 <= c[2] + 1e-9]
 
 
-def _block_grid(xs, ys, quadratic):
-    """Nodes and connectivity of one rectangular block with element edges at ``xs`` × ``ys``.
+def _node_lines(edges, quadratic, regular=False):
+    """Node coordinates along one axis of a block: the element edges, plus the mid-side nodes of
+    quadratic elements. ``regular``: equally spaced edges, whose nodes are computed by one
+    ``linspace`` over the block (the default walls' nodes, bit for bit as they always were)."""
+    edges = np.asarray(edges, float)
+    k = 2 if quadratic else 1
+    if regular:
+        return np.linspace(edges[0], edges[-1], k * (len(edges) - 1) + 1)
+    if quadratic:
+        return np.insert(edges, np.arange(1, len(edges)), 0.5 * (edges[1:] + edges[:-1]))
+    return edges
+
+
+def _block_grid(xs, ys, quadratic, regular=False):
+    """Nodes and connectivity of one rectangular block with element edges at ``xs`` × ``ys``
+    (``regular``: equally spaced, see :func:`_node_lines`).
 
     Returns node coordinates, quads (local numbering) and the full-grid index map.
     """
     k = 2 if quadratic else 1
     mx, my = len(xs) - 1, len(ys) - 1
-    gx, gy = np.asarray(xs, float), np.asarray(ys, float)
-    if quadratic:
-        gx = np.insert(gx, np.arange(1, len(gx)), 0.5 * (gx[1:] + gx[:-1]))
-        gy = np.insert(gy, np.arange(1, len(gy)), 0.5 * (gy[1:] + gy[:-1]))
+    gx, gy = _node_lines(xs, quadratic, regular), _node_lines(ys, quadratic, regular)
     I, J = np.meshgrid(np.arange(len(gx)), np.arange(len(gy)), indexing="ij")
     keep = ~((I % 2 == 1) & (J % 2 == 1)) if quadratic else np.ones_like(I, bool)
     index = -np.ones(I.shape, np.intp)
@@ -216,6 +227,7 @@ def brick_wall(layout=BrickWallLayout()):
     edges = []  # (block, side, start, end, mid, key) for every block-boundary element edge
     n_nodes = n_units = 0
     lines = layout.vertical_lines()
+    regular = not (layout.x_lines or layout.cuts or layout.refine)
     for course in range(layout.n_courses):
         y0, y1 = course * H, (course + 1) * H
         ys = np.linspace(y0, y1, layout.course_ny(course) + 1)
@@ -226,7 +238,9 @@ def brick_wall(layout=BrickWallLayout()):
             splits = sorted(set(np.round(splits + [x for x in cuts if ux0 + 1e-9 < x < ux1 - 1e-9], _ROUND)))
             for bx0, bx1 in itertools.pairwise(splits):
                 xs = lines[(lines >= bx0 - 1e-9) & (lines <= bx1 + 1e-9)]
-                xy, q, index = _block_grid(xs, ys, quadratic)
+                if regular:  # the plain wall: nodes exactly as linspace over the block gives them
+                    xs = np.linspace(bx0, bx1, len(xs))
+                xy, q, index = _block_grid(xs, ys, quadratic, regular)
                 block = len(bounds)
                 nodes.append(xy)
                 quads.append(q + n_nodes)
