@@ -4,8 +4,12 @@ from .base import ParameterInfo, Scenario
 from .diagonal_compression import DiagonalCompression
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
+from .specimens import CoupletTension, PrismCompression, TripletShear
 
-SCENARIOS = {cls.name: cls for cls in (DiagonalCompression, ShearCompression)}
+SCENARIOS = {
+    cls.name: cls
+    for cls in (DiagonalCompression, ShearCompression, CoupletTension, TripletShear, PrismCompression)
+}
 
 
 def build_scenario(spec, solver="auto"):
