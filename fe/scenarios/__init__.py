@@ -5,10 +5,12 @@ from .diagonal_compression import DiagonalCompression
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 from .specimens import CoupletTension, PrismCompression, TripletShear
+from .walls_nonlinear import DiagonalCompressionNonlinear, ShearCompressionNonlinear
 
 SCENARIOS = {
     cls.name: cls
-    for cls in (DiagonalCompression, ShearCompression, CoupletTension, TripletShear, PrismCompression)
+    for cls in (DiagonalCompression, ShearCompression, CoupletTension, TripletShear, PrismCompression,
+                ShearCompressionNonlinear, DiagonalCompressionNonlinear)
 }
 
 

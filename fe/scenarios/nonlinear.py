@@ -59,7 +59,7 @@ class NonlinearOptions(WallOptions):
     max_steps: int = 600
     max_iterations: int = 20
     max_seconds: float = 300.0
-    tolerance: float = 1e-5
+    tolerance: float = 1e-4
 
     def __post_init__(self):
         super().__post_init__()
@@ -167,11 +167,19 @@ class NonlinearScenario(Scenario):
         at = np.full(len(levels), -1)
         idx = np.flatnonzero(mask)
         for k, level in enumerate(levels):
-            hit = np.flatnonzero(np.abs(disp - level) <= 1e-9 * max(level, 1.0))
-            if len(hit):
-                at[k] = idx[hit[0]]
-                readings[k] = path.readings[at[k]]
-                loads[k] = load[hit[0]]
+            # the first step that reaches the level (exact in displacement control; linear
+            # interpolation where a snap-back detour under indirect control jumped over it)
+            hit = np.flatnonzero(disp >= level - 1e-9 * max(level, 1.0))
+            if not len(hit):
+                continue
+            i = hit[0]
+            at[k] = idx[i]
+            if abs(disp[i] - level) <= 1e-9 * max(level, 1.0) or i == 0:
+                readings[k], loads[k] = path.readings[idx[i]], load[i]
+            else:
+                a = (level - disp[i - 1]) / (disp[i] - disp[i - 1])
+                readings[k] = (1 - a) * path.readings[idx[i - 1]] + a * path.readings[idx[i]]
+                loads[k] = (1 - a) * load[i - 1] + a * load[i]
         peak = int(np.argmax(load)) if len(load) else None
         u = None
         if field and path.displacements is not None:

@@ -45,13 +45,28 @@ def _sensors(options, default):
     return tuple(sensor_from_dict(k, v) for k, v in options.sensors.items())
 
 
+@dataclass(frozen=True)
+class CoupletOptions(SpecimenOptions):
+    """Couplet geometry plus the ``control`` variable: ``"displacement"`` (the top plate's vertical
+    displacement, mm) or ``"opening"`` (the mean opening of the bed joint over its integration
+    points, mm: indirect displacement control, which follows a snap-back of the load against the
+    plate displacement)."""
+
+    control: str = "displacement"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.control not in ("displacement", "opening"):
+            raise ValueError(f"control must be 'displacement' or 'opening'; got {self.control!r}")
+
+
 class CoupletTension(NonlinearScenario):
     """Direct tension of one bed joint between two units; the top plate is pulled up (control:
-    its vertical displacement, mm). Sensors: ``joint_opening`` (44 mm vertical gauge across the
-    joint) and ``top_uy``."""
+    its vertical displacement or the joint's mean opening, mm; see :class:`CoupletOptions`).
+    Sensors: ``joint_opening`` (44 mm vertical gauge across the joint) and ``top_uy``."""
 
     name = "couplet_tension"
-    Options = SpecimenOptions
+    Options = CoupletOptions
     PARAMETERS = nonlinear_parameters()
 
     def _build(self):
@@ -70,7 +85,16 @@ class CoupletTension(NonlinearScenario):
         self._control = reduced_dof(T, 2 * top[0] + 1)
 
     def phases(self, values):
-        return [self._control_phase("tension", self._control, np.zeros(self.model.n_dofs))]
+        o = self.options
+        n = self.model.n_dofs
+        if o.control == "displacement":
+            return [self._control_phase("tension", self._control, np.zeros(n))]
+        J = self.model.jump_operator
+        c = np.asarray(J[0::2].sum(axis=0)).ravel() / (J.shape[0] // 2)  # mean opening = c · q
+        f_ref = np.zeros(n)
+        f_ref[self._control] = 1000.0  # per kN
+        return [Phase("tension", "indirect", target=o.load_levels[-1], increment=o.increment, f_const=np.zeros(n),
+                      f_ref=f_ref, c=c, levels=o.load_levels, load_scale=1.0)]
 
 
 @dataclass(frozen=True)

@@ -64,6 +64,16 @@ class PathSettings:
     easy_iterations : int
     min_increment_fraction, max_increment_fraction : float
         Bounds of the increment relative to each phase's initial increment.
+    elastic_fallback : bool
+        When Newton has not converged after ``max_iterations``, continue from its best iterate
+        with up to ``elastic_iterations`` initial-stiffness iterations (one factorisation) before
+        the increment is cut back.
+    elastic_iterations : int
+    arc_length_fallback : bool
+        When displacement control fails (increment cut below its minimum: a snap-back), continue
+        with indirect displacement control on the opening of the cracking points until the
+        controlled displacement passes the failure point (at most ``max_detour_steps`` steps).
+    max_detour_steps : int
     record_states : bool
         Keep the interface state (opening, slip, κ2, plastic work; float32) of every converged step.
     """
@@ -72,7 +82,7 @@ class PathSettings:
     max_iterations: int = 20
     max_total_iterations: int = 6000
     max_seconds: float = 300.0
-    tolerance: float = 1e-5
+    tolerance: float = 1e-4
     line_search: bool = True
     growth: float = 1.5
     cutback: float = 0.5
@@ -80,6 +90,10 @@ class PathSettings:
     min_increment_fraction: float = 1.0 / 1024.0
     max_increment_fraction: float = 4.0
     record_states: bool = False
+    elastic_fallback: bool = True
+    elastic_iterations: int = 40
+    arc_length_fallback: bool = True
+    max_detour_steps: int = 200
 
     def __post_init__(self):
         for name in ("max_steps", "max_iterations", "max_total_iterations"):
@@ -195,11 +209,11 @@ class PathResult:
     seconds: float = 0.0
     settings: dict = field(default_factory=dict)
 
-    def finish(self):
+    def finish(self, n_channels):
         """Turn the per-step lists into arrays."""
         self.path = np.asarray(self.path, float)
         self.load = np.asarray(self.load, float)
-        self.readings = np.asarray(self.readings, float).reshape(len(self.path), -1)
+        self.readings = np.asarray(self.readings, float).reshape(len(self.path), n_channels)
         self.dissipation = np.asarray(self.dissipation, float)
         self.iterations = np.asarray(self.iterations, int)
         return self
@@ -265,6 +279,7 @@ class PathFollower:
         Returns (q, λ, law update, internal force, iterations) or raises SolverError on failure.
         """
         s, model = self.settings, self.model
+        self._elastic_factorised = False
         q = self.q.copy()
         lam = target if phase.control == "load" else self.lam
         f_ref = phase.f_ref if phase.f_ref is not None else 0.0
@@ -276,7 +291,11 @@ class PathFollower:
             # law returns for a zero increment: a softening path continues to soften
             data, _ = model.tangent_and_force(q, upd.state.traction, self.tangent)
         r_start = None
-        for it in range(s.max_iterations + 1):
+        best = None
+        elastic = False  # after max_iterations Newton iterations: initial-stiffness iterations
+        limit = s.max_iterations
+        it = 0
+        while True:
             self._check_budget()
             f_ext = phase.f_const + lam * f_ref
             r = fint - f_ext
@@ -284,23 +303,36 @@ class PathFollower:
             rn = np.linalg.norm(r)
             scale = max(np.linalg.norm(fint), np.linalg.norm(f_ext), 1e-12)
             remaining = self._remaining(phase, q, target)
+            logger.debug("  it %d%s: residual %.3e N (tol %.3e), remaining %.3e", it, " (elastic)" if elastic else "",
+                         rn, s.tolerance * scale, remaining)
             if it > 0 and rn <= s.tolerance * scale and abs(remaining) <= 1e-9 * max(abs(target), 1.0):
                 return q, lam, upd, fint, it
-            if it == s.max_iterations:
-                break
+            if it > 0 and np.isfinite(rn) and (best is None or rn < best[0]):
+                best = (rn, q, lam, upd, data, fint)
+            if it == limit:
+                if elastic or not s.elastic_fallback or best is None:
+                    break
+                # Newton cycles (e.g. cracks opening and closing between iterations): continue from
+                # the best iterate with the elastic stiffness, factorised once, which contracts
+                elastic, limit = True, limit + s.elastic_iterations
+                rn, q, lam, upd, data, fint = best
+                continue
             if it == 1:
                 r_start = max(rn, s.tolerance * scale)
-            elif it > 1 and rn > 1e6 * r_start or not np.isfinite(rn):
+            elif it > 1 and (rn > 1e6 * r_start or not np.isfinite(rn)):
                 raise SolverError(f"Newton diverged (residual {rn:.3g} N)")
-            K = data
+            it += 1
+            K = self._elastic_data(q, upd) if elastic else data
             column = None
             if phase.control == "dof":
                 Kfull = sp.csr_matrix((K, model.stiffness.indices, model.stiffness.indptr), shape=(len(q), len(q)))
                 column = np.asarray(Kfull[:, phase.dof].todense()).ravel()
-            K = K.copy()
-            K[positions] = 0.0
-            K[diag] = 1.0
-            model.solver.factorize(K)
+            if not (elastic and self._elastic_factorised):
+                K = K.copy()
+                K[positions] = 0.0
+                K[diag] = 1.0
+                model.solver.factorize(K)
+                self._elastic_factorised = elastic
             self.result.total_iterations += 1
             if phase.control == "dof":
                 rhs = -r - column * remaining
@@ -321,20 +353,25 @@ class PathFollower:
                 dq = d1 + dlam * d2
             # backtracking line search on the residual norm
             eta = 1.0
-            for _ in range(4 if s.line_search else 1):
+            for _ in range(4 if s.line_search and not elastic else 1):
                 q_try = q + eta * dq
                 lam_try = lam + eta * dlam
                 upd_t, data_t, fint_t = self._evaluate(q_try, self.state)
                 if data_t is not None:
                     r_t = fint_t - (phase.f_const + lam_try * f_ref)
                     r_t[fixed] = 0.0
-                    if np.linalg.norm(r_t) <= rn or not s.line_search or it == 0:
+                    if np.linalg.norm(r_t) <= rn or not s.line_search or it == 1:
                         break
                 eta *= 0.5
             if data_t is None:
                 raise SolverError(f"interface return mapping failed at {upd_t.failed} points")
             q, lam, upd, data, fint = q_try, lam_try, upd_t, data_t, fint_t
-        raise SolverError(f"no convergence in {s.max_iterations} iterations (residual {rn:.3g} N)")
+        raise SolverError(f"no convergence in {limit} iterations (residual {rn:.3g} N)")
+
+    def _elastic_data(self, q, upd):
+        """Tangent data with the elastic interface stiffness (the same for every iterate)."""
+        data, _ = self.model.tangent_and_force(q, upd.state.traction, self.law.elastic_tangent())
+        return data
 
     def _remaining(self, phase, q, target):
         if phase.control == "dof":
@@ -365,7 +402,7 @@ class PathFollower:
         res.seconds = time.perf_counter() - self._t0
         logger.info("path: %s after %d steps, %d iterations, %.2f s", res.status, len(res.path),
                     res.total_iterations, res.seconds)
-        return res.finish()
+        return res.finish(len(self.model.channel_names))
 
     def _phase(self, phase):
         s, res, model = self.settings, self.result, self.model
@@ -393,6 +430,11 @@ class PathFollower:
                     inc *= s.cutback
                     easy = 0
                     logger.debug("%s: increment to %.6g failed (%s); cut to %.3g", phase.name, target, e, inc)
+                    if inc < inc_min and phase.control == "dof" and s.arc_length_fallback:
+                        reached = self._detour(phase, held, value, direction)
+                        if reached is not None:
+                            value, inc, easy = reached, phase.increment, 0
+                            continue
                     if inc < inc_min:
                         res.status = NOT_CONVERGED
                         res.message = (f"{phase.name}: no convergence at {phase.control} path value {value:.6g} "
@@ -409,6 +451,59 @@ class PathFollower:
                 if easy >= 2:
                     inc = min(inc * s.growth, inc_max)
         return True
+
+    def _detour(self, phase, held, value, direction):
+        """Pass a snap-back of a displacement-controlled phase by indirect displacement control.
+
+        The controlled dof is released and loaded by λ (its reaction); the path parameter becomes
+        the mean opening of the interface points near or beyond their tension cut-off (σ ≥ ½ σ̄1 or
+        softening in mode I), increased until the controlled displacement exceeds the value where
+        displacement control failed. Steps are recorded as steps of ``phase`` (their control value
+        may go back: the snap-back). Returns the control value reached, or None.
+        """
+        s, model, st = self.settings, self.model, self.state
+        ft = self.law.props[:, 2]
+        with np.errstate(invalid="ignore", over="ignore"):
+            s1 = ft * np.exp(-ft * st.kappa[:, 0] / self.law.props[:, 3])
+        active = (st.traction[:, 0] >= 0.5 * s1) & np.isfinite(ft)
+        if not active.any():
+            return None
+        w = model.weights.ravel()[active]
+        J = model.jump_operator[0::2][np.flatnonzero(active)]
+        c = np.asarray(J.T @ w).ravel() / w.sum()
+        f_ref = np.zeros(model.n_dofs)
+        f_ref[phase.dof] = direction
+        lam0 = direction * (self._fint_current(phase)[phase.dof] - phase.f_const[phase.dof])
+        detour = Phase(f"{phase.name}_arc", "indirect", target=np.inf, increment=1.0, f_const=phase.f_const,
+                       f_ref=f_ref, c=c, held=phase.held)
+        positions, diag = model.row_positions(held)
+        self.lam = lam0
+        inc = max(1e-4 * abs(phase.increment), 1e-6)
+        logger.debug("%s: displacement control failed at %.6g; indirect control on %d opening points",
+                     phase.name, value, int(active.sum()))
+        for _ in range(s.max_detour_steps):
+            self._check_budget()
+            self.result.attempted_steps += 1
+            target = c @ self.q + inc
+            try:
+                q, lam, upd, fint, its = self._increment(detour, held, positions, diag, target)
+            except SolverError:
+                inc *= s.cutback
+                if inc < 1e-9:
+                    return None
+                continue
+            self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
+            self._record(phase, fint, its, upd)
+            if its <= s.easy_iterations:
+                inc *= s.growth
+            now = float(q[phase.dof])
+            if (now - value) * direction > 0:
+                return now
+        return None
+
+    def _fint_current(self, phase):
+        upd = self.law.update(np.zeros((len(self.state), 2)), self.state)
+        return self.model.tangent_and_force(self.q, upd.state.traction, upd.tangent)[1]
 
     def _record(self, phase, fint, its, upd):
         res = self.result
