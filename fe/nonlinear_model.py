@@ -151,6 +151,14 @@ class NonlinearModel:
         conn = self.mesh.interfaces[self.interface_elements][:, : iface.nodes_per_face]
         return np.einsum("pf,efj->epj", N, self.mesh.nodes[conn]).reshape(-1, 2)
 
+    def point_nodes(self):
+        """The face-A node of every integration point ``(n_points,)`` (Lobatto points sit on the nodes)."""
+        iface = IL6 if self.mesh.element == "Q8" else IL4
+        s, _ = gauss_lobatto(iface.nodes_per_face)
+        local = np.argmax(iface.shape(s), axis=1)  # (p,) face node of each point
+        conn = self.mesh.interfaces[self.interface_elements][:, : iface.nodes_per_face]
+        return conn[:, local].ravel()
+
     def row_positions(self, dofs):
         """Positions in the pattern data of the rows and columns of reduced ``dofs`` and of their
         diagonal entries (to hold those dofs: zero row and column, unit diagonal)."""
