@@ -57,7 +57,7 @@ class NonlinearOptions(WallOptions):
     increment: float = 0.01
     max_increment: float = 0.05
     max_steps: int = 600
-    max_iterations: int = 20
+    max_iterations: int = 12
     max_seconds: float = 300.0
     tolerance: float = 1e-4
 

@@ -65,10 +65,13 @@ class PathSettings:
     min_increment_fraction, max_increment_fraction : float
         Bounds of the increment relative to each phase's initial increment.
     elastic_fallback : bool
-        When Newton has not converged after ``max_iterations``, continue from its best iterate
+        (Off by default: initial-stiffness iterations diverge slowly on softening branches.) When Newton has not converged after ``max_iterations``, continue from its best iterate
         with up to ``elastic_iterations`` initial-stiffness iterations (one factorisation) before
         the increment is cut back.
     elastic_iterations : int
+    stagnation_iterations : int
+        An increment whose residual has not fallen below 1 % of its first-iteration value after
+        this many Newton iterations is cut back at once (converging increments take ≤ 4).
     arc_length_fallback : bool
         When displacement control fails (increment cut below its minimum: a snap-back), continue
         with indirect displacement control on the opening of the cracking points until the
@@ -79,7 +82,7 @@ class PathSettings:
     """
 
     max_steps: int = 600
-    max_iterations: int = 20
+    max_iterations: int = 12
     max_total_iterations: int = 6000
     max_seconds: float = 300.0
     tolerance: float = 1e-4
@@ -90,8 +93,9 @@ class PathSettings:
     min_increment_fraction: float = 1.0 / 1024.0
     max_increment_fraction: float = 4.0
     record_states: bool = False
-    elastic_fallback: bool = True
-    elastic_iterations: int = 40
+    elastic_fallback: bool = False
+    stagnation_iterations: int = 6
+    elastic_iterations: int = 15
     arc_length_fallback: bool = True
     max_detour_steps: int = 200
 
@@ -252,6 +256,7 @@ class PathFollower:
         self.lam = 0.0
         self.state = law.initial_state()
         self.tangent = None  # consistent tangent of the last converged step
+        self.previous_state = None  # interface state one converged step earlier
         self.result = PathResult(settings=settings.to_dict(), states=[] if settings.record_states else None)
         self._t0 = time.perf_counter()
 
@@ -321,6 +326,9 @@ class PathFollower:
                 r_start = max(rn, s.tolerance * scale)
             elif it > 1 and (rn > 1e6 * r_start or not np.isfinite(rn)):
                 raise SolverError(f"Newton diverged (residual {rn:.3g} N)")
+            elif not elastic and it >= s.stagnation_iterations and rn > 1e-2 * r_start:
+                # a converging Newton iteration has gained two orders of magnitude by now: cut back
+                raise SolverError(f"Newton stagnates (residual {rn:.3g} N after {it} iterations)")
             it += 1
             K = self._elastic_data(q, upd) if elastic else data
             column = None
@@ -442,6 +450,7 @@ class PathFollower:
                                        f"(minimum {inc_min:.3g}); last failure: {e}")
                         return False
                     continue
+                self.previous_state = self.state
                 self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
                 value = self._path_value(phase, q, lam)
                 if abs(value - target) <= 1e-9 * max(abs(target), 1.0):
@@ -456,21 +465,29 @@ class PathFollower:
         """Pass a snap-back of a displacement-controlled phase by indirect displacement control.
 
         The controlled dof is released and loaded by λ (its reaction); the path parameter becomes
-        the mean opening of the interface points near or beyond their tension cut-off (σ ≥ ½ σ̄1 or
-        softening in mode I), increased until the controlled displacement exceeds the value where
-        displacement control failed. Steps are recorded as steps of ``phase`` (their control value
+        the mean jump increment, along the last step's jump direction, of the interface points that
+        flowed plastically in the last step (crack opening and slip alike), increased until the
+        controlled displacement exceeds the value where displacement control failed by one initial
+        increment. Steps are recorded as steps of ``phase`` (their control value
         may go back: the snap-back). Returns the control value reached, or None.
         """
         s, model, st = self.settings, self.model, self.state
-        ft = self.law.props[:, 2]
-        with np.errstate(invalid="ignore", over="ignore"):
-            s1 = ft * np.exp(-ft * st.kappa[:, 0] / self.law.props[:, 3])
-        active = (st.traction[:, 0] >= 0.5 * s1) & np.isfinite(ft)
+        prev = self.previous_state
+        if prev is None:
+            return None
+        # constraint: the jump increment projected on the last step's jump direction, averaged
+        # over the points that flowed plastically in the last step (opening and slip alike)
+        flowed = np.any(st.kappa > prev.kappa + 1e-14, axis=1)
+        d = st.jump - prev.jump
+        norm = np.linalg.norm(d, axis=1)
+        active = flowed & (norm > 0)
         if not active.any():
             return None
+        d = d[active] / norm[active, None]
         w = model.weights.ravel()[active]
-        J = model.jump_operator[0::2][np.flatnonzero(active)]
-        c = np.asarray(J.T @ w).ravel() / w.sum()
+        idx = np.flatnonzero(active)
+        Jn, Js = model.jump_operator[0::2][idx], model.jump_operator[1::2][idx]
+        c = (np.asarray(Jn.T @ (w * d[:, 0])).ravel() + np.asarray(Js.T @ (w * d[:, 1])).ravel()) / w.sum()
         f_ref = np.zeros(model.n_dofs)
         f_ref[phase.dof] = direction
         lam0 = direction * (self._fint_current(phase)[phase.dof] - phase.f_const[phase.dof])
@@ -479,7 +496,7 @@ class PathFollower:
         positions, diag = model.row_positions(held)
         self.lam = lam0
         inc = max(1e-4 * abs(phase.increment), 1e-6)
-        logger.debug("%s: displacement control failed at %.6g; indirect control on %d opening points",
+        logger.debug("%s: displacement control failed at %.6g; indirect control on %d plastic points",
                      phase.name, value, int(active.sum()))
         for _ in range(s.max_detour_steps):
             self._check_budget()
@@ -492,12 +509,13 @@ class PathFollower:
                 if inc < 1e-9:
                     return None
                 continue
+            self.previous_state = self.state
             self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
             self._record(phase, fint, its, upd)
             if its <= s.easy_iterations:
                 inc *= s.growth
             now = float(q[phase.dof])
-            if (now - value) * direction > 0:
+            if (now - value) * direction > abs(phase.increment):
                 return now
         return None
 
