@@ -308,8 +308,9 @@ class PathFollower:
             rn = np.linalg.norm(r)
             scale = max(np.linalg.norm(fint), np.linalg.norm(f_ext), 1e-12)
             remaining = self._remaining(phase, q, target)
-            logger.debug("  it %d%s: residual %.3e N (tol %.3e), remaining %.3e", it, " (elastic)" if elastic else "",
-                         rn, s.tolerance * scale, remaining)
+            logger.debug("  it %d%s: residual %.3e N (tol %.3e), remaining %.3e, sub-stepped points %d", it,
+                         " (elastic)" if elastic else "", rn, s.tolerance * scale, remaining,
+                         int(np.count_nonzero(upd.status == 1)))
             if it > 0 and rn <= s.tolerance * scale and abs(remaining) <= 1e-9 * max(abs(target), 1.0):
                 return q, lam, upd, fint, it
             if it > 0 and np.isfinite(rn) and (best is None or rn < best[0]):
@@ -438,7 +439,7 @@ class PathFollower:
                     inc *= s.cutback
                     easy = 0
                     logger.debug("%s: increment to %.6g failed (%s); cut to %.3g", phase.name, target, e, inc)
-                    if inc < inc_min and phase.control == "dof" and s.arc_length_fallback:
+                    if inc < inc_min and phase.control != "load" and s.arc_length_fallback:
                         reached = self._detour(phase, held, value, direction)
                         if reached is not None:
                             value, inc, easy = reached, phase.increment, 0
@@ -462,13 +463,14 @@ class PathFollower:
         return True
 
     def _detour(self, phase, held, value, direction):
-        """Pass a snap-back of a displacement-controlled phase by indirect displacement control.
+        """Pass a snap-back of a displacement- or indirectly controlled phase by indirect control on
+        the plastic points.
 
-        The controlled dof is released and loaded by λ (its reaction); the path parameter becomes
+        Under displacement control the controlled dof is released and loaded by λ (its reaction);
+        under indirect control the phase's load pattern and λ are kept. The path parameter becomes
         the mean jump increment, along the last step's jump direction, of the interface points that
         flowed plastically in the last step (crack opening and slip alike), increased until the
-        controlled displacement exceeds the value where displacement control failed by one initial
-        increment. Steps are recorded as steps of ``phase`` (their control value
+        phase's path value exceeds the value where its control failed by one initial increment. Steps are recorded as steps of ``phase`` (their control value
         may go back: the snap-back). Returns the control value reached, or None.
         """
         s, model, st = self.settings, self.model, self.state
@@ -488,9 +490,12 @@ class PathFollower:
         idx = np.flatnonzero(active)
         Jn, Js = model.jump_operator[0::2][idx], model.jump_operator[1::2][idx]
         c = (np.asarray(Jn.T @ (w * d[:, 0])).ravel() + np.asarray(Js.T @ (w * d[:, 1])).ravel()) / w.sum()
-        f_ref = np.zeros(model.n_dofs)
-        f_ref[phase.dof] = direction
-        lam0 = direction * (self._fint_current(phase)[phase.dof] - phase.f_const[phase.dof])
+        if phase.control == "dof":
+            f_ref = np.zeros(model.n_dofs)
+            f_ref[phase.dof] = direction
+            lam0 = direction * (self._fint_current(phase)[phase.dof] - phase.f_const[phase.dof])
+        else:  # indirect control on another constraint: keep the phase's load pattern and λ
+            f_ref, lam0 = phase.f_ref, self.lam
         detour = Phase(f"{phase.name}_arc", "indirect", target=np.inf, increment=1.0, f_const=phase.f_const,
                        f_ref=f_ref, c=c, held=phase.held)
         positions, diag = model.row_positions(held)
@@ -514,7 +519,7 @@ class PathFollower:
             self._record(phase, fint, its, upd)
             if its <= s.easy_iterations:
                 inc *= s.growth
-            now = float(q[phase.dof])
+            now = self._path_value(phase, q, lam)
             if (now - value) * direction > abs(phase.increment):
                 return now
         return None
