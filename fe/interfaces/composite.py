@@ -531,6 +531,19 @@ class CompositeInterface:
         D[:, 1, 1] = self.props[:, KS]
         return D
 
+    def near_surfaces(self, state, fraction):
+        """Points whose traction is beyond ``fraction`` of their current tension cut-off
+        (column 0) or Coulomb strength (column 1), ``(n, 2)`` bool."""
+        p, t, k = self.props, state.traction, state.kappa
+        out = np.zeros((len(p), 2), bool)
+        with np.errstate(invalid="ignore", over="ignore"):
+            s1 = p[:, FT] * np.exp(-p[:, FT] * k[:, 0] / p[:, GFI])
+            s2 = p[:, C] * np.exp(-p[:, C] * k[:, 1] / p[:, GFII])
+            tphi = p[:, TANPHI0] + (p[:, TANPHIR] - p[:, TANPHI0]) * (p[:, C] - s2) / p[:, C]
+            out[:, 0] = np.isfinite(p[:, FT]) & (t[:, 0] >= fraction * s1)
+            out[:, 1] = np.isfinite(p[:, C]) & (np.abs(t[:, 1]) + t[:, 0] * tphi >= fraction * s2)
+        return out
+
     def damage(self, state):
         """Fraction of cohesion lost, ``1 − σ̄2/c`` ∈ [0, 1] per point (0 where shear is switched off)."""
         c = self.props[:, C]

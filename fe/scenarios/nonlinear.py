@@ -59,7 +59,7 @@ class NonlinearOptions(WallOptions):
     max_steps: int = 600
     max_iterations: int = 12
     max_seconds: float = 300.0
-    tolerance: float = 1e-4
+    tolerance: float = 1e-3
 
     def __post_init__(self):
         super().__post_init__()
