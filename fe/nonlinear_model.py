@@ -159,6 +159,12 @@ class NonlinearModel:
         conn = self.mesh.interfaces[self.interface_elements][:, : iface.nodes_per_face]
         return conn[:, local].ravel()
 
+    def column_positions(self, dof):
+        """Rows and pattern positions of the entries of column ``dof`` (``K[:, dof] = data[pos]``)."""
+        rows = np.repeat(np.arange(self.n_dofs), np.diff(self.stiffness.indptr))
+        pos = np.flatnonzero(self.stiffness.indices == dof)
+        return rows[pos], pos
+
     def row_positions(self, dofs):
         """Positions in the pattern data of the rows and columns of reduced ``dofs`` and of their
         diagonal entries (to hold those dofs: zero row and column, unit diagonal)."""

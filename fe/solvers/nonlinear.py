@@ -32,7 +32,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..exceptions import SolverError
 
@@ -340,8 +339,8 @@ class PathFollower:
             K = self._elastic_data(q, upd) if elastic else data
             column = None
             if phase.control == "dof":
-                Kfull = sp.csr_matrix((K, model.stiffness.indices, model.stiffness.indptr), shape=(len(q), len(q)))
-                column = np.asarray(Kfull[:, phase.dof].todense()).ravel()
+                column = np.zeros(len(q))
+                column[self._column[0]] = K[self._column[1]]
             if not (elastic and self._elastic_factorised):
                 K = K.copy()
                 K[positions] = 0.0
@@ -425,6 +424,8 @@ class PathFollower:
         fixed = np.concatenate([held, [phase.dof]]) if phase.control == "dof" else held
         fixed = np.asarray(fixed, dtype=np.int64)
         positions, diag = model.row_positions(fixed)
+        if phase.control == "dof":
+            self._column = model.column_positions(phase.dof)
         start = self._path_value(phase, self.q, self.lam)
         direction = 1.0 if phase.target >= start else -1.0
         stops = sorted({float(v) for v in phase.levels if (v - start) * direction > 0} | {float(phase.target)},
