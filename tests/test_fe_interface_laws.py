@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fe.interfaces import CompositeInterface, composite_properties
+from fe.interfaces import CompositeInterface, HyperbolicInterface, composite_properties, hyperbolic_properties
 from fe.interfaces.composite import cap_kappa_m
 
 SET_A = dict(kn=82.0, ks=36.0, ft=0.25, GfI=0.018, c=0.35, tanphi0=0.75, GfII=0.125, fc=10.5, Cs=9.0,
@@ -152,3 +152,62 @@ def test_switched_off_surfaces_give_linear_elasticity():
     upd = law.update(np.array([[5.0, -3.0]]), law.initial_state())
     assert np.array_equal(upd.state.traction[0], [410.0, -108.0])
     assert np.array_equal(upd.tangent[0], np.diag([82.0, 36.0]))
+
+
+# --- the thesis' hyperbolic surface (eq. 2.4) ------------------------------------------------
+
+HYP = dict(kn=82.0, ks=36.0, ft=0.25, GfI=0.018, c=0.35, tanphi0=0.75, tanphir=0.6, GfII=0.125)
+
+
+def _shear_at_constant_sigma(law, sigma, slips):
+    """Drive the slip with σ held (mixed control: Newton on the opening with the consistent tangent)."""
+    state = law.update(np.array([[sigma / 82.0, 0.0]]), law.initial_state()).state
+    taus = []
+    for k in range(1, len(slips)):
+        du = np.array([0.0, slips[k] - slips[k - 1]])
+        for _ in range(30):
+            upd = law.update(du[None], state)
+            r = upd.state.traction[0, 0] - sigma
+            if abs(r) < 1e-10:
+                break
+            du[0] -= r / upd.tangent[0, 0, 0]
+        assert upd.status[0] in (0, 1)
+        state = upd.state
+        taus.append(state.traction[0, 1])
+    return np.array(taus), state
+
+
+def test_hyperbolic_mode_I_reaches_sigma_t_and_dissipates_GfI():
+    law = HyperbolicInterface(hyperbolic_properties(**HYP)[None])
+    u = np.union1d(np.linspace(0.0, 1.0, 4001), [0.25 / 82.0])
+    t, state, its, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
+    assert np.all(status == 0)
+    assert t[:, 0].max() == pytest.approx(0.25, rel=1e-9)
+    assert np.trapezoid(t[:, 0], u) == pytest.approx(0.018, rel=0.01)
+
+
+def test_hyperbolic_surface_tends_to_coulomb_and_softens_to_residual_friction():
+    """At σ = −5 MPa the peak is √((c − σ tanφ0)² − a²), within 0.1 % of Coulomb's c − σ tanφ0; the
+    residual is −σ tanφr within 0.5 % (σ held by mixed control)."""
+    law = HyperbolicInterface(hyperbolic_properties(**HYP)[None])
+    taus, state = _shear_at_constant_sigma(law, -5.0, np.linspace(0.0, 4.0, 801))
+    a = 0.35 - 0.25 * 0.75
+    exact = np.sqrt((0.35 + 5.0 * 0.75) ** 2 - a**2)
+    assert taus.max() == pytest.approx(exact, rel=2e-3)  # the path samples the peak every 5 µm
+    assert taus.max() == pytest.approx(0.35 + 5.0 * 0.75, rel=1e-3 + 2e-3)
+    assert taus[-1] == pytest.approx(5.0 * 0.6, rel=0.005)
+
+
+@pytest.mark.parametrize("du", [[0.01, 0.0005], [-0.01, 0.06], [0.004, 0.03]])
+def test_hyperbolic_tangent_equals_finite_differences(du):
+    law = HyperbolicInterface(hyperbolic_properties(**dict(HYP, tanpsi=0.2))[None])
+    state = law.update(np.array([[0.001, 0.002]]), law.initial_state()).state
+    upd = law.update(np.array([du]), state)
+    assert upd.status[0] == 0 and upd.iterations[0] > 0
+    D_fd = _fd_tangent(law, state, np.array(du), 1e-7)
+    assert np.allclose(upd.tangent[0], D_fd, rtol=1e-6, atol=1e-6 * np.abs(D_fd).max())
+
+
+def test_hyperbolic_admissibility():
+    with pytest.raises(ValueError, match="ft=0.6 MPa exceeds c/tanphi"):
+        hyperbolic_properties(**dict(HYP, ft=0.6))

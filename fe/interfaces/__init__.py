@@ -5,9 +5,12 @@ A law holds per-point properties and maps a relative-displacement increment ``du
 (tractions, new state, consistent tangent), vectorised over all integration points in numba.
 
 - :class:`CompositeInterface`: Lourenço–Rots tension cut-off + Coulomb friction + cap.
+- :class:`HyperbolicInterface`: the thesis' hyperbolic Mode I/II surface (eq. 2.4) with work
+  softening (no cap yet).
 """
 
 from .composite import CompositeInterface, composite_properties
+from .hyperbolic import HyperbolicInterface, hyperbolic_properties
 from .state import InterfaceState, LawUpdate
 
-__all__ = ["CompositeInterface", "composite_properties", "InterfaceState", "LawUpdate"]
+__all__ = ["CompositeInterface", "composite_properties", "HyperbolicInterface", "hyperbolic_properties", "InterfaceState", "LawUpdate"]
