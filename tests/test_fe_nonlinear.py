@@ -36,17 +36,21 @@ def test_couplet_dissipated_energy_is_GfI_A_and_mesh_objective():
     assert abs(energies[1] - energies[0]) / energies[1] < 0.02
 
 
-def test_triplet_shear_peak_and_residual_match_closed_forms():
-    """Peak 2A(c + σ tanφ0) and residual 2Aσ tanφr (at 3 mm the cohesion tail exp(−8.4) is < 0.1 %
-    of the residual) within 0.5 %."""
+@pytest.mark.parametrize("law", ["composite", "hyperbolic"])
+def test_triplet_shear_peak_and_residual_match_closed_forms(law):
+    """Peak 2A(c + σ tanφ0) (composite) or 2A√((c + σ tanφ0)² − (c − σ_t tanφ0)²) (hyperbolic,
+    eq. 2.4) and residual 2Aσ tanφr (at 3 mm the cohesion tail is < 0.1 % of it) within 0.5 %."""
     sigma, tphi, tphir = 0.2, 0.8, 0.6
-    peak_levels = np.arange(0.0130, 0.0175, 0.0001)
-    sc = build_scenario({"scenario": "triplet_shear", "precompression": sigma,
+    peak_levels = np.arange(0.0125, 0.0175, 0.0001)
+    sc = build_scenario({"scenario": "triplet_shear", "precompression": sigma, "law": law,
                          "load_levels": peak_levels.round(6).tolist() + [0.05, 0.5, 1.5, 3.0],
                          "increment": 0.001, "max_increment": 0.1, "max_steps": 2000})
     r = sc.run(dict(STIFF_UNITS, tanphi_bj=tphi, tanphir_bj=tphir))
     assert r.status == CONVERGED
-    assert r.peak_load == pytest.approx(2 * A * (0.35 + sigma * tphi) / 1000, rel=0.005)
+    tau = 0.35 + sigma * tphi
+    if law == "hyperbolic":
+        tau = np.sqrt(tau**2 - (0.35 - 0.25 * tphi) ** 2)
+    assert r.peak_load == pytest.approx(2 * A * tau / 1000, rel=0.005)
     assert r.loads[-1] == pytest.approx(2 * A * sigma * tphir / 1000, rel=0.005)
 
 

@@ -11,6 +11,7 @@ A law holds per-point properties and maps a relative-displacement increment ``du
 
 from .composite import CompositeInterface, composite_properties
 from .hyperbolic import HyperbolicInterface, hyperbolic_properties
+from .mixed import MixedInterface
 from .state import InterfaceState, LawUpdate
 
-__all__ = ["CompositeInterface", "composite_properties", "HyperbolicInterface", "hyperbolic_properties", "InterfaceState", "LawUpdate"]
+__all__ = ["CompositeInterface", "composite_properties", "HyperbolicInterface", "hyperbolic_properties", "MixedInterface", "InterfaceState", "LawUpdate"]

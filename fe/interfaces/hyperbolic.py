@@ -228,6 +228,16 @@ class HyperbolicInterface:
             du, state.jump, state.traction, state.plastic, state.kappa, state.work, self.props)
         return LawUpdate(InterfaceState(jump, t, up, kap, work), tangent, iterations, status)
 
+    def near_surfaces(self, state, fraction):
+        """Points within (1 − fraction) of the surface, ``(n, 2)`` bool: column 0 on the tensile
+        side (σ > 0), column 1 on the compressive side."""
+        p, t, k = self.props, state.traction, state.kappa[:, 0]
+        tphi = p[:, TANPHI0] + (p[:, TANPHIR] - p[:, TANPHI0]) * k
+        size = p[:, C] * (1.0 - k) - t[:, 0] * tphi
+        a = np.maximum(p[:, C] * (1.0 - k) - p[:, FT] * (1.0 - k) * tphi, 0.0)
+        near = np.sqrt(t[:, 1] ** 2 + a**2) >= fraction * np.maximum(size, 0.0)
+        return np.column_stack([near & (t[:, 0] > 0), near & (t[:, 0] <= 0)])
+
     def elastic_tangent(self):
         D = np.zeros((len(self.props), 2, 2))
         D[:, 0, 0] = self.props[:, KN]

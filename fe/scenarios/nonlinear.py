@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import SpecError
-from ..interfaces import CompositeInterface, composite_properties
+from ..interfaces import (CompositeInterface, HyperbolicInterface, MixedInterface, composite_properties,
+                          hyperbolic_properties)
 from ..materials import plane_stress_coefficients
 from ..mesh.mesh import INTERFACE_KINDS
 from ..nonlinear_model import NonlinearModel
@@ -51,6 +52,8 @@ class NonlinearOptions(WallOptions):
     """Options of the nonlinear scenarios: :class:`~fe.scenarios.masonry.WallOptions` (whose
     ``load_levels`` are here levels of the control displacement, mm, ascending) plus the
     path-following settings: the initial and largest increment of the control displacement (mm),
+    the joint ``law`` (``"composite"``: Lourenço–Rots with cap; ``"hyperbolic"``: the thesis'
+    eq. 2.4 surface without cap, unit mid-planes keep the tension cut-off),
     the budget (``max_steps`` attempted increments, ``max_iterations`` per increment,
     ``max_seconds`` wall time) and the relative force ``tolerance``."""
 
@@ -60,9 +63,12 @@ class NonlinearOptions(WallOptions):
     max_iterations: int = 12
     max_seconds: float = 300.0
     tolerance: float = 1e-3
+    law: str = "composite"
 
     def __post_init__(self):
         super().__post_init__()
+        if self.law not in ("composite", "hyperbolic"):
+            raise ValueError(f"law must be 'composite' (Lourenço–Rots) or 'hyperbolic' (thesis eq. 2.4); got {self.law!r}")
         if list(self.load_levels) != sorted(self.load_levels) or self.load_levels[0] <= 0:
             raise ValueError(f"load_levels (control displacements, mm) must be positive and ascending; "
                              f"got {self.load_levels}")
@@ -150,12 +156,32 @@ class NonlinearScenario(Scenario):
         model.set_units(self.theta(values))
         props = interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
         law = CompositeInterface(props)
+        if self.options.law == "hyperbolic":
+            law = self._hyperbolic_law(values, props)
         settings = settings or self.options.path_settings(record_states=field)
         if field and not settings.record_states:
             settings = dataclasses.replace(settings, record_states=True)
         phases = self.phases(values)
         path = PathFollower(model, law, settings).run(phases)
         return self._response(path, phases[-1].name, field)
+
+    def _hyperbolic_law(self, values, composite_props):
+        """Joints with the hyperbolic law, unit mid-planes with the composite tension cut-off."""
+        v = values
+        kinds = np.repeat(self.mesh.interface_kind[self.model.interface_elements], self.model.n_points_per_element)
+        joints = np.flatnonzero(kinds != INTERFACE_KINDS.index("brick"))
+        cracks = np.flatnonzero(kinds == INTERFACE_KINDS.index("brick"))
+        strengths = dict(ft=v["ft_bj"], GfI=v["GfI_bj"], c=v["c_bj"], tanphi0=v["tanphi_bj"],
+                         tanphir=v["tanphir_bj"], GfII=v["GfII_bj"], tanpsi=v["tanpsi_bj"])
+        try:
+            bed = hyperbolic_properties(kn=v["kN_bj"], ks=v["kV_bj"], where="bed joints (hyperbolic)", **strengths)
+            head = hyperbolic_properties(kn=v["r_hj"] * v["kN_bj"], ks=v["r_hj"] * v["kV_bj"],
+                                         where="head joints (hyperbolic)", **strengths)
+        except ValueError as e:
+            raise SpecError(str(e)) from e
+        rows = np.where((kinds[joints] == INTERFACE_KINDS.index("bed"))[:, None], bed, head)
+        return MixedInterface([HyperbolicInterface(rows), CompositeInterface(composite_props[cracks])],
+                              [joints, cracks])
 
     def _response(self, path, control_phase, field):
         levels = self.load_levels
