@@ -25,7 +25,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
 from threadpoolctl import threadpool_limits
 
 #: Sobol' ranges of the J4D snapshot study (INFERRED, reference §1a table and §2.1 Set A ± ~40 %)

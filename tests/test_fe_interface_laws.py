@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from fe.interfaces import CompositeInterface, HyperbolicInterface, composite_properties, hyperbolic_properties
+from fe.interfaces import (
+    CompositeInterface,
+    HyperbolicInterface,
+    composite_properties,
+    hyperbolic_properties,
+)
 from fe.interfaces.composite import cap_kappa_m
 
 SET_A = dict(kn=82.0, ks=36.0, ft=0.25, GfI=0.018, c=0.35, tanphi0=0.75, GfII=0.125, fc=10.5, Cs=9.0,

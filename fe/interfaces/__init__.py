@@ -14,4 +14,7 @@ from .hyperbolic import HyperbolicInterface, hyperbolic_properties
 from .mixed import MixedInterface
 from .state import InterfaceState, LawUpdate
 
-__all__ = ["CompositeInterface", "composite_properties", "HyperbolicInterface", "hyperbolic_properties", "MixedInterface", "InterfaceState", "LawUpdate"]
+__all__ = [
+    "CompositeInterface", "HyperbolicInterface", "InterfaceState", "LawUpdate", "MixedInterface",
+    "composite_properties", "hyperbolic_properties",
+]

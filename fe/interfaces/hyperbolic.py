@@ -41,7 +41,10 @@ MAX_ITERATIONS = 40
 
 @numba.njit(cache=True)
 def _residual(p, x, sig_tr, tau_tr, kap_n, out):
-    """Residual (3,) at x = (σ, τ, Δλ); returns κ at the end of the step."""
+    """Residual (3,) at x = (σ, τ, Δλ); returns κ at the end of the step.
+
+    κ enters its own update through tanφ(κ) and a(κ): two fixed-point passes from κ_n (the work
+    increment of a step is small against G_f, so the second pass changes κ by O(Δκ²))."""
     sig, tau, dl = x[0], x[1], x[2]
     kap = kap_n
     for _ in range(2):  # κ depends on the end state through tanφ and the work split

@@ -15,15 +15,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..exceptions import SpecError
-from ..interfaces import (CompositeInterface, HyperbolicInterface, MixedInterface, composite_properties,
-                          hyperbolic_properties)
+from ..interfaces import (
+    CompositeInterface,
+    HyperbolicInterface,
+    MixedInterface,
+    composite_properties,
+    hyperbolic_properties,
+)
 from ..materials import plane_stress_coefficients
 from ..mesh.mesh import INTERFACE_KINDS
 from ..nonlinear_model import NonlinearModel
 from ..response import NonlinearResponse
-from ..solvers.nonlinear import Phase, PathFollower, PathSettings
+from ..solvers.nonlinear import PathFollower, PathSettings, Phase
 from .base import ParameterInfo, Scenario
-from .masonry import MASONRY_PARAMETERS, WallOptions, masonry_parts, wall_mesh
+from .masonry import MASONRY_PARAMETERS, WallOptions, masonry_parts
 
 _BIG = 1e9
 
