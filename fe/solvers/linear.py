@@ -209,8 +209,8 @@ class GeneralSuperLUSolver:
 class GeneralPardisoSolver:
     """MKL PARDISO for real non-symmetric matrices (mtype 11) on a fixed full CSR pattern.
 
-    Symbolic analysis (phase 11) once; numerical factorisation (22) per matrix; solves (33) with up
-    to two steps of iterative refinement. Weighted matching and scaling are off: they are computed
+    Symbolic analysis (phase 11) once; numerical factorisation (22) per matrix; solves (33), with
+    two steps of iterative refinement only when pivots were perturbed (MKL's automatic mode). Weighted matching and scaling are off: they are computed
     from the values at analysis time, which change during a Newton iteration; pivots are perturbed
     by 1e-13 instead (MKL's default for non-symmetric matrices). One MKL thread, as
     :class:`PardisoSolver`.
@@ -230,7 +230,7 @@ class GeneralPardisoSolver:
         iparm = self._solver.iparm  # 0-based here; MKL documents them 1-based
         iparm[0] = 1  # use the values below
         iparm[1] = 2  # METIS ordering
-        iparm[7] = 2  # up to two iterative refinement steps
+        iparm[7] = 0  # iterative refinement only when pivots were perturbed (two steps then)
         iparm[9] = 13  # pivot perturbation 1e-13
         iparm[10] = 0  # no scaling
         iparm[11] = 0  # solve A x = b with A in CSR
