@@ -79,6 +79,11 @@ class PathSettings:
         controlled displacement passes the failure point (at most ``max_detour_steps`` steps).
     max_detour_steps : int
     detour_after_failures : int
+    relaxed_factor : float
+        When even the smallest increment and the detour fail but the best Newton iterate's
+        residual is within ``relaxed_factor × tolerance``, that iterate is accepted and listed in
+        ``PathResult.relaxed_steps`` (step index, relative residual); at most two in a row (no
+        creeping along a limit point); 0 disables this.
         Consecutive failed increments after which the detour is tried (also when the increment
         falls below its minimum).
     record_states : bool
@@ -103,6 +108,7 @@ class PathSettings:
     arc_length_fallback: bool = True
     max_detour_steps: int = 200
     detour_after_failures: int = 4
+    relaxed_factor: float = 10.0
 
     def __post_init__(self):
         for name in ("max_steps", "max_iterations", "max_total_iterations"):
@@ -198,6 +204,8 @@ class PathResult:
         ``converged``, ``not_converged`` or ``budget_exhausted``.
     message : str
     total_iterations, attempted_steps : int
+    relaxed_steps : list of (int, float)
+        Steps accepted with a relative residual above ``tolerance`` (index, relative residual).
     seconds : float
     settings : dict
     """
@@ -215,6 +223,7 @@ class PathResult:
     message: str = ""
     total_iterations: int = 0
     attempted_steps: int = 0
+    relaxed_steps: list = field(default_factory=list)
     seconds: float = 0.0
     settings: dict = field(default_factory=dict)
 
@@ -235,12 +244,22 @@ class PathResult:
         return {
             "status": self.status, "message": self.message, "steps": int(len(self.path)),
             "attempted_steps": self.attempted_steps, "total_iterations": self.total_iterations,
+            "relaxed_steps": [[int(i), float(r)] for i, r in self.relaxed_steps],
             "seconds": self.seconds, "settings": self.settings,
         }
 
 
 class _Budget(Exception):
     pass
+
+
+class _NotConverged(SolverError):
+    """A failed increment, with its best iterate ``(residual, q, λ, update, data, f_int, its)``
+    and the residual it had to reach."""
+
+    def __init__(self, message, best, target_residual):
+        super().__init__(message)
+        self.best, self.target_residual = best, target_residual
 
 
 class PathFollower:
@@ -301,7 +320,7 @@ class PathFollower:
             # law returns for a zero increment: a softening path continues to soften
             data, _ = model.tangent_and_force(q, upd.state.traction, self.tangent)
         r_start = None
-        best = None
+        best, goal = None, None
         elastic = False  # after max_iterations Newton iterations: initial-stiffness iterations
         limit = s.max_iterations
         it = 0
@@ -319,14 +338,15 @@ class PathFollower:
             if it > 0 and rn <= s.tolerance * scale and abs(remaining) <= 1e-9 * max(abs(target), 1.0):
                 return q, lam, upd, fint, it
             if it > 0 and np.isfinite(rn) and (best is None or rn < best[0]):
-                best = (rn, q, lam, upd, data, fint)
+                best = (rn, q, lam, upd, data, fint, it)
+                goal = s.tolerance * scale
             if it == limit:
                 if elastic or not s.elastic_fallback or best is None:
                     break
                 # Newton cycles (e.g. cracks opening and closing between iterations): continue from
                 # the best iterate with the elastic stiffness, factorised once, which contracts
                 elastic, limit = True, limit + s.elastic_iterations
-                rn, q, lam, upd, data, fint = best
+                rn, q, lam, upd, data, fint, _ = best
                 continue
             if it == 1:
                 r_start = max(rn, s.tolerance * scale)
@@ -334,7 +354,7 @@ class PathFollower:
                 raise SolverError(f"Newton diverged (residual {rn:.3g} N)")
             elif not elastic and it >= s.stagnation_iterations and rn > 1e-2 * r_start:
                 # a converging Newton iteration has gained two orders of magnitude by now: cut back
-                raise SolverError(f"Newton stagnates (residual {rn:.3g} N after {it} iterations)")
+                raise _NotConverged(f"Newton stagnates (residual {rn:.3g} N after {it} iterations)", best, goal)
             it += 1
             K = self._elastic_data(q, upd) if elastic else data
             column = None
@@ -380,7 +400,7 @@ class PathFollower:
             if data_t is None:
                 raise SolverError(f"interface return mapping failed at {upd_t.failed} points")
             q, lam, upd, data, fint = q_try, lam_try, upd_t, data_t, fint_t
-        raise SolverError(f"no convergence in {limit} iterations (residual {rn:.3g} N)")
+        raise _NotConverged(f"no convergence in {limit} iterations (residual {rn:.3g} N)", best, goal)
 
     def _elastic_data(self, q, upd):
         """Tangent data with the elastic interface stiffness (the same for every iterate)."""
@@ -435,6 +455,7 @@ class PathFollower:
         value = start
         easy = 0
         failures = 0  # consecutive failed increments
+        relaxed_run = 0  # consecutive relaxed acceptances (at most two: no creeping at a limit point)
         for stop in stops:
             while (stop - value) * direction > 1e-12 * max(abs(stop), 1.0):
                 self._check_budget()
@@ -448,12 +469,26 @@ class PathFollower:
                     easy = 0
                     failures += 1
                     logger.debug("%s: increment to %.6g failed (%s); cut to %.3g", phase.name, target, e, inc)
+                    best = getattr(e, "best", None)
+                    if (inc < inc_min and s.relaxed_factor > 0 and best is not None and relaxed_run < 2
+                            and best[0] <= s.relaxed_factor * e.target_residual):
+                        # the smallest increment cycles just above the tolerance: accept its best
+                        # iterate, count it, and go on (reported in the result)
+                        _, q, lam, upd, _, fint, its = best
+                        res.relaxed_steps.append((len(res.path), float(best[0] / e.target_residual * s.tolerance)))
+                        self.previous_state = self.state
+                        self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
+                        value = self._path_value(phase, q, lam)
+                        self._record(phase, fint, its, upd)
+                        inc, failures, relaxed_run = phase.increment, 0, relaxed_run + 1
+                        continue
                     detour_now = failures >= s.detour_after_failures or inc < inc_min
                     if detour_now and phase.control != "load" and s.arc_length_fallback:
                         reached = self._detour(phase, held, value, direction)
                         if reached is not None:
                             value, inc, easy, failures = reached, phase.increment, 0, 0
                             continue
+                        value = self._path_value(phase, self.q, self.lam)  # a failed detour may have moved
                     if inc < inc_min:
                         res.status = NOT_CONVERGED
                         res.message = (f"{phase.name}: no convergence at {phase.control} path value {value:.6g} "
@@ -461,7 +496,7 @@ class PathFollower:
                                        f"(minimum {inc_min:.3g}); last failure: {e}")
                         return False
                     continue
-                failures = 0
+                failures = relaxed_run = 0
                 self.previous_state = self.state
                 self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
                 value = self._path_value(phase, q, lam)
