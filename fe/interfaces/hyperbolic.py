@@ -84,6 +84,25 @@ def _jacobian(p, x, sig_tr, tau_tr, kap_n, scale, J):
 
 
 @numba.njit(cache=True)
+def _inverse3(J, out):
+    """Inverse of a 3×3 matrix by cofactors (numba's LAPACK bindings compile slowly); False when singular."""
+    c00 = J[1, 1] * J[2, 2] - J[1, 2] * J[2, 1]
+    c01 = J[1, 2] * J[2, 0] - J[1, 0] * J[2, 2]
+    c02 = J[1, 0] * J[2, 1] - J[1, 1] * J[2, 0]
+    det = J[0, 0] * c00 + J[0, 1] * c01 + J[0, 2] * c02
+    if det == 0.0 or not math.isfinite(det):
+        return False
+    out[0, 0], out[1, 0], out[2, 0] = c00 / det, c01 / det, c02 / det
+    out[0, 1] = (J[0, 2] * J[2, 1] - J[0, 1] * J[2, 2]) / det
+    out[1, 1] = (J[0, 0] * J[2, 2] - J[0, 2] * J[2, 0]) / det
+    out[2, 1] = (J[0, 1] * J[2, 0] - J[0, 0] * J[2, 1]) / det
+    out[0, 2] = (J[0, 1] * J[1, 2] - J[0, 2] * J[1, 1]) / det
+    out[1, 2] = (J[0, 2] * J[1, 0] - J[0, 0] * J[1, 2]) / det
+    out[2, 2] = (J[0, 0] * J[1, 1] - J[0, 1] * J[1, 0]) / det
+    return True
+
+
+@numba.njit(cache=True)
 def _yield(p, sig, tau, kap):
     tphi = p[TANPHI0] + (p[TANPHIR] - p[TANPHI0]) * kap
     a = max(p[C] * (1.0 - kap) - p[FT] * (1.0 - kap) * tphi, 0.0)
@@ -109,10 +128,15 @@ def _return_once(p, du, t_n, up_n, kap_n, t, up, D):
     Rt = np.empty(3)
     J = np.empty((3, 3))
     xt = np.empty(3)
+    Jinv = np.empty((3, 3))
+    dx = np.empty(3)
     for it in range(1, MAX_ITERATIONS + 1):
         _residual(p, x, sig_tr, tau_tr, kap_n, R)
         _jacobian(p, x, sig_tr, tau_tr, kap_n, scale, J)
-        dx = np.linalg.solve(J, -R)
+        if not _inverse3(J, Jinv):
+            return 2, it
+        for i in range(3):
+            dx[i] = -(Jinv[i, 0] * R[0] + Jinv[i, 1] * R[1] + Jinv[i, 2] * R[2])
         r0 = abs(R[0]) + abs(R[1]) + abs(R[2])
         eta = 1.0
         for _ in range(10):
@@ -129,7 +153,8 @@ def _return_once(p, du, t_n, up_n, kap_n, t, up, D):
             if x[2] < 0.0 or tau_tr * x[1] < -tol * abs(tau_tr):
                 return 2, it
             _jacobian(p, x, sig_tr, tau_tr, kap_n, scale, J)
-            Jinv = np.linalg.inv(J)
+            if not _inverse3(J, Jinv):
+                return 2, it
             # dx/dt_tr = J⁻¹ [I; 0] (R1, R2 contain −t_tr); dt/du = dt/dt_tr · D
             for i in range(2):
                 for j in range(2):
