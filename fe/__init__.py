@@ -5,6 +5,12 @@ and unit mid-planes are zero-thickness line interfaces (thesis ch. 2). A *scenar
 virtual test built from a plain spec; ``run`` maps model parameters to a :class:`Response`
 (readings ``(n_loads, n_sensors)`` in mm). Units: N, mm, MPa; interface stiffness N/mm³.
 
+Nonlinear scenarios (``couplet_tension``, ``triplet_shear``, ``prism_compression``,
+``shear_compression_nl``, ``diagonal_compression_nl``) run the joints with a softening interface
+law (:mod:`fe.interfaces`) through the path-following solver (:mod:`fe.solvers.nonlinear`) and
+return a :class:`~fe.response.NonlinearResponse` (readings at levels of the control displacement,
+loads, peak, status).
+
 Example
 -------
 >>> from fe import build_scenario

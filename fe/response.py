@@ -43,3 +43,56 @@ class Response:
     def as_dict(self):
         """Sensor name → list of readings (one per load level), mm."""
         return {name: self.readings[:, j].tolist() for j, name in enumerate(self.sensor_names)}
+
+
+@dataclass(frozen=True, eq=False)
+class NonlinearResponse(Response):
+    """Readings of a nonlinear virtual test at prescribed levels of its control variable.
+
+    Besides :class:`Response`'s fields (``load_levels`` are the control levels, in ``load_unit``,
+    e.g. the top displacement in mm; readings are NaN at levels the run did not reach):
+
+    Attributes
+    ----------
+    loads : ndarray of shape (n_loads,)
+        Load (the reaction of the control) at each level, in ``force_unit``; NaN where not reached.
+    force_unit : str
+    peak_load : float
+        Largest load on the converged path, ``force_unit``.
+    peak_displacement : float
+        Control displacement at the peak load, mm.
+    status : str
+        ``converged``, ``not_converged`` or ``budget_exhausted``.
+    message : str
+        Why the run stopped early ("" when it reached the last level).
+    reached : float
+        Last converged value of the control variable, ``load_unit``.
+    extra : dict of str to ndarray
+        Further per-level quantities (e.g. ``vertical_reaction`` in kN).
+    path : object
+        The full :class:`~fe.solvers.nonlinear.PathResult` (every converged step).
+    """
+
+    loads: np.ndarray | None = None
+    force_unit: str = "kN"
+    peak_load: float = float("nan")
+    peak_displacement: float = float("nan")
+    status: str = "converged"
+    message: str = ""
+    reached: float = float("nan")
+    extra: dict | None = None
+    path: object = None
+
+    @property
+    def converged(self):
+        return self.status == "converged"
+
+    def summary(self):
+        """Plain dict of the scalar results and the per-level loads (JSON-ready)."""
+        return {
+            "status": self.status, "message": self.message, "reached": float(self.reached),
+            "peak_load": float(self.peak_load), "peak_displacement": float(self.peak_displacement),
+            "force_unit": self.force_unit,
+            "loads": [None if not np.isfinite(v) else float(v) for v in self.loads],
+            **{k: [None if not np.isfinite(x) else float(x) for x in v] for k, v in (self.extra or {}).items()},
+        }

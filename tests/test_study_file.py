@@ -113,7 +113,9 @@ def test_valid_study_and_defaults(tmp_path):
          [r"measurement\.noise_abs: give exactly one noise model"]),
         ('file = "measured.csv"', 'file = "missing.csv"', "missing.csv", [r"measurement\.file: no measurement file"]),
         ('scenario = "diagonal_compression"', 'scenario = "diagonal"', '"diagonal"',
-         [r"scenario\.scenario: unknown scenario 'diagonal'", r"allowed: diagonal_compression, flat_jack, shear_compression"]),
+         [r"scenario\.scenario: unknown scenario 'diagonal'",
+          r"allowed: couplet_tension, diagonal_compression, diagonal_compression_nl, flat_jack, prism_compression, "
+          r"shear_compression, shear_compression_nl, triplet_shear"]),
         ("r_hj = 0.6", "kN_bj = 90.0", "kN_bj = 90", [r"fixed\.kN_bj: is also a free parameter"]),
         # the second [[validation]] table
         ("n = 16\nseed = 3", "n = 2\nseed = 3", "n = 2", [r"validation\[2\]\.n: 2 is out of range"]),

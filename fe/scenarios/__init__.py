@@ -6,8 +6,14 @@ from .diagonal_compression import DiagonalCompression
 from .flat_jack import FlatJack
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
+from .specimens import CoupletTension, PrismCompression, TripletShear
+from .walls_nonlinear import DiagonalCompressionNonlinear, ShearCompressionNonlinear
 
-SCENARIOS = {cls.name: cls for cls in (DiagonalCompression, ShearCompression, FlatJack)}
+SCENARIOS = {
+    cls.name: cls
+    for cls in (DiagonalCompression, ShearCompression, FlatJack, CoupletTension, TripletShear, PrismCompression,
+                ShearCompressionNonlinear, DiagonalCompressionNonlinear)
+}
 
 
 def build_scenario(spec, solver="auto"):

@@ -9,6 +9,11 @@ refactorises numerically. Backends:
 - ``"superlu"``: SciPy SuperLU with the symmetric MMD_AT_PLUS_A ordering, always available.
 
 ``make_solver("auto", ...)`` takes PARDISO when it is installed.
+
+:func:`make_general_solver` gives the same two backends for general (non-symmetric) matrices on
+a structurally symmetric pattern, e.g. the consistent tangent of non-associated interfaces:
+PARDISO as real non-symmetric (mtype 11, full matrix, analysis once) or SuperLU with partial
+pivoting.
 """
 
 import logging
@@ -155,4 +160,109 @@ class PardisoSolver:
         x = self._call(33, np.asfortranarray(rhs))
         if not np.all(np.isfinite(x)):
             raise SolverError(_SINGULAR_HINT)
+        return x
+
+
+def make_general_solver(backend, indptr, indices, n):
+    """A solver for general (non-symmetric, possibly indefinite) matrices with the given CSR pattern.
+
+    Parameters as :func:`make_solver`; the pattern must hold both triangles (it is analysed once).
+    """
+    if backend == "auto":
+        backend = available_backends()[0]
+    if backend == "pardiso":
+        return GeneralPardisoSolver(indptr, indices, n)
+    if backend == "superlu":
+        return GeneralSuperLUSolver(indptr, indices, n)
+    raise ValueError(f"unknown solver backend {backend!r}; available: {available_backends()}")
+
+
+_GENERAL_HINT = (
+    "the tangent stiffness is singular: the structure lost its last load path (a fully cracked "
+    "section) or a support is missing"
+)
+
+
+class GeneralSuperLUSolver:
+    """SuperLU with threshold partial pivoting for general matrices."""
+
+    name = "superlu"
+
+    def __init__(self, indptr, indices, n):
+        self.indptr, self.indices, self.n = indptr, indices, n
+        self._lu = None
+
+    def factorize(self, data):
+        K = sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        try:
+            self._lu = spla.splu(K.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.1)
+        except RuntimeError as e:
+            raise SolverError(_GENERAL_HINT) from e
+
+    def solve(self, rhs):
+        x = self._lu.solve(np.asarray(rhs, dtype=float))
+        if not np.all(np.isfinite(x)):
+            raise SolverError(_GENERAL_HINT)
+        return x
+
+
+class GeneralPardisoSolver:
+    """MKL PARDISO for real non-symmetric matrices (mtype 11) on a fixed full CSR pattern.
+
+    Symbolic analysis (phase 11) once; numerical factorisation (22) per matrix; solves (33), with
+    two steps of iterative refinement only when pivots were perturbed (MKL's automatic mode). Weighted matching and scaling are off: they are computed
+    from the values at analysis time, which change during a Newton iteration; pivots are perturbed
+    by 1e-13 instead (MKL's default for non-symmetric matrices). One MKL thread, as
+    :class:`PardisoSolver`.
+    """
+
+    name = "pardiso"
+
+    def __init__(self, indptr, indices, n, threads=1):
+        import ctypes
+
+        import pypardiso
+
+        self._indptr = np.asarray(indptr, dtype=np.int64)
+        self._indices = np.asarray(indices, dtype=np.int64)
+        self.n = n
+        self._solver = pypardiso.PyPardisoSolver(mtype=11)
+        iparm = self._solver.iparm  # 0-based here; MKL documents them 1-based
+        iparm[0] = 1  # use the values below
+        iparm[1] = 2  # METIS ordering
+        iparm[7] = 0  # iterative refinement only when pivots were perturbed (two steps then)
+        iparm[9] = 13  # pivot perturbation 1e-13
+        iparm[10] = 0  # no scaling
+        iparm[11] = 0  # solve A x = b with A in CSR
+        iparm[12] = 0  # no weighted matching
+        self.threads = int(threads)
+        self._set_threads = self._solver.libmkl.MKL_Set_Num_Threads_Local
+        self._set_threads.argtypes = [ctypes.c_int]
+        self._set_threads.restype = ctypes.c_int
+        self._analysed = False
+        self._matrix = None
+
+    def _call(self, phase, rhs):
+        self._solver.set_phase(phase)
+        previous = self._set_threads(self.threads)
+        try:
+            return self._solver._call_pardiso(self._matrix, rhs)
+        except Exception as e:
+            raise SolverError(f"{_GENERAL_HINT} (PARDISO: {e})") from e
+        finally:
+            self._set_threads(previous)
+
+    def factorize(self, data):
+        self._matrix = sp.csr_matrix((np.ascontiguousarray(data, dtype=float), self._indices, self._indptr),
+                                     shape=(self.n, self.n))
+        dummy = np.zeros((self.n, 1), order="F")
+        if not self._analysed:
+            self._call(11, dummy)
+            self._analysed = True
+        self._call(22, dummy)
+
+    def solve(self, rhs):
+        x = self._call(33, np.asfortranarray(np.asarray(rhs, dtype=float)))
+        if not np.all(np.isfinite(x)):
+            raise SolverError(_GENERAL_HINT)
         return x

@@ -53,7 +53,7 @@ def register(app):
         format: ResponseFormat = typer.Option(ResponseFormat.table, "--format", help="Output format: table, json or csv."),
         field: Path = typer.Option(None, "--field", help="Also write the displacement field to this CSV file."),
         solver: LinearSolver = typer.Option(LinearSolver.auto, "--solver", help="Linear solver: auto, pardiso or superlu."),
-        report: Path = typer.Option(None, "--report", help="Also write figures and an HTML page to this directory."),
+        report: Path = typer.Option(None, "--report", help="Also write figures and an HTML page to this folder (load-displacement curve and deformed mesh for nonlinear scenarios)."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run one virtual test of SCENARIO and print the sensor readings (mm) per load level."""
@@ -68,16 +68,22 @@ def register(app):
             params = dict(parse_assignment(s) for s in set_)
             t0 = time.perf_counter()
             sc = build_scenario(load_spec(scenario, spec), solver=solver.value)
+            nonlinear = hasattr(sc, "force_unit")
             response = sc.run(params, field=field is not None or report is not None)
             seconds = time.perf_counter() - t0
             values = sc.resolve(params)
             if field is not None:
                 write_field(field, sc, response)
             if report is not None:
-                # local import: it pulls in fe and scipy, 2.0 s under load 20 (python -X importtime)
-                from podkrig.reports.flat_jack import write_simulation_report
+                # local imports: matplotlib and the report modules, 0.5–2 s (python -X importtime)
+                if nonlinear:
+                    from podkrig.reports.nonlinear import write_nonlinear_report
 
-                page = write_simulation_report(sc, response, values, report, seconds=seconds)
+                    page = write_nonlinear_report(sc, response, values, report)
+                else:
+                    from podkrig.reports.flat_jack import write_simulation_report
+
+                    page = write_simulation_report(sc, response, values, report, seconds=seconds)
         _print(sc, response, values, seconds, format)
         if report is not None and format == "table":
             typer.echo(f"report: {page}")
@@ -97,6 +103,10 @@ def _print(sc, response, values, seconds, format):
             "n_dofs": int(sc.n_dofs),
             "seconds": seconds,
         }
+        if hasattr(response, "summary"):  # a nonlinear run: loads, peak, status, how far it got
+            out.update(response.summary())
+            out["options"] = sc.spec.to_dict()
+            out["solver"] = response.path.to_dict()
         typer.echo(json.dumps(out, indent=2))
         return
     if format == "csv":
@@ -109,17 +119,39 @@ def _print(sc, response, values, seconds, format):
     from rich.console import Console
     from rich.table import Table
 
+    nonlinear = hasattr(response, "summary")
     table = Table(title=f"{sc.name}: readings in mm ({sc.n_dofs} dofs, {seconds:.3f} s)")
     table.add_column("sensor")
     for level in response.load_levels:
         table.add_column(f"{level:g} {response.load_unit}", justify="right")
+    if nonlinear:
+        table.add_row(f"load ({response.force_unit})", *[f"{v:.4g}" for v in response.loads])
     for j, name in enumerate(response.sensor_names):
         table.add_row(name, *[f"{v:+.5f}" for v in response.readings[:, j]])
     console = Console()
     console.print(table)
+    if nonlinear:
+        console.print(f"peak load {response.peak_load:.4g} {response.force_unit} at {response.peak_displacement:.4g} mm; "
+                      f"status {response.status}; reached {response.reached:.4g} {response.load_unit}"
+                      + (f" ({response.message})" if response.message else ""))
+        _print_curve(console, sc, response)
     changed = {k: v for k, v in values.items() if v != sc.parameters[k].default}
     console.print(
         "parameters: "
         + ", ".join(f"{k}={v:g} {sc.parameters[k].unit}".rstrip(" -") for k, v in values.items())
         + (f"  (changed: {', '.join(changed)})" if changed else "")
     )
+
+
+def _print_curve(console, sc, response):
+    """The load–displacement curve as text: one line per converged step (at most 40 lines)."""
+    res = response.path
+    if not len(res.phase):
+        return
+    mask = res.of_phase(res.phase[-1])
+    disp, load = sc.control_sign * res.path[mask], res.load[mask]
+    pick = np.unique(np.linspace(0, len(disp) - 1, min(40, len(disp))).round().astype(int))
+    top = max(float(np.nanmax(np.abs(load))), 1e-12)
+    for i in pick:
+        bar = "#" * int(round(40 * max(load[i], 0.0) / top))
+        console.print(f"{disp[i]:9.4f} mm {load[i]:10.4g} {response.force_unit} {bar}", highlight=False)

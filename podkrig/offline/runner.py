@@ -23,7 +23,8 @@ exception: **growing** ``n`` of a Sobol' store appends rows that continue the sa
 sequence (points ``n_old .. n-1``), then runs them.
 
 A failed FE run (any exception from ``Scenario.run``) becomes a ``failed`` row with its error
-text; infrastructure failures (a task that cannot run, a worker with another podkrig version,
+text; a nonlinear run that stops early (budget or non-convergence) becomes a ``failed`` row whose
+error starts with ``NotConverged`` and which keeps the readings of the levels it reached; infrastructure failures (a task that cannot run, a worker with another podkrig version,
 workers that keep dying) stop the run with a :class:`~podkrig.exceptions.PodkrigError` after
 keeping every finished row.
 
@@ -56,7 +57,7 @@ from podkrig import __version__
 from podkrig.exceptions import PodkrigError, StoreError
 from podkrig.parameters import ParameterSpace
 from podkrig.offline.sampling import METHODS, sample
-from podkrig.offline.store import DONE, FAILED, SnapshotStore, acquire_lock, release_lock
+from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore, acquire_lock, release_lock
 
 logger = logging.getLogger(__name__)
 
@@ -239,6 +240,11 @@ def run_chunk(spec_json, names, rows, X, field=False, limit_threads=False):
             readings[j] = response.readings
             if field:
                 fields[j] = response.field
+            if getattr(response, "status", "converged") != "converged":
+                # a nonlinear run that stopped early: a failed row with its reason and partial readings
+                status[j] = FAILED
+                errors[j] = f"{PARTIAL_PREFIX} ({response.status}): {response.message}"
+
         except Exception as e:  # noqa: BLE001 - any FE failure is a failed row, never a crash
             status[j] = FAILED
             errors[j] = f"{type(e).__name__}: {e}"

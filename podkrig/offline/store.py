@@ -85,6 +85,8 @@ logger = logging.getLogger(__name__)
 FORMAT = "podkrig.snapshots"
 SCHEMA_VERSION = 1
 PENDING, DONE, FAILED = 0, 1, 2
+#: Error prefix of failed rows that hold a partial response (a nonlinear run that stopped early)
+PARTIAL_PREFIX = "NotConverged"
 STATUS_NAMES = {PENDING: "pending", DONE: "done", FAILED: "failed"}
 ERROR_BYTES = 512
 
@@ -1056,7 +1058,8 @@ class SnapshotStore:
         status : array_like of int, shape (k,)
             :data:`DONE` or :data:`FAILED` per row.
         readings : ndarray of shape (k, n_loads, n_sensors)
-            mm; ignored (stored as NaN) for failed rows.
+            mm; stored as NaN for failed rows, except those whose error starts with
+            :data:`PARTIAL_PREFIX` (a nonlinear run that stopped early keeps the levels it reached).
         errors : sequence of str, length k
             Error text ('' for done rows); the first 512 UTF-8 bytes are kept.
         wall_times : array_like of shape (k,)
@@ -1089,7 +1092,8 @@ class SnapshotStore:
             raise ValueError(
                 f"readings must have shape ({k}, {self.n_loads}, {self.n_sensors}); got {readings.shape}"
             )
-        readings = np.where((status == DONE)[:, None, None], readings, np.nan)
+        keep = (status == DONE) | np.array([errors[i].startswith(PARTIAL_PREFIX) for i in order])
+        readings = np.where(keep[:, None, None], readings, np.nan)
         text = np.array([errors[i].encode("utf-8")[:ERROR_BYTES] for i in order], dtype=f"S{ERROR_BYTES}")
         wall = np.asarray(wall_times, dtype=float)[order]
         cpu = np.full(k, np.nan) if cpu_times is None else np.asarray(cpu_times, dtype=float)[order]

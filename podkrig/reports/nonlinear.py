@@ -1,0 +1,99 @@
+"""Figures and HTML page of one nonlinear virtual test: load–displacement curve with its peak, and
+the deformed mesh with interface opening and slip drawn on the joints."""
+
+from pathlib import Path
+
+import numpy as np
+
+from podkrig.reports.figures import pyplot
+from podkrig.reports.html import Page, fmt
+
+
+def plot_load_displacement(scenario, response, path):
+    """Load against the control displacement over every converged step; the peak and the
+    response levels marked."""
+    plt = pyplot()
+    res = response.path
+    mask = res.of_phase(res.phase[-1]) if len(res.phase) else np.zeros(0, bool)
+    disp = scenario.control_sign * res.path[mask]
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    ax.plot(disp, res.load[mask], "-", color="C0", lw=1.5, label="converged steps")
+    ok = np.isfinite(response.loads)
+    ax.plot(response.load_levels[ok], response.loads[ok], "o", color="C0", ms=4, label="response levels")
+    if np.isfinite(response.peak_load):
+        ax.plot([response.peak_displacement], [response.peak_load], "*", color="C3", ms=12,
+                label=f"peak {response.peak_load:.3g} {response.force_unit} at {response.peak_displacement:.3g} mm")
+    ax.set_xlabel(f"control displacement ({response.load_unit})")
+    ax.set_ylabel(f"load ({response.force_unit})")
+    ax.set_title(f"{scenario.name}: {response.status}")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def plot_deformed_mesh(scenario, response, path, level=-1, magnification=None):
+    """The deformed specimen at one response level (default: the last reached): unit outlines
+    displaced by ``magnification`` × u, joints coloured by opening (mm) and slip drawn as line width."""
+    plt = pyplot()
+    res = response.path
+    if res.displacements is None or not len(res.displacements):
+        raise ValueError("the run kept no states: run with field=True (podkrig simulate --report does)")
+    step = len(res.displacements) - 1 if level == -1 else int(level)
+    u = np.asarray(res.displacements[step], float)
+    st = res.states[step]
+    mesh = scenario.mesh
+    span = max(mesh.width, mesh.height)
+    if magnification is None:
+        umax = np.abs(u).max()
+        magnification = 0.05 * span / umax if umax > 0 else 1.0
+    xy = mesh.nodes + magnification * u
+    fig, ax = plt.subplots(figsize=(6.4, 6.4 * mesh.height / mesh.width + 0.6))
+    corners = mesh.quads[:, :4]
+    for quad in xy[corners]:
+        ax.fill(quad[:, 0], quad[:, 1], facecolor="0.92", edgecolor="0.7", lw=0.3)
+    nodes = scenario.model.point_nodes()
+    pts_def = xy[nodes]  # the joint points on their (deformed) face-A nodes
+    opening = np.asarray(st["opening"], float)
+    slip = np.abs(np.asarray(st["slip"], float))
+    vmax = max(float(np.percentile(np.abs(opening), 99.5)), 1e-6)
+    sc = ax.scatter(pts_def[:, 0], pts_def[:, 1], c=opening, cmap="RdBu_r",
+                    vmin=-vmax, vmax=vmax, s=4 + 40 * slip / max(slip.max(), 1e-12), zorder=3)
+    fig.colorbar(sc, ax=ax, label="joint opening (mm); marker size ∝ slip", shrink=0.8)
+    ax.set_aspect("equal")
+    ax.set_title(f"deformed ×{magnification:.3g} at control {scenario.control_sign * res.path[step]:.3g} mm "
+                 f"(max slip {slip.max():.3g} mm)")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def write_nonlinear_report(scenario, response, values, out_dir):
+    """Figures plus an HTML page in ``out_dir``; returns the page path."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plot_load_displacement(scenario, response, out / "load_displacement.png")
+    page = Page(f"{scenario.name}: nonlinear virtual test")
+    if response.converged:
+        page.success(f"Reached {response.reached:g} {response.load_unit}: peak {response.peak_load:.4g} "
+                     f"{response.force_unit} at {response.peak_displacement:.4g} mm.")
+    else:
+        page.warning(f"The run stopped early ({response.status}): {response.message}",
+                     "Raise the budget (max_steps, max_seconds), lower the increment, or check the parameters; "
+                     "the converged part of the path is shown.")
+    page.figure("load_displacement.png", "Load against the control displacement (every converged step).")
+    if response.path.displacements:
+        plot_deformed_mesh(scenario, response, out / "deformed.png")
+        page.figure("deformed.png", "Deformed specimen at the last converged step, joints coloured by opening.")
+    header = [f"level ({response.load_unit})", f"load ({response.force_unit})"] + [f"{n} (mm)" for n in response.sensor_names]
+    rows = [[fmt(lv), fmt(ld)] + [fmt(v) for v in row]
+            for lv, ld, row in zip(response.load_levels, response.loads, response.readings)]
+    page.table(header, rows, caption="Readings at the response levels")
+    page.table(["parameter", "value"], [[k, fmt(v)] for k, v in values.items()], caption="Parameters")
+    page.table(["solver", "value"], [[k, str(v)] for k, v in response.path.to_dict().items()], caption="Path following")
+    return page.write(out / "index.html")

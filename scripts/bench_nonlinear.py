@@ -1,0 +1,113 @@
+"""Benchmark the nonlinear path-following solver on the TU Eindhoven wall J4D (issue 17).
+
+Runs ``shear_compression_nl`` (default mesh unless ``--nx/--ny``) from zero to 3 mm of top
+displacement past the peak, for each top condition asked for, and prints a Markdown table: dofs,
+wall time, converged steps, attempted increments, Newton iterations, time per iteration, and the
+time of one linear solve of the same mesh (factorisation + solve of the linear
+``shear_compression`` scenario: the peer the issue's "≤ 2× per iteration" target refers to), plus
+the peak load and its displacement. BLAS/MKL are limited to one thread (threadpoolctl); the
+machine load (``os.getloadavg``) is printed beside the table, since timings on a shared machine
+scale with it.
+
+With ``--snapshots N`` it also runs N J4D snapshots over a Sobol' design of the eight strength and
+stiffness parameters (ranges below, INFERRED from reference §1a/§2.1) on ``--workers`` processes and
+prints how many reached 3 mm, the failure reasons and the wall time.
+
+Usage: python scripts/bench_nonlinear.py [--nx 6 --ny 2] [--top fixed_vertical constant_force]
+       [--snapshots 256 --workers 2]
+"""
+
+import argparse
+import collections
+import os
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+from threadpoolctl import threadpool_limits
+
+#: Sobol' ranges of the J4D snapshot study (INFERRED, reference §1a table and §2.1 Set A ± ~40 %)
+SNAPSHOT_RANGES = {
+    "kN_bj": (50.0, 120.0, "linear"), "kV_bj": (20.0, 50.0, "linear"),
+    "ft_bj": (0.15, 0.30, "linear"), "c_bj": (0.30, 0.50, "linear"),
+    "tanphi_bj": (0.6, 0.9, "linear"), "GfI_bj": (0.01, 0.03, "linear"),
+    "GfII_bj": (0.05, 0.2, "linear"), "E_b": (12000.0, 20000.0, "linear"),
+}
+
+
+def linear_solve_ms(nx, ny, repeat=10):
+    from fe.scenarios import build_scenario
+
+    sc = build_scenario({"scenario": "shear_compression", "nx": nx, "ny": ny})
+    sc.run()
+    t0 = time.perf_counter()
+    for _ in range(repeat):
+        sc.run()
+    return (time.perf_counter() - t0) / repeat * 1e3
+
+
+def run_j4d(nx, ny, top):
+    from fe.scenarios import build_scenario
+
+    sc = build_scenario({"scenario": "shear_compression_nl", "nx": nx, "ny": ny, "top": top})
+    t0 = time.perf_counter()
+    r = sc.run()
+    seconds = time.perf_counter() - t0
+    p = r.path
+    return dict(top=top, dofs=sc.n_dofs, seconds=seconds, steps=len(p.path), attempted=p.attempted_steps,
+                iterations=p.total_iterations, per_iteration=1e3 * seconds / max(p.total_iterations, 1),
+                peak=r.peak_load, peak_u=r.peak_displacement, reached=r.reached, status=r.status, message=r.message)
+
+
+def snapshots(n, workers, nx, ny):
+    from fe.scenarios import build_scenario
+    from podkrig.offline.runner import run_snapshots
+    from podkrig.offline.store import SnapshotStore
+    from podkrig.parameters import ParameterSpace
+
+    sc = build_scenario({"scenario": "shear_compression_nl", "nx": nx, "ny": ny})
+    space = ParameterSpace.from_scenario(sc, SNAPSHOT_RANGES)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "j4d.h5"
+        t0 = time.perf_counter()
+        summary = run_snapshots(path, sc, space, n=n, seed=0, workers=workers)
+        seconds = time.perf_counter() - t0
+        with SnapshotStore.open(path) as store:
+            reasons = collections.Counter(e.split(":")[0] for e in store.errors().values())
+    return summary, seconds, reasons
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--nx", type=int, default=6)
+    ap.add_argument("--ny", type=int, default=2)
+    ap.add_argument("--top", nargs="+", default=["fixed_vertical", "constant_force"])
+    ap.add_argument("--snapshots", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=2)
+    args = ap.parse_args()
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
+          f"load average before: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    with threadpool_limits(1):
+        lin = linear_solve_ms(args.nx, args.ny)
+        rows = [run_j4d(args.nx, args.ny, top) for top in args.top]
+    print("\n| top | dofs | time (s) | steps | increments | iterations | ms / iteration | linear solve (ms) "
+          "| ratio | peak (kN) | at (mm) | reached (mm) | status |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    for r in rows:
+        print(f"| {r['top']} | {r['dofs']} | {r['seconds']:.1f} | {r['steps']} | {r['attempted']} | {r['iterations']} "
+              f"| {r['per_iteration']:.1f} | {lin:.1f} | {r['per_iteration'] / lin:.1f} | {r['peak']:.1f} "
+              f"| {r['peak_u']:.2f} | {r['reached']:.2f} | {r['status']} |")
+    for r in rows:
+        if r["message"]:
+            print(f"\n{r['top']}: {r['message']}")
+    if args.snapshots:
+        summary, seconds, reasons = snapshots(args.snapshots, args.workers, args.nx, args.ny)
+        print(f"\n{args.snapshots} J4D snapshots on {args.workers} workers: {summary.done} reached 3 mm "
+              f"({100 * summary.done / args.snapshots:.1f} %), {summary.failed} failed {dict(reasons)}; "
+              f"{seconds / 60:.1f} min")
+    print(f"\nload average after: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,218 @@
+"""Verification of the nonlinear interface laws on single integration points (closed forms)."""
+
+import numpy as np
+import pytest
+
+from fe.interfaces import (
+    CompositeInterface,
+    HyperbolicInterface,
+    composite_properties,
+    hyperbolic_properties,
+)
+from fe.interfaces.composite import cap_kappa_m
+
+SET_A = dict(kn=82.0, ks=36.0, ft=0.25, GfI=0.018, c=0.35, tanphi0=0.75, GfII=0.125, fc=10.5, Cs=9.0,
+             Gfc=5.0, kappa_p=0.09)
+
+
+def _drive(law, path):
+    """Apply a path of total relative displacements ``(n_steps, 2)``; tractions ``(n_steps, 2)``,
+    final state, iterations and statuses per step."""
+    state = law.initial_state()
+    tractions, its, status = [np.zeros(2)], [], []
+    for k in range(1, len(path)):
+        upd = law.update((path[k] - path[k - 1])[None], state)
+        state = upd.state
+        tractions.append(state.traction[0].copy())
+        its.append(int(upd.iterations[0]))
+        status.append(int(upd.status[0]))
+    return np.array(tractions), state, np.array(its), np.array(status)
+
+
+def test_mode_I_softening_curve_and_fracture_energy():
+    """σ = f_t exp(−f_t κ1/G_f^I) after the peak and ∫σ du_n = G_f^I within 1 % (the exponential
+    tail beyond u_n = 1 mm holds exp(−13.9) of the energy; the step error of the trapezoid rule
+    with 4000 steps is below 1e-4)."""
+    law = CompositeInterface(composite_properties(**SET_A)[None])
+    u = np.union1d(np.linspace(0.0, 1.0, 4001), [0.25 / 82.0])  # the elastic limit is on the path
+    t, state, its, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
+    assert np.all(status == 0)
+    sigma = t[:, 0]
+    assert sigma.max() == pytest.approx(0.25, rel=1e-9)
+    kappa1 = u - sigma / 82.0  # plastic opening
+    post = kappa1 > 1e-9
+    assert np.allclose(sigma[post], 0.25 * np.exp(-0.25 * kappa1[post] / 0.018), rtol=1e-9)
+    energy = np.trapezoid(sigma, u)
+    assert energy == pytest.approx(0.018, rel=0.01)
+    assert state.work[0] == pytest.approx(0.018, rel=0.01)
+    assert np.all(t[:, 1] == 0.0)
+
+
+@pytest.mark.parametrize("sigma", [-0.1, -0.5, -1.0])
+def test_shear_at_constant_compression_peak_residual_and_energy(sigma):
+    """Peak τ = c − σ tanφ0, residual τ → −σ tanφr (within 0.5 %); with tanφ0 = tanφr the
+    dissipated energy ∫(τ − τ_res) du_s^p equals G_f^II (the opening is held at σ/k_n, tanψ = 0, so σ
+    stays constant)."""
+    props = dict(SET_A, tanphi0=1.0, tanphir=0.75, c=0.8, ft=0.2, GfII=0.05, ks=36.0, fc=np.inf)  # no cap
+    law = CompositeInterface(composite_properties(**props)[None])
+    slip = np.union1d(np.linspace(0.0, 2.0, 4001), [(0.8 - sigma) / 36.0])
+    path = np.column_stack([np.full_like(slip, sigma / props["kn"]), slip])
+    path[0] = 0.0
+    t, state, its, status = _drive(law, path)
+    assert np.all(status == 0)
+    assert np.allclose(t[1:, 0], sigma, rtol=1e-10)
+    tau = t[:, 1]
+    assert tau.max() == pytest.approx(0.8 - sigma * 1.0, rel=0.005)
+    assert tau[-1] == pytest.approx(-sigma * 0.75, rel=0.005)
+    # energy with constant friction
+    law2 = CompositeInterface(composite_properties(**dict(props, tanphi0=0.75, tanphir=0.75, ft=0.2))[None])
+    t2, state2, *_ = _drive(law2, path)
+    energy = state2.work[0] - (-sigma * 0.75) * state2.plastic[0, 1]  # ∫ τ du_s^p minus friction work
+    assert energy == pytest.approx(0.05, rel=0.01)
+
+
+def test_cap_under_pure_compression_follows_the_hardening_softening_law():
+    """Uniaxial compression: yield at f_c/3, peak f_c at κ3 = κ_p, then the post-peak area above
+    σ̄_r equals G_fc (INFERRED definition) within 1 %."""
+    law = CompositeInterface(composite_properties(**SET_A)[None])
+    u = -np.union1d(np.linspace(0.0, 6.0, 6001), [10.5 / 3 / 82.0])
+    t, state, its, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
+    assert np.all(status == 0)
+    sigma = -t[:, 0]
+    assert sigma.max() == pytest.approx(10.5, rel=1e-3)
+    kappa3 = -u - sigma / 82.0
+    first_yield = np.argmax(kappa3 > 1e-9)
+    assert sigma[first_yield] == pytest.approx(10.5 / 3, rel=0.02)
+    assert kappa3[np.argmax(sigma)] == pytest.approx(0.09, abs=2e-3)
+    post = kappa3 >= 0.09
+    area = np.trapezoid(sigma[post] - 10.5 / 7, kappa3[post])
+    km = cap_kappa_m(10.5, 5.0, 0.09)
+    tail = (10.5 / 2 - 10.5 / 7) ** 2 / (2 * (10.5 - 10.5 / 2) / (km - 0.09)) * np.exp(
+        2 * (10.5 / 2 - 10.5) / (km - 0.09) * (kappa3[-1] - km) / (10.5 / 2 - 10.5 / 7))
+    assert area + tail == pytest.approx(5.0, rel=0.01)
+
+
+def test_corner_returns_converge_in_at_most_10_iterations():
+    """Trial states far outside the tension/shear corner (trial |τ| up to 20 c) and the shear/cap
+    corner (trial beyond the cap by several f_c): one step, no sub-stepping, both surfaces active."""
+    law = CompositeInterface(composite_properties(**SET_A)[None])
+    for du in ([0.05, 0.1], [0.02, -0.2], [-0.0317, -0.2488], [-0.02, -0.15]):
+        upd = law.update(np.array([du]), law.initial_state())
+        assert upd.status[0] == 0, du
+        assert upd.iterations[0] <= 10, (du, upd.iterations[0])
+        if du[0] < 0:  # shear and cap both active
+            assert upd.state.kappa[0, 1] > 0 and upd.state.kappa[0, 2] > 0
+    # the corner is really active: both f1 and f2 hold at the returned state
+    upd = law.update(np.array([[0.05, 0.1]]), law.initial_state())
+    sig, tau = upd.state.traction[0]
+    k1, k2 = upd.state.kappa[0, :2]
+    assert sig == pytest.approx(0.25 * np.exp(-0.25 * k1 / 0.018), abs=1e-9)
+    s2 = 0.35 * np.exp(-0.35 * k2 / 0.125)
+    assert abs(tau) + sig * 0.75 - s2 == pytest.approx(0.0, abs=1e-9)
+
+
+def _fd_tangent(law, state, du, h):
+    D = np.zeros((2, 2))
+    for j in range(2):
+        e = np.zeros(2)
+        e[j] = h
+        tp = law.update((du + e)[None], state).state.traction[0]
+        tm = law.update((du - e)[None], state).state.traction[0]
+        D[:, j] = (tp - tm) / (2 * h)
+    return D
+
+
+@pytest.mark.parametrize("case", ["tension", "shear", "corner", "cap", "shear_cap", "dilatant_shear"])
+def test_consistent_tangent_equals_finite_differences(case):
+    """The algorithmic tangent of every return type equals central differences of the return map
+    to 1e-6 relative (h = 1e-7 mm: truncation ~h², round-off ~1e-16/h relative)."""
+    props = dict(SET_A, tanpsi=0.3, tanphi0=1.0, tanphir=0.75, ft=0.25, c=0.4) if case == "dilatant_shear" else SET_A
+    law = CompositeInterface(composite_properties(**props)[None])
+    pre = {"tension": [0.0, 0.0], "shear": [-0.01, 0.0], "corner": [0.0, 0.0], "cap": [0.0, 0.0],
+           "shear_cap": [0.0, 0.0], "dilatant_shear": [-0.005, 0.0]}[case]
+    du = {"tension": [0.01, 0.0005], "shear": [0.0, 0.05], "corner": [0.03, 0.06], "cap": [-0.2, 0.001],
+          "shear_cap": [-0.12, 0.15], "dilatant_shear": [0.0, 0.05]}[case]
+    state = law.update(np.array([pre]), law.initial_state()).state
+    upd = law.update(np.array([du]), state)
+    assert upd.status[0] == 0
+    assert upd.iterations[0] > 0, "the case must be plastic"
+    D = upd.tangent[0]
+    D_fd = _fd_tangent(law, state, np.array(du), 1e-7)
+    assert np.allclose(D, D_fd, rtol=1e-6, atol=1e-6 * np.abs(D).max())
+    if case == "dilatant_shear":
+        assert not np.allclose(D, D.T), "non-associated flow gives a non-symmetric tangent"
+
+
+def test_admissibility_errors_name_the_quantity():
+    with pytest.raises(ValueError, match=r"ft=0.6 MPa exceeds c/tanphi"):
+        composite_properties(**dict(SET_A, ft=0.6))
+    with pytest.raises(ValueError, match=r"kn=3 N/mm³ must exceed ft²/GfI"):
+        composite_properties(**dict(SET_A, kn=3.0))
+    with pytest.raises(ValueError, match="GfI must be > 0"):
+        composite_properties(**dict(SET_A, GfI=0.0))
+
+
+def test_switched_off_surfaces_give_linear_elasticity():
+    law = CompositeInterface(composite_properties(kn=82.0, ks=36.0)[None])
+    upd = law.update(np.array([[5.0, -3.0]]), law.initial_state())
+    assert np.array_equal(upd.state.traction[0], [410.0, -108.0])
+    assert np.array_equal(upd.tangent[0], np.diag([82.0, 36.0]))
+
+
+# --- the thesis' hyperbolic surface (eq. 2.4) ------------------------------------------------
+
+HYP = dict(kn=82.0, ks=36.0, ft=0.25, GfI=0.018, c=0.35, tanphi0=0.75, tanphir=0.6, GfII=0.125)
+
+
+def _shear_at_constant_sigma(law, sigma, slips):
+    """Drive the slip with σ held (mixed control: Newton on the opening with the consistent tangent)."""
+    state = law.update(np.array([[sigma / 82.0, 0.0]]), law.initial_state()).state
+    taus = []
+    for k in range(1, len(slips)):
+        du = np.array([0.0, slips[k] - slips[k - 1]])
+        for _ in range(30):
+            upd = law.update(du[None], state)
+            r = upd.state.traction[0, 0] - sigma
+            if abs(r) < 1e-10:
+                break
+            du[0] -= r / upd.tangent[0, 0, 0]
+        assert upd.status[0] in (0, 1)
+        state = upd.state
+        taus.append(state.traction[0, 1])
+    return np.array(taus), state
+
+
+def test_hyperbolic_mode_I_reaches_sigma_t_and_dissipates_GfI():
+    law = HyperbolicInterface(hyperbolic_properties(**HYP)[None])
+    u = np.union1d(np.linspace(0.0, 1.0, 4001), [0.25 / 82.0])
+    t, state, its, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
+    assert np.all(status == 0)
+    assert t[:, 0].max() == pytest.approx(0.25, rel=1e-9)
+    assert np.trapezoid(t[:, 0], u) == pytest.approx(0.018, rel=0.01)
+
+
+def test_hyperbolic_surface_tends_to_coulomb_and_softens_to_residual_friction():
+    """At σ = −5 MPa the peak is √((c − σ tanφ0)² − a²), within 0.1 % of Coulomb's c − σ tanφ0; the
+    residual is −σ tanφr within 0.5 % (σ held by mixed control)."""
+    law = HyperbolicInterface(hyperbolic_properties(**HYP)[None])
+    taus, state = _shear_at_constant_sigma(law, -5.0, np.linspace(0.0, 4.0, 801))
+    a = 0.35 - 0.25 * 0.75
+    exact = np.sqrt((0.35 + 5.0 * 0.75) ** 2 - a**2)
+    assert taus.max() == pytest.approx(exact, rel=2e-3)  # the path samples the peak every 5 µm
+    assert taus.max() == pytest.approx(0.35 + 5.0 * 0.75, rel=1e-3 + 2e-3)
+    assert taus[-1] == pytest.approx(5.0 * 0.6, rel=0.005)
+
+
+@pytest.mark.parametrize("du", [[0.01, 0.0005], [-0.01, 0.06], [0.004, 0.03]])
+def test_hyperbolic_tangent_equals_finite_differences(du):
+    law = HyperbolicInterface(hyperbolic_properties(**dict(HYP, tanpsi=0.2))[None])
+    state = law.update(np.array([[0.001, 0.002]]), law.initial_state()).state
+    upd = law.update(np.array([du]), state)
+    assert upd.status[0] == 0 and upd.iterations[0] > 0
+    D_fd = _fd_tangent(law, state, np.array(du), 1e-7)
+    assert np.allclose(upd.tangent[0], D_fd, rtol=1e-6, atol=1e-6 * np.abs(D_fd).max())
+
+
+def test_hyperbolic_admissibility():
+    with pytest.raises(ValueError, match="ft=0.6 MPa exceeds c/tanphi"):
+        hyperbolic_properties(**dict(HYP, ft=0.6))

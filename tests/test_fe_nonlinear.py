@@ -1,0 +1,131 @@
+"""Verification of the nonlinear solver and scenarios against closed forms (uniform joints: units
+made 100× stiffer than default so that the joints see uniform tractions to < 0.1 %)."""
+
+import numpy as np
+import pytest
+
+from fe.exceptions import SpecError
+from fe.scenarios import build_scenario
+from fe.solvers.nonlinear import BUDGET, CONVERGED, NOT_CONVERGED, PathSettings
+
+A = 210.0 * 100.0  # joint area of the specimens, mm²
+STIFF_UNITS = {"E_b": 1e6, "nu_b": 0.0}
+
+
+def test_couplet_tension_peak_equals_A_ft():
+    """Peak = A f_t within 0.5 % (steps of 1e-5 mm: the load changes by < 0.02 % per step near the
+    peak)."""
+    sc = build_scenario({"scenario": "couplet_tension", "load_levels": [0.0028, 0.0032, 0.0036],
+                         "increment": 1e-5, "max_increment": 1e-5, "max_steps": 2000})
+    r = sc.run(STIFF_UNITS)
+    assert r.status == CONVERGED
+    assert r.peak_load == pytest.approx(A * 0.25 / 1000, rel=0.005)
+
+
+def test_couplet_dissipated_energy_is_GfI_A_and_mesh_objective():
+    """Softening to 0.6 mm: dissipated energy = G_f^I A (tail exp(−8.3) ≈ 0.03 %, mid-point rule per
+    step) and changes by < 2 % when the mesh is refined twice in each direction."""
+    energies = []
+    for nx, ny in ((2, 1), (6, 2)):
+        sc = build_scenario({"scenario": "couplet_tension", "nx": nx, "ny": ny,
+                             "load_levels": [0.01, 0.05, 0.2, 0.6], "increment": 0.0005, "max_increment": 0.02})
+        r = sc.run({"E_b": 12000.0})
+        assert r.status == CONVERGED
+        energies.append(r.path.dissipation[-1])
+    assert energies[1] == pytest.approx(0.018 * A, rel=0.01)
+    assert abs(energies[1] - energies[0]) / energies[1] < 0.02
+
+
+@pytest.mark.parametrize("law", ["composite", "hyperbolic"])
+def test_triplet_shear_peak_and_residual_match_closed_forms(law):
+    """Peak 2A(c + σ tanφ0) (composite) or 2A√((c + σ tanφ0)² − (c − σ_t tanφ0)²) (hyperbolic,
+    eq. 2.4) and residual 2Aσ tanφr (at 3 mm the cohesion tail is < 0.1 % of it) within 0.5 %."""
+    sigma, tphi, tphir = 0.2, 0.8, 0.6
+    peak_levels = np.arange(0.0125, 0.0175, 0.0001)
+    sc = build_scenario({"scenario": "triplet_shear", "precompression": sigma, "law": law,
+                         "load_levels": peak_levels.round(6).tolist() + [0.05, 0.5, 1.5, 3.0],
+                         "increment": 0.001, "max_increment": 0.1, "max_steps": 2000})
+    r = sc.run(dict(STIFF_UNITS, tanphi_bj=tphi, tanphir_bj=tphir))
+    assert r.status == CONVERGED
+    tau = 0.35 + sigma * tphi
+    if law == "hyperbolic":
+        tau = np.sqrt(tau**2 - (0.35 - 0.25 * tphi) ** 2)
+    assert r.peak_load == pytest.approx(2 * A * tau / 1000, rel=0.005)
+    assert r.loads[-1] == pytest.approx(2 * A * sigma * tphir / 1000, rel=0.005)
+
+
+def test_prism_compression_peak_equals_A_fc():
+    sc = build_scenario({"scenario": "prism_compression", "load_levels": [0.2, 0.5, 0.8, 1.2]})
+    r = sc.run(STIFF_UNITS)
+    assert r.status == CONVERGED
+    assert r.peak_load == pytest.approx(A * 10.5 / 1000, rel=0.005)
+    assert r.loads[-1] < 0.99 * r.peak_load, "the cap softens after its peak"
+
+
+def test_snap_back_passed_by_indirect_control_where_displacement_control_fails():
+    """Couplet with soft units (E = 200 MPa): elastic compliance h/E + 1/k_n = 0.63 mm/MPa exceeds
+    the softening compliance G_f^I/f_t² = 0.29 mm/MPa at the peak, so the load–displacement curve
+    snaps back. Displacement control of the plate stops at the peak; control of the joint opening
+    follows the whole curve (the plate displacement decreases after the peak) and dissipates G_f^I A."""
+    soft = {"E_b": 200.0, "nu_b": 0.0}
+    sc = build_scenario({"scenario": "couplet_tension", "load_levels": [0.3, 0.5],
+                         "increment": 0.005, "max_increment": 0.02})
+    r = sc.run(soft, settings=PathSettings(max_increment_fraction=4, arc_length_fallback=False))
+    assert r.status == NOT_CONVERGED and r.reached < 0.2
+    sc = build_scenario({"scenario": "couplet_tension", "control": "opening",
+                         "load_levels": [0.01, 0.05, 0.1, 0.2, 0.4], "increment": 0.001, "max_increment": 0.02})
+    r = sc.run(soft)
+    assert r.status == CONVERGED
+    top = r.path.readings[:, r.sensor_names.index("top_uy")]
+    k = int(np.argmax(r.path.load))
+    assert top[k + 3] < top[k], "snap-back: the plate moves back while the joint opens"
+    assert r.path.dissipation[-1] == pytest.approx(0.018 * A, rel=0.01)
+
+
+def test_linear_limit_reproduces_the_linear_solver():
+    """With strengths far beyond the stresses, the nonlinear wall (N constant) equals the linear
+    scenario loaded by the computed horizontal reaction: readings to 1e-10 relative."""
+    huge = {"ft_bj": 1e3, "c_bj": 1e4, "GfI_bj": 1e9, "GfII_bj": 1e9, "fc": 1e6, "ft_bb": 1e4, "GfI_bb": 1e9}
+    geometry = {"nx": 2, "ny": 1}
+    nl = build_scenario({"scenario": "shear_compression_nl", "top": "constant_force", "load_levels": [0.2, 0.5],
+                         "increment": 0.2, "max_increment": 0.2, **geometry})
+    r = nl.run(huge)
+    assert r.status == CONVERGED
+    lin = build_scenario({"scenario": "shear_compression", "load_levels": r.loads.tolist(), **geometry})
+    ref = lin.run()
+    assert np.allclose(r.readings, ref.readings, rtol=1e-10, atol=1e-10 * np.abs(ref.readings).max())
+
+
+def test_budget_ends_the_run_with_its_converged_part():
+    sc = build_scenario({"scenario": "couplet_tension", "max_steps": 5})
+    r = sc.run()
+    assert r.status == BUDGET and "step budget of 5" in r.message
+    assert len(r.path.path) <= 5 and np.isnan(r.loads[-1]) and np.isfinite(r.loads[0])
+    r = sc.run(settings=PathSettings(max_seconds=1e-3))
+    assert r.status == BUDGET and "wall-time" in r.message
+
+
+def test_inadmissible_strengths_are_refused_with_the_reason():
+    sc = build_scenario("couplet_tension")
+    with pytest.raises(SpecError, match="bed joints.*ft=0.6 MPa exceeds c/tanphi"):
+        sc.run({"ft_bj": 0.6})
+    with pytest.raises(SpecError, match="unit mid-planes.*must exceed ft²/GfI"):
+        sc.run({"ft_bb": 100.0})
+
+
+@pytest.mark.slow
+def test_J4D_wall_with_constant_vertical_force_lies_within_its_bounds():
+    """J4D (p = 0.30 MPa, N = 29.7 kN held) on a coarse mesh, 0–3 mm: the peak lies below the
+    single-bed-joint sliding bound c A + tanφ N = 56.9 kN and near the rigid-rocking bound with bond
+    moment at both ends, (N l + 2 f_t t l²/6)/h ≈ 38 kN (reference §2.1, COMPUTED), and the wall softens
+    after it. The measured ≈ 50–57 kN (INFERRED / low reliability) belongs to the vertically
+    confined top and is reported in BENCHMARKS.md, not asserted."""
+    sc = build_scenario({"scenario": "shear_compression_nl", "top": "constant_force", "nx": 2, "ny": 1})
+    r = sc.run()
+    assert r.status == CONVERGED and r.reached == 3.0
+    sliding = 0.35 * 990 * 100 / 1000 + 0.75 * 29.7
+    rocking = 29.7 * 990 / 992 + 2 * 0.25 * 100 * 990**2 / 6 / 992 / 1000  # 37.9 kN
+    assert r.peak_load < sliding
+    assert 0.8 * rocking < r.peak_load < 1.2 * rocking
+    assert r.loads[-1] < 0.8 * r.peak_load
+    assert np.allclose(r.extra["vertical_reaction"], 29.7)
