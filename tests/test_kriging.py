@@ -280,3 +280,14 @@ def test_kernels_are_deterministic_across_thread_counts_and_chunks():
         got = np.empty_like(cov[1])
         _kernels._cross_covariance_parallel(*args, got, chunk)
         np.testing.assert_array_equal(got, cov[1])
+
+
+def test_semivariogram_defaults_range_nugget_and_beta_check():
+    """Defaults: exponential family, β = 1.5, unit sill and range, no nugget; γ(h) = γ(|h|); the
+    nugget is a jump at 0⁺ only; the exponent is checked against the chosen model."""
+    h = np.array([-2.0, 0.0, 0.5])
+    assert_allclose(semivariogram(h), [1 - np.exp(-(2.0**1.5)), 0.0, 1 - np.exp(-(0.5**1.5))], rtol=1e-12, atol=0)
+    g = semivariogram(h, beta=1.2, sill=3.0, range_=2.0, nugget=0.1)
+    assert_allclose(g, [3.0 * (1 - np.exp(-1.0) + 0.1), 0.0, 3.0 * (1 - np.exp(-(0.25**1.2)) + 0.1)], rtol=1e-12, atol=0)
+    with pytest.raises(ValueError, match="0 < beta < 2"):
+        semivariogram(h, "power", beta=2.0)

@@ -69,3 +69,15 @@ def test_noise_models():
         NoiseModel(sigma={"D1": 0.001}).std(m)
     with pytest.raises(ValueError, match=r"must be \(4, 4\)"):
         NoiseModel(covariance=np.eye(3)).covariance_matrix(m)
+
+
+def test_output_indices_match_levels_to_1e_9_and_name_what_is_unknown():
+    """Levels match to a relative 1e-9 (two model levels 5e-6 apart stay distinct), and an unknown
+    sensor or level is named with the source and what the model has."""
+    m = Measurement(np.array([[1.0, 2.0]]), ("D2", "D1"), np.array([100.0005]), source="site.csv")
+    # load-major: level index 1 of 2, 3 sensors per level → 3 + sensor position
+    assert m.output_indices(["D1", "D2", "U1"], [100.0, 100.0005]).tolist() == [3 + 1, 3 + 0]
+    with pytest.raises(ValueError, match=r"site\.csv: unknown sensor 'D2'; the model has \['D1', 'U1'\]"):
+        m.output_indices(["D1", "U1"], [100.0005])
+    with pytest.raises(ValueError, match=r"site\.csv: unknown load level 100\.001; the model has \[100\.0, 99\.0\]"):
+        m.output_indices(["D1", "D2"], [100.0, 99.0])

@@ -1,5 +1,7 @@
 """POD: known orthonormal bases, truncation by energy or count, round trips, method agreement."""
 
+import warnings
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -92,3 +94,20 @@ def test_errors(kwargs, data, message):
 def test_not_fitted():
     with pytest.raises(NotFittedError, match="call fit"):
         POD().transform(np.ones((2, 3)))
+
+
+def test_projection_error_against_a_hand_computed_basis():
+    """Uncentred rows 3 e1 and e2 give modes e1 (σ = 3) and e2 (σ = 1); one mode keeps e1, so the
+    error of (1, 2, 2) is |(0, 2, 2)| = √8 and of e2 is 1 (absolute; relative divides by |y|)."""
+    pod = POD(n_modes=1, center=False).fit(np.array([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
+    Y = np.array([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 2.0, 2.0], [0.0, 0.0, 0.0]])
+    assert_allclose(pod.projection_error(Y, relative=False), [0.0, 1.0, np.sqrt(8.0), 0.0], rtol=1e-12, atol=1e-15)
+    assert_allclose(pod.projection_error(Y), [0.0, 1.0, np.sqrt(8.0) / 3.0, 0.0], rtol=1e-12, atol=1e-15)
+    # centred, mean (1, 1, 0) and mode e1: the zero snapshot has error |(0, -1, 0)| = 1 and norm 0,
+    # so its relative error is inf, without a divide-by-zero warning
+    centred = POD().fit(np.array([[2.0, 1.0, 0.0], [0.0, 1.0, 0.0]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rel = centred.projection_error(np.zeros((1, 3)))
+    assert rel.tolist() == [np.inf]
+    assert_allclose(centred.projection_error(np.zeros((1, 3)), relative=False), [1.0], rtol=1e-12)
