@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 from scipy.optimize import approx_fprime
 
 from podkrig.exceptions import NotFittedError
-from podkrig.surrogate.kriging import OrdinaryKriging, semivariogram
+from podkrig.surrogate.kriging import OrdinaryKriging, covariance, semivariogram
 from podkrig.surrogate.kriging.ordinary import _Objective, _Pairs
 
 
@@ -291,3 +291,17 @@ def test_semivariogram_defaults_range_nugget_and_beta_check():
     assert_allclose(g, [3.0 * (1 - np.exp(-1.0) + 0.1), 0.0, 3.0 * (1 - np.exp(-(0.25**1.2)) + 0.1)], rtol=1e-12, atol=0)
     with pytest.raises(ValueError, match="0 < beta < 2"):
         semivariogram(h, "power", beta=2.0)
+
+
+def test_covariance_is_a_per_dimension_sum_inside_the_exponent():
+    """s(x, x') = Σ_k (|x_k − x'_k| / a_k)^β by hand; exponential family e^{−s}, power model −s."""
+    X1 = np.array([[0.0, 0.0], [0.3, 0.4]])
+    X2 = np.array([[0.3, 0.4], [0.1, 1.0], [0.0, 0.0]])
+    ranges, beta = np.array([0.5, 2.0]), 1.5
+    s01 = (0.3 / 0.5) ** 1.5 + (0.4 / 2.0) ** 1.5
+    s_11 = (0.2 / 0.5) ** 1.5 + (0.6 / 2.0) ** 1.5
+    S = np.array([[s01, (0.1 / 0.5) ** 1.5 + (1.0 / 2.0) ** 1.5, 0.0], [0.0, s_11, s01]])
+    assert_allclose(covariance(X1, X2, ranges, beta), np.exp(-S), rtol=1e-12, atol=0)
+    assert_allclose(covariance(X1, X2, ranges, beta, "power"), -S, rtol=1e-12, atol=0)
+    with pytest.raises(ValueError, match="variogram must be one of"):
+        covariance(X1, X2, ranges, beta, "spherical")

@@ -61,7 +61,7 @@ def test_noise_models():
     assert_allclose(NoiseModel(delta=0.01, floor=1e-4).std(m), [0.002, 0.001, 0.004, 1e-4])
     C = np.diag([1.0, 2.0, 3.0, 4.0]) * 1e-6
     assert_allclose(NoiseModel(covariance=C).std(m), np.sqrt(np.diag(C)))
-    with pytest.raises(ValueError, match="exactly one noise model"):
+    with pytest.raises(ValueError, match="^give exactly one noise model: an absolute sigma"):
         NoiseModel(sigma=0.1, delta=0.01)
     with pytest.raises(ValueError, match="sigma must be > 0 mm"):
         NoiseModel(sigma=0.0)
@@ -81,3 +81,35 @@ def test_output_indices_match_levels_to_1e_9_and_name_what_is_unknown():
         m.output_indices(["D1", "U1"], [100.0005])
     with pytest.raises(ValueError, match=r"site\.csv: unknown load level 100\.001; the model has \[100\.0, 99\.0\]"):
         m.output_indices(["D1", "D2"], [100.0, 99.0])
+
+
+def test_measurement_converts_its_inputs_and_names_bad_values():
+    m = Measurement([[1, 2]], ["a", "b"], [50], source="site.csv")
+    assert m.values.dtype == float and m.load_levels.dtype == float and m.sensor_names == ("a", "b")
+    assert m.data.tolist() == [1.0, 2.0] and m.n_obs == 2
+    with pytest.raises(ValueError, match=r"^site\.csv: values must have shape \(1, 2\) \(n_loads, n_sensors\); got \(2,\)"):
+        Measurement([1.0, 2.0], ["a", "b"], [50], source="site.csv")
+    with pytest.raises(ValueError, match=r"^site\.csv: measured values must be finite numbers"):
+        Measurement([[1.0, np.nan]], ["a", "b"], [50], source="site.csv")
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"sigma": {"D1": 0.001, "D2": 0.0}}, r"^absolute noise sigma must be > 0 mm; got \{'D2': 0\.0\}"),
+        ({"delta": 0.0}, r"^relative noise delta must be in \(0, 1\); got 0\.0"),
+        ({"delta": 1.0}, r"^relative noise delta must be in \(0, 1\)"),
+        ({"delta": 1.5}, r"^relative noise delta must be in \(0, 1\)"),
+    ],
+)
+def test_noise_model_bounds(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        NoiseModel(**kwargs)
+
+
+def test_singular_noise_covariance_is_refused():
+    m = Measurement(np.zeros((2, 2)), ("D1", "D2"), np.array([50.0, 100.0]))
+    with pytest.raises(ValueError, match="^noise covariance must be symmetric positive definite"):
+        NoiseModel(covariance=np.diag([1.0, 0.0, 1.0, 1.0])).covariance_matrix(m)
+    with pytest.raises(ValueError, match="^noise covariance must be symmetric positive definite"):
+        NoiseModel(covariance=np.eye(4) + np.triu(np.ones((4, 4)), 1) * 0.1).covariance_matrix(m)
