@@ -214,7 +214,8 @@ class ParameterSpace:
         Returns
         -------
         X : ndarray of the same shape
-            Physical values, each column in its parameter's unit.
+            Physical values, each column in its parameter's unit; inside the bounds (exactly)
+            where ``U`` is in [0, 1].
         """
         U = self._check_samples(U, "U")
         log = self._log_mask()
@@ -226,6 +227,10 @@ class ParameterSpace:
             # pin the ends exactly: 10**log10(b) can differ from b by an ulp
             X[..., log] = np.where(U[..., log] == 0.0, self.lower[log], X[..., log])
             X[..., log] = np.where(U[..., log] == 1.0, self.upper[log], X[..., log])
+        # coordinates in [0, 1] land inside the bounds exactly (lo + U (hi - lo) and 10**x can
+        # round an ulp past them), so the surrogate's exact box check accepts them
+        inside = (U >= 0.0) & (U <= 1.0)
+        X = np.where(inside, np.clip(X, self.lower, self.upper), X)
         return X
 
     def as_params(self, x):

@@ -37,7 +37,7 @@ TRUTH = {"E_b": 11500.0, "kN_bj": 85.0, "kV_bj": 33.0, "r_hj": 0.65}
 
 def setup(out, beta="fit"):
     from fe.scenarios import build_scenario
-    from podkrig.online.inverse import SurrogateModel
+    from podkrig.online.problem import SurrogateModel
     from podkrig.surrogate.kriging import OrdinaryKriging
     from podkrig.parameters import ParameterSpace
     from podkrig.offline.runner import run_snapshots
@@ -76,9 +76,10 @@ def main(argv=None):
 
     from threadpoolctl import threadpool_limits
 
-    from podkrig.online.inverse import FEModel, InverseProblem, invert
+    from podkrig.online.invert import invert
+    from podkrig.online.problem import FEModel, InverseProblem
     from podkrig.online.measurement import Measurement, NoiseModel
-    from podkrig.online.uncertainty import likelihood_ratio_region
+    from podkrig.online.region import likelihood_ratio_region
 
     with threadpool_limits(1):
         scenario, space, model, fit_seconds = setup(args.out)
@@ -155,8 +156,9 @@ def split_every_call(on):
 def time_online(problem, model, repeat, train=None):
     """Seconds of the inversion (median of ``repeat``), region (2^20 evaluations) and RVC, and of a
     surrogate fit on the store ``train`` (when given)."""
-    from podkrig.online.inverse import invert
-    from podkrig.online.uncertainty import likelihood_ratio_region, rvc
+    from podkrig.online.invert import invert
+    from podkrig.online.propagation import rvc
+    from podkrig.online.region import likelihood_ratio_region
 
     c0 = time.process_time()
     runs = [invert(problem, rng=seed) for seed in range(repeat)]
@@ -186,8 +188,8 @@ def under_load(args):
 
     from podkrig import parallel
     from podkrig.cli.invert import build_problem
-    from podkrig.online.inverse import invert
-    from podkrig.online.uncertainty import likelihood_ratio_region
+    from podkrig.online.invert import invert
+    from podkrig.online.region import likelihood_ratio_region
 
     problem, model, _ = build_problem(args.surrogate, args.data, [], args.noise_rel, None, [], [])
     with parallel.one_blas_thread():  # warm-up: numba compilation of both entry points

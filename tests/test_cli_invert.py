@@ -50,7 +50,13 @@ def test_invert_json_and_report(surrogates):
     for name, value in truth.items():
         lo, hi = out["intervals"][name]
         assert lo <= out["parameters"][name] <= hi
-    assert out["fe_check"]["max_abs_diff"] >= 0 and "posterior" in out
+    # the FE check: the surrogate (64 snapshots) is within the 1 % noise of the FE model at the optimum,
+    # and max |FE − surrogate| / (its ratio to σ) is one of the σ_i = 0.01 |d_i| of the data
+    fe = out["fe_check"]
+    assert fe["ok"] and 0 < fe["max_diff_over_noise"] <= 1 and 0 < fe["rel_diff"] < 1e-2
+    d = np.abs(np.loadtxt(data, delimiter=",", skiprows=1)[:, 1:])
+    assert 0.01 * d.min() * 0.999 <= fe["max_abs_diff"] / fe["max_diff_over_noise"] <= 0.01 * d.max() * 1.001
+    assert "posterior" in out and out["findings"] == []
     html = (report / "index.html").read_text()
     for fig in ("fit.png", "residuals.png", "region.png", "ga_history.png", "ga_parameters.png"):
         assert (report / fig).stat().st_size > 1000 and fig in html
@@ -62,6 +68,21 @@ def test_invert_with_fixed_parameters_and_table(surrogates):
     text = _ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-abs", 0.002, "--free", "kN_bj,kV_bj",
                 "--fix", "E_b=11000", "--fix", "r_hj=0.6", "--region-samples", 16384, "--no-fe-check"])
     assert "identified parameters" in text and "kN_bj" in text
+
+
+def test_invert_warns_when_the_noise_is_understated(surrogates):
+    """Data with 1 % noise inverted as if it had 0.3 %: χ²/dof ≈ 10, which the CLI reports (in the
+    JSON and in the table) with what to do."""
+    sur, data, _, _ = surrogates
+    args = ["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.003, "--region-samples", 4096,
+            "--no-fe-check"]
+    out = json.loads(_ok([*args, "--format", "json"]))
+    assert 2 < out["chi2_dof"] < 100
+    chi2 = [f for f in out["findings"] if f["code"] == "chi2-dof"]
+    assert len(chi2) == 1 and f"χ²/dof = {out['chi2_dof']:.2f}" in chi2[0]["what"]
+    assert chi2[0]["what"] in out["warnings"] and "podkrig diagnose" in chi2[0]["what_to_do"]
+    text = _ok(args)
+    assert "does not reproduce the data within the stated noise" in text.replace("\n", " ")
 
 
 def test_invert_noise_monte_carlo_region(surrogates):

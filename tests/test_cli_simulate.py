@@ -51,7 +51,6 @@ def test_csv_and_table_output(tmp_path):
         (["simulate", "diagonal_compression", "--set", "kN_bj=soft"], "is not a number"),
         (["simulate", "diagonal_compression", "--set", "kN_bj=-1"], "outside its physical range"),
         (["simulate", "dome"], "unknown scenario 'dome'"),
-        (["simulate", "diagonal_compression", "--format", "xml"], "--format must be"),
         (["simulate", "diagonal_compression", "--spec", "missing.toml"], "cannot read scenario spec missing.toml"),
     ],
 )

@@ -16,8 +16,8 @@ from numpy.testing import assert_allclose
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from fe.supports import spring_supported_model, support_areas
-from podkrig.diagnosis import CANDIDATES, FEContext, build_base_surrogate, diagnose
 from diagnosis_trials import make_trial
+from podkrig.diagnosis import CANDIDATES, Diagnosis, FEContext, build_base_surrogate, diagnose
 from podkrig.parameters import ParameterSpace
 
 BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
@@ -158,6 +158,11 @@ def test_hidden_effect_is_named(cause, wall, shear_wall):
         assert out["extended"]["chi2_dof"] < 1.5
         assert out["gain"]["chi2_drop"] > 0 and out["gain"]["aic_drop"] > 0
         assert out["gain"]["held_out_rms_after"] < out["gain"]["held_out_rms_before"]
+        # the result reads back from its JSON (with state) to an equal one
+        full = json.loads(json.dumps(d.to_dict(state=True)))
+        back = Diagnosis.from_dict(full, scenario=setup.scenario)
+        assert back.to_dict(state=True) == full and back.to_dict() == out
+        assert_allclose(back.residuals(back.extended), d.residuals(d.extended))
 
 
 @pytest.mark.slow

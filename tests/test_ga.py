@@ -1,16 +1,25 @@
 """Tests of the genetic algorithm (podkrig.ga): operators, solver contract, known optima."""
 
+import dataclasses
 import importlib.util
 import pathlib
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from podkrig.ga import GAResult, GeneticAlgorithm, minimize
+from podkrig.ga import (
+    GABudgetWarning,
+    GAOptions,
+    GAResult,
+    GeneticAlgorithm,
+    minimize,
+)
 from podkrig.ga import operators as ops
+from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 
 SCRIPTS = pathlib.Path(__file__).resolve().parents[1] / "scripts"
 
@@ -48,8 +57,6 @@ class LogSpace:
 
 # --------------------------------------------------------------------------- operators
 def test_sobol_initial_population_in_unit_cube_without_warning():
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # 40 is not a power of 2: must not warn
         U = ops.initial_population(40, 3, method="sobol", rng=np.random.default_rng(0))
@@ -377,6 +384,62 @@ def test_rastrigin_10d_is_found():
     assert_allclose(res.x, 0.0, rtol=0.0, atol=8e-3)
 
 
+def test_restart_after_a_stall_reaches_the_target_the_stall_stop_missed():
+    # seed 5 of the issue-12 run (10-D Rastrigin, budget 100 000, target 1e-2, all else
+    # default) used to stop on stall in a local minimum with 95 % of the budget unused
+    bounds, kw = [(-5.12, 5.12)] * 10, {"rng": 5, "max_evaluations": 100_000, "target": 1e-2}
+    stalled = minimize(rastrigin, bounds, on_stall="stop", **kw)
+    assert stalled.stop_reason == "stall" and stalled.fun > 0.5
+    assert stalled.nfev < 0.2 * kw["max_evaluations"]
+    res = minimize(rastrigin, bounds, **kw)  # on_stall="auto": restarts (budget and target)
+    assert res.stop_reason == "target" and res.fun <= 1e-2 and res.n_restarts >= 1
+    # up to the stall (before the stopped run's final polish) the two runs are the same run
+    k = stalled.generation_nfev[-1]
+    assert_array_equal(res.X_history[:k], stalled.X_history[:k])
+    assert res.fun < stalled.fun
+
+
+def test_restart_keeps_the_best_and_respects_the_budget():
+    # target below the minimum: the run restarts on every stall until the budget is spent
+    with pytest.warns(GABudgetWarning, match=r"maximum number of evaluations \(3000\)"):
+        res = minimize(sphere, [(-2.0, 2.0)] * 3, rng=31, max_evaluations=3000, target=-1.0,
+                       stall_generations=5)
+    assert res.nfev == 3000 == res.f_history.size and not res.success
+    assert res.n_restarts >= 2
+    # the best individual survives each restart: the population's best never increases
+    assert np.all(np.diff(res.generation_best) <= 0.0)
+    assert res.fun == res.f_history.min()
+
+
+def test_stall_stops_without_a_budget_or_without_a_target():
+    assert GeneticAlgorithm(sphere, [(-1.0, 1.0)], target=0.0).options.on_stall == "stop"
+    assert GeneticAlgorithm(sphere, [(-1.0, 1.0)], max_evaluations=10).options.on_stall == "stop"
+    both = GeneticAlgorithm(sphere, [(-1.0, 1.0)], max_evaluations=10, target=0.0).options
+    assert both.on_stall == "restart" and both.max_generations > 10**9
+    assert GeneticAlgorithm(sphere, [(-1.0, 1.0)]).options.max_generations == 1000
+    res = minimize(sphere, [(-2.0, 2.0)] * 3, rng=32, target=-1.0, stall_generations=5)
+    assert res.stop_reason == "stall" and res.n_restarts == 0
+
+
+def test_options_object_and_keywords_give_the_same_run():
+    opts = GAOptions(population_size=20, selection="sus", polish="none", max_generations=15,
+                     stall_generations=None)
+    with pytest.warns(GABudgetWarning):
+        a = minimize(sphere, [(-2.0, 2.0)] * 3, opts, rng=33)
+    with pytest.warns(GABudgetWarning):
+        b = minimize(sphere, [(-2.0, 2.0)] * 3, rng=33, **opts.to_dict())
+    with pytest.warns(GABudgetWarning):  # keywords replace fields of the options object
+        c = minimize(sphere, [(-2.0, 2.0)] * 3, opts, rng=33, selection="tournament")
+    assert_array_equal(a.X_history, b.X_history)
+    assert not np.array_equal(a.X_history, c.X_history)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        opts.population_size = 30
+    resolved = GeneticAlgorithm(sphere, [(-1.0, 1.0)] * 4, opts).options
+    assert resolved.n_elite == 10 and resolved.mutation_probability == 0.25
+    assert resolved.polish_method == "L-BFGS-B" and resolved.polish_max_evaluations == 100
+    assert resolved.n_grid == (1000,) * 4
+
+
 def test_tmd_matches_or_beats_den_hartog():
     tmd = load_script("example_ga_tmd")
     mu = 0.05
@@ -439,7 +502,14 @@ def test_deb_rules_return_a_feasible_point_over_a_better_infeasible_one():
         ({"population_size": 3}, ValueError, r"population_size must be in \[4, inf\]; got 3"),
         ({"population_size": 10.0}, TypeError, "population_size must be an integer; got 10.0"),
         ({"n_elite": 39}, ValueError, r"n_elite must be in \[0, 38\]; got 39"),
-        ({"n_grid": 0}, ValueError, "n_grid must be an integer >= 1 or 2 of them; got 0"),
+        ({"n_grid": 0}, ValueError,
+         "n_grid must be an integer >= 1 or a sequence of them, one per parameter; got 0"),
+        ({"n_grid": (10, 10, 10)}, ValueError,
+         r"n_grid must be an integer >= 1 or 2 of them; got \(10, 10, 10\)"),
+        ({"on_stall": "retry"}, ValueError,
+         "on_stall must be one of 'auto', 'stop', 'restart'; got 'retry'"),
+        ({"options": {"population_size": 10}}, TypeError,
+         "options must be a GAOptions or None; got dict"),
         ({"polish": "always"}, ValueError, "polish must be one of"),
         ({"constraints": lambda X: X, "polish_method": "L-BFGS-B"}, ValueError,
          "polish_method='L-BFGS-B' cannot handle constraints; use polish_method='SLSQP'"),
@@ -472,9 +542,7 @@ def test_importing_the_ga_does_not_import_matplotlib():
 def test_figures_have_labelled_axes():
     matplotlib = pytest.importorskip("matplotlib")
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
+    import matplotlib.pyplot as plt  # after choosing the backend (and only if installed)
 
     space = LogSpace([10.0, 1.0], [1000.0, 100.0])
     res = minimize(lambda X: np.sum(np.log(X / 30.0) ** 2, axis=1), space, rng=25,

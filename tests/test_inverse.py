@@ -6,10 +6,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from podkrig.online.inverse import InverseProblem, invert
+from podkrig.online.invert import invert
+from podkrig.online.problem import InverseProblem
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import Parameter, ParameterSpace
-from podkrig.online.uncertainty import information_criteria, likelihood_ratio_region, nested_analyses, noise_monte_carlo_region, rvc
+from podkrig.online.nested import information_criteria, nested_analyses
+from podkrig.online.propagation import rvc
+from podkrig.online.region import likelihood_ratio_region, noise_monte_carlo_region
 
 TRUTH = {"k": 12.0, "b": 0.4, "c": 0.5}
 
@@ -83,7 +86,7 @@ def test_unidentifiable_parameter_is_flagged_and_identifiable_ones_are_not():
     result = invert(problem, rng=3)
     region = likelihood_ratio_region(problem, result.x, rng=3)
     assert len(region.samples) > 1000 and region.n_evaluated >= 2**17
-    verdict = region.identifiability(problem.free_space)
+    verdict = region.identifiability
     assert verdict["k"]["identifiable"] and verdict["b"]["identifiable"]
     assert not verdict["c"]["identifiable"]
     assert "c is NOT pinned down by these data" in verdict["c"]["message"]
@@ -124,9 +127,9 @@ def test_rvc_and_information_criteria():
     result = invert(problem, rng=7)
     region = likelihood_ratio_region(problem, result.x, rng=7)
     out = rvc(region, model, fixed={"c": 0.5})
-    assert out["outputs"] == ["s1@30", "s2@30", "s3@30", "s4@30"]
-    assert all(0 < cv < 0.2 for cv in out["cv"])
-    assert all(r >= c for r, c in zip(out["range_ratio"], out["cv"]))
+    assert out.outputs == ("s1@30", "s2@30", "s3@30", "s4@30")
+    assert all(0 < cv < 0.2 for cv in out.cv)
+    assert all(r >= c for r, c in zip(out.range_ratio, out.cv))
     with pytest.raises(ValueError, match=r"needs values for \['c'\]"):
         rvc(region, model)
     with pytest.raises(ValueError, match="unknown RVC output"):
@@ -145,10 +148,10 @@ def test_nested_analyses_flag_overparameterisation():
         return InverseProblem(model, meas, NoiseModel(sigma=sigma), free=free, fixed={n: 0.5 for n in ("b", "c") if n not in free})
 
     rows = nested_analyses(make, [("k",), ("k", "b"), ("k", "b", "c")], rng=9, n_samples=2**14, validation={"same": (model, {"c": 0.5, "b": 0.5})})
-    chi2 = [r["chi2_dof"] for r in rows]
+    chi2 = [r.chi2_dof for r in rows]
     assert chi2[1] < chi2[0]  # b matters: fixing it at 0.5 (truth 0.4) leaves a misfit
-    assert rows[2]["aic"] > rows[1]["aic"]  # c adds a parameter and explains nothing
-    assert not rows[2]["identifiability"]["c"]["identifiable"]
+    assert rows[2].aic > rows[1].aic  # c adds a parameter and explains nothing
+    assert rows[2].unidentified == ["c"]
 
 
 def test_mcmc_posterior_converges_and_sits_inside_the_region():

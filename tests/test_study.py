@@ -258,7 +258,10 @@ def test_report_structure(tiny):
     assert not re.search(r"\bnan\b|\binf\b", source, re.IGNORECASE)
     for unit in ("(mm)", "(%)", "(s)", "MPa", "N/mm³", "χ²/dof"):
         assert unit in text, unit
-    assert "Warning:" in source or "No warnings" in source
+    # the page shows exactly the warnings of summary.json, or says there are none
+    warnings = json.loads((out / "summary.json").read_text(encoding="utf-8"))["warnings"]
+    assert source.count("<b>Warning:</b>") == 2 * len(warnings)  # in the summary and in its section
+    assert ("No warnings" in source) is (not warnings)
 
 
 def test_report_warning_in_plain_words(tiny, tmp_path):
@@ -274,3 +277,18 @@ def test_report_warning_in_plain_words(tiny, tmp_path):
     source = (d / "out" / "report" / "index.html").read_text()
     assert "does not reproduce the data within the stated noise" in source
     assert "What to do:" in source
+
+
+def test_study_with_a_library_backend(tmp_path):
+    """``[surrogate] backend`` puts a library's regressor behind the same pipeline: surrogate,
+    held-out check and inversion run, the summary and the report name the backend."""
+    study = TINY.replace('[surrogate]\nbeta = "fit-shared"', '[surrogate]\nbackend = "sklearn-gpr"')
+    study = study[: study.index("[diagnosis]")]  # the diagnosis builds its own surrogate
+    (tmp_path / "study.toml").write_text(study)
+    _measured(tmp_path / "measured.csv", seed=0)
+    _run(tmp_path / "study.toml", tmp_path / "out")
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    sur = summary["stages"]["surrogate"]
+    assert sur["backend"] == "sklearn-gpr" and "beta" not in sur and "scikit-learn" in sur["description"]
+    assert summary["stages"]["inversion"]["chi2_dof"] < 5
+    assert "sklearn-gpr" in (tmp_path / "out" / "report" / "index.html").read_text()

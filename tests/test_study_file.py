@@ -1,6 +1,9 @@
 """The study file: validation errors name the file, the line, the key and the allowed values."""
 
+import importlib.util
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -96,7 +99,7 @@ def test_valid_study_and_defaults(tmp_path):
                                                                  r"allowed: a number in \(0, 1\)"]),
         ("n = 16,", "n = 2,", "n = 2", [r"sampling\.train\.n: 2 is out of range", r"an integer >= 4"]),
         ('method = "random"', 'method = "halton"', "halton", [r"held_out\.method: 'halton' is out of range",
-                                                             r"allowed: sobol, lhs, random"]),
+                                                             r"allowed: sobol, lhs, random, lhs-ese"]),
         ('scale = "log" }\nkV', 'scale = "ln" }\nkV', '"ln"', [r"parameters\.kN_bj\.scale: 'ln' is out of range",
                                                              r"allowed: linear or log"]),
         ("upper = 300.0", "upper = 20.0", "upper = 20.0", [r"parameters\.kN_bj\.upper: must exceed lower = 30",
@@ -184,8 +187,6 @@ def test_demo_study_is_valid():
 
 def test_demo_data_is_reproducible(tmp_path):
     """examples/make_measured_data.py regenerates the shipped pseudo-measured data."""
-    import importlib.util
-
     spec = importlib.util.spec_from_file_location("make_measured_data", EXAMPLES / "make_measured_data.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -200,9 +201,6 @@ def test_demo_data_is_reproducible(tmp_path):
 
 
 def test_bench_demo_help():
-    import subprocess
-    import sys
-
     script = Path(__file__).resolve().parents[1] / "scripts" / "bench_demo.py"
     proc = subprocess.run([sys.executable, str(script), "--help"], capture_output=True, text=True, check=False)
     assert proc.returncode == 0 and "--fresh-venv" in proc.stdout

@@ -33,7 +33,9 @@ def snapshots(coarse_diagonal):
 @pytest.fixture(scope="module")
 def surrogate(snapshots):
     space, X, Y, _, _ = snapshots
-    return PODKriging(space=space).fit(X, Y)
+    # per-mode exponents, as the accuracy and coverage figures below were measured; the default
+    # "fit-shared" gives coverage ≈ 0.87 here (BENCHMARKS.md), too close to the bound below
+    return PODKriging(kriging=OrdinaryKriging(beta="fit"), space=space).fit(X, Y)
 
 
 def test_held_out_accuracy_and_coverage(surrogate, snapshots):

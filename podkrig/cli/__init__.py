@@ -11,7 +11,7 @@ pay it.
 import typer
 
 from podkrig import __version__
-from podkrig.cli import diagnose, invert, run, scenarios, simulate, snapshots, surrogate
+from podkrig.cli import diagnose, invert, run, scenarios, sensors, simulate, snapshots, surrogate
 
 app = typer.Typer(
     name="podkrig",
@@ -27,6 +27,7 @@ invert.register(app)
 diagnose.register(app)
 run.register(app)
 scenarios.register(app)
+sensors.register(app)
 
 
 def _print_version(value: bool):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import TextFormat, configure_logging, user_errors
 from podkrig.cli.invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
 from podkrig.cli.simulate import load_spec, parse_assignment
 
@@ -30,7 +30,7 @@ def register(app):
         seed: int = typer.Option(0, "--seed", help="Seed of the surrogate design and the GA."),
         n_train: int = typer.Option(64, "--n-train", help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
-        format: str = typer.Option("text", "--format", help="Output: text or json."),
+        format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output: text or json."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Calibrate the base model, test whether it explains the data within the noise, name the

@@ -2,19 +2,31 @@
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import typer
+from rich.console import Console
+from rich.table import Table
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, user_errors
 from podkrig.cli.simulate import parse_assignment
+from podkrig.online.findings import inversion_findings
+from podkrig.online.invert import InverseResult, invert
+from podkrig.online.measurement import NoiseModel
+from podkrig.online.measurement_csv import read_measurement_csv
+from podkrig.online.nested import nested_analyses
+from podkrig.online.posterior import sample_posterior
+from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
+from podkrig.online.propagation import rvc as rvc_of
+from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.reports.inverse import write_inversion_report
+from podkrig.surrogate.podkriging import PODKriging
 
 
 def noise_model(noise_abs, noise_rel, noise_cov):
     """Build the NoiseModel from the CLI options (exactly one kind)."""
-    from podkrig.online.measurement import NoiseModel
-
     given = [bool(noise_abs), noise_rel is not None, noise_cov is not None]
     if sum(given) != 1:
         raise ValueError("give exactly one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor), --noise-rel DELTA or --noise-cov FILE")
@@ -37,36 +49,54 @@ def noise_model(noise_abs, noise_rel, noise_cov):
 
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix):
     """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text)."""
-    from podkrig.online.inverse import InverseProblem, SurrogateModel
-    from podkrig.online.measurement_csv import read_measurement_csv
-    from podkrig.surrogate.podkriging import PODKriging
-
     model = SurrogateModel(PODKriging.load(surrogate_path))
     measurement = read_measurement_csv(data, model.sensor_names, model.load_levels, model.load_unit)
     noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov)
     free_names = None
     if free:
         free_names = tuple(n.strip() for item in free for n in item.split(",") if n.strip())
-    fixed = dict(parse_assignment(t, "--fix") for t in fix)
-    if free_names is None and fixed:
-        free_names = tuple(n for n in model.space.names if n not in fixed)
-    if free_names is not None:
-        # parameters neither free nor fixed keep the scenario's value when it lies in the trained box
-        from fe.scenarios import SCENARIOS, ScenarioSpec
-
-        spec = ScenarioSpec.from_dict(model.scenario_spec)
-        defaults = {p.name: spec.parameters.get(p.name, p.default) for p in SCENARIOS[spec.scenario].PARAMETERS}
-        for p in model.space.parameters:
-            if p.name not in free_names and p.name not in fixed and p.lower <= defaults.get(p.name, np.nan) <= p.upper:
-                fixed[p.name] = defaults[p.name]
+    free_names, fixed = fix_from_scenario(model, free_names, dict(parse_assignment(t, "--fix") for t in fix))
     return InverseProblem(model, measurement, noise, free=free_names, fixed=fixed), model, noise_text
 
 
-def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mcmc_steps, region_method="likelihood-ratio"):
-    """Inversion + region + identifiability + FE check (+ MCMC); returns a dict of results."""
-    from podkrig.online.inverse import fe_check, invert
-    from podkrig.online.uncertainty import likelihood_ratio_region, noise_monte_carlo_region
+@dataclass(frozen=True, eq=False)
+class Inversion:
+    """What ``podkrig invert`` found: the inversion (with its FE check), the region, the posterior
+    (or None) and the findings, with the wall time of it all (s)."""
 
+    result: InverseResult
+    region: Region
+    posterior: object
+    findings: list
+    seconds: float
+
+    def to_dict(self):
+        """The JSON of ``podkrig invert --format json``."""
+        r, region = self.result, self.region
+        d = {
+            "parameters": r.free_parameters,
+            "fixed": {k: float(v) for k, v in r.problem.fixed.items()},
+            "intervals": region.to_dict()["intervals"],
+            "confidence": region.confidence,
+            "chi2_dof": r.chi2_dof,
+            "misfit": r.misfit,
+            "n_evaluations": r.n_evaluations,
+            "seconds": self.seconds,
+            "inversion_seconds": r.seconds,
+            "fe_check": None if r.fe_check is None else r.fe_check.to_dict(),
+            "identifiability": region.identifiability,
+            "warnings": [f.message for f in self.findings],
+            "findings": [f.to_dict() for f in self.findings],
+        }
+        if self.posterior is not None:
+            p = self.posterior
+            d["posterior"] = {"intervals": {k: list(v) for k, v in p.intervals.items()}, "median": p.median,
+                              "converged": p.converged, "effective_samples": p.effective_samples}
+        return d
+
+
+def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mcmc_steps, region_method="likelihood-ratio"):
+    """Inversion + region + identifiability + FE check (+ MCMC) + findings: an :class:`Inversion`."""
     if region_method not in ("likelihood-ratio", "noise-mc"):
         raise ValueError(f"--region-method must be likelihood-ratio or noise-mc; got {region_method!r}")
     t0 = time.perf_counter()
@@ -75,53 +105,13 @@ def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mc
         region = noise_monte_carlo_region(problem, result.x, confidence=confidence, rng=seed)
     else:
         region = likelihood_ratio_region(problem, result.x, confidence=confidence, n_samples=n_region, rng=seed)
-    ident = region.identifiability(problem.free_space)
-    fe = fe_check(result, model.scenario()) if fe_check_on else None
+    if fe_check_on:
+        result = result.with_fe_check(model.scenario())
     posterior = None
     if mcmc_steps:
-        from podkrig.online.posterior import sample_posterior
-
         posterior = sample_posterior(problem, result.x, n_steps=mcmc_steps, confidence=confidence, rng=seed)
-    warnings = []
-    if fe is not None and not fe["ok"]:
-        warnings.append((
-            f"at the optimum the surrogate differs from the FE model by up to {fe['max_diff_over_noise']:.2f}× the noise "
-            f"({fe['max_abs_diff']:.3g} mm): the identification is limited by the surrogate, not by the data.",
-            "refine the surrogate near the optimum ('podkrig surrogate refine', or more snapshots in a narrower box) and invert again.",
-        ))
-    for name, v in ident.items():
-        if not v["identifiable"]:
-            warnings.append((v["message"], "fix this parameter from other tests, add sensors sensitive to it, or report it as unidentified."))
-    if result.chi2_dof > 2.0:
-        warnings.append((
-            f"χ²/dof = {result.chi2_dof:.2f}: the calibrated model does not reproduce the data within the stated noise.",
-            "check the noise level; if it is right, a physical effect is missing from the model (run 'podkrig diagnose').",
-        ))
-    return dict(result=result, region=region, identifiability=ident, fe=fe, posterior=posterior,
-                warnings=warnings, seconds=time.perf_counter() - t0)
-
-
-def inversion_json(out):
-    r = out["result"]
-    d = {
-        "parameters": {n: float(v) for n, v in zip(r.problem.free, r.x)},
-        "fixed": {k: float(v) for k, v in r.problem.fixed.items()},
-        "intervals": {k: list(v) for k, v in out["region"].intervals.items()},
-        "confidence": out["region"].confidence,
-        "chi2_dof": r.chi2_dof,
-        "misfit": r.misfit,
-        "n_evaluations": r.n_evaluations,
-        "seconds": out["seconds"],
-        "inversion_seconds": r.seconds,
-        "fe_check": out["fe"] and {k: v for k, v in out["fe"].items() if k != "fe_readings"},
-        "identifiability": out["identifiability"],
-        "warnings": [w for w, _ in out["warnings"]],
-    }
-    if out["posterior"] is not None:
-        p = out["posterior"]
-        d["posterior"] = {"intervals": {k: list(v) for k, v in p.intervals.items()}, "median": p.median,
-                          "converged": p.converged, "effective_samples": p.effective_samples}
-    return d
+    findings = inversion_findings(result, region, context="cli")
+    return Inversion(result, region, posterior, findings, time.perf_counter() - t0)
 
 
 _NOISE_ABS = typer.Option([], "--noise-abs", help="Absolute noise σ in mm, for all sensors, or NAME=SIGMA per sensor (repeatable).")
@@ -140,11 +130,11 @@ def register(app):
         free: list[str] = typer.Option([], "--free", help="Free parameters (comma-separated or repeated); default all."),
         fix: list[str] = typer.Option([], "--fix", help="Fixed parameter NAME=VALUE (repeatable)."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
-        format: str = typer.Option("table", "--format", help="table or json."),
+        format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
         seed: int = typer.Option(0, "--seed", help="Seed of the GA and of the region sampling."),
         confidence: float = typer.Option(0.95, "--confidence", help="Confidence of the region of equivalence."),
         region_samples: int = typer.Option(2**17, "--region-samples", help="Surrogate evaluations per region sampling round."),
-        region_method: str = typer.Option("likelihood-ratio", "--region-method",
+        region_method: RegionMethod = typer.Option(RegionMethod.likelihood_ratio, "--region-method",
                                           help="Region of equivalence: likelihood-ratio (χ² bound) or noise-mc (re-identify noisy copies)."),
         mcmc_steps: int = typer.Option(0, "--mcmc-steps", help="Also sample the Bayesian posterior by MCMC (steps; 0 = off)."),
         fe_check: bool = typer.Option(True, "--fe-check/--no-fe-check", help="Run the FE model once at the optimum."),
@@ -161,13 +151,10 @@ def register(app):
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
                                 fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)
             if report is not None:
-                from podkrig.reports.inverse import write_inversion_report
-
-                write_inversion_report(report, out["result"], out["region"], fe=out["fe"], identifiability=out["identifiability"],
-                                       posterior=out["posterior"], load_unit=model.load_unit, noise_text=noise_text,
-                                       warnings=out["warnings"])
+                write_inversion_report(report, out.result, out.region, posterior=out.posterior, load_unit=model.load_unit,
+                                       noise_text=noise_text, findings=out.findings)
         if format == "json":
-            typer.echo(json.dumps(inversion_json(out), indent=2))
+            typer.echo(json.dumps(out.to_dict(), indent=2))
             return
         _print_table(out, report)
 
@@ -183,7 +170,7 @@ def register(app):
         free: list[str] = typer.Option([], "--free"),
         fix: list[str] = typer.Option([], "--fix"),
         report: Path = typer.Option(None, "--report"),
-        format: str = typer.Option("table", "--format"),
+        format: TableFormat = typer.Option(TableFormat.table, "--format"),
         seed: int = typer.Option(0, "--seed"),
         confidence: float = typer.Option(0.95, "--confidence"),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -191,38 +178,29 @@ def register(app):
         """Response variability (RVC) of the calibration and validation models over the region of equivalence."""
         configure_logging(verbose)
         with user_errors():
-            from podkrig.online.inverse import SurrogateModel
-            from podkrig.surrogate.podkriging import PODKriging
-            from podkrig.online.uncertainty import rvc as rvc_of
-
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=2**17, fe_check_on=False, mcmc_steps=0)
-            best = out["result"].parameters
-            results = {"calibration": rvc_of(out["region"], model, fixed=problem.fixed, outputs=list(output) or None, rng=seed)}
+            best = out.result.parameters
+            results = {"calibration": rvc_of(out.region, model, fixed=problem.fixed, outputs=list(output) or None, rng=seed)}
             for path in validation:
                 vmodel = SurrogateModel(PODKriging.load(path))
                 fixed = {n: best[n] for n in vmodel.space.names if n not in problem.free and n in best}
                 for p in vmodel.space.parameters:
                     if p.name not in problem.free and p.name not in fixed:
                         raise ValueError(f"validation surrogate {path} varies {p.name!r}, which the calibration neither identifies nor fixes")
-                results[Path(path).stem] = rvc_of(out["region"], vmodel, fixed=fixed, rng=seed)
+                results[Path(path).stem] = rvc_of(out.region, vmodel, fixed=fixed, rng=seed)
             if report is not None:
-                from podkrig.reports.inverse import write_inversion_report
-
-                write_inversion_report(report, out["result"], out["region"], identifiability=out["identifiability"],
-                                       rvc_results=results, load_unit=model.load_unit, noise_text=noise_text, warnings=out["warnings"])
+                write_inversion_report(report, out.result, out.region, rvc_results=results, load_unit=model.load_unit,
+                                       noise_text=noise_text, findings=out.findings)
         if format == "json":
-            typer.echo(json.dumps({k: {kk: vv for kk, vv in v.items() if kk != "values"} for k, v in results.items()}, indent=2))
+            typer.echo(json.dumps({k: v.to_dict() for k, v in results.items()}, indent=2))
             return
-        from rich.console import Console
-        from rich.table import Table
-
-        table = Table(title=f"RVC over the region of equivalence ({len(out['region'].samples)} members)")
+        table = Table(title=f"RVC over the region of equivalence ({len(out.region.samples)} members)")
         for col in ("model", "output", "mean (mm)", "CV (%)", "(max−min)/mean (%)"):
             table.add_column(col, justify="right")
         for name, res in results.items():
-            for k, o in enumerate(res["outputs"]):
-                table.add_row(name, o, f"{res['mean'][k]:.5g}", f"{100 * res['cv'][k]:.3f}", f"{100 * res['range_ratio'][k]:.3f}")
+            for k, o in enumerate(res.outputs):
+                table.add_row(name, o, f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}", f"{100 * res.range_ratio[k]:.3f}")
         Console().print(table)
 
     @app.command()
@@ -234,7 +212,7 @@ def register(app):
         noise_abs: list[str] = _NOISE_ABS,
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
-        format: str = typer.Option("table", "--format"),
+        format: TableFormat = typer.Option(TableFormat.table, "--format"),
         seed: int = typer.Option(0, "--seed"),
         confidence: float = typer.Option(0.95, "--confidence"),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -242,10 +220,6 @@ def register(app):
         """Nested analyses: compare sets of free parameters by misfit, AIC/BIC, interval widths and validation RVC."""
         configure_logging(verbose)
         with user_errors():
-            from podkrig.online.inverse import SurrogateModel
-            from podkrig.surrogate.podkriging import PODKriging
-            from podkrig.online.uncertainty import nested_analyses
-
             free_sets = [tuple(n.strip() for n in s.split(",") if n.strip()) for s in sets]
 
             def make(free):
@@ -255,42 +229,35 @@ def register(app):
             vals = {Path(p).stem: (SurrogateModel(PODKriging.load(p)), {}) for p in validation}
             rows = nested_analyses(make, free_sets, confidence=confidence, rng=seed, validation=vals or None)
         if format == "json":
-            typer.echo(json.dumps(rows, indent=2, default=float))
+            typer.echo(json.dumps(rows.to_dict()["analyses"], indent=2))
             return
-        from rich.console import Console
-        from rich.table import Table
-
         table = Table(title="nested analyses (lower AIC/BIC is better; a parameter the data cannot pin down is flagged)")
         for col in ("free parameters", "χ²/dof", "AIC", "BIC", "not identified", *[f"max CV {v} (%)" for v in vals]):
             table.add_column(col, justify="right")
         for r in rows:
-            flagged = [n for n, v in r["identifiability"].items() if not v["identifiable"]]
-            table.add_row(", ".join(r["free"]), f"{r['chi2_dof']:.3g}", f"{r['aic']:.4g}", f"{r['bic']:.4g}",
-                          ", ".join(flagged) or "—", *[f"{100 * r['rvc'][v]:.3g}" for v in vals])
+            table.add_row(", ".join(r.free), f"{r.chi2_dof:.3g}", f"{r.aic:.4g}", f"{r.bic:.4g}",
+                          ", ".join(r.unidentified) or "—", *[f"{100 * r.rvc[v]:.3g}" for v in vals])
         Console().print(table)
 
     return invert, rvc, overparam
 
 
 def _print_table(out, report):
-    from rich.console import Console
-    from rich.table import Table
-
-    r, region = out["result"], out["region"]
-    units = dict(zip(r.problem.free_space.names, r.problem.free_space.units))
+    r, region = out.result, out.region
+    units = dict(zip(r.free, r.units))
     table = Table(title=f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, {r.n_evaluations} evaluations, {r.seconds:.2f} s)")
     for col in ("parameter", "best fit", f"{100 * region.confidence:.0f} % region of equivalence", "identified"):
         table.add_column(col, justify="right")
-    for j, name in enumerate(r.problem.free):
+    for j, name in enumerate(r.free):
         lo, hi = region.intervals[name]
         unit = units[name] if units[name] != "-" else ""
-        table.add_row(name, f"{r.x[j]:.5g} {unit}", f"[{lo:.4g}, {hi:.4g}] {unit}", "yes" if out["identifiability"][name]["identifiable"] else "NO")
+        table.add_row(name, f"{r.x[j]:.5g} {unit}", f"[{lo:.4g}, {hi:.4g}] {unit}", "yes" if region.identifiability[name]["identifiable"] else "NO")
     console = Console()
     console.print(table)
-    if out["fe"] is not None:
-        console.print(f"FE check at the optimum: max |FE − surrogate| = {out['fe']['max_abs_diff']:.3g} mm "
-                      f"({out['fe']['max_diff_over_noise']:.2f}× the noise)")
-    for what, remedy in out["warnings"]:
-        console.print(f"[bold yellow]warning:[/] {what}\n  what to do: {remedy}")
+    if r.fe_check is not None:
+        console.print(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
+                      f"({r.fe_check.max_diff_over_noise:.2f}× the noise)")
+    for f in out.findings:
+        console.print(f"[bold yellow]warning:[/] {f.message}\n  what to do: {f.remedy}")
     if report is not None:
         console.print(f"report: {report / 'index.html'}")

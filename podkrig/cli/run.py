@@ -123,7 +123,7 @@ def _print_summary(result):
         stages.add_row(r.title, "cached" if r.cached else "ran", f"{r.seconds:.1f}", str(r.fe_runs))
     console.print(stages)
     for w in result.warnings:
-        console.print(f"[bold yellow]warning:[/] {w['what']}\n  what to do: {w['what_to_do']}")
+        console.print(f"[bold yellow]warning:[/] {w.message}\n  what to do: {w.remedy}")
     console.print(f"{result.fe_runs} FE runs in {result.seconds:.1f} s; report: {result.report}")
 
 

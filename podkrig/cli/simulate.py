@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import LinearSolver, ResponseFormat, configure_logging, user_errors
 
 
 def parse_assignment(text, option="--set"):
@@ -50,9 +50,9 @@ def register(app):
         scenario: str = typer.Argument(..., help="Scenario name, e.g. diagonal_compression."),
         spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
         set_: list[str] = typer.Option([], "--set", help="Parameter value NAME=VALUE (repeatable)."),
-        format: str = typer.Option("table", "--format", help="Output format: table, json or csv."),
+        format: ResponseFormat = typer.Option(ResponseFormat.table, "--format", help="Output format: table, json or csv."),
         field: Path = typer.Option(None, "--field", help="Also write the displacement field to this CSV file."),
-        solver: str = typer.Option("auto", "--solver", help="Linear solver: auto, pardiso or superlu."),
+        solver: LinearSolver = typer.Option(LinearSolver.auto, "--solver", help="Linear solver: auto, pardiso or superlu."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run one virtual test of SCENARIO and print the sensor readings (mm) per load level."""
@@ -66,7 +66,7 @@ def register(app):
                 raise ValueError(f"unknown scenario {scenario!r}; available: {sorted(SCENARIOS)}")
             params = dict(parse_assignment(s) for s in set_)
             t0 = time.perf_counter()
-            sc = build_scenario(load_spec(scenario, spec), solver=solver)
+            sc = build_scenario(load_spec(scenario, spec), solver=solver.value)
             response = sc.run(params, field=field is not None)
             seconds = time.perf_counter() - t0
             values = sc.resolve(params)

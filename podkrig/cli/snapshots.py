@@ -8,7 +8,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import SamplingMethod, TextFormat, configure_logging, user_errors
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -38,7 +38,7 @@ def run(
     seed: int = typer.Option(..., "--seed", help="Seed of the design (recorded in the store)."),
     scenario: str = typer.Option(None, "--scenario", help="Scenario name, e.g. diagonal_compression."),
     spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
-    sampling: str = typer.Option("sobol", "--sampling", help="Design: sobol, lhs or random."),
+    sampling: SamplingMethod = typer.Option(SamplingMethod.sobol, "--sampling", help="Design: sobol, lhs, lhs-ese (SMT's optimised Latin hypercube) or random."),
     workers: int = typer.Option(None, "--workers", help="Local worker processes; 1 runs in this process without Dask (default: one per core)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Existing Dask scheduler, e.g. tcp://HOST:8786."),
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
@@ -90,7 +90,7 @@ def run(
 
         try:
             summary = run_snapshots(
-                store, sc, space, n=n, seed=seed, sampling=sampling, fields=fields, workers=workers,
+                store, sc, space, n=n, seed=seed, sampling=sampling.value, fields=fields, workers=workers,
                 scheduler=scheduler, retry_failed=retry_failed, chunk_size=chunk_size, progress=report,
             )
         except KeyboardInterrupt:
@@ -114,7 +114,7 @@ def run(
 @snapshots_app.command("info")
 def info(
     path: Path = typer.Argument(..., help="Snapshot store."),
-    format: str = typer.Option("text", "--format", help="Output format: text or json."),
+    format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output format: text or json."),
 ):
     """Describe a snapshot store: provenance, scenario, parameters, sensors, row status."""
     from podkrig.offline.store import SnapshotStore

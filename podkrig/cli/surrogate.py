@@ -7,7 +7,19 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from fe.scenarios import build_scenario
+from podkrig.cli._common import (
+    KrigingCriterion, SurrogateBackend, TableFormat, Variogram, configure_logging, user_errors,
+)
+from podkrig.offline.sampling import METHODS
+from podkrig.offline.store import SnapshotStore
+from podkrig.reports import surrogate as figs
+from podkrig.surrogate.backends import BACKENDS, DEFAULT_BACKEND, make_backend
+from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
+from podkrig.surrogate.pod import POD
+from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.refine import refine_surrogate
+from podkrig.surrogate.validation import compare_settings, held_out_errors
 
 surrogate_app = typer.Typer(
     name="surrogate",
@@ -25,15 +37,30 @@ def _beta(text):
         raise ValueError(f"--beta must be a number in (0, 2], 'fit' or 'fit-shared'; got {text!r}") from None
 
 
-def _templates(energy, modes, variogram, beta, criterion, nugget):
-    from podkrig.surrogate.kriging import OrdinaryKriging
-    from podkrig.surrogate.pod import POD
-    from podkrig.surrogate.podkriging import DEFAULT_ENERGY
-
+def _templates(energy, modes, backend, variogram, beta, criterion, nugget):
     if energy is not None and modes is not None:
         raise ValueError("give either --energy or --modes, not both")
     pod = POD(n_modes=modes) if modes is not None else POD(energy=DEFAULT_ENERGY if energy is None else energy)
-    return pod, OrdinaryKriging(variogram=variogram, beta=_beta(beta), criterion=criterion, nugget=nugget)
+    if backend not in BACKENDS:
+        raise ValueError(f"--backend must be one of {', '.join(BACKENDS)}; got {backend!r}")
+    ours = {"variogram": variogram, "beta": beta, "criterion": criterion, "nugget": nugget}
+    if backend != "podkrig":
+        given = [f"--{k}" for k, v in ours.items() if v is not None]
+        if given:
+            raise ValueError(f"{', '.join(given)} set(s) the podkrig kriging; backend {backend!r} fits its own "
+                             "hyperparameters: drop the option(s) or use --backend podkrig")
+        return pod, make_backend(backend)
+    return pod, OrdinaryKriging(variogram=variogram or "exponential", beta=_beta(beta or DEFAULT_BETA),
+                                criterion=criterion or "ml", nugget=0.0 if nugget is None else nugget)
+
+
+def _describe(kriging):
+    """Settings and fitted exponents of the backend, one line."""
+    if isinstance(kriging, OrdinaryKriging):
+        p = kriging.get_params()
+        return (f"kriging: variogram {p['variogram']}, beta {p['beta']}, criterion {p['criterion']}, "
+                f"nugget {p['nugget']}; fitted beta per mode " + ", ".join(f"{b:.3g}" for b in kriging.beta_))
+    return kriging.describe()
 
 
 @surrogate_app.command("build")
@@ -42,30 +69,33 @@ def build(
     out: Path = typer.Option(..., "--out", help="Surrogate file to write (HDF5)."),
     energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
     modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
-    variogram: str = typer.Option("exponential", "--variogram", help="Semivariogram: exponential or power."),
-    beta: str = typer.Option("fit", "--beta", help="Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all)."),
-    criterion: str = typer.Option("ml", "--criterion", help="Hyperparameters by 'ml' (likelihood) or 'loo'."),
-    nugget: float = typer.Option(0.0, "--nugget", help="Nugget relative to the sill (0: exact interpolation)."),
+    backend: SurrogateBackend = typer.Option(SurrogateBackend(DEFAULT_BACKEND), "--backend",
+                                help=f"Regressor of the POD coefficients: {', '.join(BACKENDS)} "
+                                     "(podkrig: ours; smt-krg/smt-kpls: SMT's KRG/KPLS per mode; "
+                                     "sklearn-gpr: scikit-learn's GaussianProcessRegressor per mode)."),
+    variogram: Variogram = typer.Option(None, "--variogram", help="Semivariogram: exponential (default) or power (podkrig backend)."),
+    beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all; the default, {DEFAULT_BETA!r}) (podkrig backend)."),
+    criterion: KrigingCriterion = typer.Option(None, "--criterion", help="Hyperparameters by 'ml' (likelihood, default) or 'loo' (podkrig backend)."),
+    nugget: float = typer.Option(None, "--nugget", help="Nugget relative to the sill (default 0: exact interpolation) (podkrig backend)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
-        from podkrig.offline.store import SnapshotStore
-        from podkrig.surrogate.podkriging import fit_from_store
-
-        pod, kriging = _templates(energy, modes, variogram, beta, criterion, nugget)
+        pod, kriging = _templates(energy, modes, backend.value, variogram and variogram.value, beta,
+                                  criterion and criterion.value, nugget)
         t0 = time.perf_counter()
         with SnapshotStore.open(store) as s:
             sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
         seconds = time.perf_counter() - t0
         sur.provenance_["training_seconds"] = seconds
         sur.save(out)
-    betas = ", ".join(f"{b:.3g}" for b in sur.kriging_.beta_)
+    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]" if sur.backend_ == "podkrig"
+              else f"backend {sur.backend_}")
     typer.echo(
         f"{out}: {len(sur.X_)} snapshots, {sur.n_modes_} POD modes "
-        f"(retained energy {sur.pod_.retained_energy_:.10f}), beta per mode [{betas}], "
+        f"(retained energy {sur.pod_.retained_energy_:.10f}), {fitted}, "
         f"trained in {seconds:.2f} s"
     )
 
@@ -75,7 +105,7 @@ def validate(
     file: Path = typer.Argument(..., help="Surrogate file written by 'podkrig surrogate build'."),
     held_out: Path = typer.Option(..., "--held-out", help="Snapshot store of held-out FE runs."),
     report: Path = typer.Option(None, "--report", help="Directory for index.html and the figures."),
-    format: str = typer.Option("table", "--format", help="Output format: table or json."),
+    format: TableFormat = typer.Option(TableFormat.table, "--format", help="Output format: table or json."),
     compare: bool = typer.Option(True, "--compare/--no-compare",
                                  help="Also refit with beta 1.2/1.5/1.8/fit and the power model for the "
                                       "error histograms (needs the training store)."),
@@ -84,10 +114,6 @@ def validate(
     """Errors of the surrogate FILE on the held-out runs; optionally an HTML report."""
     configure_logging(verbose)
     with user_errors():
-        from podkrig.offline.store import SnapshotStore
-        from podkrig.surrogate.podkriging import PODKriging, training_data
-        from podkrig.surrogate.validation import compare_settings, held_out_errors
-
         if format not in ("table", "json"):
             raise ValueError(f"--format must be table or json; got {format!r}")
         sur = PODKriging.load(file)
@@ -99,6 +125,7 @@ def validate(
         summary = rep.summary()
         summary["held_out_store"] = str(held_out)
         summary["held_out_content_hash"] = held_hash
+        summary["backend"] = sur.backend_
         if report is not None:
             comparison = None
             src = sur.provenance_.get("source_store")
@@ -121,8 +148,6 @@ def validate(
 
 
 def _write_report(directory, sur, rep, summary, comparison):
-    from podkrig.reports import surrogate as figs
-
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     prov = sur.provenance_
@@ -132,8 +157,6 @@ def _write_report(directory, sur, rep, summary, comparison):
                         figs.plot_reading_modes(sur.pod_, prov["sensor_names"], prov["load_levels"],
                                                 prov.get("load_unit", "kN"), directory / "modes.png")))
     elif prov.get("output") == "field" and "scenario_spec" in prov:
-        from fe.scenarios import build_scenario
-
         nodes = build_scenario(prov["scenario_spec"]).mesh.nodes
         figures.append(("First POD modes on the mesh", figs.plot_field_modes(sur.pod_, nodes, directory / "modes.png")))
     if comparison:
@@ -143,12 +166,9 @@ def _write_report(directory, sur, rep, summary, comparison):
     figures.append(("Surrogate against FE on the held-out runs",
                     figs.plot_predicted_vs_fe(rep, directory / "predicted_vs_fe.png",
                                               unit=prov.get("reading_unit", "mm"))))
-    settings = sur.kriging_.get_params()
     notes = [
         f"training store: {prov.get('source_store', '?')} ({prov.get('source_content_hash', '?')})",
-        f"kriging: variogram {settings['variogram']}, beta {settings['beta']}, criterion {settings['criterion']}, "
-        f"nugget {settings['nugget']}; fitted beta per mode "
-        + ", ".join(f"{b:.3g}" for b in sur.kriging_.beta_),
+        f"backend {sur.backend_}; " + _describe(sur.kriging_),
         f"package version {prov.get('package_version', '?')}",
     ]
     figs.write_html(directory, "POD-kriging surrogate: held-out validation", summary, figures, notes)
@@ -164,16 +184,16 @@ def refine(
     batch: int = typer.Option(8, "--batch", help="FE runs added per round."),
     candidates: int = typer.Option(4096, "--candidates", help="Size of the Sobol' candidate set."),
     seed: int = typer.Option(1, "--seed", help="Seed of the candidate set."),
+    sampling: str = typer.Option("sobol", "--sampling", help=f"Candidate design: {', '.join(METHODS)}."),
     workers: int = typer.Option(1, "--workers", help="FE workers (1: in this process)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Add FE runs where the surrogate is least certain until --target-error or --budget is reached."""
     configure_logging(verbose)
     with user_errors():
-        from podkrig.surrogate.refine import refine_surrogate
-
         result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
-                                  batch=batch, n_candidates=candidates, seed=seed, workers=workers)
+                                  batch=batch, n_candidates=candidates, seed=seed, workers=workers,
+                                  sampling=sampling)
     hist = result["history"]
     typer.echo(
         f"{file}: {result['added']} FE runs added in {len(hist) - 1} rounds, held-out median relative error "

@@ -4,7 +4,7 @@
 
 1. **Calibrate the base model** surrogate first: a POD-kriging surrogate over the free parameters
    (built here from a Sobol' design unless one is given), GA inversion with least-squares polish
-   (:func:`podkrig.inverse.invert`), then a least-squares polish with the FE model itself so that
+   (:func:`podkrig.online.invert.invert`), then a least-squares polish with the FE model itself so that
    the adequacy test is not blurred by surrogate error.
 2. **Adequacy**: χ² of the whitened residuals ``r = L⁻¹(d − g(m*))`` (``C_d = L Lᵀ``) against
    χ²(n_obs − n_free), and the residual structure across sensors and load levels.
@@ -30,6 +30,7 @@ All FE work reuses the scenario's factorisation pattern; a diagnosis of the defa
 is a few hundred FE solves.
 """
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -37,12 +38,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, optimize, stats
 
-from podkrig.online.inverse import InverseProblem, SurrogateModel, invert
+from podkrig.online.invert import invert
+from podkrig.online.problem import InverseProblem, SurrogateModel
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.online.measurement import Measurement
 from podkrig.offline.sampling import sobol
 from podkrig.surrogate.podkriging import PODKriging
-from podkrig.diagnosis.candidates import CANDIDATES, FEContext
+from fe.scenarios import build_scenario
+from podkrig.diagnosis.candidates import CANDIDATES, EffectParameter, FEContext, Location
 
 logger = logging.getLogger(__name__)
 
@@ -107,6 +110,20 @@ class Fit:
         """χ² + k ln n (Schwarz)."""
         return self.chi2 + self.n_params * np.log(self.n_obs)
 
+    def to_dict(self):
+        """Every field, arrays as nested lists (JSON-able; :meth:`from_dict` reads it back)."""
+        return {"values": {k: float(v) for k, v in self.values.items()},
+                "free": {k: float(v) for k, v in self.free.items()},
+                "effect": None if self.effect is None else float(self.effect), "chi2": float(self.chi2),
+                "n_obs": int(self.n_obs), "n_params": int(self.n_params), "readings": self.readings.tolist(),
+                "jacobian": self.jacobian.tolist()}
+
+    @classmethod
+    def from_dict(cls, d):
+        return cls(dict(d["values"]), dict(d["free"]), d["effect"], float(d["chi2"]), int(d["n_obs"]),
+                   int(d["n_params"]), np.asarray(d["readings"], dtype=float),
+                   np.asarray(d["jacobian"], dtype=float).reshape(int(d["n_obs"]), -1))
+
     def summary(self):
         return {
             "parameters": {k: float(v) for k, v in self.free.items()},
@@ -136,7 +153,29 @@ class CandidateScore:
     max_delta_chi2: float = 0.0
     effect_size: float = 0.0
     fit: Fit | None = None
+    #: (location, parameter, screening Δχ², extended fit, Δχ²) of each location refitted with the FE model
     refitted: list = field(default_factory=list)
+
+    def state(self):
+        """Every field (JSON-able), for :meth:`from_state`; :meth:`to_dict` is the report form."""
+        d = {k: v.item() if isinstance(v, np.generic) else v for k, v in dataclasses.asdict(self).items()}
+        d["location"] = None if self.location is None else dataclasses.asdict(self.location)
+        d["parameter"] = None if self.parameter is None else dataclasses.asdict(self.parameter)
+        d["fit"] = None if self.fit is None else self.fit.to_dict()
+        d["refitted"] = [{"location": dataclasses.asdict(loc), "parameter": dataclasses.asdict(par),
+                          "screening_delta_chi2": float(lin), "fit": fit.to_dict(), "delta_chi2": float(delta)}
+                         for loc, par, lin, fit, delta in self.refitted]
+        return d
+
+    @classmethod
+    def from_state(cls, d):
+        d = dict(d)
+        d["location"] = None if d["location"] is None else Location(**d["location"])
+        d["parameter"] = None if d["parameter"] is None else EffectParameter(**d["parameter"])
+        d["fit"] = None if d["fit"] is None else Fit.from_dict(d["fit"])
+        d["refitted"] = [(Location(**r["location"]), EffectParameter(**r["parameter"]), r["screening_delta_chi2"],
+                          Fit.from_dict(r["fit"]), r["delta_chi2"]) for r in d["refitted"]]
+        return cls(**d)
 
     def to_dict(self):
         d = {
@@ -227,7 +266,57 @@ class Diagnosis:
             g["held_out_rms_after"] = self.held_out["rms_after"]
         return g
 
-    def to_dict(self):
+    def to_dict(self, *, state=False):
+        """The JSON of ``podkrig diagnose``; with ``state=True`` also ``"state"``, everything
+        :meth:`from_dict` needs to rebuild this object (fits with their readings and Jacobians, every
+        candidate's score, the measurement and the scenario spec)."""
+        d = self._report_dict()
+        if state:
+            index = {id(c): i for i, c in enumerate(self.candidates)}
+            m = self.measurement
+            d["state"] = {
+                "scenario_spec": self.scenario.spec.to_dict(),
+                "measurement": {"values": m.values.tolist(), "sensor_names": list(m.sensor_names),
+                                "load_levels": m.load_levels.tolist(), "source": m.source},
+                "noise_std": np.asarray(self.noise_std).tolist(), "alpha": float(self.alpha),
+                "base": self.base.to_dict(), "extended": None if self.extended is None else self.extended.to_dict(),
+                "chi2_p_value": float(self.chi2_p_value), "extended_p_value": self.extended_p_value,
+                "candidates": [c.state() for c in self.candidates],
+                "best": None if self.best is None else index[id(self.best)],
+                "alternatives": [{"name": a.name, "location": dataclasses.asdict(a.location),
+                                  "delta_chi2": float(a.delta_chi2)} for a in self.alternatives],
+                "structure": self.structure, "held_out": self.held_out, "surrogate_fit": self.surrogate_fit,
+            }
+        return d
+
+    @classmethod
+    def from_dict(cls, d, *, scenario=None):
+        """Rebuild a diagnosis from :meth:`to_dict` with ``state=True``.
+
+        Parameters
+        ----------
+        d : dict
+        scenario : fe.Scenario, optional
+            The diagnosed scenario; default: built again from the recorded spec.
+        """
+        if "state" not in d:
+            raise ValueError("this diagnosis dict has no 'state': write it with to_dict(state=True) to read it back")
+        s = d["state"]
+        m = s["measurement"]
+        candidates = [CandidateScore.from_state(c) for c in s["candidates"]]
+        return cls(
+            scenario=scenario if scenario is not None else build_scenario(s["scenario_spec"]),
+            measurement=Measurement(np.asarray(m["values"], dtype=float), m["sensor_names"], m["load_levels"], m["source"]),
+            noise_std=np.asarray(s["noise_std"], dtype=float), alpha=s["alpha"], base=Fit.from_dict(s["base"]),
+            extended=None if s["extended"] is None else Fit.from_dict(s["extended"]),
+            chi2_p_value=s["chi2_p_value"], verdict=d["verdict"], cause=d["cause"],
+            best=None if s["best"] is None else candidates[s["best"]],
+            alternatives=[_Alternative(a["name"], Location(**a["location"]), a["delta_chi2"]) for a in s["alternatives"]],
+            candidates=candidates, structure=s["structure"], held_out=s["held_out"], seconds=d["seconds"],
+            n_fe_runs=d["n_fe_runs"], surrogate_fit=s["surrogate_fit"], extended_p_value=s["extended_p_value"],
+        )
+
+    def _report_dict(self):
         return {
             "verdict": self.verdict,
             "cause": self.cause,

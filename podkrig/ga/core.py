@@ -5,6 +5,11 @@ population in one call of the objective (a surrogate's ``predict`` is batched). 
 unit hypercube; a parameter space object (``names``, ``to_unit``, ``from_unit``; linear or log
 scale) or plain ``(low, high)`` bounds map them to physical values.
 
+The options live in :class:`~podkrig.ga.options.GAOptions` (documented and validated there).
+This module is long (~820 lines, about 40 % of it documentation) because it is one class, the
+steppable GA with its bookkeeping, and the local polish that runs through the GA's own
+evaluation path (budget, target, history); splitting them would expose that path.
+
 Conventions: ``X`` has shape ``(n_individuals, n_params)`` in physical units; the objective
 returns ``f`` of shape ``(n_individuals,)``; optional constraints return ``G`` of shape
 ``(n_individuals, n_constraints)`` with ``g_j(x) <= 0`` meaning satisfied.
@@ -34,8 +39,6 @@ References
 
 from __future__ import annotations
 
-import difflib
-import inspect
 import logging
 import numbers
 import warnings
@@ -47,6 +50,7 @@ import numpy as np
 from scipy import optimize
 
 from podkrig.ga import operators as ops
+from podkrig.ga.options import GABudgetWarning, GAOptions
 
 logger = logging.getLogger(__name__)
 
@@ -112,6 +116,8 @@ class GAResult:
         From the parameter space's optional ``units`` attribute.
     seed : int or None
         The integer seed given as ``rng`` (None if a Generator or None was given).
+    n_restarts : int
+        Restarts after a stall (see ``on_stall`` of :class:`GeneticAlgorithm`).
     """
 
     x: np.ndarray
@@ -137,6 +143,7 @@ class GAResult:
     parameter_names: tuple[str, ...]
     parameter_units: tuple[str, ...] | None = None
     seed: int | None = None
+    n_restarts: int = 0
 
     def __post_init__(self):
         for value in vars(self).values():
@@ -262,23 +269,6 @@ class _PolishProblem:
         return -self._differences(u)[1]
 
 
-def _check_choice(name, value, allowed):
-    if value not in allowed:
-        raise ValueError(f"{name} must be one of {', '.join(map(repr, allowed))}; got {value!r}")
-
-
-def _check_range(name, value, low, high, *, low_open=False, high_open=False, integer=False):
-    kind = numbers.Integral if integer else numbers.Real
-    if isinstance(value, bool) or not isinstance(value, kind):
-        raise TypeError(f"{name} must be {'an integer' if integer else 'a number'}; got {value!r}")
-    too_low = value <= low if low_open else value < low
-    too_high = value >= high if high_open else value > high
-    if too_low or too_high or (not integer and not np.isfinite(value)):
-        lb = "(" if low_open else "["
-        hb = ")" if high_open else "]"
-        raise ValueError(f"{name} must be in {lb}{low}, {high}{hb}; got {value!r}")
-
-
 class GeneticAlgorithm:
     r"""Steppable genetic algorithm with the operators of the thesis, ch. 3 / TOSCA [1]_.
 
@@ -299,113 +289,19 @@ class GeneticAlgorithm:
         ``to_unit(X)`` and ``from_unit(U)`` (arrays of shape (n, n_params); e.g.
         ``podkrig.parameters.ParameterSpace``, linear or log scale) and optionally ``units``.
         Genes live in the unit cube, so log-scaled parameters get a log-uniform grid.
-    population_size : int, default 40
-        Individuals per generation, >= 4. With half the population kept as elite, 40 found
-        the global minimum of 10-D Rastrigin in 30/30 seeds with the fewest evaluations among
-        30–50 (``scripts/bench_ga.py``); larger populations are more robust and slower.
-    encoding : {"integer", "real"}, default "integer"
-        ``"integer"``: thesis/TOSCA integer genes ``g_i ∈ {0..N_i}``,
-        ``x_i = lo_i + g_i (hi_i - lo_i)/N_i`` (in the space's scale), recombination rounded
-        and clipped. ``"real"``: genes anywhere in [0, 1] (clipped).
-    n_grid : int or sequence of int, default 1000
-        Grid intervals ``N_i`` per parameter (integer encoding). 1000 resolves 0.1 % of each
-        range — below the repeatability of masonry tests — and is even, so a symmetric
-        range contains its midpoint. The local polish works off the grid.
-    init : {"sobol", "random"}, default "sobol"
-        Initial population: scrambled Sobol' points seeded from ``rng`` (even coverage of the
-        box, thesis ch. 3), or uniform random.
-    selection : {"tournament", "roulette", "sus"}, default "tournament"
-        Tournament of ``tournament_size``; roulette wheel; stochastic universal sampling
-        (Baker 1987 [4]_). Roulette and SUS use the fitness from ``scaling``. Tournament
-        is the default because it needs no scaling and its pressure is set by one integer.
-    tournament_size : int, default 2
-        Contestants per tournament, in [1, population_size]. Binary tournament: moderate
-        pressure, which keeps the diversity needed on multimodal misfits (size 3 was ~10 %
-        faster on Rastrigin but is greedier).
-    scaling : {"none", "linear", "linear_ranking", "exponential_ranking"}, default "linear_ranking"
-        Fitness scaling for roulette / SUS (ignored by tournament); see
-        :func:`podkrig.ga.operators.scale_fitness`. Ranking is the default because it is
-        insensitive to the objective's magnitude (misfits span decades).
-    scaling_pressure : float, default 2.0
-        ``C`` of linear scaling (max scaled fitness = C × mean), > 1.
-    ranking_eta_plus : float, default 1.5
-        :math:`\eta^+ \in [1, 2]` of linear ranking.
-    ranking_base : float, default 0.9
-        Base :math:`c \in (0, 1)` of exponential ranking.
-    crossover : {"blx", "single_point", "arithmetical", "fixed_arithmetical"}, default "blx"
-        BLX-α (Eshelman & Schaffer 1993 [3]_); single-point; arithmetical with
-        :math:`\lambda \sim U(0, 1)` per mating; arithmetical with fixed ``crossover_lambda``.
-        BLX-α is the default: it explores beyond the parents' interval per gene, which on
-        a grid also keeps fine-tuning possible.
-    crossover_probability : float, default 0.9
-        Probability ``p_c`` that a pair is recombined (else copied), in [0, 1].
-    blx_alpha : float, default 0.5
-        α of BLX-α, >= 0 (0.5 preserves the population variance on average [3]_).
-    crossover_lambda : float, default 0.25
-        λ of fixed arithmetical crossover, in [0, 1] (0.5 would make twin children).
-    mutation : {"uniform", "gaussian"}, default "uniform"
-        Uniform reset of a gene on its grid (thesis) or Gaussian creep of standard deviation
-        ``mutation_scale`` (at least one grid step on the integer grid).
-    mutation_probability : float or None, default None
-        Per-gene probability ``p_m`` in [0, 1]; None means ``1 / n_params`` (one gene per
-        child on average, the usual rule; 0.01 slowed 10-D Rastrigin by ~50 %).
-    mutation_scale : float, default 0.1
-        σ of Gaussian creep, as a fraction of each range, > 0.
-    n_elite : int or None, default None
-        Best individuals copied unchanged into the next generation, in
-        [0, population_size - 2]; None means ``population_size // 2``. Keeping the better
-        half makes the replacement behave like a (μ + λ) survival: the best objective never
-        increases and a good individual is never lost to a bad generation. On 10-D Rastrigin
-        it cut the evaluations to success from ~18 000 (2 elites, 10/10 only with 60+
-        individuals) to ~7 000.
-    skip_duplicates : bool, default True
-        An offspring identical to a member of the population, or to an earlier offspring of
-        the same generation, is not re-evaluated and takes the known value (the objective
-        must be deterministic, as a surrogate is). On the integer grid ~20 % of the
-        offspring of a converging population are such copies.
+    options : GAOptions or None
+        All the tuning options below (operators, stops, restarts, polish) as one frozen,
+        validated :class:`~podkrig.ga.options.GAOptions`. They may also be given as keywords
+        (``GeneticAlgorithm(fun, bounds, population_size=60)``); keywords replace the fields
+        of ``options``. The settled options (problem-dependent defaults filled in) are the
+        attribute ``options``.
     constraints : callable or None
         ``constraints(X) -> G`` of shape (n_individuals, n_constraints), ``g_j <= 0`` feasible.
-    constraint_handling : {"deb", "penalty"}, default "deb"
-        Deb's feasibility rules [2]_ (no parameter to tune) or a static L1 penalty
-        ``f + penalty * sum_j max(0, g_j)``.
-    penalty : float, default 1e3
-        Penalty factor (objective units per unit violation), > 0. The L1 penalty is exact
-        once it exceeds the largest Lagrange multiplier of the problem.
-    feasibility_tol : float, default 1e-6
-        A total violation at or below this (constraint units) is recorded as 0, i.e.
-        feasible: a local polish lands on active constraints only up to round-off.
-    max_generations : int, default 1000
-        Generations after the initial one, >= 0.
-    max_evaluations : int or None
-        Budget of objective evaluations (polish included); never exceeded.
-    target : float or None
-        Stop at the first feasible evaluation with ``f <= target``.
-    stall_generations : int or None, default 100
-        Stop when the best has not improved by more than ``stall_tol`` for this many
-        generations; None disables.
-    stall_tol : float, default 0.0
-        Absolute improvement of the best objective that resets the stall counter, >= 0.
-    polish : {"periodic", "final", "none"}, default "periodic"
-        Local polish of the best individual (a memetic step [5]_): ``"periodic"`` every
-        ``polish_interval`` generations when the best has changed since the last polish, and
-        at the end of :meth:`run`; ``"final"`` only at the end of :meth:`run` (not after a
-        target or budget stop); ``"none"``. The polished point replaces the worst individual
-        (Lamarckian), off the grid. Periodic polish is the default: the GA locates the basin
-        and the polish pins the minimum far cheaper than grid mutations (10-D Rastrigin,
-        f <= 1e-2: 10/10 seeds at a median ~6 500 evaluations, against 5/10 within 30 000
-        without polish or with a final polish only).
-    polish_method : {"L-BFGS-B", "Nelder-Mead", "SLSQP"} or None, default None
-        ``scipy.optimize.minimize`` method in the unit cube, bounded to it. None means
-        L-BFGS-B without constraints and SLSQP with them (the only one of the three that
-        handles inequality constraints). Gradients are batched forward differences
-        (``n_params`` points per objective call). Nelder–Mead suits non-smooth objectives
-        (e.g. minimax).
-    polish_interval : int, default 10
-        Generations between periodic polishes, >= 1 (5, 10 and 20 cost the same within 2 %
-        on 10-D Rastrigin).
-    polish_max_evaluations : int or None
-        Evaluations allowed per polish; None means ``20 * (n_params + 1)``, ~20 gradient
-        steps, enough to converge from inside a basin.
+    **keyword_options
+        Any field of :class:`~podkrig.ga.options.GAOptions`, where every option is documented
+        with its default and why (population 40, half of it elite, binary tournament, BLX-α,
+        uniform mutation on a 1000-interval grid, periodic L-BFGS-B polish, stall after 100
+        generations, restart on stall with a budget and a target).
     rng : int, numpy.random.Generator or None
         Seed or generator; the only source of randomness.
     callback : callable or None
@@ -425,6 +321,10 @@ class GeneticAlgorithm:
     population : ndarray of shape (population_size, n_params)
         Current population, physical units.
     population_fun, population_violation : ndarray of shape (population_size,)
+    n_restarts : int
+        Restarts after a stall so far (``on_stall``).
+    options : GAOptions
+        The settled options.
     stop_reason : str or None
         Why the run stopped (see :class:`GAResult`), None while running.
 
@@ -449,45 +349,18 @@ class GeneticAlgorithm:
        Algorithms*, Springer (2005).
     """
 
+    _RESTART_KEEP = 1  # individuals kept by a restart (see ``on_stall``)
+
     def __init__(
         self,
         fun: Callable[[np.ndarray], np.ndarray],
         bounds,
+        options: GAOptions | None = None,
         *,
-        population_size: int = 40,
-        encoding: str = "integer",
-        n_grid=1000,
-        init: str = "sobol",
-        selection: str = "tournament",
-        tournament_size: int = 2,
-        scaling: str = "linear_ranking",
-        scaling_pressure: float = 2.0,
-        ranking_eta_plus: float = 1.5,
-        ranking_base: float = 0.9,
-        crossover: str = "blx",
-        crossover_probability: float = 0.9,
-        blx_alpha: float = 0.5,
-        crossover_lambda: float = 0.25,
-        mutation: str = "uniform",
-        mutation_probability: float | None = None,
-        mutation_scale: float = 0.1,
-        n_elite: int | None = None,
-        skip_duplicates: bool = True,
         constraints: Callable[[np.ndarray], np.ndarray] | None = None,
-        constraint_handling: str = "deb",
-        penalty: float = 1e3,
-        feasibility_tol: float = 1e-6,
-        max_generations: int = 1000,
-        max_evaluations: int | None = None,
-        target: float | None = None,
-        stall_generations: int | None = 100,
-        stall_tol: float = 0.0,
-        polish: str = "periodic",
-        polish_method: str | None = None,
-        polish_interval: int = 10,
-        polish_max_evaluations: int | None = None,
         rng=None,
         callback: Callable[[GeneticAlgorithm], bool | None] | None = None,
+        **keyword_options,
     ):
         if not callable(fun):
             raise TypeError(f"fun must be callable; got {type(fun).__name__}")
@@ -500,106 +373,36 @@ class GeneticAlgorithm:
         units = getattr(self._space, "units", None)
         self.parameter_names = names
         self.parameter_units = None if units is None else tuple(str(u) for u in units)
-
-        _check_range("population_size", population_size, 4, np.inf, integer=True)
-        _check_choice("encoding", encoding, ("integer", "real"))
-        _check_choice("init", init, ("sobol", "random"))
-        _check_choice("selection", selection, ("tournament", "roulette", "sus"))
-        _check_range("tournament_size", tournament_size, 1, population_size, integer=True)
-        _check_choice(
-            "scaling", scaling, ("none", "linear", "linear_ranking", "exponential_ranking")
-        )
-        _check_range("scaling_pressure", scaling_pressure, 1.0, np.inf, low_open=True)
-        _check_range("ranking_eta_plus", ranking_eta_plus, 1.0, 2.0)
-        _check_range("ranking_base", ranking_base, 0.0, 1.0, low_open=True, high_open=True)
-        _check_choice(
-            "crossover", crossover, ("blx", "single_point", "arithmetical", "fixed_arithmetical")
-        )
-        _check_range("crossover_probability", crossover_probability, 0.0, 1.0)
-        _check_range("blx_alpha", blx_alpha, 0.0, np.inf)
-        _check_range("crossover_lambda", crossover_lambda, 0.0, 1.0)
-        _check_choice("mutation", mutation, ("uniform", "gaussian"))
-        if mutation_probability is None:
-            mutation_probability = 1.0 / n_params
-        _check_range("mutation_probability", mutation_probability, 0.0, 1.0)
-        _check_range("mutation_scale", mutation_scale, 0.0, np.inf, low_open=True)
-        if n_elite is None:
-            n_elite = population_size // 2
-        _check_range("n_elite", n_elite, 0, population_size - 2, integer=True)
         if constraints is not None and not callable(constraints):
             raise TypeError(f"constraints must be callable or None; got {constraints!r}")
-        _check_choice("constraint_handling", constraint_handling, ("deb", "penalty"))
-        _check_range("penalty", penalty, 0.0, np.inf, low_open=True)
-        _check_range("feasibility_tol", feasibility_tol, 0.0, np.inf)
-        _check_range("max_generations", max_generations, 0, np.inf, integer=True)
-        if max_evaluations is not None:
-            _check_range("max_evaluations", max_evaluations, 1, np.inf, integer=True)
-        if target is not None:
-            _check_range("target", target, -np.inf, np.inf)
-        if stall_generations is not None:
-            _check_range("stall_generations", stall_generations, 1, np.inf, integer=True)
-        _check_range("stall_tol", stall_tol, 0.0, np.inf)
-        _check_choice("polish", polish, ("periodic", "final", "none"))
-        if polish_method is None:
-            polish_method = "L-BFGS-B" if constraints is None else "SLSQP"
-        _check_choice("polish_method", polish_method, ("L-BFGS-B", "Nelder-Mead", "SLSQP"))
-        if constraints is not None and polish != "none" and polish_method != "SLSQP":
-            raise ValueError(
-                f"polish_method={polish_method!r} cannot handle constraints; "
-                "use polish_method='SLSQP' or polish='none'"
-            )
-        _check_range("polish_interval", polish_interval, 1, np.inf, integer=True)
-        if polish_max_evaluations is None:
-            polish_max_evaluations = 20 * (n_params + 1)
-        _check_range("polish_max_evaluations", polish_max_evaluations, 1, np.inf, integer=True)
         if callback is not None and not callable(callback):
             raise TypeError(f"callback must be callable or None; got {callback!r}")
-
-        if encoding == "integer":
-            grid = np.broadcast_to(np.asarray(n_grid), (n_params,))
-            if not np.issubdtype(grid.dtype, np.integer) or np.any(grid < 1):
-                raise ValueError(
-                    f"n_grid must be an integer >= 1 or {n_params} of them; got {n_grid!r}"
-                )
-            self._n_grid = grid.astype(float)
-        else:
-            self._n_grid = None
-
+        opts = GAOptions.from_keywords(options, **keyword_options)
+        self.options: GAOptions = opts.resolve(n_params, constrained=constraints is not None)
+        o = self.options
+        self._n_grid = np.asarray(o.n_grid, dtype=float) if o.encoding == "integer" else None
         self._fun, self._constraints, self._callback = fun, constraints, callback
-        self._feasibility_tol = float(feasibility_tol)
         self.n_params = n_params
-        self.population_size = population_size
-        self._opts = {
-            "init": init, "selection": selection, "tournament_size": tournament_size,
-            "scaling": scaling, "scaling_pressure": scaling_pressure,
-            "ranking_eta_plus": ranking_eta_plus, "ranking_base": ranking_base,
-            "crossover": crossover,
-            "crossover_probability": crossover_probability, "blx_alpha": blx_alpha,
-            "crossover_lambda": crossover_lambda, "mutation": mutation,
-            "mutation_probability": mutation_probability, "mutation_scale": mutation_scale,
-            "n_elite": n_elite, "skip_duplicates": bool(skip_duplicates),
-            "constraint_handling": constraint_handling, "penalty": penalty,
-            "polish": polish, "polish_method": polish_method, "polish_interval": polish_interval,
-            "polish_max_evaluations": polish_max_evaluations,
-        }
-        self.max_generations = max_generations
-        self.max_evaluations = max_evaluations
-        self.target = target
-        self.stall_generations = stall_generations
-        self.stall_tol = stall_tol
+        self.population_size = o.population_size
+        self.max_generations = o.max_generations
+        self.max_evaluations = o.max_evaluations
+        self.target = o.target
+        self.stall_generations = o.stall_generations
+        self.stall_tol = o.stall_tol
         self.seed = int(rng) if isinstance(rng, numbers.Integral) else None
         self._rng = np.random.default_rng(rng)
 
         self.generation = -1
         self.nfev = 0
         self.stop_reason: str | None = None
-        self._history = _Buffer(n_params, 4 * population_size)
+        self._history = _Buffer(n_params, 4 * o.population_size)
         self._stats = np.empty((64, 4))  # best, mean, std, nfev per generation
         self.best_x = np.full(n_params, np.nan)
         self._best_u = np.full(n_params, np.nan)
         self.best_fun = np.inf
         self.best_violation = np.inf
         self._last_improvement = 0
+        self.n_restarts = 0
         self._polished_u: np.ndarray | None = None
         self._U = self._f = self._v = self._cost = None
 
@@ -632,7 +435,7 @@ class GeneticAlgorithm:
                     f"constraints must return shape ({n}, n_constraints); got {G.shape}"
                 )
             v = ops.constraint_violation(G)
-            v[v <= self._feasibility_tol] = 0.0
+            v[v <= self.options.feasibility_tol] = 0.0
         if self.target is not None:
             hit = (f <= self.target) & (v <= 0.0)
             if hit.any():
@@ -666,15 +469,15 @@ class GeneticAlgorithm:
     def _cost_of(self, f, v):
         if self._constraints is None:
             return f
-        if self._opts["constraint_handling"] == "deb":
+        if self.options.constraint_handling == "deb":
             return ops.deb_cost(f, v)
-        return ops.penalty_cost(f, v, self._opts["penalty"])
+        return ops.penalty_cost(f, v, self.options.penalty)
 
     # ----------------------------------------------------------------- one generation
     def _initialise(self):
         self.generation = 0
         U0 = ops.initial_population(
-            self.population_size, self.n_params, method=self._opts["init"], rng=self._rng
+            self.population_size, self.n_params, method=self.options.init, rng=self._rng
         )
         U0 = ops.snap_to_grid(U0, self._n_grid)
         U, f, v, _ = self._evaluate(U0)
@@ -687,51 +490,51 @@ class GeneticAlgorithm:
         self._cost = self._cost_of(f, v)
 
     def _select(self, n_select):
-        o, rng = self._opts, self._rng
-        if o["selection"] == "tournament":
-            return ops.select_tournament(self._cost, n_select, o["tournament_size"], rng)
+        o, rng = self.options, self._rng
+        if o.selection == "tournament":
+            return ops.select_tournament(self._cost, n_select, o.tournament_size, rng)
         fitness = ops.scale_fitness(
-            self._cost, o["scaling"], pressure=o["scaling_pressure"],
-            eta_plus=o["ranking_eta_plus"], base=o["ranking_base"],
+            self._cost, o.scaling, pressure=o.scaling_pressure,
+            eta_plus=o.ranking_eta_plus, base=o.ranking_base,
         )
-        if o["selection"] == "roulette":
+        if o.selection == "roulette":
             return ops.select_roulette(fitness, n_select, rng)
         return ops.select_sus(fitness, n_select, rng)
 
     def _offspring(self, n_offspring):
-        o, rng = self._opts, self._rng
+        o, rng = self.options, self._rng
         n_pairs = (n_offspring + 1) // 2
         parents = self._select(2 * n_pairs)
         P1, P2 = self._U[parents[:n_pairs]], self._U[parents[n_pairs:]]
-        kind = o["crossover"]
+        kind = o.crossover
         if kind == "blx":
-            C1, C2 = ops.crossover_blx(P1, P2, o["blx_alpha"], rng)
+            C1, C2 = ops.crossover_blx(P1, P2, o.blx_alpha, rng)
         elif kind == "single_point":
             C1, C2 = ops.crossover_single_point(P1, P2, rng)
         elif kind == "arithmetical":
             C1, C2 = ops.crossover_arithmetical(P1, P2, rng.random((n_pairs, 1)))
         else:
-            C1, C2 = ops.crossover_arithmetical(P1, P2, o["crossover_lambda"])
-        keep = (rng.random(n_pairs) >= o["crossover_probability"])[:, None]
+            C1, C2 = ops.crossover_arithmetical(P1, P2, o.crossover_lambda)
+        keep = (rng.random(n_pairs) >= o.crossover_probability)[:, None]
         children = np.concatenate([np.where(keep, P1, C1), np.where(keep, P2, C2)])
         children = children[:n_offspring]
-        if o["mutation"] == "uniform":
-            ops.mutate_uniform(children, o["mutation_probability"], self._n_grid, rng)
+        if o.mutation == "uniform":
+            ops.mutate_uniform(children, o.mutation_probability, self._n_grid, rng)
         else:
             ops.mutate_gaussian(
-                children, o["mutation_probability"], o["mutation_scale"], self._n_grid, rng
+                children, o.mutation_probability, o.mutation_scale, self._n_grid, rng
             )
         return ops.snap_to_grid(children, self._n_grid)
 
     def _next_generation(self):
         self.generation += 1
-        n_elite = self._opts["n_elite"]
+        n_elite = self.options.n_elite
         n_offspring = self.population_size - n_elite
         children = self._offspring(n_offspring)
         f_child = np.empty(n_offspring)
         v_child = np.empty(n_offspring)
         n_pop = self._U.shape[0]
-        if self._opts["skip_duplicates"]:
+        if self.options.skip_duplicates:
             # an offspring equal to a member of the population takes its known value; of
             # identical offspring only the first is evaluated (deterministic objective).
             # Rows are compared bytewise through a void view (sort-based, O(n log n)).
@@ -783,7 +586,35 @@ class GeneticAlgorithm:
             self.stall_generations is not None
             and self.generation - self._last_improvement >= self.stall_generations
         ):
-            self.stop_reason = "stall"
+            if self.options.on_stall == "restart":
+                self._restart()
+            else:
+                self.stop_reason = "stall"
+
+    def _restart(self):
+        """Keep the best individual, redraw the rest as a fresh initial population.
+
+        The best individual (by cost) survives; the others are replaced by new points drawn
+        like generation 0 and evaluated now (within the budget). The stall counter starts
+        again. If the evaluation stops early (target or budget), the best of the old
+        population fill the places left.
+        """
+        self.n_restarts += 1
+        order = np.argsort(self._cost, kind="stable")
+        n_keep = self._RESTART_KEEP
+        n_new = self.population_size - n_keep
+        U_new = ops.initial_population(n_new, self.n_params, method=self.options.init,
+                                       rng=self._rng)
+        U, f, v, _ = self._evaluate(ops.snap_to_grid(U_new, self._n_grid))
+        fill = order[n_keep: n_keep + n_new - f.size]
+        keep = np.concatenate([order[:n_keep], fill])
+        self._U = np.concatenate([self._U[keep], U])
+        self._f = np.concatenate([self._f[keep], f])
+        self._v = np.concatenate([self._v[keep], v])
+        self._cost = self._cost_of(self._f, self._v)
+        self._last_improvement = self.generation
+        logger.debug("restart %d at generation %d (nfev=%d, best f=%.6g)",
+                     self.n_restarts, self.generation, self.nfev, self.best_fun)
 
     def step(self):
         """Run one generation (the first call evaluates the initial population).
@@ -804,9 +635,9 @@ class GeneticAlgorithm:
         else:
             self._next_generation()
             if (
-                self._opts["polish"] == "periodic"
+                self.options.polish == "periodic"
                 and self.stop_reason is None
-                and self.generation % self._opts["polish_interval"] == 0
+                and self.generation % self.options.polish_interval == 0
             ):
                 self.polish()
         self._record_stats()
@@ -852,8 +683,8 @@ class GeneticAlgorithm:
         # scale-free polish: SLSQP and the L-BFGS-B gradient tolerance depend on the
         # magnitude of the objective, so it is normalised by its value at the start point
         scale = abs(f0) if np.isfinite(f0) and f0 != 0.0 else 1.0
-        problem = _PolishProblem(self, self._opts["polish_max_evaluations"], scale)
-        method = self._opts["polish_method"]
+        problem = _PolishProblem(self, self.options.polish_max_evaluations, scale)
+        method = self.options.polish_method
         kwargs: dict[str, Any] = {"bounds": [(0.0, 1.0)] * self.n_params}
         if method == "Nelder-Mead":
             kwargs["options"] = {"xatol": 1e-10, "fatol": 0.0}
@@ -902,7 +733,7 @@ class GeneticAlgorithm:
         """
         while self.stop_reason is None:
             self.step()
-        if self._opts["polish"] != "none" and self.stop_reason in (
+        if self.options.polish != "none" and self.stop_reason in (
             "stall", "max_generations",
         ):
             reason = self.stop_reason
@@ -943,18 +774,11 @@ class GeneticAlgorithm:
             population=self.population, population_fun=self.population_fun,
             population_violation=self.population_violation,
             parameter_names=self.parameter_names, parameter_units=self.parameter_units,
-            seed=self.seed,
+            seed=self.seed, n_restarts=self.n_restarts,
         )
 
 
-_GA_OPTIONS = tuple(
-    name
-    for name, p in inspect.signature(GeneticAlgorithm.__init__).parameters.items()
-    if p.kind is inspect.Parameter.KEYWORD_ONLY
-)
-
-
-def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constraints=None,
+def minimize(fun, bounds, options: GAOptions | None = None, *, rng=None, constraints=None,
              callback=None, **operator_options) -> GAResult:
     """Minimise ``fun`` over ``bounds`` with the genetic algorithm.
 
@@ -965,19 +789,18 @@ def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constr
         of shape (n_individuals,).
     bounds : sequence of (low, high) or parameter space
         See :class:`GeneticAlgorithm`.
+    options : GAOptions or None
+        Tuning options; keywords in ``operator_options`` replace its fields.
     rng : int, numpy.random.Generator or None
         Seed or generator.
-    max_evaluations : int or None
-        Evaluation budget, polish included.
-    target : float or None
-        Stop at the first feasible evaluation with ``f <= target``.
     constraints : callable or None
         ``constraints(X) -> G`` of shape (n_individuals, n_constraints), ``g <= 0`` feasible.
     callback : callable or None
         ``callback(ga)`` after each generation; returning True stops.
     **operator_options
-        Any keyword of :class:`GeneticAlgorithm` (``population_size``, ``selection``,
-        ``crossover``, …). An unknown name raises ``TypeError``.
+        Any field of :class:`~podkrig.ga.options.GAOptions` (``max_evaluations``, ``target``,
+        ``population_size``, ``selection``, …; documented on :class:`GeneticAlgorithm`). An
+        unknown name raises ``TypeError``.
 
     Returns
     -------
@@ -985,8 +808,9 @@ def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constr
 
     Warns
     -----
-    RuntimeWarning
-        If the run stopped because a budget (generations or evaluations) ran out.
+    GABudgetWarning
+        (a ``RuntimeWarning``) If the run stopped because a budget (generations or
+        evaluations) ran out.
 
     Raises
     ------
@@ -995,19 +819,10 @@ def minimize(fun, bounds, *, rng=None, max_evaluations=None, target=None, constr
     ValueError
         For an option value outside its allowed range.
     """
-    for name in operator_options:
-        if name not in _GA_OPTIONS:
-            close = difflib.get_close_matches(name, _GA_OPTIONS, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise TypeError(
-                f"unknown GA option {name!r}{hint}; allowed: {', '.join(_GA_OPTIONS)}"
-            )
-    ga = GeneticAlgorithm(
-        fun, bounds, rng=rng, max_evaluations=max_evaluations, target=target,
-        constraints=constraints, callback=callback, **operator_options,
-    )
+    ga = GeneticAlgorithm(fun, bounds, options, rng=rng, constraints=constraints,
+                          callback=callback, **operator_options)
     result = ga.run()
     if result.stop_reason in ("max_generations", "max_evaluations"):
-        warnings.warn(f"GA stopped on its budget: {result.message}", RuntimeWarning,
+        warnings.warn(f"GA stopped on its budget: {result.message}", GABudgetWarning,
                       stacklevel=2)
     return result

@@ -39,7 +39,8 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.stats import qmc
+
+from podkrig._qmc import scrambled_sobol
 
 logger = logging.getLogger(__name__)
 
@@ -85,8 +86,7 @@ def initial_population(n_individuals, n_params, *, method, rng):
     """
     if method == "sobol":
         m = max(0, int(np.ceil(np.log2(n_individuals))))
-        sampler = qmc.Sobol(d=n_params, scramble=True, rng=rng)
-        return sampler.random_base2(m)[:n_individuals]
+        return scrambled_sobol(2**m, n_params, rng)[:n_individuals]
     if method == "random":
         return rng.random((n_individuals, n_params))
     raise ValueError(f"init must be 'sobol' or 'random'; got {method!r}")

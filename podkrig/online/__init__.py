@@ -1,3 +1,7 @@
-"""Online stage: measurement and noise, misfit (thesis eq. 2.13), GA inversion, region of
-equivalence, response variability (RVC), nested analyses and the Bayesian posterior.
+"""Online stage, one module per step of the method: measurement and noise (:mod:`.measurement`,
+:mod:`.measurement_csv`), misfit (thesis eq. 2.13, :mod:`.misfit`), the inverse problem
+(:mod:`.problem`), GA inversion and the FE check (:mod:`.invert`), region of equivalence and
+identifiability (:mod:`.region`), response variability (:mod:`.propagation`), nested analyses
+(:mod:`.nested`), the Bayesian posterior (:mod:`.posterior`) and the findings policy — which
+results deserve a warning, in which words (:mod:`.findings`).
 """

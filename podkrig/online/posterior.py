@@ -77,7 +77,7 @@ def sample_posterior(problem, x_start, *, n_walkers=32, n_steps=3000, burn=None,
 
     Parameters
     ----------
-    problem : podkrig.inverse.InverseProblem
+    problem : podkrig.online.problem.InverseProblem
     x_start : ndarray of shape (n_free,)
         Best fit; walkers start in a small ball around it (unit coordinates ± 1e-3).
     n_walkers, n_steps : int

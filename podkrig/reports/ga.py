@@ -1,8 +1,7 @@
 """Figures of a genetic-algorithm run, drawn from a :class:`~podkrig.ga.GAResult`.
 
-Presentation only: these functions read a result and never compute one. ``matplotlib.pyplot`` is
-imported when a figure is drawn (it takes 0.5–5 s to import, measured on the 2-core machine), with
-the backend the user chose.
+Presentation only: these functions read a result and never compute one. matplotlib is imported
+when a figure is drawn (:func:`_pyplot`), with the backend the user chose.
 
 - :func:`plot_history` — every evaluated individual's objective against its generation
   (the "individual history chart" of the thesis, Fig. 3.17);
@@ -19,11 +18,18 @@ import numpy as np
 __all__ = ["plot_history", "plot_parameters", "plot_statistics"]
 
 
+def _pyplot():
+    """``matplotlib.pyplot``, imported on the first figure: it costs ~1.3 s on top of numpy and
+    scipy (``python -X importtime``, loaded 2-core machine), which a GA run on a surrogate (well
+    under a second) should not pay."""
+    import matplotlib.pyplot as plt  # local on purpose: see the docstring
+
+    return plt
+
+
 def _axes(ax):
     if ax is None:
-        import matplotlib.pyplot as plt
-
-        _, ax = plt.subplots(figsize=(6.0, 4.0), layout="constrained")
+        _, ax = _pyplot().subplots(figsize=(6.0, 4.0), layout="constrained")
     return ax
 
 
@@ -121,9 +127,7 @@ def plot_parameters(result, axes=None, *, log=None, xscale=None):
     """
     n_params = len(result.parameter_names)
     if axes is None:
-        import matplotlib.pyplot as plt
-
-        _, axes = plt.subplots(1, n_params, figsize=(3.2 * n_params, 3.2), sharey=True,
+        _, axes = _pyplot().subplots(1, n_params, figsize=(3.2 * n_params, 3.2), sharey=True,
                                layout="constrained", squeeze=False)
         axes = list(axes[0])
     elif len(axes) != n_params:

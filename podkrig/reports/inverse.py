@@ -4,9 +4,14 @@ Every function takes result objects, draws on a new figure, saves it to ``path``
 the path. Units on every axis.
 """
 
+from pathlib import Path
+
 import numpy as np
 
+from podkrig.online.findings import inversion_findings
 from podkrig.reports.figures import pyplot
+from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
+from podkrig.reports.html import Page, fmt
 
 
 def _label(name, unit):
@@ -111,11 +116,10 @@ def plot_rvc(rvc_results, path):
     plt = pyplot()
     labels, data, cvs = [], [], []
     for model_name, res in rvc_results.items():
-        vals = res["values"]
-        for k, out in enumerate(res["outputs"]):
+        for k, out in enumerate(res.outputs):
             labels.append(f"{model_name}\n{out}")
-            data.append(vals[:, k] / res["mean"][k])
-            cvs.append(res["cv"][k])
+            data.append(res.values[:, k] / res.mean[k])
+            cvs.append(res.cv[k])
     fig, ax = plt.subplots(figsize=(max(5, 0.9 * len(labels) + 1), 4))
     ax.boxplot(data, whis=(0, 100))
     ax.set_xticks(range(1, len(labels) + 1), labels, rotation=60, fontsize=7)
@@ -130,31 +134,27 @@ def plot_rvc(rvc_results, path):
     return path
 
 
-def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=None, posterior=None,
-                           rvc_results=None, load_unit="kN", noise_text="", warnings=()):
+def write_inversion_report(out_dir, result, region, *, posterior=None, rvc_results=None, load_unit="kN", noise_text="",
+                           findings=None):
     """Write ``out_dir/index.html`` with the figures of an inversion; returns the page path.
 
     Parameters
     ----------
     out_dir : Path
-    result : podkrig.inverse.InverseResult
-    region : podkrig.uncertainty.Region
-    fe : dict, optional
-        :func:`podkrig.inverse.fe_check` output.
-    identifiability : dict, optional
-        :meth:`Region.identifiability` output.
-    posterior : podkrig.posterior.Posterior, optional
-    rvc_results : dict of str to dict, optional
-        Model name → :func:`podkrig.uncertainty.rvc` output.
-    warnings : sequence of (what, remedy)
+    result : podkrig.online.invert.InverseResult
+        With its problem (and its FE check when one was run).
+    region : podkrig.online.region.Region
+    posterior : podkrig.online.posterior.Posterior, optional
+    rvc_results : dict of str to RVCResult, optional
+        Model name → :func:`podkrig.online.propagation.rvc` result (with its values).
+    findings : list of Finding, optional
+        Default: :func:`podkrig.online.findings.inversion_findings` of ``result`` and ``region``.
     """
-    from pathlib import Path
-
-    from podkrig.reports.html import Page, fmt
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     problem = result.problem
+    if findings is None:
+        findings = inversion_findings(result, region, context="cli")
     page = Page("podkrig inversion report")
     page.paragraph(
         f"Data: {problem.measurement.source} ({problem.n_obs} readings: sensors {', '.join(problem.measurement.sensor_names)}"
@@ -163,26 +163,21 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
         + (", ".join(f"{k} = {v:g}" for k, v in problem.fixed.items()) or "none") + ".",
         "meta",
     )
-    for what, remedy in warnings:
-        page.warning(what, remedy)
+    for f in findings:
+        page.warning(f.message, f.remedy)
 
     page.heading("Identified parameters")
     units = dict(zip(problem.free_space.names, problem.free_space.units))
     rows = []
     for j, name in enumerate(problem.free):
         lo, hi = region.intervals[name]
-        verdict = identifiability[name]["message"] if identifiability else ""
+        verdict = region.identifiability[name]["message"]
         post = f"[{fmt(posterior.intervals[name][0])}, {fmt(posterior.intervals[name][1])}]" if posterior else "—"
         rows.append([f"{name} ({units[name]})", fmt(result.x[j]), f"[{fmt(lo)}, {fmt(hi)}]", post, verdict])
     page.table(["parameter (unit)", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",
                 "MCMC credible interval", "verdict"], rows)
     page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "evaluations", "seconds (s)"],
                [[fmt(result.misfit), fmt(result.chi2), result.dof, fmt(result.chi2_dof), result.n_evaluations, fmt(result.seconds, 3)]])
-    if result.chi2_dof > 2.0:
-        page.warning(
-            f"χ²/dof = {result.chi2_dof:.2f}: the calibrated model does not reproduce the data within the stated noise.",
-            "check the noise level; if it is right, a physical effect is missing from the model — run 'podkrig diagnose'.",
-        )
 
     page.heading("Fit to the measurements")
     page.figure(Path(plot_fit(result, out / "fit.png", load_unit=load_unit)).name,
@@ -190,11 +185,12 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
     page.figure(Path(plot_residuals(result, out / "residuals.png", load_unit=load_unit)).name,
                 "Standardised residuals (model − measured)/σ per sensor and load level.")
 
+    fe = result.fe_check
     if fe is not None:
         page.heading("FE check at the optimum")
         page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)", "χ²/dof of the FE model (-)"],
-                   [[fmt(fe["max_abs_diff"]), fmt(fe["max_diff_over_noise"]), fmt(fe["rel_diff"]), fmt(fe["chi2_dof_fe"])]])
-        if fe["ok"]:
+                   [[fmt(fe.max_abs_diff), fmt(fe.max_diff_over_noise), fmt(fe.rel_diff), fmt(fe.chi2_dof_fe)]])
+        if fe.ok:
             page.success("The surrogate agrees with the FE model at the optimum within the measurement noise.")
 
     page.heading("Region of equivalence")
@@ -217,8 +213,8 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
         page.heading("Response variability (RVC)")
         rows = []
         for model_name, res in rvc_results.items():
-            for k, o in enumerate(res["outputs"]):
-                rows.append([model_name, o, fmt(res["mean"][k]), fmt(100 * res["cv"][k], 3), fmt(100 * res["range_ratio"][k], 3)])
+            for k, o in enumerate(res.outputs):
+                rows.append([model_name, o, fmt(res.mean[k]), fmt(100 * res.cv[k], 3), fmt(100 * res.range_ratio[k], 3)])
         page.table(["model", "output", "mean (mm)", "CV (%)", "(max − min)/mean (%)"], rows)
         page.figure(Path(plot_rvc(rvc_results, out / "rvc.png")).name, "Spread of the outputs over the region of equivalence.")
 
@@ -232,8 +228,6 @@ def write_inversion_report(out_dir, result, region, *, fe=None, identifiability=
 
 def plot_ga_history(ga, path):
     """The GA's history: every evaluated misfit by generation, and population statistics."""
-    from podkrig.reports.ga import plot_history, plot_statistics
-
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
     plot_history(ga, ax=axes[0])
@@ -246,8 +240,6 @@ def plot_ga_history(ga, path):
 
 def plot_ga_parameters(ga, path):
     """Parameter values of the GA's evaluated individuals against their misfit."""
-    from podkrig.reports.ga import plot_parameters
-
     plt = pyplot()
     fig = np.ravel(plot_parameters(ga))[0].figure
     fig.savefig(path, dpi=110)

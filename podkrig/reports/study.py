@@ -64,8 +64,8 @@ def write_study_report(path, study, records, warnings):
     study : podkrig.study.Study
     records : sequence of podkrig.study.pipeline.StageRecord
         Every stage of the run, in order.
-    warnings : sequence of dict
-        ``{"section", "what", "what_to_do"}`` (see :func:`podkrig.study.run_study`).
+    warnings : sequence of Finding
+        The study's findings (:func:`podkrig.study.pipeline.study_findings`).
     """
     stages = {r.name: r for r in records}
     res = {name: r.result for name, r in stages.items()}
@@ -75,12 +75,12 @@ def write_study_report(path, study, records, warnings):
     page.links([(f"#{anchor}", title) for anchor, title in SECTIONS])
     by_section = {}
     for w in warnings:
-        by_section.setdefault(w["section"], []).append(w)
+        by_section.setdefault(w.section, []).append(w)
 
     def section(anchor):
         page.heading(dict(SECTIONS)[anchor], anchor=anchor)
         for w in by_section.get(anchor, ()):
-            page.warning(w["what"], w["what_to_do"])
+            page.warning(w.message, w.remedy)
 
     _summary(page, study, res, warnings)
     section("study")
@@ -132,7 +132,7 @@ def _summary(page, study, res, warnings):
     if warnings:
         page.paragraph(f"{len(warnings)} warning(s), each in its section below:")
         for w in warnings:
-            page.warning(w["what"], w["what_to_do"])
+            page.warning(w.message, w.remedy)
     else:
         page.success("No warnings: the surrogate is accurate enough for the data, the calibrated model explains "
                      "the measurements within the noise, and every free parameter is identified.")
@@ -183,8 +183,11 @@ def _offline(page, stages):
 
 
 def _surrogate(page, study, r):
-    page.table(["training snapshots", "POD modes", "retained energy (-)", "β per mode (-)", "training time (s)"],
-               [[r["n_train"], r["n_modes"], f"{r['retained_energy']:.10f}", ", ".join(f"{b:.3g}" for b in r["beta"]),
+    regression = (", ".join(f"{b:.3g}" for b in r["beta"]) if "beta" in r
+                  else r.get("description", r.get("backend", "")))
+    page.table(["training snapshots", "POD modes", "retained energy (-)",
+                "β per mode (-)" if "beta" in r else "backend", "training time (s)"],
+               [[r["n_train"], r["n_modes"], f"{r['retained_energy']:.10f}", regression,
                  _num(r["training_seconds"], 3)]])
     page.figure("energy.png", "POD energy decay: share of each mode and the energy left out (log scale).")
     page.figure("modes.png", "First POD modes of the readings: one line per gauge over the load levels.")

@@ -1,6 +1,7 @@
 """Whole calibration studies: a TOML study file and the staged, cached pipeline that runs it.
 
-:func:`load_study` reads and validates a study file (:mod:`podkrig.study.schema`);
+:func:`load_study` reads and validates a study file (:mod:`podkrig.study.schema`, against the
+declarations of :mod:`podkrig.study.settings`);
 :func:`run_study` runs its stages — offline FE snapshots, surrogate, held-out validation,
 inversion, region of equivalence, RVC (and model diagnosis) — caching each by a hash of its
 inputs (:mod:`podkrig.study.pipeline`), and writes one HTML report.
@@ -15,6 +16,7 @@ Example
 """
 
 from podkrig.study.pipeline import Progress, StageRecord, StudyResult, run_study
-from podkrig.study.schema import Study, StudyError, key_lines, load_study
+from podkrig.study.schema import Study, StudyError, load_study
+from podkrig.study.toml_lines import key_lines
 
 __all__ = ["Progress", "StageRecord", "Study", "StudyError", "StudyResult", "key_lines", "load_study", "run_study"]

@@ -4,10 +4,13 @@
 - :mod:`~podkrig.surrogate.kriging` — ordinary kriging with exponential-family semivariograms;
 - :mod:`~podkrig.surrogate.podkriging` — the POD-kriging surrogate, its file format and training
   from a store;
+- :mod:`~podkrig.surrogate.backends` — selectable regressors of the POD coefficients: ours,
+  SMT's KRG/KPLS, scikit-learn's GPR;
 - :mod:`~podkrig.surrogate.validation` — held-out and leave-one-out errors;
 - :mod:`~podkrig.surrogate.refine` — adaptive enrichment of the training design.
 """
 
+from podkrig.surrogate.backends import BACKENDS, make_backend
 from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
 
-__all__ = ["PODKriging", "fit_from_store", "training_data"]
+__all__ = ["BACKENDS", "PODKriging", "fit_from_store", "make_backend", "training_data"]

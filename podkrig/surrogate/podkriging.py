@@ -33,21 +33,23 @@ import logging
 import warnings
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from podkrig import __version__
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError, SchemaError, StoreError
-from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.parameters import ParameterSpace
+from podkrig.surrogate.backends import backend_from_arrays, backend_name, backend_version
+from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
 
 logger = logging.getLogger(__name__)
 
 FORMAT = "podkrig.surrogate"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: the backend is recorded (attrs "backend", "backend_version"); 1 is still read
+READABLE_SCHEMAS = (1, 2)
 DEFAULT_ENERGY = 1 - 1e-8
-_BOX_TOL = 1e-9  # unit-cube slack of the extrapolation check (rounding of log scales)
 
 
 def _clone(estimator):
@@ -61,9 +63,11 @@ class PODKriging:
     ----------
     pod : POD, optional
         Template of the POD (copied at ``fit``); default ``POD(energy=1 - 1e-8)``.
-    kriging : OrdinaryKriging, optional
-        Template of the kriging (copied at ``fit``; its hyperparameters are fitted per mode);
-        default ``OrdinaryKriging()``.
+    kriging : OrdinaryKriging or another backend, optional
+        Template of the regressor of the POD coefficients (copied at ``fit``; its hyperparameters
+        are fitted per mode); default ``OrdinaryKriging()``. Any estimator of
+        :mod:`podkrig.surrogate.backends` (SMT's KRG/KPLS, scikit-learn's GPR) may serve instead;
+        the surrogate then predicts, validates, saves and inverts the same way.
     space : ParameterSpace, optional
         Maps parameters to the unit cube (linear or log per parameter) and defines the trained
         box. Without it the training samples' bounding box is mapped linearly to the unit cube.
@@ -71,7 +75,9 @@ class PODKriging:
     Attributes
     ----------
     pod_ : POD
-    kriging_ : OrdinaryKriging
+    kriging_ : OrdinaryKriging or another backend
+    backend_ : str
+        Name of the backend (``"podkrig"``, ``"smt-krg"``, ``"smt-kpls"``, ``"sklearn-gpr"``).
     X_ : ndarray of shape (n_samples, n_params)
         Training parameters, physical units.
     lower_, upper_ : ndarray of shape (n_params,)
@@ -116,6 +122,12 @@ class PODKriging:
             return self.space.to_unit(X)
         return (X - self.lower_) / (self.upper_ - self.lower_)
 
+    def _unit_inside(self, X):
+        """Unit coordinates of samples inside the box (physical units, checked exactly by the
+        caller): the map is monotone, so only a rounding of the log scale can leave [0, 1] by an ulp,
+        and the clip removes exactly that."""
+        return np.clip(self._to_unit(X), 0.0, 1.0)
+
     @property
     def parameter_names(self):
         """Names of the parameters (from the space, else ``x0, x1, ...``)."""
@@ -153,14 +165,14 @@ class PODKriging:
             if X.shape[1] != self.space.n_params:
                 raise ValueError(f"X has {X.shape[1]} columns but the space has parameters {list(self.space.names)}")
             lower, upper = self.space.lower, self.space.upper
-            U = self.space.to_unit(X)
-            if U.min() < -_BOX_TOL or U.max() > 1 + _BOX_TOL:
-                k = int(np.argmax(np.any((U < -_BOX_TOL) | (U > 1 + _BOX_TOL), axis=0)))
+            out = (X < lower) | (X > upper)
+            if out.any():
+                k = int(np.argmax(out.any(axis=0)))
                 raise ValueError(
                     f"training samples of {self.space.names[k]!r} lie outside its bounds "
                     f"[{lower[k]:g}, {upper[k]:g}] {self.space.units[k]}; widen the space"
                 )
-            U = np.clip(U, 0.0, 1.0)
+            U = self._unit_inside(X)
         else:
             lower, upper = X.min(axis=0), X.max(axis=0)
             flat = np.flatnonzero(upper <= lower)
@@ -179,6 +191,7 @@ class PODKriging:
         self.train_norm_ = np.linalg.norm(Yf, axis=1)
         self.train_residual_norm_ = np.linalg.norm(Yf - self.pod_.inverse_transform(A), axis=1)
         self.kriging_ = _clone(self.kriging if self.kriging is not None else OrdinaryKriging()).fit(U, A)
+        self.backend_ = backend_name(self.kriging_)
         self.X_ = X
         self.U_ = U
         self.residual_variance_ = self.pod_.residual_variance_
@@ -223,21 +236,21 @@ class PODKriging:
             )
         if not np.all(np.isfinite(X)):
             raise ValueError("X must be finite; found NaN or inf")
-        U = self._to_unit(X)
-        out = (U < -_BOX_TOL) | (U > 1 + _BOX_TOL)
-        if out.any():
-            i, k = (int(v[0]) for v in np.nonzero(out))
-            unit = self.space.units[k] if self.space is not None else ""
-            msg = (
-                f"{int(out.any(axis=1).sum())} of {len(X)} samples lie outside the trained box, e.g. sample "
-                f"{i}: {self.parameter_names[k]} = {X[i, k]:g} {unit} not in "
-                f"[{self.lower_[k]:g}, {self.upper_[k]:g}]".replace("  ", " ")
-            )
-            if not extrapolate:
-                raise ValueError(msg + "; the surrogate does not extrapolate: pass extrapolate=True "
-                                       "to predict anyway (accuracy unknown) or train on a wider space")
-            warnings.warn(msg + "; extrapolating, accuracy unknown", UserWarning, stacklevel=3)
-        return U
+        out = (X < self.lower_) | (X > self.upper_)  # physical units, exact: the trained box
+        if not out.any():
+            return self._unit_inside(X)
+        i, k = (int(v[0]) for v in np.nonzero(out))
+        unit = self.space.units[k] if self.space is not None else ""
+        msg = (
+            f"{int(out.any(axis=1).sum())} of {len(X)} samples lie outside the trained box, e.g. sample "
+            f"{i}: {self.parameter_names[k]} = {X[i, k]:g} {unit} not in "
+            f"[{self.lower_[k]:g}, {self.upper_[k]:g}]".replace("  ", " ")
+        )
+        if not extrapolate:
+            raise ValueError(msg + "; the surrogate does not extrapolate: pass extrapolate=True "
+                                   "to predict anyway (accuracy unknown) or train on a wider space")
+        warnings.warn(msg + "; extrapolating, accuracy unknown", UserWarning, stacklevel=3)
+        return self._to_unit(X)
 
     def predict(self, X, return_std=False, *, extrapolate=False, reshape=False):
         """Predicted snapshots (and standard deviations) for a batch of parameter vectors.
@@ -267,7 +280,44 @@ class PODKriging:
         ValueError
             Samples outside the trained box without ``extrapolate=True``.
         """
-        U = self.check_box(X, extrapolate)
+        return self._predict_unit(self.check_box(X, extrapolate), return_std, reshape)
+
+    def predict_unit(self, U, return_std=False, *, reshape=False):
+        """:meth:`predict` at unit-cube coordinates of the parameters (the scaling of ``space``).
+
+        The entry point of algorithms that work in the unit cube (the GA, least squares, region
+        sampling): the coordinates go straight to the kriging, with no round trip through
+        physical units.
+
+        Parameters
+        ----------
+        U : array_like of shape (n, n_params)
+            Coordinates in [0, 1] (exactly: the surrogate does not extrapolate here).
+        return_std, reshape : bool
+            As in :meth:`predict`.
+
+        Raises
+        ------
+        ValueError
+            Wrong shape, non-finite values, or a coordinate outside [0, 1].
+        """
+        self._check_fitted()
+        U = np.asarray(U, dtype=float)
+        if U.ndim == 1:
+            U = U[None, :]
+        if U.ndim != 2 or U.shape[1] != self.n_features_in_:
+            raise ValueError(f"U must have shape (n, {self.n_features_in_}) for parameters "
+                             f"{list(self.parameter_names)}; got {U.shape}")
+        if not np.all(np.isfinite(U)):
+            raise ValueError("U must be finite; found NaN or inf")
+        out = (U < 0.0) | (U > 1.0)
+        if out.any():
+            i, k = (int(v[0]) for v in np.nonzero(out))
+            raise ValueError(f"unit coordinates must lie in [0, 1]; sample {i}: {self.parameter_names[k]} has "
+                             f"{U[i, k]:g}; use predict() with physical values and extrapolate=True to extrapolate")
+        return self._predict_unit(U, return_std, reshape)
+
+    def _predict_unit(self, U, return_std, reshape):
         if return_std:
             A, S = self.kriging_.predict(U, return_std=True)
         else:
@@ -292,8 +342,6 @@ class PODKriging:
         path : str or Path
             Written atomically (temporary file, then renamed).
         """
-        import h5py
-
         self._check_fitted()
         path = Path(path)
         tmp = path.with_name(f".{path.name}.tmp")
@@ -303,6 +351,7 @@ class PODKriging:
             "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
                         for k, v in kr.get_params().items()},
         }
+        arrays, attrs = kr.to_arrays()
         try:
             with h5py.File(tmp, "w") as f:
                 f.attrs["format"] = FORMAT
@@ -313,6 +362,8 @@ class PODKriging:
                 f.attrs["output_shape"] = json.dumps(list(self.output_shape_))
                 f.attrs["saved"] = _now()
                 f.attrs["package_version"] = __version__
+                f.attrs["backend"] = self.backend_
+                f.attrs["backend_version"] = backend_version(kr)
                 f.create_dataset("X", data=self.X_).attrs["unit"] = "physical parameter units"
                 f.create_dataset("U", data=self.U_)
                 f.create_dataset("lower", data=self.lower_)
@@ -325,10 +376,9 @@ class PODKriging:
                 for name in ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_"):
                     g.create_dataset(name.rstrip("_"), data=getattr(pod, name))
                 g = f.create_group("kriging")
-                g.attrs["kind"] = kr.kind_
-                g.attrs["y_1d"] = bool(kr._y_1d)
-                for name in _KRIGING_ARRAYS:
-                    g.create_dataset(name.rstrip("_"), data=getattr(kr, name))
+                g.attrs.update(attrs)
+                for name, data in arrays.items():
+                    g.create_dataset(name, data=data)
             tmp.replace(path)
         finally:
             tmp.unlink(missing_ok=True)
@@ -337,6 +387,9 @@ class PODKriging:
     def load(cls, path):
         """Read a surrogate written by :meth:`save`; predictions are bitwise identical.
 
+        Reads schema 2 and the files of schema 1 (written before the backend was recorded; always
+        ``"podkrig"``), whose kriging group has the same arrays.
+
         Raises
         ------
         StoreError
@@ -344,8 +397,6 @@ class PODKriging:
         SchemaError
             Unknown schema version.
         """
-        import h5py
-
         path = Path(path)
         if not path.is_file():
             raise StoreError(f"no surrogate file at {path}; build one with 'podkrig surrogate build'")
@@ -357,16 +408,19 @@ class PODKriging:
             if f.attrs.get("format") != FORMAT:
                 raise StoreError(f"{path} is not a podkrig surrogate (format {f.attrs.get('format')!r}); "
                                  "pass the file written by 'podkrig surrogate build'")
-            if int(f.attrs.get("schema_version", -1)) != SCHEMA_VERSION:
+            if int(f.attrs.get("schema_version", -1)) not in READABLE_SCHEMAS:
                 raise SchemaError(f"{path} has surrogate schema version {f.attrs.get('schema_version')!r}; "
-                                  f"this podkrig reads {SCHEMA_VERSION}; rebuild it")
+                                  f"this podkrig reads {', '.join(map(str, READABLE_SCHEMAS))}; rebuild it")
             try:
                 settings = json.loads(f.attrs["settings"])
                 space = json.loads(f.attrs["parameter_space"])
                 kr_settings = dict(settings["kriging"])
                 if isinstance(kr_settings.get("range_bounds"), list):
                     kr_settings["range_bounds"] = tuple(kr_settings["range_bounds"])
-                sur = cls(pod=POD(**settings["pod"]), kriging=OrdinaryKriging(**kr_settings),
+                backend = str(f.attrs.get("backend", "podkrig"))  # schema 1: always ours
+                g = f["kriging"]
+                kr = backend_from_arrays(backend, g, dict(g.attrs), kr_settings)
+                sur = cls(pod=POD(**settings["pod"]), kriging=_clone(kr),
                           space=ParameterSpace.from_dict(space) if space is not None else None)
                 pod = _clone(sur.pod)
                 g = f["pod"]
@@ -375,15 +429,7 @@ class PODKriging:
                 pod.method_ = str(g.attrs["method"])
                 pod.n_samples_ = int(g.attrs["n_samples"])
                 pod.n_modes_, pod.n_outputs_ = pod.modes_.shape
-                kr = _clone(sur.kriging)
-                g = f["kriging"]
-                for name in _KRIGING_ARRAYS:
-                    setattr(kr, name, g[name.rstrip("_")][...])
-                kr.kind_ = int(g.attrs["kind"])
-                kr._y_1d = bool(g.attrs["y_1d"])
-                kr.n_outputs_ = kr.alpha_.shape[0]
-                kr.n_features_in_ = kr.X_.shape[1]
-                sur.pod_, sur.kriging_ = pod, kr
+                sur.pod_, sur.kriging_, sur.backend_ = pod, kr, backend
                 sur.X_, sur.U_ = f["X"][...], f["U"][...]
                 sur.lower_, sur.upper_ = f["lower"][...], f["upper"][...]
                 sur.train_norm_ = f["train_norm"][...]
@@ -395,10 +441,6 @@ class PODKriging:
             except (KeyError, ValueError, TypeError) as e:
                 raise StoreError(f"{path} is a damaged surrogate file ({type(e).__name__}: {e}); rebuild it") from e
         return sur
-
-
-_KRIGING_ARRAYS = ("X_", "ranges_", "beta_", "mu_", "sigma2_", "alpha_", "L_", "Q_", "q1_", "c0_",
-                   "criterion_", "loo_residuals_", "loo_variance_", "n_evaluations_")
 
 
 def _now():

@@ -14,6 +14,13 @@ import logging
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
+
+from podkrig.offline.runner import run_pending
+from podkrig.offline.sampling import METHODS, sample
+from podkrig.offline.store import SnapshotStore
+from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
+from podkrig.surrogate.validation import held_out_errors
 
 logger = logging.getLogger(__name__)
 
@@ -36,8 +43,6 @@ def select_batch(U_candidates, score, U_train, k):
     ndarray of int, shape (<= k,)
         Indices into ``U_candidates``.
     """
-    from scipy.spatial import cKDTree
-
     nn = cKDTree(U_train).query(U_train, k=2)[0][:, 1]
     radius = 0.5 * float(np.mean(nn))
     order = np.argsort(score)[::-1]
@@ -52,7 +57,7 @@ def select_batch(U_candidates, score, U_train, k):
 
 
 def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, batch=8, n_candidates=4096,
-                     seed=1, workers=1):
+                     seed=1, workers=1, sampling="sobol"):
     """Enrich the training store until the held-out median error or the FE budget is reached.
 
     Parameters
@@ -70,11 +75,14 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
     batch : int
         FE runs per round.
     n_candidates : int
-        Size of the Sobol' candidate set (a power of two).
+        Size of the candidate set (a power of two for Sobol').
     seed : int
-        Seed of the candidate set.
+        Seed of the candidate set (``seed + round``).
     workers : int
         FE workers of the runner (1: in this process).
+    sampling : {"sobol", "lhs", "lhs-ese", "random"}
+        Design of the candidate set (:func:`podkrig.offline.sampling.sample`); ``"lhs-ese"`` is
+        slow for thousands of candidates (reduce ``n_candidates``).
 
     Returns
     -------
@@ -82,17 +90,13 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
         ``added`` (FE runs), ``history`` (per round: ``n_train``, ``median``, ``p95``),
         ``stop_reason``.
     """
-    from podkrig.offline.runner import run_pending
-    from podkrig.offline.sampling import sobol
-    from podkrig.offline.store import SnapshotStore
-    from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
-    from podkrig.surrogate.validation import held_out_errors
-
     for name, v, least in (("budget", budget, 0), ("batch", batch, 1), ("n_candidates", n_candidates, 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
             raise ValueError(f"{name} must be an integer >= {least}; got {v!r}")
     if not target_error > 0:
         raise ValueError(f"target_error must be > 0; got {target_error!r}")
+    if sampling not in METHODS:
+        raise ValueError(f"sampling must be one of {', '.join(METHODS)}; got {sampling!r}")
     file, store, held_out = Path(file), Path(store), Path(held_out)
     template = PODKriging.load(file)
     output = template.provenance_.get("output", "readings")
@@ -115,8 +119,8 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
             reason = f"budget of {budget} FE runs used"
             break
         k = min(batch, budget - added)
-        U_cand = sobol(n_candidates, space.n_params, seed + len(history))
-        _, std = sur.predict(space.from_unit(U_cand), return_std=True)
+        U_cand = sample(sampling, n_candidates, space.n_params, seed + len(history))
+        _, std = sur.predict_unit(U_cand, return_std=True)
         pick = select_batch(U_cand, np.sum(std**2, axis=1), U_train, k)
         SnapshotStore.extend(store, U_cand[pick])
         summary_run = run_pending(store, workers=workers)

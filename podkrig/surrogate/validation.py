@@ -21,6 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
+from podkrig.surrogate.podkriging import PODKriging
+
 logger = logging.getLogger(__name__)
 
 
@@ -110,6 +113,24 @@ class HeldOutReport:
         out.update(self.extra)
         return out
 
+    _ARRAYS = ("rel_error", "pod_error", "interp_error", "X", "Y_true", "Y_pred", "Y_std")
+
+    def to_dict(self):
+        """Every field, arrays as nested lists (JSON-able; :meth:`from_dict` reads it back).
+        :meth:`summary` is the short form shown in reports."""
+        d = {name: np.asarray(getattr(self, name)).tolist() for name in self._ARRAYS}
+        d.update(coverage_2sigma=float(self.coverage_2sigma), n_train=int(self.n_train), n_modes=int(self.n_modes),
+                 loo_error=None if self.loo_error is None else np.asarray(self.loo_error).tolist(),
+                 extra=dict(self.extra))
+        return d
+
+    @classmethod
+    def from_dict(cls, d):
+        arrays = {name: np.asarray(d[name], dtype=float) for name in cls._ARRAYS}
+        loo = None if d.get("loo_error") is None else np.asarray(d["loo_error"], dtype=float)
+        return cls(coverage_2sigma=float(d["coverage_2sigma"]), n_train=int(d["n_train"]), n_modes=int(d["n_modes"]),
+                   loo_error=loo, extra=dict(d.get("extra", {})), **arrays)
+
 
 def held_out_errors(surrogate, X, Y, *, with_loo=True):
     """Compare a fitted :class:`~podkrig.surrogate.PODKriging` with held-out FE snapshots.
@@ -163,8 +184,11 @@ def loo_errors(surrogate):
 
     Returns
     -------
-    ndarray of shape (n_train,)
+    ndarray of shape (n_train,), or None
+        None for a backend without closed-form leave-one-out residuals (SMT, scikit-learn).
     """
+    if not hasattr(surrogate.kriging_, "loo_residuals_"):
+        return None
     E = surrogate.kriging_.loo_residuals_  # (n, n_modes): a_ik - a_hat_{-i}(x_i)
     # the truncation residual y_i - P y_i is orthogonal to the basis: Pythagoras
     err = np.sqrt(np.sum(E * E, axis=1) + surrogate.train_residual_norm_**2)
@@ -189,12 +213,9 @@ def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
     dict
         Label (e.g. ``"exponential, beta=1.2"``) to ndarray of shape (n_held_out,) of relative errors.
     """
-    from podkrig.surrogate.kriging import OrdinaryKriging
-    from podkrig.surrogate.podkriging import PODKriging
-
     out = {}
     for s in settings:
         sur = PODKriging(pod=pod, kriging=OrdinaryKriging(**s), space=space).fit(X, Y)
-        label = f"{s.get('variogram', 'exponential')}, beta={s.get('beta', 'fit')}"
+        label = f"{s.get('variogram', 'exponential')}, beta={s.get('beta', DEFAULT_BETA)}"
         out[label] = relative_errors(sur.predict(X_held), np.asarray(Y_held).reshape(len(Y_held), -1))
     return out

@@ -484,24 +484,21 @@ def _launch(kernel, work, n_pred, args, threads=None):
         kernel(*args, max(1, n_pred) if threads <= 1 else parallel.chunk_size(n_pred, threads))
 
 
-def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plans=None, threads=None):
+def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plan_unit=None, threads=None):
     """Kriging means of every output, ``(n_pred, n_outputs)``; see :func:`predict_mean_numpy`.
 
-    The numba kernel follows :func:`plan` (outputs in any order). ``plans``, a dict owned by the
-    caller (one per set of hyperparameters), caches the plan of batches inside the unit cube: it
-    costs ~50 us, as much as predicting a few points. ``threads``: numba threads to use (default
-    :func:`podkrig.parallel.threads_for` the batch: one for small batches).
+    The numba kernel follows :func:`plan` (outputs in any order). ``plan_unit``, the plan of these
+    hyperparameters for batches inside the unit cube (``plan(theta, beta, 1.0)``), built once by
+    the caller: it costs ~50 us, as much as predicting a few points. Batches reaching outside
+    the unit cube get a plan of their own. Nothing passed in is modified. ``threads``: numba
+    threads to use (default :func:`podkrig.parallel.threads_for` the batch: one for small batches).
     """
     Xp = np.ascontiguousarray(Xp, dtype=float)
     beta = np.ascontiguousarray(beta, dtype=float)
     if not numba_enabled(use_numba) or njit is None:
         return predict_mean_numpy(Xp, Xt, theta, beta, kind, alpha, mu)
     dmax = max(_delta_max(Xp, Xt), 1.0)
-    pl = plans.get(dmax) if plans is not None else None
-    if pl is None:
-        pl = plan(theta, beta, dmax)
-        if plans is not None and dmax == 1.0:
-            plans[dmax] = pl
+    pl = plan_unit if plan_unit is not None and dmax == 1.0 else plan(theta, beta, dmax)
     order = pl["order"]
     out = np.empty((Xp.shape[0], len(beta)))
     args = (

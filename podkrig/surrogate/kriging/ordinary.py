@@ -26,15 +26,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack, solve_triangular
 from scipy.optimize import minimize
+from scipy.spatial.distance import pdist
 
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import _kernels
-from podkrig.surrogate.kriging.variogram import BETA_FIT_BOUNDS, EXPONENTIAL, check_beta, check_variogram
+from podkrig.surrogate.kriging.variogram import (
+    BETA_FIT_BOUNDS,
+    EXPONENTIAL,
+    check_beta,
+    check_variogram,
+)
 
 logger = logging.getLogger(__name__)
 
-DEFAULT_BETA = "fit"
+DEFAULT_BETA = "fit-shared"  # why: see the ``beta`` parameter of OrdinaryKriging
 CRITERIA = ("ml", "loo")
 RCOND_MIN = 1e-12  # smallest admissible reciprocal condition number of the kriging matrix
 _FAIL = 1e10  # objective value returned where the (generalised) covariance matrix is singular
@@ -78,6 +84,75 @@ class _State:
     q1: np.ndarray
     c0: float
     K: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class KrigingHyperparameters:
+    """The fitted hyperparameters of an :class:`OrdinaryKriging`, one row per output (read-only).
+
+    Attributes
+    ----------
+    variogram : {"exponential", "power"}
+        Semivariogram model (:mod:`podkrig.kriging.variogram`).
+    nugget : float
+        Nugget relative to the sill (exponential) or scale (power), dimensionless.
+    ranges : ndarray of shape (n_outputs, n_dims)
+        Correlation ranges :math:`a_k`, unit-cube units.
+    beta : ndarray of shape (n_outputs,)
+        Exponents :math:`\\beta` of the semivariogram.
+    mu : ndarray of shape (n_outputs,)
+        Generalised-least-squares mean :math:`\\hat\\mu`, output units.
+    sigma2 : ndarray of shape (n_outputs,)
+        Process variance (exponential) or variogram scale (power) :math:`\\hat\\sigma^2`,
+        output units².
+    """
+
+    variogram: str
+    nugget: float
+    ranges: np.ndarray
+    beta: np.ndarray
+    mu: np.ndarray
+    sigma2: np.ndarray
+
+    def __post_init__(self):
+        check_variogram(self.variogram)
+        n_out = len(np.atleast_1d(self.beta))
+        for name, ndim in (("ranges", 2), ("beta", 1), ("mu", 1), ("sigma2", 1)):
+            a = np.array(getattr(self, name), dtype=float)  # a private copy, then frozen
+            if a.ndim != ndim or a.shape[0] != n_out:
+                raise ValueError(f"KrigingHyperparameters.{name} must have {ndim} dimension(s) and "
+                                 f"{n_out} rows (one per output); got shape {a.shape}")
+            a.flags.writeable = False
+            object.__setattr__(self, name, a)
+        object.__setattr__(self, "nugget", float(self.nugget))
+
+    def __eq__(self, other):
+        """Value equality: same variogram and nugget, bitwise equal arrays."""
+        if not isinstance(other, KrigingHyperparameters):
+            return NotImplemented
+        return (self.variogram, self.nugget) == (other.variogram, other.nugget) and all(
+            np.array_equal(getattr(self, k), getattr(other, k)) for k in ("ranges", "beta", "mu", "sigma2"))
+
+    __hash__ = None  # mutable-looking arrays inside: not hashable
+
+    @property
+    def n_outputs(self):
+        return len(self.beta)
+
+    @property
+    def theta(self):
+        """:math:`a_k^{-\\beta}` per output, ndarray of shape (n_outputs, n_dims)."""
+        return self.ranges ** (-self.beta[:, None])
+
+    def to_dict(self):
+        """Plain-JSON form (lists of floats)."""
+        return {"variogram": self.variogram, "nugget": self.nugget, "ranges": self.ranges.tolist(),
+                "beta": self.beta.tolist(), "mu": self.mu.tolist(), "sigma2": self.sigma2.tolist()}
+
+    @classmethod
+    def from_dict(cls, d):
+        """Inverse of :meth:`to_dict`."""
+        return cls(d["variogram"], d["nugget"], d["ranges"], d["beta"], d["mu"], d["sigma2"])
 
 
 def _symmetrize_lower(M):
@@ -229,21 +304,25 @@ class OrdinaryKriging:
     ----------
     variogram : {"exponential", "power"}, default "exponential"
         Semivariogram model, see :mod:`podkrig.kriging.variogram`.
-    beta : float, "fit" or "fit-shared", default "fit"
+    beta : float, "fit" or "fit-shared", default "fit-shared"
         Exponent of the semivariogram (bounded to [0.2, 2] for the exponential family, [0.2, 1.95]
         for the power model when fitted): a fixed value (the thesis compares 1.2, 1.5 and 1.8);
         ``"fit"``, estimated per output together with its ranges; or ``"fit-shared"``, estimated
         on the first output (the dominant POD coefficient) and kept for the others, whose ranges
-        alone are fitted. The default is ``"fit"``: the elastic responses are very smooth, the
-        likelihood drives the POD coefficients of the diagonal compression test to beta ≈ 2, and
-        on 200 held-out runs (4 free parameters, n = 256) the median relative error is 1.8e-3
-        against 4.2e-3, 6.1e-3 and 9.8e-3 for the fixed 1.8, 1.5 and 1.2, with 95 % of the outputs
-        inside ±2 sigma. ``"fit-shared"`` (one exponent per surrogate, as in the thesis) ties in
-        accuracy and trains 4x faster, but its variance is less honest with few samples (n = 64:
-        87 % of held-out outputs inside ±2 sigma against 90 %), which matters for the misfit's
-        C_T; it predicts only ~1.2x faster. Exponents 1, 1.5 and 2 need no transcendental
-        function in the prediction kernel, and exponents within about 0.01 below 2 (as fitted
-        here) one logarithm per training point and dimension for all outputs together (see
+        alone are fitted (one exponent per surrogate, as in the thesis). The default is
+        ``"fit-shared"``, the one default of the estimator, ``podkrig surrogate build`` and the
+        study file, chosen from the held-out measurements in ``BENCHMARKS.md`` (diagonal
+        compression test, 4 free parameters, 200 held-out runs, 24 readings): at n = 256 it ties
+        per-mode ``"fit"`` in median relative error (1.81e-3 against 1.83e-3; p95 7.9e-3 against
+        8.0e-3) and trains 4x faster (1.0-1.2 s against 4.1-4.9 s), and the region of
+        equivalence (10⁶ mean predictions) takes 2.8 s against 5.1 s, because one block of powers
+        serves every mode. Per-mode ``"fit"`` is slightly more accurate with few samples (median
+        1.21e-2 against 1.24e-2 at n = 64, 5.20e-3 against 5.51e-3 at n = 128) and its variance a
+        little more honest (90 % against 87 % of held-out outputs within ±2 sigma at n = 64): choose
+        it for small designs when the predictive variance matters. Fixed exponents lose accuracy
+        (1.8: 4.2e-3 at n = 256). Exponents 1, 1.5 and 2 need no transcendental function in the
+        prediction kernel, and exponents within about 0.01 below 2 (as fitted here) one logarithm
+        per training point and dimension for all outputs together (see
         :mod:`podkrig.kriging._kernels` and ``BENCHMARKS.md``).
     ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
         Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
@@ -270,14 +349,9 @@ class OrdinaryKriging:
     ----------
     X_ : ndarray of shape (n_samples, n_dims)
         Training inputs (a copy).
-    ranges_ : ndarray of shape (n_outputs, n_dims)
-        Fitted ranges.
-    beta_ : ndarray of shape (n_outputs,)
-        Exponent per output.
-    mu_ : ndarray of shape (n_outputs,)
-        Generalised-least-squares mean per output.
-    sigma2_ : ndarray of shape (n_outputs,)
-        Process variance (exponential) or variogram scale (power) per output, output units².
+    hyperparameters_ : KrigingHyperparameters
+        The fitted hyperparameters (variogram, nugget, ranges, exponents, mean, variance) in one
+        read-only value object; ``ranges_``, ``beta_``, ``mu_`` and ``sigma2_`` are views of it.
     alpha_ : ndarray of shape (n_outputs, n_samples)
         Kriging weights :math:`Q y`.
     L_ : ndarray of shape (n_outputs, m, m)
@@ -435,8 +509,6 @@ class OrdinaryKriging:
                 "scale them with ParameterSpace.to_unit (PODKriging does this for you)"
             )
         kind, beta, ranges0, (lo, hi) = self._check_settings(d, Y.shape[1])
-        self._ones_cache = None  # L⁻¹ 1 of the previous fit
-        self._plans = {}  # evaluation plans of the prediction kernel (see _kernels.plan)
         if self.nugget == 0:
             _check_duplicates(X)
         i, j = np.triu_indices(n, 1)
@@ -452,10 +524,7 @@ class OrdinaryKriging:
         bounds = [(np.log(lo), np.log(hi))] * d + ([(bfit_lo, bfit_hi)] if fit_beta else [])
 
         n_out = Y.shape[1]
-        self.ranges_ = np.empty((n_out, d))
-        self.beta_ = np.empty(n_out)
-        self.mu_ = np.empty(n_out)
-        self.sigma2_ = np.empty(n_out)
+        ranges, betas, mus, sigma2s = np.empty((n_out, d)), np.empty(n_out), np.empty(n_out), np.empty(n_out)
         self.alpha_ = np.empty((n_out, n))
         m = n if kind == EXPONENTIAL else n - 1
         self.L_ = np.empty((n_out, m, m))
@@ -473,7 +542,7 @@ class OrdinaryKriging:
             y = Y[:, col]
             if shared and col > 0:
                 # "fit-shared": the exponent of the first (dominant) output serves every output
-                beta, fit_beta, bounds = float(self.beta_[0]), False, bounds[:d]
+                beta, fit_beta, bounds = float(betas[0]), False, bounds[:d]
                 previous = None if previous is None else previous[:d]
             obj = _Objective(pairs, y, kind, float(self.nugget), self.criterion, beta)
             start = np.log(np.clip(ranges0[col], lo, hi))
@@ -515,9 +584,9 @@ class OrdinaryKriging:
                 previous = params
                 st = obj.state(params)[0]
             psi, b = obj.split(params)
-            self.ranges_[col] = np.exp(psi)
-            self.beta_[col] = b
-            self.mu_[col] = st.mu
+            ranges[col] = np.exp(psi)
+            betas[col] = b
+            mus[col] = st.mu
             self.alpha_[col] = st.alpha
             self.L_[col] = st.L
             self.Q_[col] = st.Q
@@ -528,23 +597,23 @@ class OrdinaryKriging:
             e = st.alpha / dq
             self.loo_residuals_[:, col] = e
             if constant:
-                self.sigma2_[col] = 0.0
+                sigma2s[col] = 0.0
             elif self.criterion == "loo":
-                self.sigma2_[col] = float(np.mean(e * e * dq))
+                sigma2s[col] = float(np.mean(e * e * dq))
             else:
-                self.sigma2_[col] = st.sigma2
-            self.loo_variance_[:, col] = self.sigma2_[col] / dq
+                sigma2s[col] = st.sigma2
+            self.loo_variance_[:, col] = sigma2s[col] / dq
+        self.hyperparameters_ = KrigingHyperparameters(self.variogram, float(self.nugget), ranges, betas, mus, sigma2s)
         self.X_ = X
         self.n_features_in_ = d
         self.n_outputs_ = n_out
         self.kind_ = kind
+        self._prepare_prediction()
         logger.info("kriging fitted: %d samples, %d dims, %d outputs, %d criterion evaluations",
                     n, d, n_out, int(self.n_evaluations_.sum()))
         return self
 
     def _singular(self, X, col, params, d, cause):
-        from scipy.spatial.distance import pdist
-
         dist = pdist(X)
         k = int(np.argmin(dist))
         ranges = ", ".join(f"{v:.3g}" for v in np.exp(params[:d]))
@@ -556,16 +625,101 @@ class OrdinaryKriging:
 
     # ------------------------------------------------------------------ predict
     def _check_fitted(self):
-        if not hasattr(self, "alpha_"):
+        if not hasattr(self, "hyperparameters_"):
             raise NotFittedError(
                 "this OrdinaryKriging instance is not fitted yet; call fit(X, Y) before predict"
             )
+
+    def _prepare_prediction(self):
+        """Everything ``predict`` reuses, fixed by the fit: built here (at fit or load), never in
+        ``predict``, which leaves the estimator untouched.
+
+        - ``_theta``: :math:`a_k^{-\\beta}`, ``(n_outputs, n_dims)``;
+        - ``_plan_unit``: the numba kernel's grouping of outputs for batches inside the unit cube
+          (:func:`podkrig.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
+        - ``_ones_solved``: :math:`L_j^{-1} 1` per output (exponential family), ``(n_outputs, n)``.
+        """
+        hp = self.hyperparameters_
+        self._theta = hp.theta
+        self._plan_unit = _kernels.plan(self._theta, hp.beta, 1.0)
+        ones = np.ones(self.X_.shape[0])
+        self._ones_solved = (np.stack([solve_triangular(L, ones, lower=True, check_finite=False) for L in self.L_])
+                             if self.kind_ == EXPONENTIAL else None)
+
+    # read-only views of the fitted hyperparameters (the value object hyperparameters_ holds them)
+    ranges_ = property(lambda self: self._fitted().ranges, doc="Fitted ranges, (n_outputs, n_dims).")
+    beta_ = property(lambda self: self._fitted().beta, doc="Exponent per output, (n_outputs,).")
+    mu_ = property(lambda self: self._fitted().mu, doc="Mean per output, (n_outputs,), output units.")
+    sigma2_ = property(lambda self: self._fitted().sigma2, doc="Process variance per output, output units².")
+
+    def _fitted(self):
+        self._check_fitted()
+        return self.hyperparameters_
 
     @property
     def theta_(self):
         """:math:`a_k^{-\\beta}` per output, ndarray of shape (n_outputs, n_dims)."""
         self._check_fitted()
-        return self.ranges_ ** (-self.beta_[:, None])
+        return self._theta
+
+    # ------------------------------------------------------------------ persistence
+    _ARRAYS = ("X_", "alpha_", "L_", "Q_", "q1_", "c0_", "criterion_", "loo_residuals_", "loo_variance_",
+               "n_evaluations_")
+
+    def to_arrays(self):
+        """The fitted state as named arrays and scalar attributes (for HDF5, no pickle).
+
+        Returns
+        -------
+        arrays : dict of str to ndarray
+            ``X``, ``ranges``, ``beta``, ``mu``, ``sigma2``, ``alpha``, ``L``, ``Q``, ``q1``, ``c0``,
+            ``criterion``, ``loo_residuals``, ``loo_variance``, ``n_evaluations`` (the names of
+            surrogate files of schema 1).
+        attrs : dict of str to int, float, bool or str
+            ``kind`` (kernel code), ``y_1d``, ``variogram``, ``nugget``.
+        """
+        self._check_fitted()
+        hp = self.hyperparameters_
+        arrays = {name.rstrip("_"): getattr(self, name) for name in self._ARRAYS}
+        arrays.update(ranges=hp.ranges, beta=hp.beta, mu=hp.mu, sigma2=hp.sigma2)
+        attrs = {"kind": int(self.kind_), "y_1d": bool(self._y_1d), "variogram": hp.variogram,
+                 "nugget": hp.nugget}
+        return arrays, attrs
+
+    @classmethod
+    def from_arrays(cls, arrays, attrs, params):
+        """Rebuild a fitted estimator from :meth:`to_arrays` output; predictions are bitwise identical.
+
+        Parameters
+        ----------
+        arrays : mapping of str to array_like
+            As returned by :meth:`to_arrays` (an HDF5 group works).
+        attrs : mapping
+            As returned by :meth:`to_arrays`; ``variogram`` and ``nugget`` may be missing (files of
+            schema 1), then taken from ``params``.
+        params : dict
+            Settings, :meth:`get_params` of the fitted estimator.
+
+        Raises
+        ------
+        KeyError, ValueError
+            A missing array or inconsistent shapes.
+        """
+        ok = cls(**params)
+        for name in cls._ARRAYS:
+            setattr(ok, name, np.asarray(arrays[name.rstrip("_")][...]))
+        variogram = str(attrs.get("variogram", ok.variogram))
+        ok.hyperparameters_ = KrigingHyperparameters(
+            variogram, float(attrs.get("nugget", ok.nugget)),
+            *(np.asarray(arrays[k][...], dtype=float) for k in ("ranges", "beta", "mu", "sigma2")))
+        ok.kind_ = int(attrs["kind"])
+        if ok.kind_ != check_variogram(variogram):
+            raise ValueError(f"kernel code {ok.kind_} does not match the variogram {variogram!r}")
+        ok._y_1d = bool(attrs["y_1d"])
+        ok.n_outputs_ = ok.alpha_.shape[0]
+        ok.n_features_in_ = ok.X_.shape[1]
+        ok._prepare_prediction()
+        return ok
 
     def predict(self, X, return_std=False):
         """Kriging mean (and standard deviation) at new inputs.
@@ -592,8 +746,9 @@ class OrdinaryKriging:
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
             raise ValueError(f"X must have shape (n_pred, {self.n_features_in_}); got {X.shape}")
-        mean = _kernels.predict_mean(X, self.X_, self.theta_, self.beta_, self.kind_, self.alpha_, self.mu_,
-                                     self.use_numba, plans=self.__dict__.setdefault("_plans", {}))
+        hp = self.hyperparameters_
+        mean = _kernels.predict_mean(X, self.X_, self._theta, hp.beta, self.kind_, self.alpha_, hp.mu,
+                                     self.use_numba, plan_unit=self._plan_unit)
         if not return_std:
             return mean[:, 0] if self._y_1d else mean
         var = self.predict_variance(X)
@@ -611,36 +766,29 @@ class OrdinaryKriging:
         with one_blas_thread():
             return self._predict_variance(X)
 
-    def _ones_solved(self):
-        """``L_j⁻¹ 1`` for every output, ``(n_outputs, n)``: fixed by the fit, computed once."""
-        if getattr(self, "_ones_cache", None) is None:
-            ones = np.ones(self.X_.shape[0])
-            self._ones_cache = np.stack([solve_triangular(L, ones, lower=True, check_finite=False) for L in self.L_])
-        return self._ones_cache
-
     def _predict_variance(self, X):
         self._check_fitted()
         X = np.asarray(X, dtype=float)
         if X.ndim != 2 or X.shape[1] != self.n_features_in_:
             raise ValueError(f"X must have shape (n_pred, {self.n_features_in_}); got {X.shape}")
         k0 = 1.0 if self.kind_ == EXPONENTIAL else 0.0
-        theta = self.theta_
+        theta, hp = self._theta, self.hyperparameters_
+        sigma2 = hp.sigma2
         var = np.empty((X.shape[0], self.n_outputs_))
-        if self.kind_ == EXPONENTIAL:
-            u_all = self._ones_solved()
+        u_all = self._ones_solved
         for j in range(self.n_outputs_):
-            Kx = _kernels.cross_covariance(X, self.X_, theta[j], self.beta_[j], self.kind_, self.use_numba)
+            Kx = _kernels.cross_covariance(X, self.X_, theta[j], hp.beta[j], self.kind_, self.use_numba)
             if self.kind_ == EXPONENTIAL:
                 # Sacks et al. (1989) form through triangular solves with the stored Cholesky factor
                 # (better conditioned than the Q form): V = L^-1 r, u = L^-1 1
                 V = solve_triangular(self.L_[j], Kx.T, lower=True, check_finite=False)
                 u = u_all[j]
                 quad = np.einsum("ip,ip->p", V, V)
-                var[:, j] = self.sigma2_[j] * (k0 - quad + (1.0 - u @ V) ** 2 * self.c0_[j])
+                var[:, j] = sigma2[j] * (k0 - quad + (1.0 - u @ V) ** 2 * self.c0_[j])
             else:
                 quad = np.einsum("pi,pi->p", Kx @ self.Q_[j], Kx)
-                var[:, j] = self.sigma2_[j] * (k0 + self.c0_[j] - 2.0 * (Kx @ self.q1_[j]) - quad)
-        scale = np.maximum(self.sigma2_, np.finfo(float).tiny)
+                var[:, j] = sigma2[j] * (k0 + self.c0_[j] - 2.0 * (Kx @ self.q1_[j]) - quad)
+        scale = np.maximum(sigma2, np.finfo(float).tiny)
         if np.any(var < -1e-6 * scale):
             warnings.warn(
                 f"kriging variance down to {var.min():.3g} < 0 (ill-conditioned system), clipped to 0; "

@@ -1,34 +1,27 @@
-"""Inverse analysis against a batched forward model (normally the POD-kriging surrogate).
+"""The inverse problem: a batched forward model, a measurement, a noise model and free parameters.
 
 An :class:`InverseProblem` combines a model, a measurement, a noise model and a choice of free
-parameters (the others fixed); :func:`invert` minimises the misfit ω(m) of thesis eq. (2.13) with
-the genetic algorithm (:mod:`podkrig.ga`, thesis ch. 3) and polishes the best individual by
-bounded least squares on the whitened residuals (the GA finds the basin, Gauss–Newton finishes
-it). Parameters are searched in the unit cube of the free parameter space (log-scaled
-parameters are searched in log10).
+parameters (the others fixed); its misfit ω(m) is thesis eq. (2.13). Parameters are searched in
+the unit cube of the free parameter space (log-scaled parameters in log10).
 
 A *model* is any object with ``space`` (a :class:`~podkrig.parameters.ParameterSpace` over all
 its inputs), ``sensor_names``, ``load_levels`` and ``predict(X, return_std=True) -> (mean, std)``
 with ``X`` ``(n, n_params)`` physical and ``mean``, ``std`` ``(n, n_loads * n_sensors)`` mm
-(load-major). The POD-kriging surrogate is one; :class:`FEModel` wraps a scenario so that the
-same inversion can run with the FE model in the loop.
+(load-major). The POD-kriging surrogate is one (:class:`SurrogateModel`); :class:`FEModel` wraps
+a scenario so that the same inversion can run with the FE model in the loop.
+:func:`fix_from_scenario` completes a choice of free and fixed parameters from the scenario the
+model was trained on.
 """
 
 import dataclasses
-import logging
-import time
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize
-from scipy.stats import qmc
 
-from podkrig.parallel import one_blas_thread
+from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
 from podkrig.online.misfit import Misfit
 from podkrig.parameters import ParameterSpace
-
-logger = logging.getLogger(__name__)
 
 
 class FEModel:
@@ -46,6 +39,7 @@ class FEModel:
         self.space = space
         self.sensor_names = tuple(scenario.sensor_names)
         self.load_levels = np.asarray(scenario.load_levels, dtype=float)
+        self.load_unit = scenario.load_unit
         self.n_runs = 0
 
     def predict(self, X, return_std=False):
@@ -82,10 +76,12 @@ class SurrogateModel:
     def predict(self, X, return_std=False):
         return self.surrogate.predict(X, return_std=return_std)
 
+    def predict_unit(self, U, return_std=False):
+        """``predict`` at unit-cube coordinates of ``space`` (no round trip through physical units)."""
+        return self.surrogate.predict_unit(U, return_std=return_std)
+
     def scenario(self, solver="auto"):
         """The FE scenario the surrogate was trained on (rebuilt from its spec)."""
-        from fe.scenarios import build_scenario
-
         return build_scenario(self.scenario_spec, solver=solver)
 
 
@@ -107,7 +103,7 @@ class InverseProblem:
     prior_mean, prior_cov : optional
         Gaussian prior over the free parameters (thesis eq. 2.11).
     kind : {"gaussian", "relative"}
-        Misfit kind (see :class:`~podkrig.misfit.Misfit`).
+        Misfit kind (see :class:`~podkrig.online.misfit.Misfit`).
     model_error : bool
         Include the model's predictive variance in ``C_D`` (thesis eq. 2.10).
     """
@@ -229,165 +225,44 @@ class InverseProblem:
         return self.free_space.from_unit(sol.x[None])[0], int(sol.nfev + 2 * len(u0) * sol.njev)
 
 
-@dataclass(frozen=True, eq=False)
-class InverseResult:
-    """Outcome of :func:`invert`.
+def fix_from_scenario(model, free=None, fixed=None):
+    """Complete a choice of free and fixed parameters of ``model``.
 
-    Attributes
-    ----------
-    x : ndarray of shape (n_free,)
-        Best free parameters, physical units.
-    parameters : dict of str to float
-        Every model parameter at the optimum (free and fixed).
-    misfit : float
-        ω(m*) (thesis eq. 2.13).
-    chi2 : float
-        Data term (g − d)ᵀ C_D⁻¹ (g − d) at m*.
-    dof : int
-        n_obs − n_free.
-    n_evaluations : int
-        Model evaluations (GA and polish).
-    seconds : float
-    ga : GAResult
-    """
-
-    problem: InverseProblem
-    x: np.ndarray
-    parameters: dict
-    misfit: float
-    chi2: float
-    dof: int
-    n_evaluations: int
-    seconds: float
-    ga: object
-
-    @property
-    def chi2_dof(self):
-        """χ² per degree of freedom (≈ 1 when the model explains the data within the noise)."""
-        return self.chi2 / max(self.dof, 1)
-
-    def predicted(self):
-        """Model prediction at the observed entries, ``(n_loads_obs, n_sensors_obs)`` mm, and its std."""
-        mean, std = self.problem.misfit.predict(self.x[None])
-        shape = self.problem.measurement.values.shape
-        return mean[0].reshape(shape), None if std is None else std[0].reshape(shape)
-
-
-def invert(problem, *, rng=0, population_size=100, generations=100, polish=True, n_starts=6, **ga_options):
-    """Identify the free parameters: GA on ω(m), then a least-squares polish.
+    When ``fixed`` is given without ``free``, every other parameter is free. When ``free`` is
+    given (or implied), each parameter that is neither free nor fixed keeps the value of the
+    scenario the model was trained on (its spec's value, else the scenario's default), provided
+    that value lies inside the model's trained box; a parameter left without a value is reported
+    by :class:`InverseProblem`.
 
     Parameters
     ----------
-    problem : InverseProblem
-    rng : int or numpy.random.Generator
-        Seed of the GA (recorded in the GA result).
-    population_size, generations : int
-        GA budget: ``population_size × (generations + 1)`` evaluations at most
-        (100 × 100 by default, well under a second on the surrogate).
-    polish : bool
-        Finish with bounded least squares (recommended).
-    n_starts : int
-        Least-squares polishes from the GA's best and from the ``n_starts - 1`` best mutually
-        distant points (at least 0.15 apart in the unit cube) of a 1024-point Sobol' screen of
-        the box; the lowest misfit wins. Misfits of masonry
-        tests have spurious basins on the faces of the box (where the surrogate variance is
-        large), into which a GA run can converge; these polishes recover the global one for a
-        few thousand cheap surrogate evaluations.
-    **ga_options
-        Further options of :class:`podkrig.ga.GeneticAlgorithm`.
+    model : SurrogateModel or object
+        A model with ``space`` and, to fill values, ``scenario_spec`` (a scenario spec dict).
+    free : sequence of str, optional
+        Free parameter names; default all of ``model.space`` not in ``fixed``.
+    fixed : dict of str to float, optional
+        Values of fixed parameters, in their units.
 
     Returns
     -------
-    InverseResult
+    free : tuple of str or None
+        None means every parameter of the model is free.
+    fixed : dict of str to float
+        ``fixed`` plus the values taken from the scenario.
     """
-    from podkrig.ga import minimize
-
-    t0 = time.perf_counter()
-    with one_blas_thread(), warnings.catch_warnings():  # small BLAS calls: see podkrig.parallel
-        # running the GA to its generation budget is the plan here: the polish finishes the job
-        warnings.filterwarnings("ignore", message="GA stopped on its budget", category=RuntimeWarning)
-        ga = minimize(
-            problem.omega, problem.free_space, rng=rng, population_size=population_size,
-            max_generations=generations, **ga_options,
-        )
-        x, n_eval = np.asarray(ga.x, dtype=float), ga.nfev
-        if polish:
-            x, n_eval = _polish_from_starts(problem, ga, x, n_eval, rng, n_starts)
-    omega = float(problem.omega(x[None])[0])
-    chi2 = float(problem.misfit.chi2(x[None])[0])
-    params = dict(zip(problem.model.space.names, problem.full(x[None])[0].tolist()))
-    seconds = time.perf_counter() - t0
-    logger.info("inversion: omega=%.4g chi2/dof=%.3g in %.3f s (%d evaluations)", omega, chi2 / max(problem.n_obs - problem.n_free, 1), seconds, n_eval)
-    return InverseResult(problem, x, params, omega, chi2, problem.n_obs - problem.n_free, n_eval, seconds, ga)
+    fixed = dict(fixed or {})
+    free = None if free is None else tuple(free)
+    if free is None and fixed:
+        free = tuple(n for n in model.space.names if n not in fixed)
+    spec = getattr(model, "scenario_spec", None)
+    if free is None or spec is None:
+        return free, fixed
+    spec = ScenarioSpec.from_dict(spec)
+    defaults = {p.name: spec.parameters.get(p.name, p.default) for p in SCENARIOS[spec.scenario].PARAMETERS}
+    for p in model.space.parameters:
+        if p.name not in free and p.name not in fixed and p.lower <= defaults.get(p.name, np.nan) <= p.upper:
+            fixed[p.name] = defaults[p.name]
+    return free, fixed
 
 
-def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
-    """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
-    returns the best point and the updated evaluation count."""
-    best_omega = ga.fun
-    screen = problem.free_space.from_unit(qmc.Sobol(problem.n_free, scramble=True, seed=rng_seed(rng)).random_base2(10))
-    screen_omega = problem.omega(screen)
-    n_eval += len(screen)
-    starts = np.vstack([x[None], _distinct_starts(problem, screen, screen_omega, n_starts - 1)])
-    for x0 in starts:
-        x_pol, n_pol = problem.polish(x0)
-        n_eval += n_pol
-        omega_pol = problem.omega(x_pol[None])[0]
-        if omega_pol < best_omega:
-            x, best_omega = x_pol, omega_pol
-    return x, n_eval
-
-
-def rng_seed(rng):
-    """An integer seed derived from ``rng`` (int or Generator) for a scrambled Sobol' engine."""
-    if isinstance(rng, np.random.Generator):
-        return int(rng.integers(2**31))
-    return rng
-
-
-def _distinct_starts(problem, X, omega, k, min_distance=0.15):
-    """The best of ``X`` and up to ``k - 1`` more of the best, each at least ``min_distance``
-    (unit cube, max norm) from those already chosen; physical units."""
-    order = np.argsort(omega, kind="stable")
-    U = problem.free_space.to_unit(X[order])
-    chosen = [0]
-    for i in range(1, len(U)):
-        if len(chosen) >= k:
-            break
-        if np.min(np.max(np.abs(U[chosen] - U[i]), axis=1)) >= min_distance:
-            chosen.append(i)
-    return X[order][chosen]
-
-
-def fe_check(result, scenario):
-    """One FE run at the optimum: the surrogate-vs-FE difference at the observed entries.
-
-    Parameters
-    ----------
-    result : InverseResult
-    scenario : fe.Scenario
-        The scenario the surrogate was trained on.
-
-    Returns
-    -------
-    dict
-        ``max_abs_diff`` (mm), ``max_diff_over_noise`` (largest |FE − surrogate| / σ_noise),
-        ``rel_diff`` (‖FE − surrogate‖ / ‖FE‖), ``chi2_dof_fe`` (χ²/dof of the FE prediction
-        against the data, noise only), ``fe_readings`` and ``ok`` (difference within the noise).
-    """
-    problem = result.problem
-    fe = scenario.run(result.parameters).readings.ravel()
-    idx = problem.misfit.output_indices
-    fe_obs = fe[idx]
-    mean, _ = problem.misfit.predict(result.x[None])
-    diff = fe_obs - mean[0]
-    sd = problem.misfit.noise_std
-    resid = (fe_obs - problem.measurement.data) / sd
-    return {
-        "max_abs_diff": float(np.max(np.abs(diff))),
-        "max_diff_over_noise": float(np.max(np.abs(diff) / sd)),
-        "rel_diff": float(np.linalg.norm(diff) / np.linalg.norm(fe_obs)),
-        "chi2_dof_fe": float(resid @ resid / max(result.dof, 1)),
-        "fe_readings": fe_obs.tolist(),
-        "ok": bool(np.max(np.abs(diff) / sd) <= 1.0),
-    }
+__all__ = ["FEModel", "InverseProblem", "SurrogateModel", "fix_from_scenario"]

@@ -1,0 +1,261 @@
+"""The findings policy: when an identification deserves a warning, in which words, and what to do.
+
+One place for every threshold and sentence that the ``podkrig invert`` command, the inversion and
+study reports and a study's ``summary.json`` show: a :class:`Finding` is a warning in plain words
+(``message``) with its remedy (``remedy``), a stable ``code`` for scripts and the report
+``section`` it belongs to. Remedies name the user's next step in their own context: a command
+line option for ``context="cli"``, a study-file setting for ``context="study"``.
+
+Thresholds
+----------
+- :data:`CHI2_DOF_LIMIT`: χ²/dof above it means the calibrated model does not explain the data
+  within the stated noise (the χ² statistic per degree of freedom is about 1 ± √(2/dof) when it
+  does; 2 is beyond the 99.9th percentile for dof ≥ 20).
+- :data:`FE_CHECK_LIMIT`: the surrogate and the FE model at the optimum should agree within one
+  noise σ at every observed reading.
+- :data:`UNIDENTIFIABLE_SHARE`: a parameter whose equivalence interval spans more than half its
+  (scaled) search range is not pinned down by the data.
+- :data:`AT_BOUND_SHARE`: a best fit within 0.5 % of its scaled search range from a bound lies on
+  the bound.
+- :data:`COVERAGE_LIMIT`: fewer held-out readings than this share inside the surrogate's ±2σ
+  means its error bars are too narrow.
+
+The functions take result objects (:class:`~podkrig.online.invert.InverseResult`,
+:class:`~podkrig.online.region.Region`) or, for stages a study reads back from its cache, their
+``to_dict`` form; they compute nothing else.
+"""
+
+from dataclasses import dataclass
+
+#: χ²/dof above which the calibrated model does not reproduce the data within the noise (-)
+CHI2_DOF_LIMIT = 2.0
+#: largest |FE − surrogate| / σ_noise at the optimum for which the surrogate counts as exact (-)
+FE_CHECK_LIMIT = 1.0
+#: a parameter whose equivalence interval spans more than this share of its search range (in the
+#: scaled unit coordinate) is reported as not identifiable from the data (-)
+UNIDENTIFIABLE_SHARE = 0.5
+#: a best fit within this share of its scaled search range from a bound lies on the bound (-)
+AT_BOUND_SHARE = 0.005
+#: least share of held-out FE readings within ±2σ of the surrogate (-)
+COVERAGE_LIMIT = 0.8
+
+CONTEXTS = ("cli", "study")
+
+
+@dataclass(frozen=True)
+class Finding:
+    """A warning in plain words.
+
+    Attributes
+    ----------
+    code : str
+        Stable identifier for scripts, e.g. ``"chi2-dof"``, ``"unidentified"``.
+    section : str
+        Report section it belongs to (``"inversion"``, ``"region"``, ``"held-out"``, ...).
+    message : str
+        What was found, with the numbers and their units.
+    remedy : str
+        What to do about it.
+    level : str
+        ``"warning"`` (every finding today).
+    """
+
+    code: str
+    section: str
+    message: str
+    remedy: str
+    level: str = "warning"
+
+    def to_dict(self):
+        """``{"code", "level", "section", "what", "what_to_do"}`` (the ``summary.json`` form)."""
+        return {"code": self.code, "level": self.level, "section": self.section, "what": self.message,
+                "what_to_do": self.remedy}
+
+    @classmethod
+    def from_dict(cls, d):
+        return cls(d["code"], d["section"], d["what"], d["what_to_do"], d.get("level", "warning"))
+
+
+def _unit(unit):
+    """`` unit`` to append to a number, or nothing for a dimensionless one."""
+    return f" {unit}" if unit and unit != "-" else ""
+
+
+def _check_context(context):
+    if context not in CONTEXTS:
+        raise ValueError(f"context must be one of {CONTEXTS}; got {context!r}")
+
+
+def identifiability_verdict(name, interval, unit, share):
+    """The verdict on one parameter: ``{"share", "identifiable", "message"}``.
+
+    Parameters
+    ----------
+    name : str
+    interval : (float, float)
+        Its equivalence interval, physical units.
+    unit : str
+    share : float
+        Share of its search range (scaled unit coordinate) the interval spans, in [0, 1].
+    """
+    lo, hi = interval
+    ok = share <= UNIDENTIFIABLE_SHARE
+    unit = unit if unit != "-" else ""
+    msg = (
+        f"{name} is identified: [{lo:.4g}, {hi:.4g}] {unit} spans {100 * share:.0f} % of its search range"
+        if ok else
+        f"{name} is NOT pinned down by these data: values from {lo:.4g} to {hi:.4g} {unit} "
+        f"({100 * share:.0f} % of its search range) fit equally well; fix it from other tests, "
+        "add sensors sensitive to it, or report it as unidentified"
+    )
+    return {"share": float(share), "identifiable": bool(ok), "message": msg.replace("  ", " ")}
+
+
+def at_bound(names, u):
+    """Names whose unit-cube coordinate ``u`` lies within :data:`AT_BOUND_SHARE` of a bound."""
+    return [n for n, uj in zip(names, u) if uj < AT_BOUND_SHARE or uj > 1 - AT_BOUND_SHARE]
+
+
+def fe_check_ok(max_diff_over_noise):
+    """Whether the FE check passes: ``max |FE − surrogate| / σ ≤`` :data:`FE_CHECK_LIMIT`."""
+    return bool(max_diff_over_noise <= FE_CHECK_LIMIT)
+
+
+def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=False):
+    """Findings of an inversion and its region of equivalence, in report order.
+
+    Parameters
+    ----------
+    result : InverseResult
+        With its FE check when one was run.
+    region : Region, optional
+    context : {"cli", "study"}
+        Where the remedies point: command-line options or study-file settings.
+    diagnosis_enabled : bool
+        (study) whether the study runs the model diagnosis, which names a missing effect.
+
+    Returns
+    -------
+    list of Finding
+    """
+    _check_context(context)
+    found = []
+    fe = result.fe_check
+    if fe is not None and not fe.ok:
+        found.append(Finding(
+            "fe-check", "inversion",
+            f"at the optimum the surrogate differs from the FE model by up to {fe.max_diff_over_noise:.2f}× the "
+            f"noise ({fe.max_abs_diff:.3g} mm): the identification is limited by the surrogate, not by the data.",
+            "refine the surrogate near the optimum ('podkrig surrogate refine', or more snapshots in a narrower box) "
+            "and invert again." if context == "cli" else
+            "add training snapshots or narrow the bounds around the identified values, and run again."))
+    units = dict(zip(result.free, result.units))
+    for name in result.at_bound:
+        found.append(Finding(
+            "at-bound", "inversion",
+            f"the best fit of {name} ({result.free_parameters[name]:.4g}{_unit(units[name])}) lies on a bound "
+            "of its search range: the data may prefer a value outside it.",
+            f"widen the range of {name} in the snapshot design (--param) and build the surrogate again."
+            if context == "cli" else f"widen the bounds of {name} in [parameters] and run again."))
+    if result.chi2_dof > CHI2_DOF_LIMIT:
+        if context == "cli":
+            then = "(run 'podkrig diagnose')."
+        elif diagnosis_enabled:
+            then = "the model diagnosis below names it."
+        else:
+            then = "switch on the model diagnosis ([diagnosis] enabled = true) to name it."
+        found.append(Finding(
+            "chi2-dof", "inversion",
+            f"χ²/dof = {result.chi2_dof:.2f}: the calibrated model does not reproduce the data within the stated "
+            "noise.",
+            "check the noise level; if it is right, a physical effect is missing from the model"
+            + (" " if context == "cli" else ": ") + then))
+    if region is not None:
+        for name, v in region.identifiability.items():
+            if v["identifiable"]:
+                continue
+            lo, hi = region.intervals[name]
+            how = f"--fix {name}=VALUE" if context == "cli" else "[fixed]"
+            found.append(Finding(
+                "unidentified", "region",
+                f"{name} is not pinned down by these data: values from {lo:.4g} to {hi:.4g}"
+                f"{_unit(units[name])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
+                f"fix {name} from other tests ({how}), add sensors sensitive to it, or report it as unidentified."))
+    return found
+
+
+def offline_findings(title, store_result):
+    """A finding for FE runs that failed in a snapshot stage (``store_result``: the stage's JSON)."""
+    r = store_result
+    if not r.get("failed"):
+        return []
+    return [Finding(
+        "fe-failed", "offline",
+        f"{r['failed']} of {r['total']} FE runs failed in stage '{title}' ({'; '.join(r['failures'])}).",
+        "the surrogate was trained without them; read the errors (e.g. a parameter range that makes the "
+        "model singular) and narrow the bounds, or inspect the store with 'podkrig snapshots info'.")]
+
+
+def held_out_findings(held, *, noise_rel=None, noise_abs=None):
+    """Findings of the surrogate's check on held-out FE runs.
+
+    Parameters
+    ----------
+    held : dict
+        The held-out stage's JSON: :meth:`HeldOutReport.summary` plus ``rms_abs_error_mm``.
+    noise_rel : float, optional
+        Relative measurement noise δ (-).
+    noise_abs : float or dict of str to float, optional
+        Absolute measurement noise σ, mm (per sensor: the smallest counts).
+    """
+    found = []
+    more = "add training snapshots ([sampling] train.n, e.g. double it) or narrow the parameter bounds, and run again."
+    if noise_rel is not None and held["rel_error"]["median"] > noise_rel:
+        found.append(Finding(
+            "surrogate-error", "held-out",
+            f"the surrogate's median error on the held-out FE runs ({100 * held['rel_error']['median']:.2f} %) "
+            f"exceeds the measurement noise ({100 * noise_rel:g} %): the identification is limited by the surrogate.",
+            more))
+    elif noise_abs is not None:
+        sigma = min(noise_abs.values()) if isinstance(noise_abs, dict) else noise_abs
+        if held["rms_abs_error_mm"] > sigma:
+            found.append(Finding(
+                "surrogate-error", "held-out",
+                f"the surrogate's RMS error on the held-out FE runs ({held['rms_abs_error_mm']:.3g} mm) exceeds the "
+                f"measurement noise (σ = {sigma:g} mm): the identification is limited by the surrogate.",
+                more))
+    if held["coverage_2sigma"] < COVERAGE_LIMIT:
+        found.append(Finding(
+            "surrogate-coverage", "held-out",
+            f"only {100 * held['coverage_2sigma']:.0f} % of the held-out FE readings lie within ±2σ of the "
+            "surrogate: its error bars are too narrow, so the region of equivalence may be too small.",
+            "add training snapshots, or set a small [surrogate] nugget (e.g. 1e-6)."))
+    return found
+
+
+def diagnosis_findings(d):
+    """Findings of a model diagnosis (``d``: :meth:`podkrig.diagnosis.Diagnosis.to_dict`)."""
+    if d["verdict"] == "adequate":
+        return []
+    if d["cause"] is None:
+        return [Finding(
+            "diagnosis-unexplained", "diagnosis",
+            f"the calibrated model does not explain the data (χ²/dof = {d['base']['chi2_dof']:.2f}) and no "
+            "candidate cause in the library explains the residual.",
+            "check the noise level and the measurement file; read the residual pattern in the diagnosis report "
+            "for an effect outside the library (nonlinearity, another test set-up).")]
+    where = f" at {d['detail']['location']}" if d["detail"] else ""
+    gain = (f" (χ²/dof {d['gain']['chi2_dof_before']:.2f} → {d['gain']['chi2_dof_after']:.2f} with it)"
+            if d["gain"] else "")
+    return [Finding(
+        "diagnosis-cause", "diagnosis",
+        f"the calibrated model leaves out a physical effect: the diagnosis names {d['cause']}{where}{gain}.",
+        "read the diagnosis report; add the effect to the model (or repair the named sensor or set-up) "
+        "and calibrate again: the parameters identified without it are biased.")]
+
+
+__all__ = [
+    "AT_BOUND_SHARE", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding", "UNIDENTIFIABLE_SHARE",
+    "at_bound", "diagnosis_findings", "fe_check_ok", "held_out_findings", "identifiability_verdict",
+    "inversion_findings", "offline_findings",
+]

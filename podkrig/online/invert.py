@@ -1,0 +1,282 @@
+"""Identify the free parameters of an :class:`~podkrig.online.problem.InverseProblem`.
+
+:func:`invert` minimises the misfit ω(m) of thesis eq. (2.13) with the genetic algorithm
+(:mod:`podkrig.ga`, thesis ch. 3) and polishes the best individual, and the best distinct
+points of a Sobol' screen, by bounded least squares on the whitened residuals (the GA finds the
+basin, Gauss–Newton finishes it). :func:`fe_check` runs the FE model once at the optimum to
+measure how far the surrogate is from it there. Both return objects with ``to_dict`` /
+``from_dict`` (:class:`InverseResult`, :class:`FECheck`).
+"""
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from podkrig._qmc import scrambled_sobol
+from podkrig.parallel import one_blas_thread
+from podkrig.ga import GeneticAlgorithm
+from podkrig.online.findings import at_bound, fe_check_ok
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class FECheck:
+    """One FE run at the optimum compared with the surrogate, at the observed entries.
+
+    Attributes
+    ----------
+    max_abs_diff : float
+        max |FE − surrogate|, mm.
+    max_diff_over_noise : float
+        Largest |FE − surrogate| / σ_noise (-).
+    rel_diff : float
+        ‖FE − surrogate‖ / ‖FE‖ (-).
+    chi2_dof_fe : float
+        χ²/dof of the FE prediction against the data, noise only (-).
+    ok : bool
+        The difference is within the noise (:data:`~podkrig.online.findings.FE_CHECK_LIMIT`).
+    fe_readings : ndarray of shape (n_obs,) or None
+        FE readings at the observed entries, mm (not part of :meth:`to_dict`).
+    """
+
+    max_abs_diff: float
+    max_diff_over_noise: float
+    rel_diff: float
+    chi2_dof_fe: float
+    ok: bool
+    fe_readings: np.ndarray | None = None
+
+    def to_dict(self):
+        """The numbers, without the FE readings (JSON-able)."""
+        return {"max_abs_diff": self.max_abs_diff, "max_diff_over_noise": self.max_diff_over_noise,
+                "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe, "ok": self.ok}
+
+    @classmethod
+    def from_dict(cls, d):
+        return cls(float(d["max_abs_diff"]), float(d["max_diff_over_noise"]), float(d["rel_diff"]),
+                   float(d["chi2_dof_fe"]), bool(d["ok"]))
+
+
+@dataclass(frozen=True, eq=False)
+class InverseResult:
+    """Outcome of :func:`invert`.
+
+    Attributes
+    ----------
+    x : ndarray of shape (n_free,)
+        Best free parameters, physical units.
+    parameters : dict of str to float
+        Every model parameter at the optimum (free and fixed); only the free ones for a result
+        read back with :meth:`from_dict`.
+    misfit : float
+        ω(m*) (thesis eq. 2.13).
+    chi2 : float
+        Data term (g − d)ᵀ C_D⁻¹ (g − d) at m*.
+    dof : int
+        n_obs − n_free.
+    n_evaluations : int
+        Model evaluations (GA and polish).
+    seconds : float
+    free, units : tuple of str
+        Names and units of the free parameters.
+    at_bound : tuple of str
+        Free parameters whose best fit lies on a bound of the search range
+        (:func:`~podkrig.online.findings.at_bound`).
+    measurement : dict
+        ``file``, ``sensors``, ``load_levels``, ``load_unit``, ``n_obs`` of the data.
+    problem : InverseProblem or None
+        None for a result read back with :meth:`from_dict`.
+    ga : GAResult or None
+    fe_check : FECheck or None
+        Set by :meth:`with_fe_check`.
+    """
+
+    x: np.ndarray
+    parameters: dict
+    misfit: float
+    chi2: float
+    dof: int
+    n_evaluations: int
+    seconds: float
+    free: tuple
+    units: tuple
+    at_bound: tuple
+    measurement: dict
+    problem: object = None
+    ga: object = None
+    fe_check: FECheck | None = None
+
+    @property
+    def chi2_dof(self):
+        """χ² per degree of freedom (≈ 1 when the model explains the data within the noise)."""
+        return self.chi2 / max(self.dof, 1)
+
+    @property
+    def free_parameters(self):
+        """The free parameters at the optimum, ``{name: value}`` physical units."""
+        return {n: float(v) for n, v in zip(self.free, self.x)}
+
+    def predicted(self):
+        """Model prediction at the observed entries, ``(n_loads_obs, n_sensors_obs)`` mm, and its std."""
+        if self.problem is None:
+            raise ValueError("this result was read back from a dict and has no problem: predictions need the model")
+        mean, std = self.problem.misfit.predict(self.x[None])
+        shape = self.problem.measurement.values.shape
+        return mean[0].reshape(shape), None if std is None else std[0].reshape(shape)
+
+    def with_fe_check(self, scenario):
+        """This result with :func:`fe_check` against ``scenario`` attached (one FE run)."""
+        return dataclasses.replace(self, fe_check=fe_check(self, scenario))
+
+    def to_dict(self):
+        """JSON-able numbers: ``x``, ``parameters`` (free), ``units``, ``at_bound``, ``misfit``,
+        ``chi2``, ``dof``, ``chi2_dof``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
+        return {
+            "x": self.x.tolist(),
+            "parameters": self.free_parameters,
+            "units": dict(zip(self.free, self.units)),
+            "at_bound": list(self.at_bound),
+            "misfit": self.misfit, "chi2": self.chi2, "dof": self.dof, "chi2_dof": self.chi2_dof,
+            "n_evaluations": self.n_evaluations, "seconds": self.seconds,
+            "measurement": self.measurement,
+            "fe_check": None if self.fe_check is None else self.fe_check.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, d, *, problem=None, ga=None):
+        """Read back :meth:`to_dict` (``problem`` and ``ga`` may be attached again)."""
+        free = tuple(d["parameters"])
+        return cls(
+            np.asarray(d["x"], dtype=float), dict(d["parameters"]), float(d["misfit"]), float(d["chi2"]),
+            int(d["dof"]), int(d["n_evaluations"]), float(d["seconds"]), free, tuple(d["units"][n] for n in free),
+            tuple(d["at_bound"]), dict(d["measurement"]), problem, ga,
+            None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]),
+        )
+
+
+def invert(problem, *, rng=0, population_size=100, generations=100, polish=True, n_starts=6, **ga_options):
+    """Identify the free parameters: GA on ω(m), then least-squares polishes.
+
+    Parameters
+    ----------
+    problem : InverseProblem
+    rng : int or numpy.random.Generator
+        Seed of the GA (recorded in the GA result).
+    population_size, generations : int
+        GA budget: ``population_size × (generations + 1)`` evaluations at most
+        (100 × 100 by default, well under a second on the surrogate). The GA runs to this
+        budget by design (the polish finishes the job), so a budget stop is no warning here.
+    polish : bool
+        Finish with bounded least squares (recommended).
+    n_starts : int
+        Least-squares polishes from the GA's best and from the ``n_starts - 1`` best mutually
+        distant points (at least 0.15 apart in the unit cube) of a 1024-point Sobol' screen of
+        the box; the lowest misfit wins. Misfits of masonry
+        tests have spurious basins on the faces of the box (where the surrogate variance is
+        large), into which a GA run can converge; these polishes recover the global one for a
+        few thousand cheap surrogate evaluations.
+    **ga_options
+        Further options of :class:`podkrig.ga.GeneticAlgorithm`.
+
+    Returns
+    -------
+    InverseResult
+    """
+    t0 = time.perf_counter()
+    with one_blas_thread():  # small BLAS calls: see podkrig.parallel
+        # the steppable GA, not podkrig.ga.minimize: minimize warns when a run stops on its budget,
+        # and running to the generation budget is the plan here
+        ga = GeneticAlgorithm(problem.omega, problem.free_space, rng=rng, population_size=population_size,
+                              max_generations=generations, **ga_options).run()
+        x, n_eval = np.asarray(ga.x, dtype=float), ga.nfev
+        if polish:
+            x, n_eval = _polish_from_starts(problem, ga, x, n_eval, rng, n_starts)
+    omega = float(problem.omega(x[None])[0])
+    chi2 = float(problem.misfit.chi2(x[None])[0])
+    params = dict(zip(problem.model.space.names, problem.full(x[None])[0].tolist()))
+    seconds = time.perf_counter() - t0
+    dof = problem.n_obs - problem.n_free
+    logger.info("inversion: omega=%.4g chi2/dof=%.3g in %.3f s (%d evaluations)", omega, chi2 / max(dof, 1), seconds, n_eval)
+    space = problem.free_space
+    meas = problem.measurement
+    measurement = {"file": str(meas.source), "sensors": list(meas.sensor_names), "load_levels": meas.load_levels.tolist(),
+                   "load_unit": getattr(problem.model, "load_unit", "kN"), "n_obs": problem.n_obs}
+    return InverseResult(x, params, omega, chi2, dof, n_eval, seconds, tuple(problem.free), tuple(space.units),
+                         tuple(at_bound(space.names, space.to_unit(x[None])[0])), measurement, problem, ga)
+
+
+def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
+    """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
+    returns the best point and the updated evaluation count."""
+    best_omega = ga.fun
+    screen = problem.free_space.from_unit(scrambled_sobol(1024, problem.n_free, rng_seed(rng)))
+    screen_omega = problem.omega(screen)
+    n_eval += len(screen)
+    starts = np.vstack([x[None], _distinct_starts(problem, screen, screen_omega, n_starts - 1)])
+    for x0 in starts:
+        x_pol, n_pol = problem.polish(x0)
+        n_eval += n_pol
+        omega_pol = problem.omega(x_pol[None])[0]
+        if omega_pol < best_omega:
+            x, best_omega = x_pol, omega_pol
+    return x, n_eval
+
+
+def rng_seed(rng):
+    """An integer seed derived from ``rng`` (int or Generator) for a scrambled Sobol' engine."""
+    if isinstance(rng, np.random.Generator):
+        return int(rng.integers(2**31))
+    return rng
+
+
+def _distinct_starts(problem, X, omega, k, min_distance=0.15):
+    """The best of ``X`` and up to ``k - 1`` more of the best, each at least ``min_distance``
+    (unit cube, max norm) from those already chosen; physical units."""
+    order = np.argsort(omega, kind="stable")
+    U = problem.free_space.to_unit(X[order])
+    chosen = [0]
+    for i in range(1, len(U)):
+        if len(chosen) >= k:
+            break
+        if np.min(np.max(np.abs(U[chosen] - U[i]), axis=1)) >= min_distance:
+            chosen.append(i)
+    return X[order][chosen]
+
+
+def fe_check(result, scenario):
+    """One FE run at the optimum: the surrogate-vs-FE difference at the observed entries.
+
+    Parameters
+    ----------
+    result : InverseResult
+    scenario : fe.Scenario
+        The scenario the surrogate was trained on.
+
+    Returns
+    -------
+    FECheck
+    """
+    problem = result.problem
+    fe = scenario.run(result.parameters).readings.ravel()
+    idx = problem.misfit.output_indices
+    fe_obs = fe[idx]
+    mean, _ = problem.misfit.predict(result.x[None])
+    diff = fe_obs - mean[0]
+    sd = problem.misfit.noise_std
+    resid = (fe_obs - problem.measurement.data) / sd
+    over_noise = float(np.max(np.abs(diff) / sd))
+    return FECheck(
+        max_abs_diff=float(np.max(np.abs(diff))),
+        max_diff_over_noise=over_noise,
+        rel_diff=float(np.linalg.norm(diff) / np.linalg.norm(fe_obs)),
+        chi2_dof_fe=float(resid @ resid / max(result.dof, 1)),
+        ok=fe_check_ok(over_noise),
+        fe_readings=fe_obs,
+    )
+
+
+__all__ = ["FECheck", "InverseResult", "fe_check", "invert", "rng_seed"]

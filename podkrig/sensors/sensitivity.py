@@ -1,0 +1,227 @@
+"""Readings and parameter sensitivities of every candidate sensor from one FE solve per point.
+
+The linear mesoscale model has a stiffness affine in its parts and loads linear in the load level
+(:mod:`fe.assembly`, :mod:`fe.model`):
+
+.. math::
+
+    \\mathbf K(\\mathbf m)\\, \\mathbf q = \\mathbf f, \\qquad
+    \\mathbf K(\\mathbf m) = \\sum_q θ_q(\\mathbf m)\\, \\mathbf K_q, \\qquad
+    \\frac{\\partial \\mathbf q}{\\partial m_j}
+      = -\\mathbf K^{-1} \\Big(\\sum_q \\frac{\\partial θ_q}{\\partial m_j} \\mathbf K_q\\Big) \\mathbf q .
+
+So one factorisation per parameter point gives the displacement field and, with ``n_params`` more
+back-substitutions on the same factors, its exact parameter derivatives. Every candidate's reading
+is a linear operator on the field (``H`` of :func:`fe.sensors.sensor_operator`), so readings and
+sensitivities of *all* candidates cost one sparse product: no FE run per candidate or per layout.
+
+``∂θ/∂m`` comes from central differences of the scenario's ``theta`` (exact to round-off for
+the masonry scenarios, whose θ is linear in each parameter). Sensitivities are returned with
+respect to the *unit* coordinates ``u`` of the parameter space (log-scaled parameters in log10),
+which is the scaling the criteria use: ``∂m/∂u = b − a`` (linear) or ``m ln(b/a)`` (log).
+"""
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from fe.sensors import sensor_operator
+from podkrig.offline.sampling import sobol
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class Sensitivities:
+    """Readings and sensitivities of the candidate sensors at a set of parameter points.
+
+    Attributes
+    ----------
+    X : ndarray of shape (n_points, n_params)
+        Parameter points (free parameters), physical units.
+    readings : ndarray of shape (n_points, n_loads, n_channels)
+        Readings of every candidate channel, mm.
+    jacobian : ndarray of shape (n_points, n_loads, n_channels, n_params)
+        ``∂ reading / ∂ u_j``, mm per unit coordinate of the free space.
+    channel_sensor : ndarray of shape (n_channels,)
+        Index of the candidate each channel belongs to.
+    channel_names : tuple of str
+    candidates : CandidateSet
+    space : ParameterSpace
+        The free parameters.
+    fixed : dict of str to float
+        Values of the scenario's other parameters (the rest keep the scenario defaults).
+    load_levels : ndarray of shape (n_loads,)
+    load_unit : str
+    seconds : float
+        Wall time of the computation, s.
+    """
+
+    X: np.ndarray
+    readings: np.ndarray
+    jacobian: np.ndarray
+    channel_sensor: np.ndarray
+    channel_names: tuple
+    candidates: object
+    space: object
+    fixed: dict
+    load_levels: np.ndarray
+    load_unit: str
+    seconds: float
+
+    @property
+    def n_points(self):
+        return self.X.shape[0]
+
+    @property
+    def n_params(self):
+        return self.X.shape[1]
+
+    def channels_of(self, indices):
+        """Channel indices of the candidates ``indices`` (in candidate order)."""
+        indices = np.atleast_1d(np.asarray(indices, dtype=np.intp))
+        return np.concatenate([np.flatnonzero(self.channel_sensor == i) for i in indices])
+
+
+def prior_points(space, n, seed=0):
+    """``n`` scrambled Sobol' points of the free parameters' box (unit → physical), ``(n, n_params)``."""
+    return space.from_unit(sobol(n, space.n_params, seed))
+
+
+def _dtheta_dm(scenario, values, names, rel_step=1e-6):
+    """``∂θ/∂m_j`` by central differences, ``(n_free, n_parts)``."""
+    out = []
+    for name in names:
+        m = values[name]
+        h = rel_step * max(abs(m), 1e-12)
+        plus, minus = dict(values), dict(values)
+        plus[name], minus[name] = m + h, m - h
+        out.append((scenario.theta(plus) - scenario.theta(minus)) / (2 * h))
+    return np.array(out)
+
+
+def _dm_du(space, x):
+    """``∂m/∂u`` of each free parameter at ``x`` (physical), ``(n_params,)``."""
+    lo, hi = space.lower, space.upper
+    log = np.array([s == "log" for s in space.scales])
+    return np.where(log, x * np.log(hi / np.where(log, lo, 1.0)), hi - lo)
+
+
+def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progress=None):
+    """Readings and unit-coordinate sensitivities of all candidates at the points ``X``.
+
+    Parameters
+    ----------
+    scenario : fe.scenarios.Scenario
+        A linear scenario with an affine stiffness (``scenario.model.stiffness``).
+    space : ParameterSpace
+        Free parameters (names of the scenario's parameters) with bounds and scales.
+    candidates : CandidateSet
+    X : array_like of shape (n_points, n_params)
+        Parameter points, physical units.
+    fixed : dict of str to float, optional
+        Values of other scenario parameters.
+    progress : callable, optional
+        ``progress(done, total)`` after each point.
+
+    Returns
+    -------
+    Sensitivities
+
+    Raises
+    ------
+    ValueError
+        A scenario without an affine linear model, unknown parameter names.
+    """
+    model = getattr(scenario, "model", None)
+    if model is None or not hasattr(model, "stiffness"):
+        raise ValueError(f"scenario {scenario.name!r} has no affine linear model; sensor placement needs "
+                         "the linear FE model (nonlinear scenarios: use a surrogate of the candidates)")
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    names = space.names
+    unknown = [n for n in list(names) + list(fixed or {}) if n not in scenario.parameters]
+    if unknown:
+        raise ValueError(f"unknown parameter(s) {unknown} of {scenario.name}; known: {list(scenario.parameters)}")
+    t0 = time.perf_counter()
+    H, channel_names = sensor_operator(scenario.mesh, candidates.sensors)
+    obs = (H @ model.transform).tocsr()
+    channel_sensor = np.repeat(np.arange(len(candidates)), [len(s.channel_names) for s in candidates.sensors])
+    stiff = model.stiffness
+    C = np.asarray(scenario.load_coefficients, dtype=float)  # (n_loads, n_patterns)
+    n_pat, p = model.rhs.shape[1], len(names)
+    readings = np.empty((len(X), C.shape[0], len(channel_names)))
+    jac = np.empty((len(X), C.shape[0], len(channel_names), p))
+    for k, x in enumerate(X):
+        values = scenario.resolve({**(fixed or {}), **dict(zip(names, x.tolist()))})
+        theta = scenario.theta(values)
+        dtheta = _dtheta_dm(scenario, values, names)  # (p, n_parts)
+        model.solver.factorize(stiff.values(theta))
+        Q = model.solver.solve(model.rhs).reshape(model.n_dofs, n_pat)
+        R = np.empty((model.n_dofs, p * n_pat))
+        for j in range(p):
+            dK = sp.csr_matrix((dtheta[j] @ stiff.data, stiff.indices, stiff.indptr), shape=(stiff.n, stiff.n))
+            R[:, j * n_pat:(j + 1) * n_pat] = -(dK @ Q)
+        dQ = model.solver.solve(R).reshape(model.n_dofs, p * n_pat)
+        readings[k] = C @ np.asarray(obs @ Q).T
+        dR = np.asarray(obs @ dQ).reshape(len(channel_names), p, n_pat)  # channel, param, pattern
+        jac[k] = np.einsum("lp,cjp->lcj", C, dR) * _dm_du(space, x)
+        if progress is not None:
+            progress(k + 1, len(X))
+    seconds = time.perf_counter() - t0
+    logger.info("sensitivities of %d candidates at %d points in %.2f s", len(candidates), len(X), seconds)
+    return Sensitivities(X, readings, jac, channel_sensor, tuple(channel_names), candidates, space,
+                         dict(fixed or {}), np.asarray(scenario.load_levels, float), scenario.load_unit, seconds)
+
+
+def model_sensitivities(model, candidates, X, *, step=1e-4, progress=None):
+    """Readings and sensitivities of the candidates from any batched model of their readings — a
+    POD-kriging surrogate (e.g. :class:`podkrig.online.problem.SurrogateModel` of a store whose
+    scenario spec lists every candidate as a sensor) or :class:`podkrig.online.problem.FEModel` —
+    by central differences in the unit cube (one-sided at the box faces). This is the path for
+    scenarios without an affine linear model (nonlinear ones): no solver internals are needed.
+
+    Parameters
+    ----------
+    model : object
+        ``space`` (the free parameters), ``sensor_names`` (the candidates' channel names, in
+        candidate order), ``load_levels`` and ``predict(X) -> (n, n_loads * n_channels)`` mm.
+    candidates : CandidateSet
+    X : array_like of shape (n_points, n_params)
+    step : float
+        Difference step in unit coordinates.
+    progress : callable, optional
+        ``progress(done, total)`` after each point.
+
+    Returns
+    -------
+    Sensitivities
+    """
+    t0 = time.perf_counter()
+    space = model.space
+    names = tuple(n for s in candidates.sensors for n in s.channel_names)
+    if tuple(model.sensor_names) != names:
+        raise ValueError("the model's sensors must be the candidates' channels in candidate order "
+                         f"(first expected {list(names[:3])}, got {list(model.sensor_names[:3])}): build its "
+                         "snapshots with the candidates as the scenario's sensors")
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    p, n_l, n_ch = space.n_params, len(model.load_levels), len(names)
+    readings = np.empty((len(X), n_l, n_ch))
+    jac = np.empty((len(X), n_l, n_ch, p))
+    for k, u in enumerate(space.to_unit(X)):
+        U = np.repeat(u[None], 1 + 2 * p, axis=0)
+        idx = np.arange(p)
+        U[1 + 2 * idx, idx] = np.minimum(u + step, 1.0)
+        U[2 + 2 * idx, idx] = np.maximum(u - step, 0.0)
+        Y = np.asarray(model.predict(space.from_unit(U))).reshape(1 + 2 * p, n_l, n_ch)
+        readings[k] = Y[0]
+        h = U[1 + 2 * idx, idx] - U[2 + 2 * idx, idx]
+        jac[k] = np.moveaxis((Y[1::2] - Y[2::2]) / h[:, None, None], 0, -1)
+        if progress is not None:
+            progress(k + 1, len(X))
+    channel_sensor = np.repeat(np.arange(len(candidates)), [len(s.channel_names) for s in candidates.sensors])
+    return Sensitivities(X, readings, jac, channel_sensor, names, candidates, space, {},
+                         np.asarray(model.load_levels, float), getattr(model, "load_unit", "kN"),
+                         time.perf_counter() - t0)

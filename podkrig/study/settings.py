@@ -1,0 +1,394 @@
+"""Settings of a study file, declared once: types, ranges, allowed values and defaults.
+
+Each table of the study file is a frozen pydantic dataclass (:mod:`pydantic.dataclasses`, so
+:func:`dataclasses.asdict` and ``dataclasses.replace`` work on them as on plain dataclasses).
+A field states its type (strict: TOML's own types, no coercion from strings or booleans), its
+range or allowed values and, in ``json_schema_extra["allowed"]``, the words the checker
+(:mod:`podkrig.study.schema`) shows a user who got it wrong. Rules that tie two keys together
+raise :func:`study_error`, which the checker turns into the same message form.
+
+The tables whose keys depend on the scenario (``[scenario]``, the parameter names of
+``[parameters]`` and ``[fixed]``, their physical ranges) are checked by the checker against the
+FE scenario registry; here only their shape is declared.
+"""
+
+import dataclasses
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import (
+    AfterValidator,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    StrictStr,
+)
+from pydantic.dataclasses import dataclass as pydantic_dataclass
+from pydantic_core import PydanticCustomError
+
+from podkrig.online.measurement import NoiseModel
+from podkrig.parameters import SCALES, ParameterSpace
+
+__all__ = [
+    "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
+    "Design", "DiagnosisSettings", "InversionSettings", "MeasurementSettings", "Study",
+    "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error", "type_name",
+]
+
+VARIOGRAMS = ("exponential", "power")
+CRITERIA = ("ml", "loo")
+BETA_MODES = ("fit", "fit-shared")
+REGION_METHODS = ("likelihood-ratio", "noise-mc")
+#: sampling designs; "lhs-ese" is SMT's optimised Latin hypercube (enhanced stochastic evolution)
+SAMPLING_METHODS = ("sobol", "lhs", "random", "lhs-ese")
+#: surrogate backends behind the one surrogate interface (issue 12, item 5)
+BACKENDS = ("podkrig", "smt-krg", "smt-kpls", "sklearn-gpr")
+
+_TABLE = ConfigDict(extra="forbid")  # an unknown key is an error
+_settings = pydantic_dataclass(frozen=True, config=_TABLE)
+
+
+def type_name(value):
+    """The TOML name of a value's type, for messages ("integer", "table", …)."""
+    return {bool: "boolean", int: "integer", float: "number", str: "string", dict: "table",
+            list: "array"}.get(type(value), type(value).__name__)
+
+
+def study_error(message, key=None, allowed=None):
+    """An error of a rule that ties keys together, for the checker to place and word.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong (e.g. "give either energy or modes, not both").
+    key : str, tuple or None
+        Key path, relative to the table being validated, that the message names (None: the
+        table or the field being validated).
+    allowed : str or None
+        What is allowed, in words.
+    """
+    key = () if key is None else ((key,) if isinstance(key, str) else tuple(key))
+    return PydanticCustomError("study", "{message}", {"message": message, "key": key, "allowed": allowed})
+
+
+def _allowed(text, **constraints):
+    """Field constraints with the words the checker shows when they are broken."""
+    return Field(json_schema_extra={"allowed": text}, **constraints)
+
+
+def _one_of(choices):
+    def check(value):
+        if value not in choices:
+            raise ValueError("not one of the allowed values")
+        return value
+
+    return AfterValidator(check)
+
+
+def _choice(choices, text=None):
+    return Annotated[StrictStr, _one_of(choices), _allowed(text or ", ".join(choices))]
+
+
+def _finite(value):
+    if not math.isfinite(value):
+        raise ValueError("not finite")
+    return value
+
+
+Seed = Annotated[StrictInt, _allowed("an integer >= 0", ge=0)]
+
+
+# ---------------------------------------------------------------------------------------------
+# sampling
+
+
+@_settings
+class Design:
+    """A seeded sampling design: ``n`` points by ``method`` with ``seed``."""
+
+    n: Annotated[StrictInt, _allowed("an integer >= 1 (FE runs)", ge=1)]
+    seed: Seed
+    method: _choice(SAMPLING_METHODS) = "sobol"
+
+
+@_settings
+class TrainingDesign(Design):
+    """A design that trains a surrogate (training set, validation models): at least 4 points."""
+
+    n: Annotated[StrictInt, _allowed("an integer >= 4 (FE runs)", ge=4)]
+
+
+@_settings
+class SamplingSettings:
+    """The ``[sampling]`` table: designs and where the FE runs go (``workers`` or ``scheduler``)."""
+
+    train: TrainingDesign
+    held_out: Design
+    workers: Annotated[StrictInt, _allowed("an integer >= 1 (FE processes; 1 runs them in this process)",
+                                           ge=1)] | None = None
+    scheduler: Annotated[StrictStr, AfterValidator(lambda v: v if "://" in v else _raise()),
+                         _allowed("a Dask scheduler address such as 'tcp://10.0.0.5:8786'")] | None = None
+
+    def __post_init__(self):
+        if self.scheduler is not None and self.workers is not None:
+            raise study_error("give either workers (local processes) or scheduler (a Dask cluster), not both",
+                              "workers")
+        if self.scheduler is None and self.workers is None:
+            object.__setattr__(self, "workers", 1)
+
+
+def _raise():
+    raise ValueError("out of range")
+
+
+# ---------------------------------------------------------------------------------------------
+# surrogate
+
+_BETA_ALLOWED = "a number in (0, 2] (below 2 for the power variogram), \"fit\" or \"fit-shared\""
+
+
+@_settings
+class SurrogateSettings:
+    """POD truncation (``energy`` or ``modes``), kriging settings (see ``podkrig surrogate build``)
+    and the surrogate ``backend``."""
+
+    energy: Annotated[StrictFloat, _allowed("a number in (0, 1], e.g. 0.99999999", gt=0, le=1)] | None = None
+    modes: Annotated[StrictInt, _allowed("an integer >= 1", ge=1)] | None = None
+    variogram: _choice(VARIOGRAMS) = "exponential"
+    beta: Annotated[Any, _allowed(_BETA_ALLOWED)] = "fit-shared"
+    criterion: _choice(CRITERIA) = "ml"
+    nugget: Annotated[StrictFloat, AfterValidator(_finite), _allowed("a number >= 0 (relative to the sill)", ge=0)] = 0.0
+    backend: _choice(BACKENDS) = "podkrig"
+
+    def __post_init__(self):
+        if self.energy is not None and self.modes is not None:
+            raise study_error("give either energy or modes, not both", "modes")
+        beta = self.beta
+        if isinstance(beta, str):
+            if beta not in BETA_MODES:
+                raise study_error(f"{beta!r} is not a known exponent setting", "beta", _BETA_ALLOWED)
+            return
+        if isinstance(beta, bool) or not isinstance(beta, int | float):
+            raise study_error(f"must be a number; got {type_name(beta)} {beta!r}", "beta", _BETA_ALLOWED)
+        if not (0 < beta <= 2 and (self.variogram != "power" or beta < 2)):
+            raise study_error(f"{beta!r} is out of range", "beta", _BETA_ALLOWED)
+        object.__setattr__(self, "beta", float(beta))
+
+
+# ---------------------------------------------------------------------------------------------
+# measurement
+
+_NOISE_ALLOWED = ("exactly one of noise_rel = δ in (0, 1) or noise_abs = σ > 0 mm (a number, or a table "
+                  "sensor = σ)")
+
+
+def _measurement_file(value, info):
+    """The measurement file, resolved against the study file's folder (validation context
+    ``{"folder": Path}``; the working folder without one)."""
+    if not isinstance(value, str | Path):
+        raise study_error(f"must be a string; got {type_name(value)} {value!r}")
+    folder = (info.context or {}).get("folder", Path.cwd())
+    full = (Path(folder) / value).resolve()
+    if not full.is_file():
+        raise study_error(f"no measurement file at {full}", allowed="a CSV file (first column 'load', then one "
+                          "column per sensor, mm), relative to the study file")
+    return full
+
+
+def _noise_abs(value):
+    if isinstance(value, dict):
+        if not value:
+            raise study_error("empty table", allowed=_NOISE_ALLOWED)
+        for sensor, sigma in value.items():
+            if isinstance(sigma, bool) or not isinstance(sigma, int | float):
+                raise study_error(f"must be a number; got {type_name(sigma)} {sigma!r}", sensor, "σ > 0 mm")
+            if not sigma > 0 or not math.isfinite(sigma):
+                raise study_error(f"{sigma!r} is out of range", sensor, "σ > 0 mm")
+        return {k: float(v) for k, v in value.items()}
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise study_error(f"must be a number; got {type_name(value)} {value!r}", allowed=_NOISE_ALLOWED)
+    if not value > 0 or not math.isfinite(value):
+        raise study_error(f"{value!r} is out of range", allowed=_NOISE_ALLOWED)
+    return float(value)
+
+
+@_settings
+class MeasurementSettings:
+    """The measurement CSV (absolute path) and its noise model.
+
+    ``noise_rel`` is a relative level δ (σ_i = δ |d_i|); ``noise_abs`` an absolute σ in mm, one
+    for all sensors (float) or one per sensor (dict). Exactly one of them is set. Validating a
+    table needs the study file's folder in the context (``{"folder": Path}``); constructing
+    one in code takes an existing file.
+    """
+
+    file: Annotated[Path, BeforeValidator(_measurement_file)]
+    noise_rel: Annotated[StrictFloat, _allowed(_NOISE_ALLOWED, gt=0, lt=1)] | None = None
+    noise_abs: Annotated[Any, AfterValidator(lambda v: None if v is None else _noise_abs(v))] = None
+
+    def __post_init__(self):
+        given = [k for k in ("noise_rel", "noise_abs") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise study_error("give exactly one noise model", given[1] if given else None, _NOISE_ALLOWED)
+
+    def noise_model(self):
+        """The :class:`~podkrig.online.measurement.NoiseModel` of these settings."""
+        if self.noise_rel is not None:
+            return NoiseModel(delta=self.noise_rel)
+        return NoiseModel(sigma=self.noise_abs)
+
+    def noise_text(self):
+        """The noise model in words, with units."""
+        if self.noise_rel is not None:
+            return f"relative, δ = {self.noise_rel:g} (σ = {100 * self.noise_rel:g} % of each reading)"
+        if isinstance(self.noise_abs, dict):
+            return "absolute σ per sensor: " + ", ".join(f"{k} {v:g} mm" for k, v in self.noise_abs.items())
+        return f"absolute, σ = {self.noise_abs:g} mm"
+
+
+# ---------------------------------------------------------------------------------------------
+# inversion and diagnosis
+
+
+@_settings
+class InversionSettings:
+    """GA inversion and region of equivalence settings (see :func:`podkrig.online.invert.invert`)."""
+
+    seed: Seed = 0
+    population_size: Annotated[StrictInt, _allowed("an integer >= 4", ge=4)] = 100
+    generations: Annotated[StrictInt, _allowed("an integer >= 1", ge=1)] = 100
+    n_starts: Annotated[StrictInt, _allowed("an integer >= 1 (least-squares polishes)", ge=1)] = 6
+    confidence: Annotated[StrictFloat, _allowed("a number in (0, 1), e.g. 0.95", gt=0, lt=1)] = 0.95
+    region_method: _choice(REGION_METHODS) = "likelihood-ratio"
+    region_samples: Annotated[StrictInt, _allowed("an integer >= 1024 (surrogate evaluations per sampling round)",
+                                                  ge=1024)] = 2**17
+    fe_check: StrictBool = True
+
+
+@_settings
+class DiagnosisSettings:
+    """Model diagnosis on or off, and its seed."""
+
+    enabled: StrictBool = False
+    seed: Seed = 0
+
+
+# ---------------------------------------------------------------------------------------------
+# the file's shape (scenario-dependent parts are checked by the checker)
+
+_NAME_ALLOWED = "letters, digits, '_' and '-' (it names files), other than 'calibration'"
+
+
+def _outputs(value):
+    if value is not None and (not isinstance(value, list) or not value
+                              or not all(isinstance(o, str) and "@" in o for o in value)):
+        raise study_error(f"must be a non-empty array of 'SENSOR@LOAD' strings; got {value!r}",
+                          allowed="e.g. [\"top_ux@40\", \"D1@40\"]")
+    return None if value is None else tuple(value)
+
+
+@_settings
+class ValidationEntry:
+    """One ``[[validation]]`` table as written (the scenario is resolved by the checker)."""
+
+    name: Annotated[StrictStr, AfterValidator(
+        lambda v: v if re.fullmatch(r"[A-Za-z0-9_-]+", v) and v != "calibration" else _raise()),
+        _allowed(_NAME_ALLOWED)]
+    scenario: Any
+    n: Annotated[StrictInt, _allowed("an integer >= 4 (FE runs)", ge=4)]
+    seed: Seed
+    method: _choice(SAMPLING_METHODS) = "sobol"
+    outputs: Annotated[Any, AfterValidator(_outputs)] = None
+
+
+@_settings
+class Bounds:
+    """Bounds of a free parameter in its unit, and its scale (ranges checked by the checker)."""
+
+    lower: StrictFloat
+    upper: StrictFloat
+    scale: _choice(SCALES, " or ".join(SCALES)) = "linear"
+
+
+@_settings
+class StudyFile:
+    """The study file as written: every table's shape (see :mod:`podkrig.study.schema`)."""
+
+    scenario: Any
+    parameters: Annotated[dict[str, Bounds], Field(json_schema_extra={"table": "a table"})]
+    sampling: SamplingSettings
+    measurement: MeasurementSettings
+    name: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
+                    _allowed("a non-empty string")] | None = None
+    fixed: Annotated[dict[str, StrictFloat],
+                     Field(json_schema_extra={"table": "a table of parameter = value"})] = dataclasses.field(
+        default_factory=dict)
+    surrogate: SurrogateSettings = dataclasses.field(default_factory=SurrogateSettings)
+    inversion: InversionSettings = dataclasses.field(default_factory=InversionSettings)
+    validation: Annotated[list[ValidationEntry],
+                          Field(json_schema_extra={"array": "an array of tables ([[validation]])"})] = (
+        dataclasses.field(default_factory=list))
+    diagnosis: DiagnosisSettings = dataclasses.field(default_factory=DiagnosisSettings)
+
+
+# ---------------------------------------------------------------------------------------------
+# the study the pipeline consumes
+
+
+@dataclasses.dataclass(frozen=True)
+class ValidationModel:
+    """A validation scenario for RVC: its spec, design and reported outputs (``SENSOR@LOAD``)."""
+
+    name: str
+    spec: object  # fe.ScenarioSpec
+    design: Design
+    outputs: tuple | None = None
+
+
+@dataclasses.dataclass(frozen=True)
+class Study:
+    """A validated study file.
+
+    Attributes
+    ----------
+    path : Path
+        The study file.
+    name : str
+    spec : fe.ScenarioSpec
+        The calibration scenario, normalised (every option explicit) with the fixed parameters
+        in its ``parameters``.
+    space : ParameterSpace
+        The free parameters (bounds in their units, scales).
+    fixed : dict of str to float
+        Parameters held at a value, in their units.
+    train, held_out : Design
+    workers : int or None
+        FE worker processes (``None`` when ``scheduler`` is given).
+    scheduler : str or None
+        Address of a Dask scheduler for the offline stage.
+    surrogate : SurrogateSettings
+    measurement : MeasurementSettings
+    inversion : InversionSettings
+    validation : tuple of ValidationModel
+    diagnosis : DiagnosisSettings
+    """
+
+    path: Path
+    name: str
+    spec: object
+    space: ParameterSpace
+    fixed: dict
+    train: Design
+    held_out: Design
+    workers: int | None
+    scheduler: str | None
+    surrogate: SurrogateSettings
+    measurement: MeasurementSettings
+    inversion: InversionSettings
+    validation: tuple
+    diagnosis: DiagnosisSettings

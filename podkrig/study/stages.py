@@ -1,0 +1,305 @@
+"""The stages of a study, each run through the stage cache (:mod:`podkrig.study.cache`).
+
+Stages, in order (FE work first, then the online stages)::
+
+    offline                  training snapshots (FE)                  train.h5
+    held_out                 held-out snapshots (FE)                  held_out.h5
+    validation_model.NAME    snapshots and surrogate of a validation  validation_NAME.h5, validation_NAME_surrogate.h5
+                             scenario (FE), one stage per model
+    surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
+    held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
+    inversion                GA + polish, FE check at the optimum     report/fit.png, residuals.png, ga_*.png
+    region                   region of equivalence, identifiability   region.npz, report/region.png
+    rvc                      response variability over the region     report/rvc.png
+    diagnosis                model diagnosis ([diagnosis] enabled)    report/diagnosis/ (its own page)
+
+Each stage function takes the :class:`StudyRun` and records one manifest; the online stages store
+the ``to_dict`` of their result objects and read upstream results back with ``from_dict``.
+"""
+
+import dataclasses
+import logging
+import shutil
+import time
+
+import numpy as np
+
+from fe.scenarios import build_scenario
+from podkrig.diagnosis import diagnose
+from podkrig.exceptions import StoreError
+from podkrig.offline.runner import run_snapshots
+from podkrig.offline.store import SnapshotStore
+from podkrig.online.invert import InverseResult, invert
+from podkrig.online.measurement_csv import read_measurement_csv
+from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
+from podkrig.online.propagation import rvc
+from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.reports import inverse as inverse_figures
+from podkrig.reports import surrogate as surrogate_figures
+from podkrig.reports.diagnosis import write_diagnosis_report
+from podkrig.study.cache import StageCache, file_sha256
+from podkrig.surrogate.backends import make_backend
+from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.surrogate.pod import POD
+from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.validation import held_out_errors
+
+logger = logging.getLogger(__name__)
+
+
+class StudyRun(StageCache):
+    """The stage cache of one :func:`~podkrig.study.run_study` call, with its study and the
+    report folder (``out/report``) where stages draw their figures."""
+
+    def __init__(self, study, out, progress):
+        super().__init__(out, progress)
+        self.study = study
+        self.figures = self.out / "report"
+        self._scenario = None
+
+    def scenario(self):
+        """The calibration scenario, built once (only when a stage needs the FE model)."""
+        if self._scenario is None:
+            self._scenario = build_scenario(self.study.spec)
+        return self._scenario
+
+
+def _run_store(run, path, spec, space, design):
+    """Fill the store at ``path`` (resuming it; rebuilding one written for another design)."""
+    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method, "workers": run.study.workers,
+              "scheduler": run.study.scheduler, "progress": run.progress.advance}
+    notes = []
+    try:
+        summary = run_snapshots(path, spec, space, **kwargs)
+    except StoreError as e:
+        if not path.exists():
+            raise
+        notes.append(f"{path.name} was rebuilt: the existing file did not match this stage's design or was unusable")
+        logger.warning("rebuilding %s: %s", path, e)
+        path.unlink()
+        summary = run_snapshots(path, spec, space, **kwargs)
+    return summary, notes
+
+
+def _store_result(path, summary, notes):
+    with SnapshotStore.open(path) as store:
+        wall = store.wall_times()
+        failures = [f"row {i}: {e}" for i, e in store.errors().items()][:5] if summary.failed else []
+        n_dofs = store.n_dofs
+    ran = wall[np.isfinite(wall)]
+    return {
+        "total": summary.total, "done": summary.done, "failed": summary.failed, "pending": summary.pending,
+        "executor": summary.executor, "n_dofs": n_dofs,
+        "fe_ms_per_run": float(1000 * ran.mean()) if len(ran) else None,
+        "fe_seconds_total": float(ran.sum()),
+        "failures": failures, "notes": notes,
+    }
+
+
+def offline(run, name, title, filename, design):
+    """FE snapshots of a design into ``filename`` (training or held-out): the store's numbers."""
+    study = run.study
+    inputs = {"spec": study.spec.to_dict(), "space": study.space.to_dict(), "design": dataclasses.asdict(design)}
+
+    def compute():
+        path = run.out / filename
+        summary, notes = _run_store(run, path, run.scenario(), study.space, design)
+        return _store_result(path, summary, notes), [filename], summary.ran
+
+    run.stage(name, title, inputs, compute, total=design.n)
+
+
+def _templates(settings):
+    """POD and regression templates of the surrogate settings: ``[surrogate] backend`` chooses
+    ours (the kriging settings apply) or a library's (it fits its own hyperparameters)."""
+    pod = POD(n_modes=settings.modes) if settings.modes is not None else POD(energy=settings.energy or DEFAULT_ENERGY)
+    if settings.backend != "podkrig":
+        return pod, make_backend(settings.backend)
+    kriging = OrdinaryKriging(variogram=settings.variogram, beta=settings.beta, criterion=settings.criterion,
+                              nugget=settings.nugget)
+    return pod, kriging
+
+
+def _fit(store_path, settings, out_path):
+    """Fit and save a surrogate on a store; returns it and its training time (s)."""
+    pod, kriging = _templates(settings)
+    t0 = time.perf_counter()
+    with SnapshotStore.open(store_path) as store:
+        sur = fit_from_store(store, pod=pod, kriging=kriging)
+    seconds = time.perf_counter() - t0
+    sur.provenance_["training_seconds"] = seconds
+    sur.save(out_path)
+    return sur, seconds
+
+
+def _surrogate_result(sur, seconds):
+    out = {
+        "n_train": len(sur.X_), "n_modes": int(sur.n_modes_),
+        "retained_energy": float(sur.pod_.retained_energy_),
+        "backend": sur.backend_,
+    }
+    if isinstance(sur.kriging_, OrdinaryKriging):
+        out["beta"] = [float(b) for b in sur.kriging_.beta_]
+    else:
+        out["description"] = sur.kriging_.describe()
+    out["training_seconds"] = seconds
+    return out
+
+
+def validation_model(run, model):
+    """Snapshots and surrogate of a validation scenario: the store's numbers and the surrogate's."""
+    study = run.study
+    name = f"validation_model.{model.name}"
+    store, surrogate = f"validation_{model.name}.h5", f"validation_{model.name}_surrogate.h5"
+    inputs = {"spec": model.spec.to_dict(), "space": study.space.to_dict(), "design": dataclasses.asdict(model.design),
+              "surrogate": dataclasses.asdict(study.surrogate)}
+
+    def compute():
+        summary, notes = _run_store(run, run.out / store, model.spec, study.space, model.design)
+        result = _store_result(run.out / store, summary, notes)
+        sur, seconds = _fit(run.out / store, study.surrogate, run.out / surrogate)
+        result.update(scenario=model.spec.scenario, surrogate=_surrogate_result(sur, seconds))
+        return result, [store, surrogate], summary.ran
+
+    run.stage(name, f"Validation model '{model.name}' (FE + surrogate)", inputs, compute, total=model.design.n)
+
+
+def surrogate(run):
+    """POD + kriging fit on the training store: sizes, retained energy, exponents, training time."""
+    settings = run.study.surrogate
+    inputs = {"settings": dataclasses.asdict(settings), "train": run.outputs("offline")}
+
+    def compute():
+        sur, seconds = _fit(run.out / "train.h5", settings, run.out / "surrogate.h5")
+        prov = sur.provenance_
+        surrogate_figures.plot_energy(sur.pod_, run.figures / "energy.png")
+        surrogate_figures.plot_reading_modes(sur.pod_, prov["sensor_names"], prov["load_levels"], prov["load_unit"],
+                                             run.figures / "modes.png")
+        return _surrogate_result(sur, seconds), ["surrogate.h5", "report/energy.png", "report/modes.png"], 0
+
+    run.stage("surrogate", "Surrogate fit (POD + kriging)", inputs, compute)
+
+
+def held_out_validation(run):
+    """The surrogate against the held-out FE runs: :meth:`HeldOutReport.summary` plus RMS and max errors (mm)."""
+    inputs = {"surrogate": run.outputs("surrogate"), "held_out": run.outputs("held_out")}
+
+    def compute():
+        sur = PODKriging.load(run.out / "surrogate.h5")
+        with SnapshotStore.open(run.out / "held_out.h5") as store:
+            X, Y = training_data(store)
+        rep = held_out_errors(sur, X, Y)
+        surrogate_figures.plot_predicted_vs_fe(rep, run.figures / "predicted_vs_fe.png")
+        result = rep.summary()
+        result["rms_abs_error_mm"] = float(np.sqrt(np.mean((rep.Y_pred - rep.Y_true) ** 2)))
+        result["max_abs_error_mm"] = float(np.max(np.abs(rep.Y_pred - rep.Y_true)))
+        return result, ["report/predicted_vs_fe.png"], 0
+
+    run.stage("held_out_validation", "Surrogate check on held-out runs", inputs, compute)
+
+
+def _problem(run):
+    """The inverse problem of the study on its surrogate: (problem, model)."""
+    model = SurrogateModel(PODKriging.load(run.out / "surrogate.h5"))
+    m = run.study.measurement
+    data = read_measurement_csv(m.file, model.sensor_names, model.load_levels, model.load_unit)
+    free, fixed = fix_from_scenario(model)
+    return InverseProblem(model, data, m.noise_model(), free=free, fixed=fixed), model
+
+
+def _online_inputs(run):
+    """Inputs shared by the online stages: the surrogate, the measurement file and the noise."""
+    m = run.study.measurement
+    return {"surrogate": run.outputs("surrogate"), "measurement": file_sha256(m.file),
+            "noise": {"rel": m.noise_rel, "abs": m.noise_abs}}
+
+
+def inversion(run):
+    """GA + polish on the surrogate, FE check at the optimum: :meth:`InverseResult.to_dict`."""
+    s = run.study.inversion
+    inputs = {**_online_inputs(run), "ga": {"seed": s.seed, "population_size": s.population_size,
+                                            "generations": s.generations, "n_starts": s.n_starts},
+              "fe_check": s.fe_check}
+
+    def compute():
+        problem, model = _problem(run)
+        result = invert(problem, rng=s.seed, population_size=s.population_size, generations=s.generations,
+                        n_starts=s.n_starts)
+        if s.fe_check:
+            result = result.with_fe_check(run.scenario())
+        unit = model.load_unit
+        inverse_figures.plot_fit(result, run.figures / "fit.png", load_unit=unit)
+        inverse_figures.plot_residuals(result, run.figures / "residuals.png", load_unit=unit)
+        inverse_figures.plot_ga_history(result.ga, run.figures / "ga_history.png")
+        inverse_figures.plot_ga_parameters(result.ga, run.figures / "ga_parameters.png")
+        files = ["report/fit.png", "report/residuals.png", "report/ga_history.png", "report/ga_parameters.png"]
+        return result.to_dict(), files, int(result.fe_check is not None)
+
+    run.stage("inversion", "Inversion (GA + FE check)", inputs, compute)
+
+
+def region(run):
+    """Region of equivalence around the best fit: :meth:`Region.to_dict`; members in ``region.npz``."""
+    s = run.study.inversion
+    inv = run.manifest("inversion")
+    inputs = {"inversion": inv["input_hash"], "x": inv["result"]["x"], "confidence": s.confidence,
+              "method": s.region_method, "samples": s.region_samples, "seed": s.seed}
+
+    def compute():
+        problem, _ = _problem(run)
+        x = InverseResult.from_dict(inv["result"]).x
+        if s.region_method == "noise-mc":
+            found = noise_monte_carlo_region(problem, x, confidence=s.confidence, rng=s.seed)
+        else:
+            found = likelihood_ratio_region(problem, x, confidence=s.confidence, n_samples=s.region_samples,
+                                            rng=s.seed)
+        np.savez(run.out / "region.npz", samples=found.samples, omega=found.omega)
+        inverse_figures.plot_region(found, run.figures / "region.png", best=x, space=problem.free_space)
+        return found.to_dict(), ["region.npz", "report/region.png"], 0
+
+    run.stage("region", "Region of equivalence", inputs, compute)
+
+
+def load_region(run):
+    """The region of the ``region`` stage (its manifest and ``region.npz``)."""
+    with np.load(run.out / "region.npz") as f:
+        return Region.from_dict(run.manifest("region")["result"], samples=f["samples"], omega=f["omega"])
+
+
+def rvc_stage(run):
+    """RVC of the calibration and validation models over the region: ``{"models": {name: RVCResult.to_dict()}}``."""
+    study = run.study
+    inputs = {"region": run.outputs("region"), "calibration": run.outputs("surrogate"), "seed": study.inversion.seed,
+              "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
+                                      "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
+
+    def compute():
+        found = load_region(run)
+        seed = study.inversion.seed
+        results = {"calibration": rvc(found, SurrogateModel(PODKriging.load(run.out / "surrogate.h5")), rng=seed)}
+        for m in study.validation:
+            model = SurrogateModel(PODKriging.load(run.out / f"validation_{m.name}_surrogate.h5"))
+            results[m.name] = rvc(found, model, outputs=list(m.outputs) if m.outputs else None, rng=seed)
+        inverse_figures.plot_rvc(results, run.figures / "rvc.png")
+        return {"models": {k: v.to_dict() for k, v in results.items()}}, ["report/rvc.png"], 0
+
+    run.stage("rvc", "Response variability (RVC)", inputs, compute)
+
+
+def diagnosis(run):
+    """The model diagnosis on the FE model (its own report page): :meth:`Diagnosis.to_dict`."""
+    study = run.study
+    inputs = {**_online_inputs(run), "seed": study.diagnosis.seed}
+
+    def compute():
+        problem, model = _problem(run)
+        folder = run.figures / "diagnosis"
+        shutil.rmtree(folder, ignore_errors=True)  # figures of an earlier diagnosis
+        result = diagnose(run.scenario(), problem.measurement, problem.noise, study.space, fixed=study.fixed,
+                          surrogate=model.surrogate, rng=study.diagnosis.seed,
+                          progress=lambda stage, done, total: run.progress.advance(done, total))
+        write_diagnosis_report(result, folder, noise_text=study.measurement.noise_text())
+        files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())
+        return result.to_dict(), files, result.n_fe_runs
+
+    run.stage("diagnosis", "Model diagnosis", inputs, compute, total=1)

@@ -1,0 +1,272 @@
+"""Result objects of the online stage (to_dict / from_dict round trips) and the findings policy:
+each test here fails for one specific defect (named in its docstring) of the policy, the FE check,
+the multi-start polish or the stage cache; all run on analytic models in well under a second."""
+
+import json
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from podkrig.online.findings import (
+    CHI2_DOF_LIMIT, FE_CHECK_LIMIT, Finding, identifiability_verdict, inversion_findings,
+)
+from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
+from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.online.nested import NestedAnalysis, OverparamResult
+from podkrig.online.problem import InverseProblem, fix_from_scenario
+from podkrig.online.propagation import RVCResult, rvc
+from podkrig.online.region import Region, identifiability, likelihood_ratio_region
+from podkrig.parameters import Parameter, ParameterSpace
+from podkrig.reports.inverse import write_inversion_report
+from podkrig.study.cache import Progress, StageCache
+from podkrig.surrogate.validation import HeldOutReport
+
+SIGMA = 0.01  # mm, noise of the linear model's data
+
+
+class LinearModel:
+    """Readings ``a·m₁ + b·m₂`` of 3 sensors at 2 loads, exact (no predictive variance)."""
+
+    space = ParameterSpace((Parameter("m1", 0.0, 2.0, unit="MPa"), Parameter("m2", 0.0, 2.0)))
+    sensor_names = ("g1", "g2", "g3")
+    load_levels = np.array([10.0, 20.0])
+    load_unit = "kN"
+    A = np.array([[1.0, 0.2], [0.3, 1.0], [0.5, 0.5], [2.0, 0.4], [0.6, 2.0], [1.0, 1.0]])  # (6 outputs, 2)
+
+    def predict(self, X, return_std=False):
+        Y = np.atleast_2d(X) @ self.A.T
+        return (Y, np.zeros_like(Y)) if return_std else Y
+
+
+TRUTH = np.array([0.7, 1.3])
+
+
+def _problem(scale=1.0, model=None):
+    """The linear problem with data at the truth, one gauge scaled by ``scale`` (1: consistent)."""
+    model = model or LinearModel()
+    clean = model.predict(TRUTH[None])[0].reshape(2, 3)
+    noisy = clean + SIGMA * np.random.default_rng(5).standard_normal(clean.shape)  # χ²/dof ≈ 0.95
+    noisy[:, 0] *= scale
+    return InverseProblem(model, Measurement(noisy, model.sensor_names, model.load_levels, source="lin.csv"),
+                          NoiseModel(sigma=SIGMA), model_error=False)
+
+
+@pytest.fixture(scope="module")
+def solved():
+    problem = _problem()
+    result = invert(problem, rng=0, population_size=20, generations=10, n_starts=2)
+    region = likelihood_ratio_region(problem, result.x, n_samples=2**12, rng=0)
+    return problem, result, region
+
+
+class _Scenario:
+    """An FE stand-in: the linear model's readings plus ``offset`` mm on every reading."""
+
+    def __init__(self, offset):
+        self.offset = offset
+
+    def run(self, params):
+        x = np.array([[params["m1"], params["m2"]]])
+
+        class Response:
+            readings = (LinearModel().predict(x)[0] + self.offset).reshape(2, 3)
+
+        return Response()
+
+
+def _json_round(d):
+    return json.loads(json.dumps(d))
+
+
+# --- round trips -------------------------------------------------------------------------------
+
+
+def test_inverse_result_round_trip(solved):
+    _, result, _ = solved
+    result = result.with_fe_check(_Scenario(0.0))
+    d = _json_round(result.to_dict())
+    back = InverseResult.from_dict(d)
+    assert back.to_dict() == d
+    assert_allclose(back.x, result.x)
+    assert back.chi2_dof == pytest.approx(result.chi2_dof) and back.fe_check.ok
+    assert d["measurement"] == {"file": "lin.csv", "sensors": ["g1", "g2", "g3"], "load_levels": [10.0, 20.0],
+                                "load_unit": "kN", "n_obs": 6}
+    with pytest.raises(ValueError, match="read back from a dict"):
+        back.predicted()
+
+
+def test_region_rvc_and_nested_round_trips(solved):
+    problem, result, region = solved
+    d = _json_round(region.to_dict(members=True))
+    back = Region.from_dict(d)
+    assert back.to_dict(members=True) == d
+    assert_allclose(back.samples, region.samples)
+    # members kept apart (as the study keeps them in region.npz)
+    summary = _json_round(region.to_dict())
+    assert "samples" not in summary
+    assert Region.from_dict(summary, samples=region.samples, omega=region.omega).to_dict() == summary
+    with pytest.raises(ValueError, match="members"):
+        Region.from_dict(summary, samples=region.samples[:1], omega=region.omega[:1])
+
+    spread = rvc(region, LinearModel())
+    d = _json_round(spread.to_dict())
+    assert RVCResult.from_dict(d).to_dict() == d and "values" not in d
+
+    row = NestedAnalysis(("m1", "m2"), result.free_parameters, result.misfit, result.chi2_dof, 1.0, 2.0,
+                         region.intervals, region.identifiability, {"same": 0.01})
+    over = OverparamResult((row,))
+    d = _json_round(over.to_dict())
+    assert OverparamResult.from_dict(d).to_dict() == d and len(over) == 1
+
+
+def test_finding_fe_check_and_held_out_round_trips():
+    f = Finding("chi2-dof", "inversion", "χ²/dof = 5", "check the noise")
+    assert Finding.from_dict(_json_round(f.to_dict())) == f
+    check = FECheck(0.1, 2.0, 0.01, 1.5, False, np.ones(3))
+    assert FECheck.from_dict(_json_round(check.to_dict())).to_dict() == check.to_dict()
+    rng = np.random.default_rng(0)
+    rep = HeldOutReport(rng.random(4), rng.random(4), rng.random(4), 0.9, rng.random((4, 2)), rng.random((4, 6)),
+                        rng.random((4, 6)), rng.random((4, 6)), 16, 3, rng.random(16), {"note": 1})
+    d = _json_round(rep.to_dict())
+    back = HeldOutReport.from_dict(d)
+    assert back.to_dict() == d and back.summary() == rep.summary()
+
+
+# --- the findings policy and what feeds it -----------------------------------------------------
+
+
+def test_fe_check_flags_a_surrogate_off_by_more_than_the_noise(solved):
+    """Fails if the FE check at the optimum is forced to "ok"."""
+    _, result, _ = solved
+    exact = fe_check(result, _Scenario(0.0))
+    assert exact.ok and exact.max_abs_diff < 1e-12
+    off = fe_check(result, _Scenario(3 * SIGMA))
+    assert off.max_diff_over_noise == pytest.approx(3.0) and not off.ok
+    codes = [f.code for f in inversion_findings(result.with_fe_check(_Scenario(3 * SIGMA)))]
+    assert codes == ["fe-check"]
+    assert fe_check(result, _Scenario(0.5 * FE_CHECK_LIMIT * SIGMA)).ok
+
+
+def test_chi2_warning_between_the_limit_and_far_beyond():
+    """Fails if the χ²/dof threshold is raised (e.g. to 200): a fit with χ²/dof ≈ 9 must warn."""
+    result = invert(_problem(scale=1.08), rng=0, population_size=20, generations=10, n_starts=2)
+    assert CHI2_DOF_LIMIT < result.chi2_dof < 50
+    for context in ("cli", "study"):
+        found = inversion_findings(result, context=context)
+        assert [f.code for f in found] == ["chi2-dof"]
+        assert f"χ²/dof = {result.chi2_dof:.2f}" in found[0].message
+    assert "podkrig diagnose" in inversion_findings(result, context="cli")[0].remedy
+    assert "[diagnosis] enabled = true" in inversion_findings(result, context="study")[0].remedy
+    consistent = invert(_problem(), rng=0, population_size=20, generations=10, n_starts=2)
+    assert consistent.chi2_dof < CHI2_DOF_LIMIT and inversion_findings(consistent) == []
+
+
+def test_report_shows_the_chi2_warning(tmp_path):
+    """Fails if the report's χ²/dof warning threshold is raised (the report applies the policy)."""
+    problem = _problem(scale=1.08)
+    result = invert(problem, rng=0, population_size=20, generations=10, n_starts=2)
+    region = likelihood_ratio_region(problem, result.x, n_samples=2**10, rng=0)
+    page = write_inversion_report(tmp_path, result, region).read_text(encoding="utf-8")
+    assert "does not reproduce the data within the stated noise" in page and "podkrig diagnose" in page
+    assert page.count("does not reproduce the data") == 1  # said once, not by two policies
+
+
+@pytest.mark.parametrize("share, identified", [(0.3, True), (0.5, True), (0.7, False), (0.9, False)])
+def test_unidentifiable_share_threshold(share, identified):
+    """Fails if the unidentifiable-share threshold is moved (e.g. to 0.95): a parameter whose interval
+    spans 70 % of its range is not identified."""
+    space = ParameterSpace((Parameter("a", 0.0, 10.0, unit="MPa"), Parameter("k", 1.0, 100.0, "log")))
+    # k's interval spans `share` of its log range; a spans 10 %
+    intervals = {"a": (4.0, 5.0), "k": (1.0, 10 ** (2 * share))}
+    verdict = identifiability(intervals, space)
+    assert verdict["a"]["identifiable"] and verdict["a"]["share"] == pytest.approx(0.1)
+    assert verdict["k"]["share"] == pytest.approx(share)
+    assert verdict["k"]["identifiable"] is identified
+    assert ("NOT pinned down" in verdict["k"]["message"]) is (not identified)
+    assert identifiability_verdict("k", intervals["k"], "-", share) == verdict["k"]
+
+
+def test_unidentified_parameter_is_a_finding(solved):
+    _, result, region = solved
+    wide = Region(region.method, region.confidence, region.samples, region.omega, region.threshold,
+                  {"m1": (0.1, 1.9), "m2": region.intervals["m2"]}, region.names, region.units, region.n_evaluated,
+                  region.seconds, identifiability({"m1": (0.1, 1.9), "m2": region.intervals["m2"]},
+                                                  LinearModel.space))
+    found = inversion_findings(result, wide, context="cli")
+    assert [(f.code, f.section) for f in found] == [("unidentified", "region")]
+    assert "--fix m1=VALUE" in found[0].remedy and "MPa" in found[0].message
+
+
+# --- the multi-start polish --------------------------------------------------------------------
+
+
+class TwoBasinModel:
+    """One reading g(m) = 1 − 0.5 exp(−((m − 0.3)/0.2)²) − exp(−((m − 0.85)/0.004)²) against data 0:
+    a broad basin at m = 0.3 (ω = ½ (0.5/σ)²) and a narrow global one at m = 0.85 (ω ≈ 0)."""
+
+    space = ParameterSpace((Parameter("m", 0.0, 1.0),))
+    sensor_names = ("g",)
+    load_levels = np.array([1.0])
+
+    def predict(self, X, return_std=False):
+        m = np.atleast_2d(X)[:, :1]
+        Y = 1 - 0.5 * np.exp(-(((m - 0.3) / 0.2) ** 2)) - np.exp(-(((m - 0.85) / 0.004) ** 2))
+        return (Y, np.zeros_like(Y)) if return_std else Y
+
+
+def test_multi_start_polish_finds_a_narrow_global_basin():
+    """Fails if the polishes from the Sobol' screen are removed: the GA alone (small budget) ends in
+    the broad basin at 0.3; only a start from the screen reaches the narrow one at 0.85."""
+    model = TwoBasinModel()
+    problem = InverseProblem(model, Measurement(np.zeros((1, 1)), ("g",), np.array([1.0])), NoiseModel(sigma=0.01),
+                             model_error=False)
+    ga_only = invert(problem, rng=0, population_size=6, generations=2, n_starts=1, polish=False)
+    assert abs(ga_only.x[0] - 0.3) < 0.2  # the broad basin: the premise of this test
+    result = invert(problem, rng=0, population_size=6, generations=2, n_starts=3)
+    assert result.x[0] == pytest.approx(0.85, abs=1e-3)
+    assert result.misfit < 1e-6
+
+
+# --- unfree parameters from the scenario ---------------------------------------------------------
+
+
+def test_fix_from_scenario_takes_spec_values_inside_the_box():
+    class Model:
+        space = ParameterSpace((Parameter("E_b", 5000.0, 20000.0), Parameter("nu_b", 0.1, 0.2),
+                                Parameter("kN_bj", 10.0, 50.0)))
+        scenario_spec = {"scenario": "diagonal_compression", "parameters": {"nu_b": 0.12, "kN_bj": 80.0}}
+
+    free, fixed = fix_from_scenario(Model(), ("E_b",), {})
+    assert free == ("E_b",) and fixed == {"nu_b": 0.12}  # kN_bj = 80 lies outside [10, 50]: not filled
+    free, fixed = fix_from_scenario(Model(), None, {"kN_bj": 20.0})
+    assert free == ("E_b", "nu_b") and fixed == {"kN_bj": 20.0}
+    assert fix_from_scenario(Model()) == (None, {})
+
+
+# --- the stage cache -----------------------------------------------------------------------------
+
+
+def test_stage_cache_reruns_a_stage_whose_output_changed_or_vanished(tmp_path):
+    """Fails if the output-file check of the cache always passes."""
+    runs = []
+
+    def compute():
+        runs.append(1)
+        (tmp_path / "out.txt").write_text(f"run {len(runs)}")
+        return {"n": len(runs)}, ["out.txt"], 0
+
+    def stage():
+        cache = StageCache(tmp_path, Progress())
+        return cache.stage("s", "a stage", {"setting": 1}, compute), cache.records[0]
+
+    first, record = stage()
+    assert not record.cached and first["result"]["n"] == 1
+    _, record = stage()
+    assert record.cached and len(runs) == 1  # nothing changed: cached
+    (tmp_path / "out.txt").write_text("edited by hand")
+    again, record = stage()
+    assert not record.cached and again["result"]["n"] == 2
+    (tmp_path / "out.txt").unlink()
+    _, record = stage()
+    assert not record.cached and len(runs) == 3

@@ -1,0 +1,147 @@
+"""Estimators that own their state: the hyperparameter value object, persistence inside each
+estimator, side-effect-free ``predict``, unit-cube prediction, and files of schema 1."""
+
+import copy
+import dataclasses
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal, assert_equal
+
+from podkrig.offline.sampling import sobol, uniform
+from podkrig.parameters import Parameter, ParameterSpace
+from podkrig.surrogate.kriging import DEFAULT_BETA, KrigingHyperparameters, OrdinaryKriging
+from podkrig.surrogate.pod import POD
+from podkrig.surrogate.podkriging import SCHEMA_VERSION, PODKriging
+
+DATA = Path(__file__).parent / "data"
+SPACE = ParameterSpace((Parameter("E_b", 5000.0, 20000.0, unit="MPa"),
+                        Parameter("kN_bj", 10.0, 1000.0, "log", "N/mm³"), Parameter("r_hj", 0.1, 1.0)))
+
+
+def snapshots(X):
+    """(n, 3, 4) readings, mm (the generator of tests/data/make_surrogate_v1.py)."""
+    E, k, r = X.T
+    base = np.stack([1e3 / E, 1 / k, r / k ** 0.5, np.sin(2 * r) / E ** 0.5], axis=1)
+    return np.stack([lvl * base for lvl in (1.0, 2.0, 3.0)], axis=1)
+
+
+@pytest.fixture(scope="module")
+def surrogate():
+    X = SPACE.from_unit(sobol(24, 3, seed=0, skip=8))
+    return PODKriging(pod=POD(energy=1 - 1e-10), kriging=OrdinaryKriging(beta="fit"), space=SPACE).fit(X, snapshots(X))
+
+
+def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
+    """The reference file was written by the code before this layout (see tests/data/README.md)."""
+    with h5py.File(DATA / "surrogate_v1.h5") as f:
+        assert (f.attrs["format"], int(f.attrs["schema_version"])) == ("podkrig.surrogate", 1)
+    sur = PODKriging.load(DATA / "surrogate_v1.h5")
+    expected = np.load(DATA / "surrogate_v1_expected.npz")
+    mean, std = sur.predict(expected["X"], return_std=True, reshape=True)
+    assert_array_equal(mean, expected["mean"])
+    assert_array_equal(std, expected["std"])
+    assert sur.backend_ == "podkrig" and sur.kriging_.hyperparameters_.variogram == "exponential"
+    sur.save(tmp_path / "v2.h5")  # rewritten in today's schema, same predictions
+    with h5py.File(tmp_path / "v2.h5") as f:
+        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 2 and f.attrs["backend"] == "podkrig"
+    again = PODKriging.load(tmp_path / "v2.h5")
+    assert_array_equal(again.predict(expected["X"], reshape=True), expected["mean"])
+
+
+def test_hyperparameters_are_one_frozen_value_object(surrogate):
+    kr = surrogate.kriging_
+    hp = kr.hyperparameters_
+    assert isinstance(hp, KrigingHyperparameters)
+    assert hp.ranges.shape == (kr.n_outputs_, 3) and hp.beta.shape == hp.mu.shape == hp.sigma2.shape == (kr.n_outputs_,)
+    assert kr.beta_ is hp.beta and kr.ranges_ is hp.ranges and kr.sigma2_ is hp.sigma2
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        hp.nugget = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        hp.beta[0] = 1.0
+    assert KrigingHyperparameters.from_dict(hp.to_dict()) == hp
+    assert KrigingHyperparameters.from_dict({**hp.to_dict(), "nugget": 1e-9}) != hp
+    with pytest.raises(ValueError, match="sigma2 must have 1 dimension"):
+        KrigingHyperparameters("exponential", 0.0, hp.ranges, hp.beta, hp.mu, hp.sigma2[:1])
+
+
+def test_kriging_persists_itself_bitwise(surrogate):
+    kr = surrogate.kriging_
+    arrays, attrs = kr.to_arrays()
+    back = OrdinaryKriging.from_arrays(arrays, attrs, kr.get_params())
+    U = uniform(50, 3, seed=2)
+    for a, b in zip(kr.predict(U, return_std=True), back.predict(U, return_std=True)):
+        assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="does not match the variogram 'power'"):
+        OrdinaryKriging.from_arrays(arrays, {**attrs, "variogram": "power"}, kr.get_params())
+
+
+def _state(obj):
+    """Deep copy of ``vars(obj)``, podkrig objects inside as their own ``vars`` (compared by value)."""
+    return {k: _state(v) if type(v).__module__.startswith("podkrig") else copy.deepcopy(v)
+            for k, v in vars(obj).items()}
+
+
+@pytest.mark.parametrize("use_numba", [None, False])
+def test_predict_leaves_the_estimator_unchanged(use_numba):
+    """Everything predict reuses (numba plan, L^-1 1) is built at fit; also after load."""
+    rng = np.random.default_rng(0)
+    X = rng.random((25, 2))
+    Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1], X[:, 0] * X[:, 1]])
+    for ok in (OrdinaryKriging(beta="fit", use_numba=use_numba).fit(X, Y),
+               OrdinaryKriging(variogram="power", beta=1.5, use_numba=use_numba).fit(X, Y)):
+        before = _state(ok)
+        ok.predict(rng.random((7, 2)), return_std=True)
+        ok.predict(rng.random((3, 2)) * 1.5)  # reaching outside the unit cube: a plan of its own
+        assert vars(ok).keys() == before.keys()
+        assert_equal(_state(ok), before)
+
+
+def test_surrogate_predict_and_predict_unit_leave_state_unchanged(surrogate, tmp_path):
+    surrogate.save(tmp_path / "s.h5")
+    for sur in (surrogate, PODKriging.load(tmp_path / "s.h5")):
+        before, before_kr = _state(sur), _state(sur.kriging_)
+        sur.predict(SPACE.from_unit(uniform(5, 3, seed=1)), return_std=True)
+        sur.predict_unit(uniform(5, 3, seed=1), return_std=True)
+        assert_equal(_state(sur), before)
+        assert_equal(_state(sur.kriging_), before_kr)
+
+
+def test_predict_unit_is_predict_without_the_round_trip(surrogate):
+    U = uniform(40, 3, seed=3)
+    U[:4] = [[0, 0, 0], [1, 1, 1], [0, 1, 0.5], [1 - 1e-16, 1 - 1e-16, 1e-300]]  # faces, an ulp inside
+    m_unit, s_unit = surrogate.predict_unit(U, return_std=True)
+    m_phys, s_phys = surrogate.predict(SPACE.from_unit(U), return_std=True)
+    # the same points up to an ulp of the log scale's round trip, which the kriging weights
+    # (sum |alpha_i k_i| ~ 1e7 |y|, BENCHMARKS.md) amplify to ~1e-11 of the outputs' scale
+    np.testing.assert_allclose(m_unit, m_phys, rtol=0, atol=1e-9 * np.abs(m_phys).max())
+    np.testing.assert_allclose(s_unit, s_phys, rtol=0, atol=1e-6 * s_phys.max())
+    with pytest.raises(ValueError, match=r"unit coordinates must lie in \[0, 1\]; sample 0: kN_bj has 1.01"):
+        surrogate.predict_unit([[0.5, 1.01, 0.5]])
+    with pytest.raises(ValueError, match=r"U must have shape \(n, 3\)"):
+        surrogate.predict_unit(np.zeros((2, 2)))
+
+
+def test_physical_box_is_exact():
+    """from_unit of [0, 1] lands inside the bounds exactly (no tolerance in the box check);
+    anything beyond them, by however little, is outside."""
+    space = ParameterSpace((Parameter("a", 0.1, 0.7), Parameter("b", 3.0, 7.0, "log")))
+    U = np.vstack([np.linspace(0, 1, 4001)] * 2).T
+    X = space.from_unit(U)
+    assert np.all((X >= space.lower) & (X <= space.upper))
+    X = space.from_unit(sobol(32, 2, seed=0))
+    sur = PODKriging(kriging=OrdinaryKriging(beta=1.8), space=space).fit(X, np.stack([X, X**2], axis=1))
+    sur.predict(space.from_unit(U))  # every face point accepted
+    with pytest.raises(ValueError, match="outside the trained box"):
+        sur.predict([[np.nextafter(0.7, 1.0), 5.0]])
+
+
+def test_one_default_exponent():
+    from podkrig.cli.surrogate import _templates
+    from podkrig.study.schema import SurrogateSettings
+
+    assert DEFAULT_BETA == "fit-shared" == OrdinaryKriging().beta
+    assert _templates(None, None, "podkrig", None, None, None, None)[1].beta == DEFAULT_BETA
+    assert SurrogateSettings.__dataclass_fields__["beta"].default == DEFAULT_BETA
