@@ -9,7 +9,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from podkrig.online.findings import (
-    CHI2_DOF_LIMIT, FE_CHECK_LIMIT, Finding, identifiability_verdict, inversion_findings,
+    CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
+    identifiability_verdict, inversion_findings, offline_findings,
 )
 from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
 from podkrig.online.measurement import Measurement, NoiseModel
@@ -112,6 +113,8 @@ def test_region_rvc_and_nested_round_trips(solved):
     spread = rvc(region, LinearModel())
     d = _json_round(spread.to_dict())
     assert RVCResult.from_dict(d).to_dict() == d and "values" not in d
+    assert RVCResult.from_dict(d).values is None
+    assert_allclose(RVCResult.from_dict(d, values=spread.values.tolist()).values, spread.values, rtol=0)
 
     row = NestedAnalysis(("m1", "m2"), result.free_parameters, result.misfit, result.chi2_dof, 1.0, 2.0,
                          region.intervals, region.identifiability, {"same": 0.01})
@@ -270,3 +273,50 @@ def test_stage_cache_reruns_a_stage_whose_output_changed_or_vanished(tmp_path):
     (tmp_path / "out.txt").unlink()
     _, record = stage()
     assert not record.cached and len(runs) == 3
+
+
+def test_finding_summary_form_and_the_default_level():
+    """Fails if the summary.json keys change or a finding read without a level is not a warning."""
+    f = Finding("fe-failed", "offline", "2 of 10 FE runs failed", "narrow the bounds", level="error")
+    assert f.to_dict() == {"code": "fe-failed", "level": "error", "section": "offline",
+                           "what": "2 of 10 FE runs failed", "what_to_do": "narrow the bounds"}
+    d = f.to_dict()
+    del d["level"]
+    assert Finding.from_dict(d).level == "warning"
+    assert fe_check_ok(FE_CHECK_LIMIT) and not fe_check_ok(FE_CHECK_LIMIT * (1 + 1e-12))
+
+
+def test_offline_held_out_and_diagnosis_findings_policy():
+    """Fails if a threshold or an inequality of the surrogate, FE-failure or diagnosis findings moves:
+    median relative error above δ (strictly), RMS error above the smallest per-sensor σ, ±2σ coverage
+    below the limit; failed FE runs counted; a diagnosis names its cause, location and gain."""
+    assert offline_findings("train", {"failed": 0, "total": 10, "failures": []}) == []
+    (f,) = offline_findings("train", {"failed": 2, "total": 10, "failures": ["run 3: singular", "run 7: singular"]})
+    assert (f.code, f.section) == ("fe-failed", "offline")
+    assert f.message == "2 of 10 FE runs failed in stage 'train' (run 3: singular; run 7: singular)."
+
+    def held(median, rms, coverage):
+        return {"rel_error": {"median": median}, "rms_abs_error_mm": rms, "coverage_2sigma": coverage}
+
+    ok = held(0.01, 0.002, COVERAGE_LIMIT)
+    assert held_out_findings(ok, noise_rel=0.01) == [] and held_out_findings(ok) == []
+    (f,) = held_out_findings(held(0.0125, 0.0, 0.95), noise_rel=0.01)
+    assert (f.code, f.section) == ("surrogate-error", "held-out")
+    assert "(1.25 %) exceeds the measurement noise (1 %)" in f.message and "train.n" in f.remedy
+    assert held_out_findings(held(0.5, 0.002, 0.95), noise_abs={"D1": 0.002, "D2": 0.01}) == []
+    (f,) = held_out_findings(held(0.5, 0.003, 0.95), noise_abs={"D1": 0.002, "D2": 0.01})
+    assert "(0.003 mm) exceeds the measurement noise (σ = 0.002 mm)" in f.message
+    assert [f.code for f in held_out_findings(held(0.5, 0.003, 0.7), noise_abs=0.002)] == [
+        "surrogate-error", "surrogate-coverage"]
+    (f,) = held_out_findings(held(0.0, 0.0, 0.7))
+    assert f.code == "surrogate-coverage" and "only 70 % of the held-out FE readings" in f.message
+
+    assert diagnosis_findings({"verdict": "adequate"}) == []
+    (f,) = diagnosis_findings({"verdict": "inadequate", "cause": None, "base": {"chi2_dof": 7.5}})
+    assert f.code == "diagnosis-unexplained" and "(χ²/dof = 7.50)" in f.message
+    (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "a faulty sensor", "detail": {"location": "D2"},
+                               "gain": {"chi2_dof_before": 9.0, "chi2_dof_after": 1.1}})
+    assert (f.code, f.section) == ("diagnosis-cause", "diagnosis")
+    assert f.message.endswith("names a faulty sensor at D2 (χ²/dof 9.00 → 1.10 with it).")
+    (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "bond slip", "detail": None, "gain": None})
+    assert f.message.endswith("names bond slip.")
