@@ -1,5 +1,6 @@
 """POD: known orthonormal bases, truncation by energy or count, round trips, method agreement."""
 
+import logging
 import warnings
 
 import numpy as np
@@ -84,10 +85,10 @@ def test_input_not_modified_and_uncentred():
         ({"n_modes": 9}, None, "exceeds the numerical rank 5"),
         ({"method": "qr"}, None, "method must be one of"),
         ({}, np.ones((5, 3)), "all snapshots are identical"),
-        ({}, np.full((4, 3), np.nan), r"Y must be finite; found NaN or inf \(drop failed FE runs first\)"),
+        ({}, np.full((4, 3), np.nan), r"^Y must be finite; found NaN or inf \(drop failed FE runs first\)"),
         ({}, np.ones(3), r"Y must have shape \(n_samples, n_outputs\); got shape \(3,\)"),
         ({}, np.ones((1, 3)), "POD needs at least 2 snapshots; got 1"),
-        ({"method": "snapshots"}, np.ones((5, 30)), "all snapshots are identical"),
+        ({"method": "snapshots"}, np.ones((5, 30)), r"^all snapshots are identical \(zero variance after centring\)"),
     ],
 )
 def test_errors(kwargs, data, message):
@@ -156,3 +157,16 @@ def test_wrong_widths_are_named():
         pod.transform(Y[:2, :29])
     with pytest.raises(ValueError, match=r"A must have shape \(n_samples, 5\); got \(2, 4\)"):
         pod.inverse_transform(np.zeros((2, 4)))
+
+
+def test_energy_curve_and_truncation_by_energy_on_a_hand_basis(caplog):
+    """Singular values 3 and 1: energies 9/10 and 1; energy=0.9 keeps exactly one mode (the 1e-12
+    tolerance absorbs rounding of the sum), anything above keeps both; fit logs its summary."""
+    Y = np.array([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    with caplog.at_level(logging.INFO, logger="podkrig.surrogate.pod"):
+        pod = POD(energy=0.9, center=False, method="svd").fit(Y)
+    assert_allclose(pod.singular_values_, [3.0, 1.0], rtol=1e-14)
+    assert_allclose(pod.energy_, [0.9, 1.0], rtol=1e-14)
+    assert pod.n_modes_ == 1 and pod.retained_energy_ == pytest.approx(0.9, rel=1e-14)
+    assert POD(energy=0.9 + 1e-9, center=False).fit(Y).n_modes_ == 2
+    assert caplog.messages == ["POD (svd): 2 snapshots x 3 outputs, rank 2, 1 modes keep 0.9000000000 of the energy"]
