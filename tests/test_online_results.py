@@ -320,3 +320,32 @@ def test_offline_held_out_and_diagnosis_findings_policy():
     assert f.message.endswith("names a faulty sensor at D2 (χ²/dof 9.00 → 1.10 with it).")
     (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "bond slip", "detail": None, "gain": None})
     assert f.message.endswith("names bond slip.")
+
+
+def test_rvc_statistics_against_numpy_on_the_region_members(solved):
+    """Fails if a statistic of the RVC changes (sample std with ddof = 1, cv and range ratio over
+    |mean| even below 1 mm, min, max), if the member subset is drawn with replacement or unseeded,
+    or if one member gives anything but zero spread."""
+    _, _, region = solved
+    model = LinearModel()
+    Y = region.samples @ model.A.T
+    out = rvc(region, model)
+    assert out.outputs == ("g1@20", "g2@20", "g3@20") and out.n_samples == len(Y)
+    y = Y[:, 3:]
+    assert_allclose(out.values, y, rtol=0)
+    assert_allclose(out.mean, y.mean(axis=0), rtol=1e-12)
+    assert_allclose(out.std, y.std(axis=0, ddof=1), rtol=1e-12)
+    assert_allclose(out.cv, y.std(axis=0, ddof=1) / np.abs(y.mean(axis=0)), rtol=1e-12)
+    assert_allclose(out.range_ratio, (y.max(axis=0) - y.min(axis=0)) / np.abs(y.mean(axis=0)), rtol=1e-12)
+    assert_allclose(out.min, y.min(axis=0), rtol=0)
+    assert_allclose(out.max, y.max(axis=0), rtol=0)
+    small = rvc(region, model, outputs=["g1@10"])  # mean ≈ 0.96 mm < 1
+    assert_allclose(small.cv, Y[:, :1].std(axis=0, ddof=1) / np.abs(Y[:, :1].mean(axis=0)), rtol=1e-12)
+    assert_allclose(rvc(region, model, max_samples=len(Y)).values, y, rtol=0)  # all members, in order
+    sub = rvc(region, model, max_samples=len(Y) // 2)
+    assert sub.n_samples == len(Y) // 2 and len(np.unique(sub.values, axis=0)) == len(Y) // 2
+    assert_allclose(rvc(region, model, max_samples=len(Y) // 2).values, sub.values, rtol=0)
+    two = rvc(region, model, max_samples=2)
+    assert_allclose(two.std, np.abs(two.values[0] - two.values[1]) / np.sqrt(2), rtol=1e-12)
+    one = rvc(region, model, max_samples=1)
+    assert one.std.tolist() == [0.0, 0.0, 0.0] and one.cv.tolist() == [0.0, 0.0, 0.0]
