@@ -10,6 +10,10 @@ mutmut writes one ``mutants/<module path>.meta`` JSON file per mutated module wi
 of the test run of each mutant. The score is ``(killed + timeout) / checked``: a mutant that makes
 the tests hang is detected. "no tests" mutants (no test of the selection called the mutated
 function) count as survivors.
+
+``--baseline DIR`` (a copy of an earlier ``mutants/``) fills in the mutants the latest run did not
+check (e.g. ``mutmut run NAME ...`` re-ran only the earlier survivors after tests were added): a
+mutant killed then is still killed, since tests were only added.
 """
 
 import argparse
@@ -36,15 +40,20 @@ STATUS_BY_EXIT_CODE = {
 COLUMNS = ("killed", "timeout", "survived", "no tests", "not checked", "other")
 
 
-def module_results(mutants_dir):
-    """``{module path: {mutant name: status}}`` from the ``*.meta`` files under ``mutants_dir``."""
+def module_results(mutants_dir, baseline=None):
+    """``{module path: {mutant name: status}}`` from the ``*.meta`` files under ``mutants_dir``;
+    mutants not checked there take their status under ``baseline`` (an earlier ``mutants/``)."""
     results = {}
+    old = module_results(baseline) if baseline else {}
     for meta in sorted(Path(mutants_dir).rglob("*.py.meta")):
         module = str(meta.relative_to(mutants_dir))[: -len(".meta")]
         exit_codes = json.loads(meta.read_text())["exit_code_by_key"]
         results[module] = {
             name: STATUS_BY_EXIT_CODE.get(code, "other") for name, code in exit_codes.items()
         }
+        for name, status in results[module].items():
+            if status == "not checked":
+                results[module][name] = old.get(module, {}).get(name, status)
     return results
 
 
@@ -73,10 +82,11 @@ def main():
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
                                      epilog=__doc__.split("\n\n", 1)[1])
     parser.add_argument("--mutants", default="mutants", help="mutmut's work directory")
+    parser.add_argument("--baseline", help="an earlier mutants/ directory for the mutants not re-run")
     parser.add_argument("--survivors", action="store_true",
                         help="also list the mutants that survived or had no tests")
     args = parser.parse_args()
-    results = module_results(args.mutants)
+    results = module_results(args.mutants, args.baseline)
     if not results:
         raise SystemExit(f"no mutmut results (*.py.meta) under {args.mutants!r}: run `mutmut run`")
     print(f"machine load (1, 5, 15 min): {', '.join(f'{x:.1f}' for x in os.getloadavg())}")

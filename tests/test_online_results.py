@@ -17,7 +17,7 @@ from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.nested import NestedAnalysis, OverparamResult
 from podkrig.online.problem import InverseProblem, fix_from_scenario
 from podkrig.online.propagation import RVCResult, rvc
-from podkrig.online.region import Region, identifiability, likelihood_ratio_region
+from podkrig.online.region import Region, identifiability, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.reports.inverse import write_inversion_report
 from podkrig.study.cache import Progress, StageCache
@@ -349,3 +349,15 @@ def test_rvc_statistics_against_numpy_on_the_region_members(solved):
     assert_allclose(two.std, np.abs(two.values[0] - two.values[1]) / np.sqrt(2), rtol=1e-12)
     one = rvc(region, model, max_samples=1)
     assert one.std.tolist() == [0.0, 0.0, 0.0] and one.cv.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_noise_monte_carlo_intervals_are_the_central_percentiles_of_the_refits(solved):
+    """Fails if the interval levels move off the central ``confidence`` share of the refitted optima,
+    or if the evaluation count stops accumulating over the realisations."""
+    problem, result, _ = solved
+    for confidence, levels in ((0.95, [2.5, 97.5]), (0.8, [10.0, 90.0])):
+        mc = noise_monte_carlo_region(problem, result.x, n_realisations=30, confidence=confidence, rng=1)
+        q = np.percentile(mc.samples, levels, axis=0)
+        for j, name in enumerate(("m1", "m2")):
+            assert_allclose(mc.intervals[name], q[:, j], rtol=1e-12)
+        assert len(mc.samples) == 30 and mc.n_evaluated >= 30 * 3  # a polish evaluates ≥ 1 + 2 (one per parameter)
