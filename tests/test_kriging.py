@@ -7,7 +7,7 @@ from numpy.testing import assert_allclose
 from scipy.optimize import approx_fprime
 
 from podkrig.exceptions import NotFittedError
-from podkrig.surrogate.kriging import OrdinaryKriging, semivariogram
+from podkrig.surrogate.kriging import OrdinaryKriging, covariance, semivariogram
 from podkrig.surrogate.kriging.system import Objective, Pairs
 
 
@@ -280,3 +280,28 @@ def test_kernels_are_deterministic_across_thread_counts_and_chunks():
         got = np.empty_like(cov[1])
         _kernels._cross_covariance_parallel(*args, got, chunk)
         np.testing.assert_array_equal(got, cov[1])
+
+
+def test_semivariogram_defaults_range_nugget_and_beta_check():
+    """Defaults: exponential family, β = 1.5, unit sill and range, no nugget; γ(h) = γ(|h|); the
+    nugget is a jump at 0⁺ only; the exponent is checked against the chosen model."""
+    h = np.array([-2.0, 0.0, 0.5])
+    assert_allclose(semivariogram(h), [1 - np.exp(-(2.0**1.5)), 0.0, 1 - np.exp(-(0.5**1.5))], rtol=1e-12, atol=0)
+    g = semivariogram(h, beta=1.2, sill=3.0, range_=2.0, nugget=0.1)
+    assert_allclose(g, [3.0 * (1 - np.exp(-1.0) + 0.1), 0.0, 3.0 * (1 - np.exp(-(0.25**1.2)) + 0.1)], rtol=1e-12, atol=0)
+    with pytest.raises(ValueError, match="0 < beta < 2"):
+        semivariogram(h, "power", beta=2.0)
+
+
+def test_covariance_is_a_per_dimension_sum_inside_the_exponent():
+    """s(x, x') = Σ_k (|x_k − x'_k| / a_k)^β by hand; exponential family e^{−s}, power model −s."""
+    X1 = np.array([[0.0, 0.0], [0.3, 0.4]])
+    X2 = np.array([[0.3, 0.4], [0.1, 1.0], [0.0, 0.0]])
+    ranges, beta = np.array([0.5, 2.0]), 1.5
+    s01 = (0.3 / 0.5) ** 1.5 + (0.4 / 2.0) ** 1.5
+    s_11 = (0.2 / 0.5) ** 1.5 + (0.6 / 2.0) ** 1.5
+    S = np.array([[s01, (0.1 / 0.5) ** 1.5 + (1.0 / 2.0) ** 1.5, 0.0], [0.0, s_11, s01]])
+    assert_allclose(covariance(X1, X2, ranges, beta), np.exp(-S), rtol=1e-12, atol=0)
+    assert_allclose(covariance(X1, X2, ranges, beta, "power"), -S, rtol=1e-12, atol=0)
+    with pytest.raises(ValueError, match="variogram must be one of"):
+        covariance(X1, X2, ranges, beta, "spherical")

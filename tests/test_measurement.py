@@ -61,7 +61,7 @@ def test_noise_models():
     assert_allclose(NoiseModel(delta=0.01, floor=1e-4).std(m), [0.002, 0.001, 0.004, 1e-4])
     C = np.diag([1.0, 2.0, 3.0, 4.0]) * 1e-6
     assert_allclose(NoiseModel(covariance=C).std(m), np.sqrt(np.diag(C)))
-    with pytest.raises(ValueError, match="exactly one noise model"):
+    with pytest.raises(ValueError, match="^give exactly one noise model: an absolute sigma"):
         NoiseModel(sigma=0.1, delta=0.01)
     with pytest.raises(ValueError, match="sigma must be > 0 mm"):
         NoiseModel(sigma=0.0)
@@ -69,3 +69,47 @@ def test_noise_models():
         NoiseModel(sigma={"D1": 0.001}).std(m)
     with pytest.raises(ValueError, match=r"must be \(4, 4\)"):
         NoiseModel(covariance=np.eye(3)).covariance_matrix(m)
+
+
+def test_output_indices_match_levels_to_1e_9_and_name_what_is_unknown():
+    """Levels match to a relative 1e-9 (two model levels 5e-6 apart stay distinct), and an unknown
+    sensor or level is named with the source and what the model has."""
+    m = Measurement(np.array([[1.0, 2.0]]), ("D2", "D1"), np.array([100.0005]), source="site.csv")
+    # load-major: level index 1 of 2, 3 sensors per level → 3 + sensor position
+    assert m.output_indices(["D1", "D2", "U1"], [100.0, 100.0005]).tolist() == [3 + 1, 3 + 0]
+    with pytest.raises(ValueError, match=r"site\.csv: unknown sensor 'D2'; the model has \['D1', 'U1'\]"):
+        m.output_indices(["D1", "U1"], [100.0005])
+    with pytest.raises(ValueError, match=r"site\.csv: unknown load level 100\.001; the model has \[100\.0, 99\.0\]"):
+        m.output_indices(["D1", "D2"], [100.0, 99.0])
+
+
+def test_measurement_converts_its_inputs_and_names_bad_values():
+    m = Measurement([[1, 2]], ["a", "b"], [50], source="site.csv")
+    assert m.values.dtype == float and m.load_levels.dtype == float and m.sensor_names == ("a", "b")
+    assert m.data.tolist() == [1.0, 2.0] and m.n_obs == 2
+    with pytest.raises(ValueError, match=r"^site\.csv: values must have shape \(1, 2\) \(n_loads, n_sensors\); got \(2,\)"):
+        Measurement([1.0, 2.0], ["a", "b"], [50], source="site.csv")
+    with pytest.raises(ValueError, match=r"^site\.csv: measured values must be finite numbers"):
+        Measurement([[1.0, np.nan]], ["a", "b"], [50], source="site.csv")
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"sigma": {"D1": 0.001, "D2": 0.0}}, r"^absolute noise sigma must be > 0 mm; got \{'D2': 0\.0\}"),
+        ({"delta": 0.0}, r"^relative noise delta must be in \(0, 1\); got 0\.0"),
+        ({"delta": 1.0}, r"^relative noise delta must be in \(0, 1\)"),
+        ({"delta": 1.5}, r"^relative noise delta must be in \(0, 1\)"),
+    ],
+)
+def test_noise_model_bounds(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        NoiseModel(**kwargs)
+
+
+def test_singular_noise_covariance_is_refused():
+    m = Measurement(np.zeros((2, 2)), ("D1", "D2"), np.array([50.0, 100.0]))
+    with pytest.raises(ValueError, match="^noise covariance must be symmetric positive definite"):
+        NoiseModel(covariance=np.diag([1.0, 0.0, 1.0, 1.0])).covariance_matrix(m)
+    with pytest.raises(ValueError, match="^noise covariance must be symmetric positive definite"):
+        NoiseModel(covariance=np.eye(4) + np.triu(np.ones((4, 4)), 1) * 0.1).covariance_matrix(m)

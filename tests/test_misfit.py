@@ -80,3 +80,47 @@ def test_relative_misfit_and_subset_indices():
     assert_allclose(f(np.array([[1.1, 0.0]])), 0.5 * 2 * 0.1**2, rtol=1e-12)
     with pytest.raises(ValueError, match="kind must be"):
         Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="l1")
+
+
+def test_permuted_and_prefix_subsets_with_model_error_match_the_closed_form():
+    """Observed entries in another order than the model's (same count) or only the first load
+    level (a prefix) pick the right model outputs and their modelling std, row by row."""
+    m_true = np.array([0.4, -0.3])
+    d = A @ m_true
+    X = rng.normal(size=(3, 2))
+    std = 0.01 + 0.02 * np.abs(X @ A.T)  # a different C_T per row and per output
+
+    def model(Xs):
+        return Xs @ A.T, 0.01 + 0.02 * np.abs(Xs @ A.T)
+
+    sigma = 0.03
+    for sensors, loads, cols in [(("b", "a"), [1.0, 2.0, 3.0], [1, 0, 3, 2, 5, 4]), (("a", "b"), [1.0], [0, 1])]:
+        rows = np.array(cols).reshape(len(loads), 2)
+        meas = Measurement(d[rows], sensors, np.array(loads))
+        idx = meas.output_indices(("a", "b"), (1.0, 2.0, 3.0))
+        assert idx.tolist() == cols
+        f = Misfit(model, meas, NoiseModel(sigma=sigma), idx)
+        r = (X @ A.T)[:, cols] - d[cols]
+        assert_allclose(f(X), 0.5 * np.sum(r**2 / (sigma**2 + std[:, cols] ** 2), axis=1), rtol=1e-12)
+
+
+def test_frozen_model_error_for_one_row_all_observed_without_copy_and_small_relative_data():
+    """A broadcast (frozen) C_T evaluated for a single parameter vector; when every output is
+    observed in model order the predictions are not copied; relative residuals divide by |d| even
+    for readings below 1 mm; without a prior the prior residuals are empty."""
+    d = A @ np.array([0.3, 0.7])
+    meas = measurement(d)
+    f = Misfit(linear_model(0.02), meas, NoiseModel(sigma=0.03), np.arange(6))
+    X = rng.normal(size=(1, 2))
+    r = X @ A.T - d
+    assert_allclose(f(X), 0.5 * np.sum(r**2, axis=1) / (0.03**2 + 0.02**2), rtol=1e-12)
+    out = np.zeros((1, 6))
+    g = Misfit(lambda Xs: (out, None), meas, NoiseModel(sigma=1.0), np.arange(6))
+    assert g.predict(X)[0] is out
+    assert g.prior_residuals(X).shape == (1, 0)
+    small = Measurement(np.array([[0.05, -0.2]]), ("a", "b"), np.array([1.0]))
+    rel = Misfit(lambda Xs: (np.tile([0.06, -0.3], (len(Xs), 1)), None), small, NoiseModel(sigma=1.0),
+                 np.arange(2), kind="relative")
+    assert_allclose(rel.whitened_residuals(X), [[0.2, -0.5]], rtol=1e-12)
+    with pytest.raises(ValueError, match="a Gaussian prior needs both prior_mean and prior_cov"):
+        Misfit(linear_model(), meas, NoiseModel(sigma=1.0), np.arange(6), prior_mean=np.zeros(2))

@@ -9,14 +9,15 @@ import pytest
 from numpy.testing import assert_allclose
 
 from podkrig.online.findings import (
-    CHI2_DOF_LIMIT, FE_CHECK_LIMIT, Finding, identifiability_verdict, inversion_findings,
+    CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
+    identifiability_verdict, inversion_findings, offline_findings,
 )
 from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.nested import NestedAnalysis, OverparamResult
 from podkrig.online.problem import InverseProblem, fix_from_scenario
 from podkrig.online.propagation import RVCResult, rvc
-from podkrig.online.region import Region, identifiability, likelihood_ratio_region
+from podkrig.online.region import Region, identifiability, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.reports.inverse import write_inversion_report
 from podkrig.study.cache import Progress, StageCache
@@ -112,6 +113,8 @@ def test_region_rvc_and_nested_round_trips(solved):
     spread = rvc(region, LinearModel())
     d = _json_round(spread.to_dict())
     assert RVCResult.from_dict(d).to_dict() == d and "values" not in d
+    assert RVCResult.from_dict(d).values is None
+    assert_allclose(RVCResult.from_dict(d, values=spread.values.tolist()).values, spread.values, rtol=0)
 
     row = NestedAnalysis(("m1", "m2"), result.free_parameters, result.misfit, result.chi2_dof, 1.0, 2.0,
                          region.intervals, region.identifiability, {"same": 0.01})
@@ -270,3 +273,91 @@ def test_stage_cache_reruns_a_stage_whose_output_changed_or_vanished(tmp_path):
     (tmp_path / "out.txt").unlink()
     _, record = stage()
     assert not record.cached and len(runs) == 3
+
+
+def test_finding_summary_form_and_the_default_level():
+    """Fails if the summary.json keys change or a finding read without a level is not a warning."""
+    f = Finding("fe-failed", "offline", "2 of 10 FE runs failed", "narrow the bounds", level="error")
+    assert f.to_dict() == {"code": "fe-failed", "level": "error", "section": "offline",
+                           "what": "2 of 10 FE runs failed", "what_to_do": "narrow the bounds"}
+    d = f.to_dict()
+    del d["level"]
+    assert Finding.from_dict(d).level == "warning"
+    assert fe_check_ok(FE_CHECK_LIMIT) and not fe_check_ok(FE_CHECK_LIMIT * (1 + 1e-12))
+
+
+def test_offline_held_out_and_diagnosis_findings_policy():
+    """Fails if a threshold or an inequality of the surrogate, FE-failure or diagnosis findings moves:
+    median relative error above δ (strictly), RMS error above the smallest per-sensor σ, ±2σ coverage
+    below the limit; failed FE runs counted; a diagnosis names its cause, location and gain."""
+    assert offline_findings("train", {"failed": 0, "total": 10, "failures": []}) == []
+    (f,) = offline_findings("train", {"failed": 2, "total": 10, "failures": ["run 3: singular", "run 7: singular"]})
+    assert (f.code, f.section) == ("fe-failed", "offline")
+    assert f.message == "2 of 10 FE runs failed in stage 'train' (run 3: singular; run 7: singular)."
+
+    def held(median, rms, coverage):
+        return {"rel_error": {"median": median}, "rms_abs_error_mm": rms, "coverage_2sigma": coverage}
+
+    ok = held(0.01, 0.002, COVERAGE_LIMIT)
+    assert held_out_findings(ok, noise_rel=0.01) == [] and held_out_findings(ok) == []
+    (f,) = held_out_findings(held(0.0125, 0.0, 0.95), noise_rel=0.01)
+    assert (f.code, f.section) == ("surrogate-error", "held-out")
+    assert "(1.25 %) exceeds the measurement noise (1 %)" in f.message and "train.n" in f.remedy
+    assert held_out_findings(held(0.5, 0.002, 0.95), noise_abs={"D1": 0.002, "D2": 0.01}) == []
+    (f,) = held_out_findings(held(0.5, 0.003, 0.95), noise_abs={"D1": 0.002, "D2": 0.01})
+    assert "(0.003 mm) exceeds the measurement noise (σ = 0.002 mm)" in f.message
+    assert [f.code for f in held_out_findings(held(0.5, 0.003, 0.7), noise_abs=0.002)] == [
+        "surrogate-error", "surrogate-coverage"]
+    (f,) = held_out_findings(held(0.0, 0.0, 0.7))
+    assert f.code == "surrogate-coverage" and "only 70 % of the held-out FE readings" in f.message
+
+    assert diagnosis_findings({"verdict": "adequate"}) == []
+    (f,) = diagnosis_findings({"verdict": "inadequate", "cause": None, "base": {"chi2_dof": 7.5}})
+    assert f.code == "diagnosis-unexplained" and "(χ²/dof = 7.50)" in f.message
+    (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "a faulty sensor", "detail": {"location": "D2"},
+                               "gain": {"chi2_dof_before": 9.0, "chi2_dof_after": 1.1}})
+    assert (f.code, f.section) == ("diagnosis-cause", "diagnosis")
+    assert f.message.endswith("names a faulty sensor at D2 (χ²/dof 9.00 → 1.10 with it).")
+    (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "bond slip", "detail": None, "gain": None})
+    assert f.message.endswith("names bond slip.")
+
+
+def test_rvc_statistics_against_numpy_on_the_region_members(solved):
+    """Fails if a statistic of the RVC changes (sample std with ddof = 1, cv and range ratio over
+    |mean| even below 1 mm, min, max), if the member subset is drawn with replacement or unseeded,
+    or if one member gives anything but zero spread."""
+    _, _, region = solved
+    model = LinearModel()
+    Y = region.samples @ model.A.T
+    out = rvc(region, model)
+    assert out.outputs == ("g1@20", "g2@20", "g3@20") and out.n_samples == len(Y)
+    y = Y[:, 3:]
+    assert_allclose(out.values, y, rtol=0)
+    assert_allclose(out.mean, y.mean(axis=0), rtol=1e-12)
+    assert_allclose(out.std, y.std(axis=0, ddof=1), rtol=1e-12)
+    assert_allclose(out.cv, y.std(axis=0, ddof=1) / np.abs(y.mean(axis=0)), rtol=1e-12)
+    assert_allclose(out.range_ratio, (y.max(axis=0) - y.min(axis=0)) / np.abs(y.mean(axis=0)), rtol=1e-12)
+    assert_allclose(out.min, y.min(axis=0), rtol=0)
+    assert_allclose(out.max, y.max(axis=0), rtol=0)
+    small = rvc(region, model, outputs=["g1@10"])  # mean ≈ 0.96 mm < 1
+    assert_allclose(small.cv, Y[:, :1].std(axis=0, ddof=1) / np.abs(Y[:, :1].mean(axis=0)), rtol=1e-12)
+    assert_allclose(rvc(region, model, max_samples=len(Y)).values, y, rtol=0)  # all members, in order
+    sub = rvc(region, model, max_samples=len(Y) // 2)
+    assert sub.n_samples == len(Y) // 2 and len(np.unique(sub.values, axis=0)) == len(Y) // 2
+    assert_allclose(rvc(region, model, max_samples=len(Y) // 2).values, sub.values, rtol=0)
+    two = rvc(region, model, max_samples=2)
+    assert_allclose(two.std, np.abs(two.values[0] - two.values[1]) / np.sqrt(2), rtol=1e-12)
+    one = rvc(region, model, max_samples=1)
+    assert one.std.tolist() == [0.0, 0.0, 0.0] and one.cv.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_noise_monte_carlo_intervals_are_the_central_percentiles_of_the_refits(solved):
+    """Fails if the interval levels move off the central ``confidence`` share of the refitted optima,
+    or if the evaluation count stops accumulating over the realisations."""
+    problem, result, _ = solved
+    for confidence, levels in ((0.95, [2.5, 97.5]), (0.8, [10.0, 90.0])):
+        mc = noise_monte_carlo_region(problem, result.x, n_realisations=30, confidence=confidence, rng=1)
+        q = np.percentile(mc.samples, levels, axis=0)
+        for j, name in enumerate(("m1", "m2")):
+            assert_allclose(mc.intervals[name], q[:, j], rtol=1e-12)
+        assert len(mc.samples) == 30 and mc.n_evaluated >= 30 * 3  # a polish evaluates ≥ 1 + 2 (one per parameter)

@@ -1,5 +1,8 @@
 """POD: known orthonormal bases, truncation by energy or count, round trips, method agreement."""
 
+import logging
+import warnings
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
@@ -77,10 +80,15 @@ def test_input_not_modified_and_uncentred():
         ({"n_modes": 2, "energy": 0.9}, None, "either n_modes or energy"),
         ({"energy": 1.5}, None, "0 < energy <= 1"),
         ({"n_modes": 0}, None, "n_modes must be an integer >= 1"),
+        ({"n_modes": True}, None, "n_modes must be an integer >= 1"),
+        ({"energy": 0.0}, None, r"0 < energy <= 1; got 0.0 \(e.g. energy=0.9999 keeps 99.99 %\)"),
         ({"n_modes": 9}, None, "exceeds the numerical rank 5"),
         ({"method": "qr"}, None, "method must be one of"),
         ({}, np.ones((5, 3)), "all snapshots are identical"),
-        ({}, np.full((4, 3), np.nan), "must be finite"),
+        ({}, np.full((4, 3), np.nan), r"^Y must be finite; found NaN or inf \(drop failed FE runs first\)"),
+        ({}, np.ones(3), r"Y must have shape \(n_samples, n_outputs\); got shape \(3,\)"),
+        ({}, np.ones((1, 3)), "POD needs at least 2 snapshots; got 1"),
+        ({"method": "snapshots"}, np.ones((5, 30)), r"^all snapshots are identical \(zero variance after centring\)"),
     ],
 )
 def test_errors(kwargs, data, message):
@@ -90,5 +98,75 @@ def test_errors(kwargs, data, message):
 
 
 def test_not_fitted():
-    with pytest.raises(NotFittedError, match="call fit"):
+    with pytest.raises(NotFittedError, match=r"^this POD instance is not fitted yet; call fit\(Y\) first"):
         POD().transform(np.ones((2, 3)))
+
+
+def test_projection_error_against_a_hand_computed_basis():
+    """Uncentred rows 3 e1 and e2 give modes e1 (σ = 3) and e2 (σ = 1); one mode keeps e1, so the
+    error of (1, 2, 2) is |(0, 2, 2)| = √8 and of e2 is 1 (absolute; relative divides by |y|)."""
+    pod = POD(n_modes=1, center=False).fit(np.array([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0]]))
+    Y = np.array([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 2.0, 2.0], [0.0, 0.0, 0.0]])
+    assert_allclose(pod.projection_error(Y, relative=False), [0.0, 1.0, np.sqrt(8.0), 0.0], rtol=1e-12, atol=1e-15)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the zero snapshot is 0 / 0: 0 without an invalid-value warning
+        assert_allclose(pod.projection_error(Y), [0.0, 1.0, np.sqrt(8.0) / 3.0, 0.0], rtol=1e-12, atol=1e-15)
+    # centred, mean (1, 1, 0) and mode e1: the zero snapshot has error |(0, -1, 0)| = 1 and norm 0,
+    # so its relative error is inf, without a divide-by-zero warning
+    centred = POD().fit(np.array([[2.0, 1.0, 0.0], [0.0, 1.0, 0.0]]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rel = centred.projection_error(np.zeros((1, 3)))
+    assert rel.tolist() == [np.inf]
+    assert_allclose(centred.projection_error(np.zeros((1, 3)), relative=False), [1.0], rtol=1e-12)
+
+
+def test_settings_round_trip_and_the_auto_method_threshold():
+    """``get_params`` rebuilds an equal POD; "auto" takes the method of snapshots only when
+    n_outputs > 4 n_samples; one mode and two snapshots are valid."""
+    pod = POD(n_modes=1, center=False, method="svd")
+    assert pod.get_params() == {"n_modes": 1, "energy": None, "center": False, "method": "svd"}
+    assert POD(**POD(energy=0.5).get_params()).get_params()["energy"] == 0.5
+    Y, _, _ = _data(6, n=5, m=20, rank=2)
+    assert POD().fit(Y).method_ == "svd"  # m = 4 n
+    assert POD().fit(np.hstack([Y, Y[:, :1]])).method_ == "snapshots"  # m = 4 n + 1
+    two = POD(n_modes=1, method="snapshots").fit(Y[:2])
+    assert two.n_modes_ == 1 and two.n_samples_ == 2
+
+
+def test_snapshots_method_keeps_the_rank_for_small_readings_without_warnings():
+    """Readings of ~1e-5 mm with singular values 1 : 1e-3 (rank 2): the method of snapshots keeps
+    exactly 2 modes (the Gram matrix's rounding-level eigenvalues, ~1e-8 of σ₁ after the square
+    root, are dropped by the 1e-7 cut) and its clipped square root raises no warning."""
+    r = np.random.default_rng(7)
+    Phi = np.linalg.qr(r.standard_normal((200, 2)))[0].T
+    A = r.standard_normal((20, 2)) * np.array([1.0, 1e-3])
+    Y = 1e-5 * (A @ Phi)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pod = POD(method="snapshots").fit(Y)
+    assert pod.n_modes_ == 2
+    ref = POD(method="svd").fit(Y)
+    assert_allclose(pod.singular_values_, ref.singular_values_[:2], rtol=1e-6)
+
+
+def test_wrong_widths_are_named():
+    Y, _, _ = _data(8)
+    pod = POD(n_modes=5).fit(Y)
+    with pytest.raises(ValueError, match=r"Y must have shape \(n_samples, 30\); got \(2, 29\)"):
+        pod.transform(Y[:2, :29])
+    with pytest.raises(ValueError, match=r"A must have shape \(n_samples, 5\); got \(2, 4\)"):
+        pod.inverse_transform(np.zeros((2, 4)))
+
+
+def test_energy_curve_and_truncation_by_energy_on_a_hand_basis(caplog):
+    """Singular values 3 and 1: energies 9/10 and 1; energy=0.9 keeps exactly one mode (the 1e-12
+    tolerance absorbs rounding of the sum), anything above keeps both; fit logs its summary."""
+    Y = np.array([[3.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    with caplog.at_level(logging.INFO, logger="podkrig.surrogate.pod"):
+        pod = POD(energy=0.9, center=False, method="svd").fit(Y)
+    assert_allclose(pod.singular_values_, [3.0, 1.0], rtol=1e-14)
+    assert_allclose(pod.energy_, [0.9, 1.0], rtol=1e-14)
+    assert pod.n_modes_ == 1 and pod.retained_energy_ == pytest.approx(0.9, rel=1e-14)
+    assert POD(energy=0.9 + 1e-9, center=False).fit(Y).n_modes_ == 2
+    assert caplog.messages == ["POD (svd): 2 snapshots x 3 outputs, rank 2, 1 modes keep 0.9000000000 of the energy"]
