@@ -4,7 +4,7 @@ Usage::
 
     python scripts/bench_sensors.py                           # the full run (~15 min on 2 cores)
     python scripts/bench_sensors.py --mc 5 --random 5         # a quick look
-    python scripts/bench_sensors.py --scenario flat_jack      # the flat-jack test (~3 min on 2 cores)
+    python scripts/bench_sensors.py --scenario flat_jack --mc 10   # the flat-jack test (~20 min on 2 cores; --mc 0: ~2 min)
 
 Set-up: default diagonal-compression panel (9 360 dofs), free E_b, kN_bj (log), kV_bj (log), r_hj
 over the demo study's box; candidates: gauges between the points of a 160 mm grid (105…1065 mm
