@@ -44,11 +44,16 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 from fe import build_scenario
-from podkrig.parameters import ParameterSpace
 from fe.scenarios.flat_jack import L18_EXTRA
 from podkrig.online.problem import FEModel
+from podkrig.parameters import ParameterSpace
 from podkrig.sensors.candidates import current_candidates, gauge_grid, user_candidates
-from podkrig.sensors.criteria import UNIFORM_PRIOR_INFORMATION, LayoutCriterion, SensorNoise, fisher_per_candidate
+from podkrig.sensors.criteria import (
+    UNIFORM_PRIOR_INFORMATION,
+    LayoutCriterion,
+    SensorNoise,
+    fisher_per_candidate,
+)
 from podkrig.sensors.montecarlo import candidate_surrogate, interior_truths, monte_carlo
 from podkrig.sensors.placement import place_sensors
 from podkrig.sensors.sensitivity import candidate_sensitivities, model_sensitivities, prior_points
