@@ -16,6 +16,7 @@ from scipy.stats import spearmanr
 from typer.testing import CliRunner
 
 from fe.scenarios import ScenarioSpec, build_scenario
+from fe.scenarios.flat_jack import homogeneous_slot_spec
 from fe.sensors import locate_points
 from podkrig.cli import app
 from podkrig.online.problem import FEModel
@@ -362,3 +363,25 @@ def test_budget_through_place_sensors_prices_current_sensors_like_candidates(sce
     result = place_sensors(scenario, space, cand, budget=8.0, n_points=8, n_random=2, methods=("greedy",))
     assert result.candidates.cost[result.candidates.is_current].tolist() == [2.5]
     assert len(result.layout.indices) == 3 and result.candidates.cost[result.layout.indices].sum() <= 8.0
+
+
+def test_flat_jack_loads_scaled_by_km_refuse_the_exact_path_and_go_through_a_model():
+    """The flat-jack loads scale with Km (jack force = Km × p), which the affine path's frozen load
+    coefficients cannot represent: Km free, or fixed off its spec value, is a clear error, whereas
+    stiffness parameters alone pass the check. Through ``model=`` (FE in the loop) Km's sensitivity
+    is the closed form ∂g/∂u = g/Km × (Km_max − Km_min) (σ0 = 0: the readings are proportional to
+    Km), to 1e-6 relative (central differences of a linear function: round-off only)."""
+    sc = build_scenario(homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5)))
+    cands = user_candidates(sc.mesh, {s.name: s.to_dict() for s in sc.sensors})
+    with_km = ParameterSpace.from_scenario(sc, {"E_b": (3000.0, 5000.0), "Km": (0.75, 0.95)})
+    with pytest.raises(ValueError, match="loads depend on the parameters"):
+        candidate_sensitivities(sc, with_km, cands, prior_points(with_km, 2))
+    stiff_only = ParameterSpace.from_scenario(sc, {"E_b": (3000.0, 5000.0)})
+    with pytest.raises(ValueError, match="model="):
+        candidate_sensitivities(sc, stiff_only, cands, prior_points(stiff_only, 2), fixed={"Km": 0.8})
+    ok = candidate_sensitivities(sc, stiff_only, cands, prior_points(stiff_only, 2))
+    assert np.abs(ok.readings).max() > 0
+    X = prior_points(with_km, 2)
+    sens = model_sensitivities(FEModel(sc, with_km), cands, X)
+    km = X[:, 1][:, None, None]
+    assert np.allclose(sens.jacobian[..., 1], sens.readings / km * 0.2, rtol=1e-6, atol=1e-12)

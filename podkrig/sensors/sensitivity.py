@@ -15,6 +15,12 @@ back-substitutions on the same factors, its exact parameter derivatives. Every c
 is a linear operator on the field (``H`` of :func:`fe.sensors.sensor_operator`), so readings and
 sensitivities of *all* candidates cost one sparse product: no FE run per candidate or per layout.
 
+The loads must not depend on the parameters: the scenario's ``load_coefficients`` are taken as
+fixed. Scenarios whose loads scale with a parameter (the flat jack: jack pressure × ``Km``, release
+× ``σ0``) would get readings at the default values and no derivative for it; the first point's
+readings of the scenario's own sensors are therefore checked against ``scenario.run`` (one more
+factorisation) and a mismatch is an error pointing to :func:`model_sensitivities`.
+
 ``∂θ/∂m`` comes from central differences of the scenario's ``theta`` (exact to round-off for
 the masonry scenarios, whose θ is linear in each parameter). Sensitivities are returned with
 respect to the *unit* coordinates ``u`` of the parameter space (log-scaled parameters in log10),
@@ -134,7 +140,8 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
     Raises
     ------
     ValueError
-        A scenario without an affine linear model, unknown parameter names.
+        A scenario without an affine linear model, or whose loads depend on the parameters (checked
+        at the first point); unknown parameter names.
     """
     model = getattr(scenario, "model", None)
     if model is None or not hasattr(model, "stiffness"):
@@ -166,6 +173,8 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
             R[:, j * n_pat:(j + 1) * n_pat] = -(dK @ Q)
         dQ = model.solver.solve(R).reshape(model.n_dofs, p * n_pat)
         readings[k] = C @ np.asarray(obs @ Q).T
+        if k == 0:
+            _check_fixed_loads(scenario, values, C, Q)
         dR = np.asarray(obs @ dQ).reshape(len(channel_names), p, n_pat)  # channel, param, pattern
         jac[k] = np.einsum("lp,cjp->lcj", C, dR) * _dm_du(space, x)
         if progress is not None:
@@ -174,6 +183,22 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
     logger.info("sensitivities of %d candidates at %d points in %.2f s", len(candidates), len(X), seconds)
     return Sensitivities(X, readings, jac, channel_sensor, tuple(channel_names), candidates, space,
                          dict(fixed or {}), np.asarray(scenario.load_levels, float), scenario.load_unit, seconds)
+
+
+def _check_fixed_loads(scenario, values, C, Q, rtol=1e-6):
+    """Raise when the affine readings of the scenario's own sensors at ``values`` differ from
+    ``scenario.run(values)``: its loads depend on the parameters (see the module docstring)."""
+    if not scenario.sensors:
+        return
+    H, _ = sensor_operator(scenario.mesh, scenario.sensors)
+    affine = C @ np.asarray((H @ scenario.model.transform) @ Q).T
+    exact = scenario.run(values).readings
+    scale = max(float(np.abs(exact).max()), 1e-300)
+    if np.abs(affine - exact).max() > rtol * scale:
+        raise ValueError(f"scenario {scenario.name!r}: its loads depend on the parameters (e.g. a flat-jack "
+                         "pressure scales with Km), which exact sensitivities cannot represent; pass a batched "
+                         "model of the candidates' readings instead (place_sensors(..., model=FEModel or "
+                         "surrogate), see podkrig.sensors.sensitivity.model_sensitivities)")
 
 
 def model_sensitivities(model, candidates, X, *, step=1e-4, progress=None):
