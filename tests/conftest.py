@@ -1,5 +1,7 @@
 """Shared pytest fixtures."""
 
+import logging
+
 import pytest
 
 from fe.scenarios import build_scenario
@@ -15,3 +17,14 @@ def coarse_diagonal():
 def default_diagonal():
     """The diagonal compression test with its default (converged) mesh."""
     return build_scenario("diagonal_compression")
+
+
+@pytest.fixture(autouse=True)
+def _project_loggers_enabled():
+    """Importing ``distributed`` (a Dask test earlier in the same worker) runs
+    ``logging.config.dictConfig``, which disables every logger that exists then; a later test that
+    checks a podkrig warning with ``caplog`` would see nothing. Re-enable ours before each test."""
+    for name, logger in list(logging.root.manager.loggerDict.items()):
+        if isinstance(logger, logging.Logger) and name.split(".")[0] in ("podkrig", "fe"):
+            logger.disabled = False
+    yield

@@ -15,9 +15,10 @@ import pytest
 from fe.scenarios import build_scenario
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.store import SnapshotStore
-from podkrig.online.inverse import InverseProblem, SurrogateModel, invert
+from podkrig.online.invert import invert
+from podkrig.online.problem import InverseProblem, SurrogateModel
 from podkrig.online.measurement import Measurement, NoiseModel
-from podkrig.online.uncertainty import likelihood_ratio_region
+from podkrig.online.region import likelihood_ratio_region
 from podkrig.parameters import ParameterSpace
 from podkrig.surrogate.podkriging import fit_from_store
 

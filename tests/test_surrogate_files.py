@@ -140,7 +140,7 @@ def test_physical_box_is_exact():
 
 def test_one_default_exponent():
     from podkrig.cli.surrogate import _templates
-    from podkrig.study.schema import SurrogateSettings
+    from podkrig.study.settings import SurrogateSettings
 
     assert DEFAULT_BETA == "fit-shared" == OrdinaryKriging().beta
     assert _templates(None, None, "podkrig", None, None, None, None)[1].beta == DEFAULT_BETA
