@@ -110,6 +110,32 @@ def test_numba_and_numpy_kernels_agree(data, kw):
     assert_allclose(sa, sb, rtol=1e-6, atol=1e-8)
 
 
+@pytest.mark.parametrize("kw", [{"beta": "fit"}, {"variogram": "power", "beta": 1.3}])
+def test_variance_paths_agree_and_mean_is_the_same_with_or_without_std(data, monkeypatch, kw):
+    from podkrig.surrogate.kriging import ordinary
+
+    X, Y, Xp = data
+    ok = OrdinaryKriging(**kw).fit(X, Y)
+    mean_only = ok.predict(Xp)
+    mean, std = ok.predict(Xp, return_std=True)
+    # one kernel pass gives means and cross-covariances: the means are bitwise those of predict
+    assert np.array_equal(mean, mean_only)
+    assert np.array_equal(np.sqrt(ok.predict_variance(Xp)), std)
+    # the explicit L^-1 (dtrmm) against triangular solves, and blocks of 3 points against one
+    # block: the same formula in another order, rounding ~1e-13 of sigma^2
+    monkeypatch.setattr(ordinary, "EXPLICIT_INVERSE_BYTES", 0)
+    monkeypatch.setattr(ordinary, "VARIANCE_BLOCK_BYTES", 3 * 8 * len(X) * Y.shape[1])
+    solved = OrdinaryKriging(**kw).fit(X, Y)
+    if ok.kind_ == 0:
+        assert ok._L_inverse is not None and solved._L_inverse is None
+    m2, s2 = solved.predict(Xp, return_std=True)
+    assert np.array_equal(m2, mean)
+    assert_allclose(s2**2, std**2, rtol=0, atol=1e-12 * ok.sigma2_.max())
+    # a single point, and an empty batch
+    assert_allclose(ok.predict(Xp[:1], return_std=True)[1] ** 2, std[:1] ** 2, rtol=0, atol=1e-12 * ok.sigma2_.max())
+    assert ok.predict(Xp[:0], return_std=True)[1].shape == (0, Y.shape[1])
+
+
 def test_fit_shared_uses_the_first_outputs_exponent_for_all(data):
     X, Y, _ = data
     assert Y.shape[1] > 1
@@ -234,9 +260,13 @@ def test_mean_kernel_equals_the_direct_formula(case, box):
         # exp(-s) to 7e-15, so exp(-s) to ~1e-14 * (1 + s) with s < 10 here; the clamp at exp(-40)
         # (4e-18 standing for 0) adds an absolute floor of 1e-16 per weight
         assert_allclose(got - mu, ref - mu, rtol=1e-13, atol=1e-16 * alpha.sum(axis=1).max())
-    for j in range(len(beta)):
-        got = _kernels.cross_covariance(Xp, Xt, theta[j], beta[j], 0, use_numba=True)
-        assert_allclose(got, _kernels.cross_covariance_numpy(Xp, Xt, theta[j], beta[j], 0), rtol=1e-13, atol=1e-16)
+    for kind in (0, 1):
+        mean, K = _kernels.predict_mean_and_covariance(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=True)
+        assert np.array_equal(mean, _kernels.predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=True))
+        for j in range(len(beta)):
+            ref = _kernels.cross_covariance_numpy(Xp, Xt, theta[j], beta[j], kind)
+            # kind 1 is -s itself: the 2^-53 absolute bound of the expansion times the sizes of s
+            assert_allclose(K[j], ref, rtol=1e-13, atol=1e-16 if kind == 0 else 1e-15 * np.abs(ref).max())
 
 
 def test_plan_groups_outputs_around_a_fast_base():
@@ -270,16 +300,18 @@ def test_kernels_are_deterministic_across_thread_counts_and_chunks():
     Xp = np.random.default_rng(1).random((1001, 4))
     out = {t: _kernels.predict_mean(Xp, Xt, theta, beta, 0, alpha, mu, use_numba=True, threads=t) for t in (1, 2)}
     np.testing.assert_array_equal(out[1], out[2])
-    cov = {t: _kernels.cross_covariance(Xp, Xt, theta[0], beta[0], 0, use_numba=True, threads=t) for t in (1, 2)}
-    np.testing.assert_array_equal(cov[1], cov[2])
+    cov = {t: _kernels.predict_mean_and_covariance(Xp, Xt, theta, beta, 0, alpha, mu, use_numba=True, threads=t)
+           for t in (1, 2)}
+    np.testing.assert_array_equal(cov[1][0], out[1])
+    np.testing.assert_array_equal(cov[1][1], cov[2][1])
     XtT = np.ascontiguousarray(Xt.T)
-    pl = _kernels.plan(theta[:1], beta[:1])
-    args = (Xp, XtT, pl["theta"][0], pl["coef"][0], int(pl["nq"][0]), int(pl["g_code"][0]), float(pl["g_base"][0]),
-            pl["g_fold"][0], int(pl["g_nfold"][0]), pl["need_logs"], 0)
+    pl = _kernels.plan(theta, beta)
+    args = (Xp, XtT, pl["theta"], pl["coef"], pl["nq"], pl["g_start"], pl["g_code"], pl["g_base"], pl["g_fold"],
+            pl["g_nfold"], pl["need_logs"], 0, np.ascontiguousarray(alpha[pl["order"]]), mu[pl["order"]])
     for chunk in (1, 7, 32, 2000):  # chunks of one point, uneven, default, one chunk for all
-        got = np.empty_like(cov[1])
-        _kernels._cross_covariance_parallel(*args, got, chunk)
-        np.testing.assert_array_equal(got, cov[1])
+        got, K = np.empty_like(out[1]), np.empty((len(beta),) + Xp.shape[:1] + Xt.shape[:1])
+        _kernels._predict_mean_parallel(*args, got, K, True, chunk)
+        np.testing.assert_array_equal(K, cov[1][1][pl["order"]])
 
 
 def test_semivariogram_defaults_range_nugget_and_beta_check():

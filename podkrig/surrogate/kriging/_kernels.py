@@ -415,13 +415,16 @@ if njit is not None:
 
     @njit(fastmath=True, inline="always", cache=True)
     def _mean_rows(p0, p1, Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
-                   need_logs, kind, alpha, mu, out):
-        # kriging means of the prediction points p0 <= p < p1, each in a fixed order
+                   need_logs, kind, alpha, mu, out, K, keep):
+        # kriging means of the prediction points p0 <= p < p1, each in a fixed order; with
+        # ``keep`` the covariance rows also go to K[j, p] (plan order), else to a scratch row.
+        # Both cases run the same loops on the same values, so the means are bitwise equal.
         d, n = XtT.shape
         P = np.empty((d, n))
         Lg = np.empty((d, n))
         S = np.empty(n)
         E = np.empty(n)
+        R = np.empty(n)
         for p in range(p0, p1):
             if need_logs:
                 _fill_logs(Lg, E, Xp[p], XtT)
@@ -429,30 +432,17 @@ if njit is not None:
                 _group_powers(P, Lg, Xp[p], XtT, g_code[g], g_base[g], g_fold[g], g_nfold[g])
                 for j in range(g_start[g], g_start[g + 1]):
                     _reduced(S, P, Lg, theta[j], coef[j], nq[j])
-                    acc = 0.0
+                    row = K[j, p] if keep else R
                     if kind == 0:
                         for i in range(n):
-                            acc += alpha[j, i] * _exp_neg(min(S[i], 40.0))
+                            row[i] = _exp_neg(min(S[i], 40.0))
                     else:
                         for i in range(n):
-                            acc -= alpha[j, i] * S[i]
+                            row[i] = -S[i]
+                    acc = 0.0
+                    for i in range(n):
+                        acc += alpha[j, i] * row[i]
                     out[p, j] = acc + mu[j]
-
-    @njit(fastmath=True, inline="always", cache=True)
-    def _cov_rows(p0, p1, Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out):
-        # cross-covariance rows of the prediction points p0 <= p < p1
-        d, n = XtT.shape
-        P = np.empty((d, n))
-        Lg = np.empty((d, n))
-        S = np.empty(n)
-        E = np.empty(n)
-        for p in range(p0, p1):
-            if need_logs:
-                _fill_logs(Lg, E, Xp[p], XtT)
-            _group_powers(P, Lg, Xp[p], XtT, code, base, fold, nfold)
-            _reduced(S, P, Lg, theta, coef, nq)
-            for i in range(n):
-                out[p, i] = _exp_neg(min(S[i], 40.0)) if kind == 0 else -S[i]
 
     # Entry points: the prediction points in chunks of ``chunk`` over the numba threads. On one
     # thread (small batches, see podkrig.parallel) the same compiled code runs without waking the
@@ -461,19 +451,11 @@ if njit is not None:
 
     @njit(parallel=True, fastmath=True, cache=True)
     def _predict_mean_parallel(Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
-                               need_logs, kind, alpha, mu, out, chunk):
+                               need_logs, kind, alpha, mu, out, K, keep, chunk):
         n_pred = Xp.shape[0]
         for b in prange((n_pred + chunk - 1) // chunk):
             _mean_rows(b * chunk, min(n_pred, (b + 1) * chunk), Xp, XtT, theta, coef, nq, g_start, g_code,
-                       g_base, g_fold, g_nfold, need_logs, kind, alpha, mu, out)
-
-    @njit(parallel=True, fastmath=True, cache=True)
-    def _cross_covariance_parallel(Xp, XtT, theta, coef, nq, code, base, fold, nfold, need_logs, kind, out,
-                                   chunk):
-        n_pred = Xp.shape[0]
-        for b in prange((n_pred + chunk - 1) // chunk):
-            _cov_rows(b * chunk, min(n_pred, (b + 1) * chunk), Xp, XtT, theta, coef, nq, code, base, fold,
-                      nfold, need_logs, kind, out)
+                       g_base, g_fold, g_nfold, need_logs, kind, alpha, mu, out, K, keep)
 
 
 def _launch(kernel, work, n_pred, args, threads=None):
@@ -493,39 +475,50 @@ def predict_mean(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plan_unit
     the unit cube get a plan of their own. Nothing passed in is modified. ``threads``: numba
     threads to use (default :func:`podkrig.parallel.threads_for` the batch: one for small batches).
     """
+    return _mean_and_covariance(Xp, Xt, theta, beta, kind, alpha, mu, use_numba, plan_unit, threads, False)[0]
+
+
+def predict_mean_and_covariance(Xp, Xt, theta, beta, kind, alpha, mu, use_numba=None, plan_unit=None,
+                                threads=None):
+    """Kriging means and the cross-covariances they are made of, in one pass.
+
+    Returns
+    -------
+    mean : ndarray of shape (n_pred, n_outputs)
+        Bitwise equal to :func:`predict_mean`.
+    K : ndarray of shape (n_outputs, n_pred, n)
+        Cross-covariance of each output (as :func:`cross_covariance_numpy`), for the kriging variance:
+        one kernel call instead of one per output, and the reduced distances computed once.
+    """
+    return _mean_and_covariance(Xp, Xt, theta, beta, kind, alpha, mu, use_numba, plan_unit, threads, True)
+
+
+def _mean_and_covariance(Xp, Xt, theta, beta, kind, alpha, mu, use_numba, plan_unit, threads, keep):
     Xp = np.ascontiguousarray(Xp, dtype=float)
     beta = np.ascontiguousarray(beta, dtype=float)
     if not numba_enabled(use_numba) or njit is None:
-        return predict_mean_numpy(Xp, Xt, theta, beta, kind, alpha, mu)
+        mean = predict_mean_numpy(Xp, Xt, theta, beta, kind, alpha, mu)
+        if not keep:
+            return mean, None
+        return mean, np.stack([cross_covariance_numpy(Xp, Xt, theta[j], float(beta[j]), kind)
+                               for j in range(len(beta))])
     dmax = max(_delta_max(Xp, Xt), 1.0)
     pl = plan_unit if plan_unit is not None and dmax == 1.0 else plan(theta, beta, dmax)
     order = pl["order"]
     out = np.empty((Xp.shape[0], len(beta)))
+    K = np.empty((len(beta), Xp.shape[0], Xt.shape[0]) if keep else (1, 1, 1))
     args = (
         Xp, np.ascontiguousarray(Xt.T), pl["theta"], pl["coef"], pl["nq"], pl["g_start"], pl["g_code"],
         pl["g_base"], pl["g_fold"], pl["g_nfold"], pl["need_logs"], int(kind),
         np.ascontiguousarray(np.asarray(alpha, dtype=float)[order]),
-        np.ascontiguousarray(np.asarray(mu, dtype=float)[order]), out,
+        np.ascontiguousarray(np.asarray(mu, dtype=float)[order]), out, K, keep,
     )
     _launch(_predict_mean_parallel, Xp.shape[0] * Xt.shape[0] * len(beta), Xp.shape[0], args,
             threads)
     result = np.empty_like(out)
     result[:, order] = out
-    return result
-
-
-def cross_covariance(Xp, Xt, theta, beta, kind, use_numba=None, threads=None):
-    """``(n_pred, n)`` cross-covariance of one output; see :func:`cross_covariance_numpy`.
-    ``threads`` as in :func:`predict_mean`."""
-    Xp = np.ascontiguousarray(Xp, dtype=float)
-    if not numba_enabled(use_numba) or njit is None:
-        return cross_covariance_numpy(Xp, Xt, theta, float(beta), kind)
-    pl = plan(np.reshape(theta, (1, -1)), np.array([float(beta)]), _delta_max(Xp, Xt))
-    out = np.empty((Xp.shape[0], Xt.shape[0]))
-    args = (
-        Xp, np.ascontiguousarray(Xt.T), pl["theta"][0], pl["coef"][0], int(pl["nq"][0]), int(pl["g_code"][0]),
-        float(pl["g_base"][0]), pl["g_fold"][0], int(pl["g_nfold"][0]), pl["need_logs"], int(kind), out,
-    )
-    _launch(_cross_covariance_parallel, Xp.shape[0] * Xt.shape[0], Xp.shape[0], args,
-            threads)
-    return out
+    if not keep:
+        return result, None
+    K_out = np.empty_like(K)
+    K_out[order] = K
+    return result, K_out
