@@ -552,3 +552,28 @@ def test_figures_have_labelled_axes():
         assert ax.get_xlabel() and ax.get_ylabel()
     assert axes[2].get_xlabel() == "k0 [N/mm3]"
     plt.close("all")
+
+
+def test_unit_fun_replaces_the_physical_objective_on_the_genes():
+    from podkrig.parameters import Parameter, ParameterSpace
+
+    space = ParameterSpace((Parameter("k", 1.0, 1000.0, "log"), Parameter("b", -1.0, 1.0)))
+
+    def fun(X):
+        return (np.log10(X[:, 0]) - 1.5) ** 2 + X[:, 1] ** 2
+
+    calls = []
+
+    def unit_fun(U):
+        calls.append(len(U))
+        return fun(space.from_unit(U))
+
+    kw = dict(rng=4, population_size=20, max_generations=15)
+    physical = GeneticAlgorithm(fun, space, **kw).run()
+    unit = GeneticAlgorithm(lambda X: pytest.fail("fun called despite unit_fun"), space, unit_fun=unit_fun, **kw).run()
+    # the same objective through the genes: the same run, evaluation for evaluation
+    assert_array_equal(unit.x, physical.x)
+    assert unit.nfev == physical.nfev
+    assert sum(calls) == unit.nfev
+    with pytest.raises(TypeError, match="unit_fun must be callable"):
+        GeneticAlgorithm(fun, space, unit_fun=3)

@@ -51,6 +51,41 @@ def test_noise_free_inversion_recovers_the_truth():
     assert result.parameters == pytest.approx({"k": TRUTH["k"], "b": TRUTH["b"], "c": 0.5}, rel=1e-6)
 
 
+class UnitCubeModel(AnalyticModel):
+    """The analytic model with a unit-cube entry point, as the surrogate has; counts the rows
+    each entry point evaluates."""
+
+    def __init__(self):
+        super().__init__()
+        self.rows = {"physical": 0, "unit": 0}
+
+    def predict(self, X, return_std=False):
+        self.rows["physical"] += len(np.atleast_2d(X))
+        return super().predict(X, return_std)
+
+    def predict_unit(self, U, return_std=False):
+        self.rows["unit"] += len(U)
+        return super().predict(self.space.from_unit(U), return_std)
+
+
+@pytest.mark.parametrize("free, fixed", [(("k", "b"), {"c": 0.5}), (("b", "c"), {"k": 12.0})])
+def test_unit_cube_path_skips_physical_units_and_equals_the_physical_misfit(free, fixed):
+    model = UnitCubeModel()
+    problem = InverseProblem(model, measured(model, 0.01, 3), NoiseModel(sigma=0.01), free=free, fixed=fixed)
+    U = np.random.default_rng(0).random((50, 2))
+    # the same misfit through either path (a fixed log-scale k is scaled once, at construction)
+    assert_allclose(problem.omega_unit(U), problem.omega(problem.free_space.from_unit(U)), rtol=1e-12)
+    model.rows.update(physical=0, unit=0)
+    invert(problem, rng=1, population_size=30, generations=20)
+    # the GA and the polish run in the unit cube; only the reported optimum goes through physical units
+    assert model.rows["unit"] > 100 and model.rows["physical"] <= 5, model.rows
+    with_prior = InverseProblem(model, problem.measurement, problem.noise, free=free, fixed=fixed,
+                                prior_mean=np.array([0.5, 0.5]), prior_cov=np.eye(2))
+    model.rows.update(physical=0, unit=0)
+    with_prior.omega_unit(U)  # the prior is over physical values: the physical path
+    assert model.rows == {"physical": 50, "unit": 0}
+
+
 def test_problem_validation_messages():
     model = AnalyticModel()
     meas = measured(model, 0.0, 0)

@@ -297,6 +297,10 @@ class GeneticAlgorithm:
         attribute ``options``.
     constraints : callable or None
         ``constraints(X) -> G`` of shape (n_individuals, n_constraints), ``g_j <= 0`` feasible.
+    unit_fun : callable or None
+        The same objective at the genes themselves, ``unit_fun(U) -> f`` with ``U`` in the unit
+        cube of ``bounds``: when given, the GA calls it instead of ``fun`` (a model that works in
+        the unit cube, such as the surrogate, then needs no round trip through physical units).
     **keyword_options
         Any field of :class:`~podkrig.ga.options.GAOptions`, where every option is documented
         with its default and why (population 40, half of it elite, binary tournament, BLX-α,
@@ -360,10 +364,13 @@ class GeneticAlgorithm:
         constraints: Callable[[np.ndarray], np.ndarray] | None = None,
         rng=None,
         callback: Callable[[GeneticAlgorithm], bool | None] | None = None,
+        unit_fun: Callable[[np.ndarray], np.ndarray] | None = None,
         **keyword_options,
     ):
         if not callable(fun):
             raise TypeError(f"fun must be callable; got {type(fun).__name__}")
+        if unit_fun is not None and not callable(unit_fun):
+            raise TypeError(f"unit_fun must be callable or None; got {unit_fun!r}")
         if all(hasattr(bounds, a) for a in ("names", "to_unit", "from_unit")):
             self._space = bounds
         else:
@@ -381,7 +388,7 @@ class GeneticAlgorithm:
         self.options: GAOptions = opts.resolve(n_params, constrained=constraints is not None)
         o = self.options
         self._n_grid = np.asarray(o.n_grid, dtype=float) if o.encoding == "integer" else None
-        self._fun, self._constraints, self._callback = fun, constraints, callback
+        self._fun, self._unit_fun, self._constraints, self._callback = fun, unit_fun, constraints, callback
         self.n_params = n_params
         self.population_size = o.population_size
         self.max_generations = o.max_generations
@@ -418,8 +425,8 @@ class GeneticAlgorithm:
         n = U.shape[0]
         if n == 0:
             return U, np.empty(0), np.empty(0), None
-        X = np.asarray(self._space.from_unit(U), dtype=float)
-        f = np.asarray(self._fun(X), dtype=float)
+        X = np.asarray(self._space.from_unit(U), dtype=float)  # for the history and the constraints
+        f = np.asarray(self._fun(X) if self._unit_fun is None else self._unit_fun(U), dtype=float)
         if f.shape != (n,):
             raise ValueError(f"fun must return shape ({n},) for {n} individuals; got {f.shape}")
         if np.isnan(f).any():

@@ -191,7 +191,7 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
         # the steppable GA, not podkrig.ga.minimize: minimize warns when a run stops on its budget,
         # and running to the generation budget is the plan here
         ga = GeneticAlgorithm(problem.omega, problem.free_space, rng=rng, population_size=population_size,
-                              max_generations=generations, **ga_options).run()
+                              max_generations=generations, unit_fun=problem.omega_unit, **ga_options).run()
         x, n_eval = np.asarray(ga.x, dtype=float), ga.nfev
         if polish:
             x, n_eval = _polish_from_starts(problem, ga, x, n_eval, rng, n_starts)
@@ -213,16 +213,18 @@ def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
     """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
     returns the best point and the updated evaluation count."""
     best_omega = ga.fun
-    screen = problem.free_space.from_unit(scrambled_sobol(1024, problem.n_free, rng_seed(rng)))
-    screen_omega = problem.omega(screen)
+    space = problem.free_space
+    screen = scrambled_sobol(1024, problem.n_free, rng_seed(rng))
+    screen_omega = problem.omega_unit(screen)
     n_eval += len(screen)
-    starts = np.vstack([x[None], _distinct_starts(problem, screen, screen_omega, n_starts - 1)])
-    for x0 in starts:
-        x_pol, n_pol = problem.polish(x0)
+    starts = np.vstack([np.clip(space.to_unit(x[None]), 0.0, 1.0),
+                        _distinct_starts(screen, screen_omega, n_starts - 1)])
+    for u0 in starts:
+        u_pol, n_pol = problem.polish_unit(u0)
         n_eval += n_pol
-        omega_pol = problem.omega(x_pol[None])[0]
+        omega_pol = problem.omega_unit(u_pol[None])[0]
         if omega_pol < best_omega:
-            x, best_omega = x_pol, omega_pol
+            x, best_omega = space.from_unit(u_pol[None])[0], omega_pol
     return x, n_eval
 
 
@@ -233,18 +235,17 @@ def rng_seed(rng):
     return rng
 
 
-def _distinct_starts(problem, X, omega, k, min_distance=0.15):
-    """The best of ``X`` and up to ``k - 1`` more of the best, each at least ``min_distance``
-    (unit cube, max norm) from those already chosen; physical units."""
-    order = np.argsort(omega, kind="stable")
-    U = problem.free_space.to_unit(X[order])
+def _distinct_starts(U, omega, k, min_distance=0.15):
+    """The best of the unit-cube points ``U`` and up to ``k - 1`` more of the best, each at least
+    ``min_distance`` (max norm) from those already chosen."""
+    U = U[np.argsort(omega, kind="stable")]
     chosen = [0]
     for i in range(1, len(U)):
         if len(chosen) >= k:
             break
         if np.min(np.max(np.abs(U[chosen] - U[i]), axis=1)) >= min_distance:
             chosen.append(i)
-    return X[order][chosen]
+    return U[chosen]
 
 
 def fe_check(result, scenario):

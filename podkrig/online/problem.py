@@ -155,6 +155,18 @@ class InverseProblem:
             kind=self.kind, model_error=self.model_error,
         )
         object.__setattr__(self, "misfit", misfit)
+        # unit-cube path (GA, polish, region, posterior): the free space is made of the model's own
+        # parameters, so free unit coordinates are the model's unit coordinates; a model with
+        # ``predict_unit`` (the surrogate) then gets them without a round trip through physical
+        # units, and the fixed parameters are scaled once, here
+        unit_misfit = None
+        if hasattr(self.model, "predict_unit") and self.prior_mean is None:
+            inside = template.copy()
+            inside[index] = [space.parameters[i].lower for i in index]  # placeholders, overwritten
+            template_unit = space.to_unit(inside[None])[0]
+            object.__setattr__(self, "_template_unit", template_unit)
+            unit_misfit = dataclasses.replace(misfit, model=self._predict_unit)
+        object.__setattr__(self, "_unit_misfit", unit_misfit)
 
     @property
     def n_free(self):
@@ -177,6 +189,14 @@ class InverseProblem:
         mean = self.model.predict(self.full(X))
         return mean, np.broadcast_to(self.frozen_model_std, mean.shape)
 
+    def _predict_unit(self, U):
+        full = np.tile(self._template_unit, (len(U), 1))
+        full[:, self._index] = U
+        if self.frozen_model_std is None:
+            return self.model.predict_unit(full, return_std=True)
+        mean = self.model.predict_unit(full)
+        return mean, np.broadcast_to(self.frozen_model_std, mean.shape)
+
     def freeze_model_error(self, x):
         """The same problem with the model's predictive std frozen at ``x`` (free, physical).
 
@@ -191,12 +211,22 @@ class InverseProblem:
         return self.misfit(X)
 
     def omega_unit(self, U):
-        """ω at unit-cube coordinates of the free space, ``(n,)``."""
-        return self.misfit(self.free_space.from_unit(np.atleast_2d(U)))
+        """ω at unit-cube coordinates of the free space, ``(n,)``.
+
+        Equal to :meth:`omega` at ``free_space.from_unit(U)`` to rounding; a model with
+        ``predict_unit`` is evaluated at ``U`` directly (no prior: the prior is over physical values).
+        """
+        U = np.atleast_2d(np.asarray(U, dtype=float))
+        if self._unit_misfit is not None:
+            return self._unit_misfit(U)
+        return self.misfit(self.free_space.from_unit(U))
 
     def _residuals_batch(self, U):
         """Whitened data residuals and prior residuals at unit-cube points, ``(n, n_obs [+ n_free])``."""
-        X = self.free_space.from_unit(np.atleast_2d(U))
+        U = np.atleast_2d(np.asarray(U, dtype=float))
+        if self._unit_misfit is not None:
+            return self._unit_misfit.whitened_residuals(U)
+        X = self.free_space.from_unit(U)
         return np.hstack([self.misfit.whitened_residuals(X), self.misfit.prior_residuals(X)])
 
     def residuals_unit(self, u):
@@ -219,10 +249,15 @@ class InverseProblem:
     def polish(self, x0, max_nfev=200):
         """Bounded least squares on the whitened residuals from ``x0`` (physical); returns
         ``(x, n_evaluations)``."""
-        u0 = np.clip(self.free_space.to_unit(np.atleast_2d(x0))[0], 0.0, 1.0)
+        u, nfev = self.polish_unit(np.clip(self.free_space.to_unit(np.atleast_2d(x0))[0], 0.0, 1.0), max_nfev)
+        return self.free_space.from_unit(u[None])[0], nfev
+
+    def polish_unit(self, u0, max_nfev=200):
+        """:meth:`polish` in the unit cube of the free space: from ``u0`` ``(n_free,)`` in [0, 1];
+        returns ``(u, n_evaluations)``."""
         sol = optimize.least_squares(self.residuals_unit, u0, jac=self.jacobian_unit, bounds=(0.0, 1.0),
                                      x_scale=1.0, max_nfev=max_nfev, method="trf")
-        return self.free_space.from_unit(sol.x[None])[0], int(sol.nfev + 2 * len(u0) * sol.njev)
+        return sol.x, int(sol.nfev + 2 * len(u0) * sol.njev)
 
 
 def fix_from_scenario(model, free=None, fixed=None):
