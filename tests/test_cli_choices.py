@@ -11,9 +11,11 @@ from podkrig.cli._common import (
     KrigingCriterion,
     RegionMethod,
     SamplingMethod,
+    SensitivitySource,
     SurrogateBackend,
     Variogram,
 )
+from podkrig.sensors.placement import SENSITIVITY_SOURCES
 from podkrig.study.settings import BACKENDS, CRITERIA, REGION_METHODS, SAMPLING_METHODS, VARIOGRAMS
 
 runner = CliRunner()
@@ -26,6 +28,10 @@ runner = CliRunner()
 )
 def test_cli_choices_are_the_study_file_words(choices, words):
     assert tuple(c.value for c in choices) == words
+
+
+def test_sensitivity_sources_are_the_library_words():
+    assert set(c.value for c in SensitivitySource) == set(SENSITIVITY_SOURCES)
 
 
 @pytest.mark.parametrize(

@@ -5,6 +5,7 @@ every FE step in milliseconds; the numerics are the same as on the full panel.
 """
 
 import itertools
+import json
 import re
 import shutil
 import tomllib
@@ -31,7 +32,13 @@ from podkrig.sensors.criteria import (
 from podkrig.sensors.montecarlo import candidate_surrogate, monte_carlo
 from podkrig.sensors.placement import place_sensors, spec_toml
 from podkrig.sensors.search import PlacementProblem, choose_layout
-from podkrig.sensors.sensitivity import candidate_sensitivities, model_sensitivities, prior_points
+from podkrig.sensors.sensitivity import (
+    CandidateFEModel,
+    ExactSensitivitiesUnavailable,
+    candidate_sensitivities,
+    model_sensitivities,
+    prior_points,
+)
 from podkrig.study import load_study
 
 SMALL = {
@@ -377,7 +384,7 @@ def test_flat_jack_loads_scaled_by_km_refuse_the_exact_path_and_go_through_a_mod
     with pytest.raises(ValueError, match="loads depend on the parameters"):
         candidate_sensitivities(sc, with_km, cands, prior_points(with_km, 2))
     stiff_only = ParameterSpace.from_scenario(sc, {"E_b": (3000.0, 5000.0)})
-    with pytest.raises(ValueError, match="model="):
+    with pytest.raises(ValueError, match="model='fe'"):
         candidate_sensitivities(sc, stiff_only, cands, prior_points(stiff_only, 2), fixed={"Km": 0.8})
     ok = candidate_sensitivities(sc, stiff_only, cands, prior_points(stiff_only, 2))
     assert np.abs(ok.readings).max() > 0
@@ -385,3 +392,43 @@ def test_flat_jack_loads_scaled_by_km_refuse_the_exact_path_and_go_through_a_mod
     sens = model_sensitivities(FEModel(sc, with_km), cands, X)
     km = X[:, 1][:, None, None]
     assert np.allclose(sens.jacobian[..., 1], sens.readings / km * 0.2, rtol=1e-6, atol=1e-12)
+
+
+def test_fe_differences_stand_in_where_exact_sensitivities_cannot(tmp_path, caplog):
+    """``CandidateFEModel`` reads every candidate off FE displacement fields: for the scenario's own
+    gauges it reproduces ``scenario.run`` (the operator H applied to the field against the scenario's
+    readings: same FE solve, round-off only). ``place_sensors(model="auto")`` falls back to it for
+    the flat jack with Km free (logged), ``"exact"`` refuses, and the CLI does the same through
+    ``--sensitivities``."""
+    spec = homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5))
+    sc = build_scenario(spec)
+    cands = user_candidates(sc.mesh, {f"c_{s.name}": s.to_dict() for s in sc.sensors})
+    with_km = ParameterSpace.from_scenario(sc, {"E_b": (3000.0, 5000.0), "Km": (0.75, 0.95)})
+    model = CandidateFEModel(sc, with_km, cands)
+    x = np.array([[4000.0, 0.9]])
+    np.testing.assert_allclose(model.predict(x)[0], sc.run({"E_b": 4000.0, "Km": 0.9}).readings.ravel(), rtol=1e-10, atol=1e-14)
+    assert model.n_runs == 1
+    opts = dict(k=1, n_points=4, n_random=2, methods=("greedy",), include_current=False)
+    with pytest.raises(ExactSensitivitiesUnavailable, match="loads depend on the parameters"):
+        place_sensors(sc, with_km, cands, model="exact", **opts)
+    with pytest.raises(ValueError, match="model must be a batched model or one of"):
+        place_sensors(sc, with_km, cands, model="surrogate", **opts)
+    with caplog.at_level("WARNING", logger="podkrig.sensors.placement"):
+        auto = place_sensors(sc, with_km, cands, model="auto", **opts)
+    assert "differences of FE runs" in caplog.text
+    fe = place_sensors(sc, with_km, cands, model="fe", **opts)
+    assert auto.layout.names == fe.layout.names and len(fe.layout.names) == 1
+
+    spec_file = tmp_path / "fj.json"
+    spec_file.write_text(json.dumps(spec))
+    cand_file = tmp_path / "cands.json"
+    cand_file.write_text(json.dumps({"sensors": {n: s.to_dict() for n, s in zip(cands.names, cands.sensors)}}))
+    args = ["sensors", "--scenario", "flat_jack", "--spec", str(spec_file), "--param", "E_b=3000:5000",
+            "--param", "Km=0.75:0.95", "--candidates", str(cand_file), "--k", "1", "--n-points", "4",
+            "--random", "2", "--no-current", "--out", str(tmp_path / "out")]
+    runner = CliRunner()
+    refused = runner.invoke(app, args + ["--sensitivities", "exact"])
+    assert refused.exit_code == 2 and "loads depend on the parameters" in refused.output
+    done = runner.invoke(app, args)
+    assert done.exit_code == 0, done.output
+    assert json.loads((tmp_path / "out" / "placement.json").read_text())["layout"]["names"] == list(fe.layout.names)

@@ -23,6 +23,7 @@ __all__ = [
     "RegionMethod",
     "ResponseFormat",
     "SamplingMethod",
+    "SensitivitySource",
     "SurrogateBackend",
     "TableFormat",
     "TextFormat",
@@ -75,6 +76,15 @@ class SurrogateBackend(StrEnum):
     smt_krg = "smt-krg"
     smt_kpls = "smt-kpls"
     sklearn_gpr = "sklearn-gpr"
+
+
+class SensitivitySource(StrEnum):
+    """Where ``podkrig sensors`` takes the sensitivities from (``--sensitivities``); the same words
+    as :data:`podkrig.sensors.placement.SENSITIVITY_SOURCES`."""
+
+    auto = "auto"
+    exact = "exact"
+    fe = "fe"
 
 
 class LinearSolver(StrEnum):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import SensitivitySource, configure_logging, user_errors
 from podkrig.cli.simulate import load_spec, parse_assignment
 
 
@@ -56,6 +56,10 @@ def register(app):
         n_random: int = typer.Option(20, "--random", help="Random layouts to compare against."),
         monte_carlo: int = typer.Option(0, "--monte-carlo", help="Noise realisations of the inversion check per layout (0: skip)."),
         truths: int = typer.Option(1, "--truths", help="Truth points of the Monte-Carlo check."),
+        sensitivities: SensitivitySource = typer.Option(
+            SensitivitySource.auto, "--sensitivities",
+            help="exact: the affine FE model (one factorisation per point); fe: differences of FE runs (loads that "
+                 "depend on the parameters, e.g. the flat jack's Km; nonlinear scenarios); auto: exact where possible."),
         seed: int = typer.Option(0, "--seed"),
         out: Path = typer.Option(Path("out/sensors"), "--out", help="Output folder."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -139,7 +143,7 @@ def register(app):
                     sc, space, cands, k=k, budget=budget, noise=noise, criterion=criterion, fixed=fixed,
                     n_points=n_points, seed=seed, must_include=tuple(must_include), min_spacing=min_spacing,
                     include_current=not no_current, n_random=n_random, n_monte_carlo=monte_carlo,
-                    n_truths=truths, forbidden=zones, progress=report,
+                    n_truths=truths, forbidden=zones, model=str(sensitivities), progress=report,
                 )
             finally:
                 progress.stop()

@@ -9,6 +9,7 @@ chosen sensors, which ``podkrig simulate --spec``, ``podkrig snapshots run --spe
 ``[scenario]`` table accept directly (:func:`spec_toml` writes it).
 """
 
+import logging
 import math
 from dataclasses import dataclass, field
 
@@ -26,7 +27,17 @@ from podkrig.sensors.criteria import (
 )
 from podkrig.sensors.montecarlo import candidate_surrogate, interior_truths, monte_carlo
 from podkrig.sensors.search import METHODS, PlacementProblem, choose_layout
-from podkrig.sensors.sensitivity import candidate_sensitivities, model_sensitivities, prior_points
+from podkrig.sensors.sensitivity import (
+    CandidateFEModel,
+    ExactSensitivitiesUnavailable,
+    candidate_sensitivities,
+    model_sensitivities,
+    prior_points,
+)
+
+logger = logging.getLogger(__name__)
+
+SENSITIVITY_SOURCES = ("exact", "fe", "auto")  # see place_sensors(model=...)
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,12 +198,17 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     forbidden : sequence of Zone
         Forbidden zones: current sensors inside or crossing one are scored but never chosen (build
         the candidates with the same zones).
-    model : object, optional
-        A batched model of the candidates' readings (see
-        :func:`~podkrig.sensors.sensitivity.model_sensitivities`), e.g. a surrogate of snapshots whose
-        scenario spec lists every candidate (current sensors included when ``include_current``) as a
-        sensor: sensitivities by differences of it, and the Monte Carlo runs on it. Without it the
-        scenario's affine FE model gives exact sensitivities.
+    model : object or {"exact", "fe", "auto"}, optional
+        Where the sensitivities come from. ``None`` or ``"exact"``: the scenario's affine FE model
+        (one factorisation per point, exact derivatives). ``"fe"``: central differences of FE runs
+        of the scenario (:class:`~podkrig.sensors.sensitivity.CandidateFEModel`; for loads that
+        depend on the parameters, e.g. the flat jack's ``Km``, and nonlinear scenarios), the Monte
+        Carlo then on a surrogate of the runs at the criterion's points (``surrogate_points`` unused). ``"auto"``: exact where the scenario allows it, else
+        ``"fe"`` (logged). Or a batched model of the candidates' readings (see
+        :func:`~podkrig.sensors.sensitivity.model_sensitivities`), e.g. a surrogate of snapshots
+        whose scenario spec lists every candidate (current sensors included when
+        ``include_current``) as a sensor: sensitivities by differences of it, and the Monte Carlo
+        runs on it.
     progress : callable, optional
         ``progress(stage, done, total)``.
 
@@ -220,9 +236,23 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
         return None if progress is None else (lambda done, total: progress(name, done, total))
 
     X = prior_points(space, n_points, seed)
-    if model is None:
-        sens = candidate_sensitivities(scenario, space, candidates, X, fixed=fixed, progress=stage("sensitivities"))
-    else:
+    if isinstance(model, str) and model not in SENSITIVITY_SOURCES:
+        raise ValueError(f"model must be a batched model or one of {SENSITIVITY_SOURCES}; got {model!r}")
+    sens = None
+    if model is None or model in ("exact", "auto"):
+        try:
+            sens = candidate_sensitivities(scenario, space, candidates, X, fixed=fixed,
+                                           progress=stage("sensitivities"))
+            model = None
+        except ExactSensitivitiesUnavailable as e:
+            if model != "auto":
+                raise
+            logger.warning("%s: sensitivities from differences of FE runs instead", str(e).split(";")[0])
+            model = "fe"
+    fe_model = model == "fe"
+    if fe_model:
+        model = CandidateFEModel(scenario, space, candidates, fixed)
+    if sens is None:
         sens = model_sensitivities(model, candidates, X, progress=stage("sensitivities"))
     F = fisher_per_candidate(sens, noise)
     criteria = {kind: LayoutCriterion(F, kind, prior_information) for kind in ("d", "a", "e")}
@@ -245,13 +275,15 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     named += [(f"random {i + 1}", L) for i, L in enumerate(random_layouts(rproblem, n_random, seed))]
 
     mc_sens = surrogate = truths = None
-    if n_monte_carlo and model is not None:
+    if n_monte_carlo and model is not None and not fe_model:
         mc_sens, surrogate, truths = sens, model, interior_truths(space, n_truths, seed + 2)
     elif n_monte_carlo:
         n_sur = surrogate_points or max(n_points, 128)
-        mc_sens = sens if n_sur == n_points else candidate_sensitivities(
-            scenario, space, candidates, prior_points(space, n_sur, seed + 1), fixed=fixed,
-            progress=stage("surrogate snapshots"))
+        if n_sur == n_points or fe_model:  # FE runs: the surrogate learns from the runs made already
+            mc_sens = sens
+        else:
+            mc_sens = candidate_sensitivities(scenario, space, candidates, prior_points(space, n_sur, seed + 1),
+                                              fixed=fixed, progress=stage("surrogate snapshots"))
         surrogate = candidate_surrogate(mc_sens)
         truths = interior_truths(space, n_truths, seed + 2)
     scores = []

@@ -145,8 +145,10 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
     """
     model = getattr(scenario, "model", None)
     if model is None or not hasattr(model, "stiffness"):
-        raise ValueError(f"scenario {scenario.name!r} has no affine linear model; sensor placement needs "
-                         "the linear FE model (nonlinear scenarios: use a surrogate of the candidates)")
+        raise ExactSensitivitiesUnavailable(
+            f"scenario {scenario.name!r} has no affine linear model, which exact sensitivities need; use "
+            "differences of FE runs (place_sensors(..., model='fe'), podkrig sensors --sensitivities fe) or a "
+            "surrogate of the candidates")
     X = np.atleast_2d(np.asarray(X, dtype=float))
     names = space.names
     unknown = [n for n in list(names) + list(fixed or {}) if n not in scenario.parameters]
@@ -185,6 +187,11 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
                          dict(fixed or {}), np.asarray(scenario.load_levels, float), scenario.load_unit, seconds)
 
 
+class ExactSensitivitiesUnavailable(ValueError):
+    """The scenario has no affine linear model with fixed loads: exact sensitivities cannot
+    represent it; :class:`CandidateFEModel` with :func:`model_sensitivities` can."""
+
+
 def _check_fixed_loads(scenario, values, C, Q, rtol=1e-6):
     """Raise when the affine readings of the scenario's own sensors at ``values`` differ from
     ``scenario.run(values)``: its loads depend on the parameters (see the module docstring)."""
@@ -195,10 +202,52 @@ def _check_fixed_loads(scenario, values, C, Q, rtol=1e-6):
     exact = scenario.run(values).readings
     scale = max(float(np.abs(exact).max()), 1e-300)
     if np.abs(affine - exact).max() > rtol * scale:
-        raise ValueError(f"scenario {scenario.name!r}: its loads depend on the parameters (e.g. a flat-jack "
-                         "pressure scales with Km), which exact sensitivities cannot represent; pass a batched "
-                         "model of the candidates' readings instead (place_sensors(..., model=FEModel or "
-                         "surrogate), see podkrig.sensors.sensitivity.model_sensitivities)")
+        raise ExactSensitivitiesUnavailable(
+            f"scenario {scenario.name!r}: its loads depend on the parameters (e.g. a flat-jack pressure scales "
+            "with Km), which exact sensitivities cannot represent; use differences of FE runs instead "
+            "(podkrig sensors --sensitivities fe or auto; place_sensors(..., model='fe')), or a surrogate of the "
+            "candidates (model=..., see podkrig.sensors.sensitivity.model_sensitivities)")
+
+
+class CandidateFEModel:
+    """The readings of every candidate from FE runs of the scenario, as a batched model for
+    :func:`model_sensitivities`: one ``scenario.run(..., field=True)`` per row, each candidate read
+    off the displacement field by its operator ``H`` (:func:`fe.sensors.sensor_operator`).
+
+    The path for scenarios that exact sensitivities cannot represent: loads that scale with a
+    parameter (the flat jack's ``Km`` and ``σ0``) and nonlinear scenarios. Costs
+    ``1 + 2 n_params`` FE runs per parameter point (central differences).
+
+    Parameters
+    ----------
+    scenario : fe.scenarios.Scenario
+        Any scenario whose ``run`` returns the displacement field.
+    space : ParameterSpace
+        Free parameters (names of the scenario's parameters).
+    candidates : CandidateSet
+    fixed : dict of str to float, optional
+        Values of other scenario parameters.
+    """
+
+    def __init__(self, scenario, space, candidates, fixed=None):
+        unknown = [n for n in list(space.names) + list(fixed or {}) if n not in scenario.parameters]
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown} of {scenario.name}; known: {list(scenario.parameters)}")
+        self.scenario, self.space, self.fixed = scenario, space, dict(fixed or {})
+        self._H, self.sensor_names = sensor_operator(scenario.mesh, candidates.sensors)
+        self.load_levels = np.asarray(scenario.load_levels, dtype=float)
+        self.load_unit = scenario.load_unit
+        self.n_runs = 0
+
+    def predict(self, X):
+        """Readings ``(n, n_loads * n_channels)`` mm at the parameter rows ``X`` (physical)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        out = np.empty((len(X), len(self.load_levels) * len(self.sensor_names)))
+        for i, x in enumerate(X):
+            field = self.scenario.run({**self.fixed, **dict(zip(self.space.names, x.tolist()))}, field=True).field
+            out[i] = (self._H @ field.reshape(len(field), -1).T).T.ravel()
+        self.n_runs += len(X)
+        return out
 
 
 def model_sensitivities(model, candidates, X, *, step=1e-4, progress=None):
