@@ -42,7 +42,11 @@ def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
     expected = np.load(DATA / "surrogate_v1_expected.npz")
     mean, std = sur.predict(expected["X"], return_std=True, reshape=True)
     assert_array_equal(mean, expected["mean"])
-    assert_array_equal(std, expected["std"])
+    # the variance is now formed with the stored explicit L^-1 (a triangular product) instead of
+    # triangular solves: the same formula in another rounding order. The kriging sums near the
+    # conditioning limit amplify rounding ~1e6-fold: 7e-10 relative here; 1e-8 leaves a margin
+    # far below any accuracy that matters (the std itself is an estimate)
+    np.testing.assert_allclose(std, expected["std"], rtol=1e-8, atol=0)
     assert sur.backend_ == "podkrig" and sur.kriging_.hyperparameters_.variogram == "exponential"
     sur.save(tmp_path / "v2.h5")  # rewritten in today's schema, same predictions
     with h5py.File(tmp_path / "v2.h5") as f:

@@ -417,8 +417,8 @@ if njit is not None:
     def _mean_rows(p0, p1, Xp, XtT, theta, coef, nq, g_start, g_code, g_base, g_fold, g_nfold,
                    need_logs, kind, alpha, mu, out, K, keep):
         # kriging means of the prediction points p0 <= p < p1, each in a fixed order; with
-        # ``keep`` the covariance rows also go to K[j, p] (plan order), else to a scratch row.
-        # Both cases run the same loops on the same values, so the means are bitwise equal.
+        # ``keep`` the covariance rows also go to K[j, p] (plan order), else to a scratch row:
+        # the same loops on the same values, so the means are bitwise equal either way.
         d, n = XtT.shape
         P = np.empty((d, n))
         Lg = np.empty((d, n))
