@@ -126,6 +126,27 @@ def test_every_candidate_is_off_at_its_neutral_value(wall, shear_wall):
                                 atol=1e-4 * np.abs(base).max(), err_msg=f"{cand.name} at {loc.key}")
 
 
+def test_flat_jack_context_scales_the_loads_with_km_and_sigma0():
+    """The flat jack's loads are Km × p on the jacks and σ0 on the release: the diagnosis' FE
+    context must give ``scenario.run`` at any Km, σ0 (same solve, round-off only), and its
+    candidates stay neutral at their off values there."""
+    from fe.scenarios.flat_jack import homogeneous_slot_spec
+
+    sc = build_scenario({**homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5)), "parameters": {
+        "kN_bj": 80.0, "kV_bj": 30.0}})
+    values = sc.resolve({"Km": 0.8, "sigma0": 0.4})
+    ctx = FEContext(sc, ("E_b",), values)
+    run = sc.run(values).readings
+    assert np.abs(run).max() > 0
+    assert_allclose(ctx.readings(values), run, rtol=1e-10, atol=1e-14 * np.abs(run).max())
+    weak = CANDIDATES["weak_joint"]
+    loc = weak.locations(ctx)[0]
+    assert_allclose(weak.readings(ctx, values, loc, 1.0), run, rtol=1e-10, atol=1e-14 * np.abs(run).max())
+    with pytest.raises(NotImplementedError, match="release = 'exact'"):
+        build_scenario({**homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5)),
+                        "release": "exact"}).load_coefficients_at(values)
+
+
 # ---------------------------------------------------------------------------- hidden effects
 
 

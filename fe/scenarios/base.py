@@ -171,6 +171,13 @@ class Scenario(abc.ABC):
     def theta(self, values):
         """Coefficients of the stiffness parts for a full parameter dict, ``(n_parts,)``."""
 
+    def load_coefficients_at(self, values):
+        """Multipliers of the model's load patterns (``model.rhs`` columns) at every load level for
+        the full parameter dict ``values``, ``(n_loads, n_patterns)``: readings are
+        ``load_coefficients_at(values) @ model.readings(model.solve(theta(values)))``. The loads of
+        the wall tests do not depend on the parameters: ``load_coefficients`` itself."""
+        return self.load_coefficients
+
     def load_perturbations(self):
         """Ways the applied load can depart from its intended position: a dict of name to
         :class:`fe.loads.LoadPerturbation`; empty by default."""

@@ -365,7 +365,7 @@ class FlatJack(Scenario):
         self._n_jack_patterns = 1 + len(self.slots)  # release + jacks; the last column is σ0 on the top
         # the step multipliers of the patterns at the default σ0 and Km, for code that combines the
         # model's pattern readings itself (they depend on σ0 and Km: use step_coefficients(values))
-        self.load_coefficients = np.hstack([self.step_coefficients(self.resolve()), np.zeros((len(self.steps), 1))])
+        self.load_coefficients = np.hstack([self.step_coefficients(self.resolve()), np.zeros((len(self.steps), 1))])  # at the defaults
 
     # --- geometry -------------------------------------------------------------------------------
 
@@ -576,6 +576,23 @@ class FlatJack(Scenario):
         σ0 for the release (every step is after the cut), ``Km × p`` for each jack."""
         n = len(self.steps)
         return np.column_stack([np.full(n, values["sigma0"]), values["Km"] * self.step_pressures()])
+
+    def load_coefficients_at(self, values):
+        """The step multipliers of every load pattern for ``values`` (σ0 on the release, Km × p on
+        each jack, 0 on the pre-compression of the top), ``(n_steps, n_patterns)``; see
+        :meth:`fe.scenarios.base.Scenario.load_coefficients_at`.
+
+        Raises
+        ------
+        NotImplementedError
+            With ``release = "exact"``: the release pattern then comes from a pre-cut solve, not
+            from a fixed column of ``model.rhs``.
+        """
+        if self.options.release == "exact":
+            raise NotImplementedError(
+                "flat_jack with release = 'exact': the release load comes from a pre-cut solve, not a fixed "
+                "load pattern; use release = 'nominal' (the default) for analyses on the load patterns")
+        return np.hstack([self.step_coefficients(values), np.zeros((len(self.steps), 1))])
 
     def pattern_solution(self, values):
         """Reduced displacements of the patterns on the cut panel ``(n_reduced, 1 + n_slots)``:

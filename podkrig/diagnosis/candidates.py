@@ -125,14 +125,15 @@ class FEContext:
             return self._cache["last_readings"].copy()
         self.n_runs += 1
         q = sc.model.solve(sc.theta(values), increments)
-        R = sc.load_coefficients @ sc.model.readings(q)
+        R = sc.load_coefficients_at(values) @ sc.model.readings(q)
         if not increments:
             self._cache["last_key"], self._cache["last_readings"] = key, R.copy()
         return R
 
     def readings_with_extra_loads(self, values, extra_patterns_key, extra_patterns):
         """Readings of the model's load patterns and of extra ones (one factorisation), each
-        ``(n_loads, n_sensors)`` mm: ``(base, extra)`` where ``extra`` uses the same load coefficients."""
+        ``(n_loads, n_sensors)`` mm: ``(base, extra)`` where ``extra`` uses the same load coefficients
+        (those of ``values``: the flat jack's scale with Km and σ0)."""
         sc = self.scenario
         if extra_patterns_key not in self._cache:
             self._cache[extra_patterns_key] = sc.model.reduce_loads(extra_patterns())
@@ -141,7 +142,8 @@ class FEContext:
         q = sc.model.solve(sc.theta(values), rhs=np.hstack([sc.model.rhs, rhs_extra]))
         r = sc.model.readings(q)
         n_pat = sc.model.rhs.shape[1]
-        return sc.load_coefficients @ r[:n_pat], sc.load_coefficients @ r[n_pat:]
+        C = sc.load_coefficients_at(values)
+        return C @ r[:n_pat], C @ r[n_pat:]
 
     def spring_model(self):
         if "springs" not in self._cache:
@@ -308,7 +310,7 @@ class SupportCompliance(Candidate):
         m, sc = ctx.spring_model(), ctx.scenario
         ctx.n_runs += 1
         q = m.solve(np.append(sc.theta(values), 1.0 / c))
-        return sc.load_coefficients @ m.readings(q)
+        return sc.load_coefficients_at(values) @ m.readings(q)
 
 
 class GaugeFault(Candidate):

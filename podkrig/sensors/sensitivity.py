@@ -15,11 +15,12 @@ back-substitutions on the same factors, its exact parameter derivatives. Every c
 is a linear operator on the field (``H`` of :func:`fe.sensors.sensor_operator`), so readings and
 sensitivities of *all* candidates cost one sparse product: no FE run per candidate or per layout.
 
-The loads must not depend on the parameters: the scenario's ``load_coefficients`` are taken as
-fixed. Scenarios whose loads scale with a parameter (the flat jack: jack pressure × ``Km``, release
-× ``σ0``) would get readings at the default values and no derivative for it; the first point's
-readings of the scenario's own sensors are therefore checked against ``scenario.run`` (one more
-factorisation) and a mismatch is an error pointing to :func:`model_sensitivities`.
+Loads may scale with parameters (the flat jack: jack pressure × ``Km``, release × ``σ0``): the
+scenario's ``load_coefficients_at(values)`` gives the multipliers ``C(m)`` of the load patterns, and
+the readings ``C(m) H q`` get the term ``(∂C/∂m) H q`` (central differences; exact for loads linear
+in the parameters). The first point's readings of the scenario's own sensors are checked against
+``scenario.run`` (one more factorisation): a scenario whose run is not this combination (the flat
+jack with ``release = "exact"``) is an error pointing to :class:`CandidateFEModel`.
 
 ``∂θ/∂m`` comes from central differences of the scenario's ``theta`` (exact to round-off for
 the masonry scenarios, whose θ is linear in each parameter). Sensitivities are returned with
@@ -159,14 +160,15 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
     obs = (H @ model.transform).tocsr()
     channel_sensor = np.repeat(np.arange(len(candidates)), [len(s.channel_names) for s in candidates.sensors])
     stiff = model.stiffness
-    C = np.asarray(scenario.load_coefficients, dtype=float)  # (n_loads, n_patterns)
     n_pat, p = model.rhs.shape[1], len(names)
-    readings = np.empty((len(X), C.shape[0], len(channel_names)))
-    jac = np.empty((len(X), C.shape[0], len(channel_names), p))
+    n_loads = len(scenario.load_levels)
+    readings = np.empty((len(X), n_loads, len(channel_names)))
+    jac = np.empty((len(X), n_loads, len(channel_names), p))
     for k, x in enumerate(X):
         values = scenario.resolve({**(fixed or {}), **dict(zip(names, x.tolist()))})
         theta = scenario.theta(values)
         dtheta = _dtheta_dm(scenario, values, names)  # (p, n_parts)
+        C, dC = _load_coefficients(scenario, values, names)  # (n_loads, n_pat), (p, n_loads, n_pat)
         model.solver.factorize(stiff.values(theta))
         Q = model.solver.solve(model.rhs).reshape(model.n_dofs, n_pat)
         R = np.empty((model.n_dofs, p * n_pat))
@@ -174,11 +176,13 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
             dK = sp.csr_matrix((dtheta[j] @ stiff.data, stiff.indices, stiff.indptr), shape=(stiff.n, stiff.n))
             R[:, j * n_pat:(j + 1) * n_pat] = -(dK @ Q)
         dQ = model.solver.solve(R).reshape(model.n_dofs, p * n_pat)
-        readings[k] = C @ np.asarray(obs @ Q).T
+        obs_Q = np.asarray(obs @ Q)  # (channel, pattern)
+        readings[k] = C @ obs_Q.T
         if k == 0:
-            _check_fixed_loads(scenario, values, C, Q)
+            _check_affine_readings(scenario, values, C, Q)
         dR = np.asarray(obs @ dQ).reshape(len(channel_names), p, n_pat)  # channel, param, pattern
-        jac[k] = np.einsum("lp,cjp->lcj", C, dR) * _dm_du(space, x)
+        # d(C q)/dm = C dq/dm + dC/dm q: the second term for loads that scale with a parameter
+        jac[k] = (np.einsum("lp,cjp->lcj", C, dR) + np.einsum("jlp,cp->lcj", dC, obs_Q)) * _dm_du(space, x)
         if progress is not None:
             progress(k + 1, len(X))
     seconds = time.perf_counter() - t0
@@ -188,13 +192,32 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
 
 
 class ExactSensitivitiesUnavailable(ValueError):
-    """The scenario has no affine linear model with fixed loads: exact sensitivities cannot
+    """The scenario has no affine linear model on fixed load patterns: exact sensitivities cannot
     represent it; :class:`CandidateFEModel` with :func:`model_sensitivities` can."""
 
 
-def _check_fixed_loads(scenario, values, C, Q, rtol=1e-6):
+def _load_coefficients(scenario, values, names, rel_step=1e-6):
+    """The load multipliers at ``values`` ``(n_loads, n_patterns)`` and their derivatives by
+    central differences ``(n_free, n_loads, n_patterns)`` (zero for the wall tests; exact to
+    round-off for the flat jack's, linear in Km and σ0)."""
+    try:
+        C = np.asarray(scenario.load_coefficients_at(values), dtype=float)
+    except NotImplementedError as e:
+        raise ExactSensitivitiesUnavailable(f"scenario {scenario.name!r}: {e}; use differences of FE runs "
+                                            "(podkrig sensors --sensitivities fe; place_sensors(..., model='fe'))") from None
+    dC = np.empty((len(names),) + C.shape)
+    for j, name in enumerate(names):
+        m = values[name]
+        h = rel_step * max(abs(m), 1e-12)
+        plus, minus = dict(values), dict(values)
+        plus[name], minus[name] = m + h, m - h
+        dC[j] = (np.asarray(scenario.load_coefficients_at(plus)) - np.asarray(scenario.load_coefficients_at(minus))) / (2 * h)
+    return C, dC
+
+
+def _check_affine_readings(scenario, values, C, Q, rtol=1e-6):
     """Raise when the affine readings of the scenario's own sensors at ``values`` differ from
-    ``scenario.run(values)``: its loads depend on the parameters (see the module docstring)."""
+    ``scenario.run(values)`` (a scenario whose ``run`` is not the load patterns' combination)."""
     if not scenario.sensors:
         return
     H, _ = sensor_operator(scenario.mesh, scenario.sensors)
@@ -203,10 +226,10 @@ def _check_fixed_loads(scenario, values, C, Q, rtol=1e-6):
     scale = max(float(np.abs(exact).max()), 1e-300)
     if np.abs(affine - exact).max() > rtol * scale:
         raise ExactSensitivitiesUnavailable(
-            f"scenario {scenario.name!r}: its loads depend on the parameters (e.g. a flat-jack pressure scales "
-            "with Km), which exact sensitivities cannot represent; use differences of FE runs instead "
-            "(podkrig sensors --sensitivities fe or auto; place_sensors(..., model='fe')), or a surrogate of the "
-            "candidates (model=..., see podkrig.sensors.sensitivity.model_sensitivities)")
+            f"scenario {scenario.name!r}: its readings are not the combination of its load patterns that exact "
+            "sensitivities assume; use differences of FE runs instead (podkrig sensors --sensitivities fe or "
+            "auto; place_sensors(..., model='fe')), or a surrogate of the candidates (model=..., see "
+            "podkrig.sensors.sensitivity.model_sensitivities)")
 
 
 class CandidateFEModel:
