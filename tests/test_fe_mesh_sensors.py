@@ -108,6 +108,35 @@ def test_point_and_dic_sensors():
     assert_allclose(r[1:].reshape(-1, 2), pts @ np.array(grad).T, rtol=1e-12)
 
 
+def test_dic_subset_averages_the_field_over_its_square():
+    """A subset reads the mean over its square (midpoint rule on m × m cells): a linear field
+    (reproduced exactly by the elements, joints included) reads its centre value for any subset;
+    a unit jump across a bed joint 2.5 mm above the centre, with a 15 mm subset and 4 × 4 samples,
+    reads 1/4 (one row of samples, at +5.625 mm, lies above; the exact area share is 1/3 — the
+    midpoint rule's resolution is 1/m)."""
+    mesh = brick_wall(BrickWallLayout(n_courses=4, units_per_course=2, nx=4, ny=2))
+    plain = DICGrid("P", 200.0, 62.5, 300.0, 127.5, 3, 2)
+    sub = DICGrid("S", 200.0, 62.5, 300.0, 127.5, 3, 2, subset=15.0)
+    assert sub.to_dict()["subset"] == 15.0 and "subset" not in plain.to_dict()
+    assert len(sub.points) == 6 and len(sub.sample_points) == 6 * 16
+    H_plain, names = sensor_operator(mesh, [plain])
+    H_sub, names_sub = sensor_operator(mesh, [sub])
+    assert names_sub == tuple(n.replace("P", "S", 1) for n in names)
+    x, y = mesh.nodes.T
+    u = np.column_stack([1e-3 * x - 2e-3 * y + 0.1, 5e-4 * x + 3e-3 * y - 0.2]).ravel()
+    assert_allclose(H_sub @ u, H_plain @ u, rtol=1e-12, atol=1e-14)
+    above = np.zeros(mesh.n_nodes)
+    for q in mesh.quads:  # the units above the bed joint y = 65 mm
+        if mesh.nodes[q, 1].min() >= 65.0 - 1e-9:
+            above[q] = 1.0
+    jump = np.column_stack([np.zeros(mesh.n_nodes), above]).ravel()
+    low_row = (H_sub @ jump)[1::2].reshape(3, 2)[:, 0]  # uy at y = 62.5, 2.5 mm below the joint
+    assert_allclose(low_row, 0.25, rtol=0, atol=1e-12)
+    assert_allclose((H_plain @ jump)[1::2].reshape(3, 2)[:, 0], 0.0, atol=1e-12)
+    with pytest.raises(SensorError, match="subset must be a size >= 0 mm"):
+        DICGrid("bad", 0, 0, 1, 1, 1, 1, subset=-1.0)
+
+
 @pytest.mark.parametrize(
     "point, what",
     [((600.0, 585.0), "bed joint"), ((520.0, 552.5), "head joint"), ((650.0, 552.5), "unit mid-plane")],

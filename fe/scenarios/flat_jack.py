@@ -21,7 +21,9 @@ Presets (``preset``):
   held only by its top bed joint. Phases ``0b`` (cut, 1 step), ``1`` (p_H 0.1 → 1.0 MPa in 0.1
   steps, p_V1 = p_V2 = 0.05 seating, 10 steps), ``2`` (p_H = 1.0, p_V 0.10 → 0.50 in 0.05, 9
   steps), ``3`` (p_V2 = 0.5, p_V1 0.6 → 3.0 in 0.1, 25 steps; see *Phase 3* below). Layouts
-  ``L6``, ``L18`` (§5.5–5.6), ``DIC`` (1200 points, §5.7) or ``L18+DIC``.
+  ``L6``, ``L18`` (§5.5–5.6), ``DIC`` (1200 points, §5.7) or ``L18+DIC``; ``dic_subset`` (mm,
+  0 = point values) makes each DIC reading the mean over a square subset, which straddles joints
+  as real DIC does (§5.7, :class:`fe.sensors.DICGrid`).
 - ``"single"``: jack H alone (ASTM C1196 / RILEM MDT.D.4); phases ``0b`` and ``1``
   (p 0.05 → 0.60 MPa in 0.05 steps); layout ``standard``: three vertical gauges across the slot
   (x = 975, 1040, 1105; gauge lengths 195, 260, 195 mm: the anchors avoid head joints).
@@ -69,6 +71,7 @@ slot, so no contact is modelled).
 """
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -294,6 +297,7 @@ class FlatJackOptions:
     schedule: tuple | None = None
     phases: tuple | None = None
     layout: str = "L18"
+    dic_subset: float = 0.0
     sensors: dict | None = None
     release: str = "nominal"
     frp: bool = False
@@ -308,6 +312,8 @@ class FlatJackOptions:
             raise ValueError(f"layout must be one of {LAYOUTS}; got {self.layout!r}")
         if self.release not in ("nominal", "exact"):
             raise ValueError(f"release must be 'nominal' or 'exact'; got {self.release!r}")
+        if not (math.isfinite(self.dic_subset) and self.dic_subset >= 0.0):
+            raise ValueError(f"dic_subset must be a subset size >= 0 mm; got {self.dic_subset}")
         if not self.thickness > 0:
             raise ValueError(f"thickness must be > 0 mm; got {self.thickness}")
         if not self.frp_stiffness >= 0:
@@ -471,6 +477,8 @@ class FlatJack(Scenario):
             if name is None:
                 raise SpecError(f"{self.name}: preset {o.preset!r} has no standard layout; use L6, L18 or DIC")
         sensors = _layout(name)
+        if o.dic_subset > 0.0:  # the DIC grid reads subset means (§5.7 "optional realism")
+            sensors = tuple(dataclasses.replace(s, subset=o.dic_subset) if s is DIC else s for s in sensors)
         if o.sensors:
             sensors = sensors + tuple(sensor_from_dict(k, v) for k, v in o.sensors.items())
         if not sensors:
