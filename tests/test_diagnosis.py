@@ -58,12 +58,21 @@ def _truth(rng):
 # ---------------------------------------------------------------------------- FE pieces
 
 
-def test_joint_segment_increments_add_up_to_the_joint_family(wall):
+def _flat_jack_panel():
+    from fe.scenarios.flat_jack import homogeneous_slot_spec
+
+    return build_scenario({**homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5)), "parameters": {
+        "kN_bj": 80.0, "kV_bj": 30.0}})
+
+
+@pytest.mark.parametrize("which", ["wall", "flat jack"])
+def test_joint_segment_increments_add_up_to_the_joint_family(wall, which):
     """Weakening every bed- and head-joint segment by f through increments is exactly the model
-    with kN, kV scaled by f (to round-off): the segments partition the joints, nothing is lost."""
-    sc = wall.scenario
+    with kN, kV scaled by f (to round-off): the segments partition the joints, nothing is lost —
+    also on the flat-jack panel, whose slot interfaces belong to no segment (they are cut)."""
+    sc = wall.scenario if which == "wall" else _flat_jack_panel()
     values = sc.resolve()
-    ctx = FEContext(sc, wall.space.names, values)
+    ctx = FEContext(sc, ("E_b",), values)
     f = 0.3
     increments = []
     for i, (kind, _, _) in enumerate(ctx.joint_segments()):
@@ -132,8 +141,7 @@ def test_flat_jack_context_scales_the_loads_with_km_and_sigma0():
     candidates stay neutral at their off values there."""
     from fe.scenarios.flat_jack import homogeneous_slot_spec
 
-    sc = build_scenario({**homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5)), "parameters": {
-        "kN_bj": 80.0, "kV_bj": 30.0}})
+    sc = _flat_jack_panel()
     values = sc.resolve({"Km": 0.8, "sigma0": 0.4})
     ctx = FEContext(sc, ("E_b",), values)
     run = sc.run(values).readings

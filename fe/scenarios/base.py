@@ -178,6 +178,12 @@ class Scenario(abc.ABC):
         the wall tests do not depend on the parameters: ``load_coefficients`` itself."""
         return self.load_coefficients
 
+    def joint_part_elements(self, kind):
+        """The interface elements (indices into ``mesh.interfaces``) of the stiffness parts
+        ``f"{kind}_normal"`` and ``f"{kind}_shear"``, in part order: every interface of that kind
+        (``"bed"``, ``"head"``, ``"brick"``) for the wall tests."""
+        return np.flatnonzero(self.mesh.interfaces_of_kind(kind))
+
     def load_perturbations(self):
         """Ways the applied load can depart from its intended position: a dict of name to
         :class:`fe.loads.LoadPerturbation`; empty by default."""

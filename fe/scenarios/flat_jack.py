@@ -585,6 +585,10 @@ class FlatJack(Scenario):
         n = len(self.steps)
         return np.column_stack([np.full(n, values["sigma0"]), values["Km"] * self.step_pressures()])
 
+    def joint_part_elements(self, kind):
+        """The kept (not cut) interfaces of ``kind``: the slot's own are in the ``slot_`` parts."""
+        return np.flatnonzero(self.mesh.interfaces_of_kind(kind) & ~self._cut)
+
     def load_coefficients_at(self, values):
         """The step multipliers of every load pattern for ``values`` (σ0 on the release, Km × p on
         each jack, 0 on the pre-compression of the top), ``(n_steps, n_patterns)``; see

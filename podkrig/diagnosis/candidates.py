@@ -153,7 +153,7 @@ class FEContext:
     def joint_segments(self):
         """Bed- and head-joint segments (unit pairs) of the mesh: list of (kind, elements, detail)."""
         if "segments" not in self._cache:
-            self._cache["segments"] = _joint_segments(self.scenario.mesh)
+            self._cache["segments"] = _joint_segments(self.scenario)
         return self._cache["segments"]
 
     def joint_increments(self, index):
@@ -162,18 +162,23 @@ class FEContext:
         if key not in self._cache:
             kind, elements, _ = self.joint_segments()[index]
             m = self.scenario.model
-            elements = np.searchsorted(np.flatnonzero(self.scenario.mesh.interfaces_of_kind(kind)), elements)  # within the part
+            elements = np.searchsorted(self.scenario.joint_part_elements(kind), elements)  # within the part
             self._cache[key] = (m.part_increment(f"{kind}_normal", elements), m.part_increment(f"{kind}_shear", elements))
         return self._cache[key]
 
 
-def _joint_segments(mesh):
-    """Group the bed/head interface elements of a wall mesh by the pair of units they join."""
+def _joint_segments(scenario):
+    """Group the bed/head interface elements of the scenario's joint parts by the pair of units
+    they join (interfaces outside those parts, e.g. a flat-jack slot, belong to no segment)."""
+    mesh = scenario.mesh
     units = mesh.block_unit[mesh.interface_blocks]
+    in_parts = np.zeros(len(mesh.interfaces), bool)
+    for name in ("bed", "head"):
+        in_parts[scenario.joint_part_elements(name)] = True
     segments = {}
     for i, (kind, (a, b)) in enumerate(zip(mesh.interface_kind, units)):
         name = INTERFACE_KINDS[kind]
-        if name in ("bed", "head"):
+        if name in ("bed", "head") and in_parts[i]:
             segments.setdefault((name, min(a, b), max(a, b)), []).append(i)
     out = []
     for (kind, a, b), elements in sorted(segments.items(), key=lambda kv: (kv[0][0], kv[0][1], kv[0][2])):
