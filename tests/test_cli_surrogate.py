@@ -142,3 +142,29 @@ def test_build_with_backend_option(stores, tmp_path):
     assert result.exit_code == 2 and "'gpy' is not one of" in result.output
     for name in ("podkrig", "smt-krg", "smt-kpls", "sklearn-gpr"):
         assert name in result.output
+
+
+def test_sensitivity_command_writes_indices_figure_and_proposal(stores, tmp_path):
+    """``podkrig sensitivity`` on a 16-snapshot surrogate: JSON with both index sets and their
+    intervals, the figure, and (with --data) the misfit's indices; a noise model without data is
+    refused."""
+    sur = tmp_path / "s.h5"
+    assert runner.invoke(app, ["surrogate", "build", str(stores / "train.h5"), "--out", str(sur)]).exit_code == 0
+    model = SurrogateModel(PODKriging.load(sur))
+    x = [model.space.from_unit(np.full((1, 4), 0.5))[0]]
+    Y = model.predict(np.array(x)).reshape(len(model.load_levels), -1)
+    csv = tmp_path / "m.csv"
+    csv.write_text("load," + ",".join(model.sensor_names) + "\n" + "\n".join(
+        f"{lv:g}," + ",".join(f"{v:.6g}" for v in row) for lv, row in zip(model.load_levels, Y)) + "\n")
+    out = tmp_path / "sens"
+    result = runner.invoke(app, ["sensitivity", str(sur), "--n", "256", "--data", str(csv), "--noise-abs", "0.002",
+                                 "--out", str(out), "--format", "json"])
+    assert result.exit_code == 0, result.output
+    d = json.loads(result.output)
+    r = d["readings"]
+    assert r["parameters"] == list(model.space.names) and len(r["outputs"]) == Y.size
+    assert np.shape(r["total"]) == (Y.size, 4) and r["n_evaluations"] == 256 * 6
+    assert d["misfit"]["outputs"] == ["misfit"] and isinstance(d["propose_fixing"], list)
+    assert (out / "sensitivity.png").is_file() and (out / "sensitivity.json").is_file()
+    refused = runner.invoke(app, ["sensitivity", str(sur), "--noise-rel", "0.01", "--out", str(out)])
+    assert refused.exit_code != 0 and "needs --data" in refused.output
