@@ -150,6 +150,7 @@ def test_flat_jack_context_scales_the_loads_with_km_and_sigma0():
     weak = CANDIDATES["weak_joint"]
     loc = weak.locations(ctx)[0]
     assert_allclose(weak.readings(ctx, values, loc, 1.0), run, rtol=1e-10, atol=1e-14 * np.abs(run).max())
+    assert "single nodes" in CANDIDATES["support_compliance"].not_applicable(ctx)  # a pin and rollers
     with pytest.raises(NotImplementedError, match="release = 'exact'"):
         build_scenario({**homogeneous_slot_spec(2.0, nx=2, ny=1, gauge_offsets=(32.5, 97.5)),
                         "release": "exact"}).load_coefficients_at(values)

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
-from fe.supports import spring_supported_model
+from fe.supports import spring_supported_model, support_areas
 
 
 @dataclass(frozen=True)
@@ -297,8 +297,12 @@ class SupportCompliance(Candidate):
                  "them barely move; in proportion to the load.")
 
     def not_applicable(self, ctx):
-        if len(getattr(ctx.scenario, "supported_nodes", ())) == 0:
+        sc = ctx.scenario
+        nodes = getattr(sc, "supported_nodes", ())
+        if len(nodes) == 0:
             return "the scenario has no supports"
+        if not np.any(support_areas(sc.mesh, nodes, sc.options.thickness) > 0):
+            return "the scenario's supports hold single nodes (no supported edge to put springs on)"
         return None
 
     def locations(self, ctx):
