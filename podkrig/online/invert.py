@@ -262,8 +262,7 @@ def fe_check(result, scenario):
     """
     problem = result.problem
     fe = scenario.run(result.parameters).readings.ravel()
-    idx = problem.misfit.output_indices
-    fe_obs = fe[idx]
+    fe_obs = problem.misfit.observation.apply(fe[None])[0]
     mean, _ = problem.misfit.predict(result.x[None])
     diff = fe_obs - mean[0]
     sd = problem.misfit.noise_std
