@@ -101,8 +101,11 @@ def test_invert_noise_monte_carlo_region(surrogates):
 @pytest.mark.parametrize(
     "extra, message",
     [
-        (["--noise-rel", "0.01", "--noise-abs", "0.002"], "exactly one noise model"),
-        ([], "exactly one noise model"),
+        (["--noise-rel", "0.01", "--instrument", "lvdt"], "give one noise model"),
+        ([], "give one noise model"),
+        (["--instrument", "laser"], "--instrument 'laser': known instruments are lvdt, dial_gauge, dic"),
+        (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end': expected first, none or a load"),
+        (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
         (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),
         (["--noise-rel", "0.01", "--free", "G_f"], "unknown parameter"),
         (["--noise-abs", "D9=0.1"], r"no noise sigma given for sensor"),

@@ -214,7 +214,7 @@ def measurement_findings(checked, *, context="cli"):
         if checked.get("ignored"):
             parts.append(f"column(s) that name no sensor, ignored: {', '.join(checked['ignored'])}")
         found.append(Finding(
-            "measurement-columns", "measurement", "; ".join(parts) + ".",
+            "measurement-columns", "study", "; ".join(parts) + ".",
             "nothing if intended; otherwise name each column as the sensor it reads (see 'podkrig scenarios "
             "NAME' for the sensor names)."))
     low = checked.get("sigma_below_floor") or {}
@@ -222,7 +222,7 @@ def measurement_findings(checked, *, context="cli"):
         floor = checked.get("sigma_floor_mm")
         listed = ", ".join(f"{k} {1000 * v:.3g} µm" for k, v in low.items())
         found.append(Finding(
-            "noise-below-floor", "measurement",
+            "noise-below-floor", "study",
             f"the noise model gives σ below {1000 * floor:g} µm for {listed}: no laboratory instrument reads that "
             "finely (an LVDT or dial gauge resolves about 1 µm, DIC 2.5–5 µm), so the region of equivalence is "
             "optimistic.",

@@ -52,6 +52,9 @@ _NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _NUMBER_RE = re.compile(_NUMBER, re.ASCII)
 _DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?", re.ASCII)
 _DECIMAL_POINT = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", re.ASCII)
+_SPACES = re.compile(r"[ \t]*\n[ \t]*")
+_MISSING_RE = re.compile(r"^(?:nan|na|n/a)$", re.IGNORECASE | re.MULTILINE)
+_NOT_NUMERIC = re.compile(r"[^0-9eE+\-.\n]")
 _HEADER = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 _UNITS = None
 
@@ -431,25 +434,32 @@ class _Table:
         self.header = header
 
     def parse_numbers(self, delimiter):
-        """Numbers of the load and sensor columns: ``loads (n,)``, ``values (n, n_sensors)`` mm."""
-        rows = [r for r in self.rows[self.body:]]
-        row_numbers = np.arange(self.body + 1, self.body + 1 + len(rows))
-        keep = [i for i, r in enumerate(rows) if any(c.strip() for c in r)]
-        rows = [rows[i] for i in keep]
-        row_numbers = row_numbers[keep]
-        if not rows:
-            raise ValueError(f"{self.path}: no data rows after the header (row {self.header_row})")
+        """Numbers of the load and sensor columns: ``loads (n,)``, ``values (n, n_sensors)`` mm.
+
+        Vectorised over rows: each used column is joined into one string, checked by one regular
+        expression and converted by NumPy; only a column with a bad cell is scanned cell by cell
+        (for the message)."""
+        rows = self.rows[self.body:]
         width = len(self.header)
-        for i, r in enumerate(rows):
-            if len(r) > width and any(c.strip() for c in r[width:]):
-                raise ValueError(f"{self._where(int(row_numbers[i]))}: {len(r)} cells, expected {width} (one per "
-                                 "column of the header)")
+        numbered = [(i, r) for i, r in enumerate(rows, start=self.body + 1) if "".join(r).strip()]
+        if not numbered:
+            raise ValueError(f"{self.path}: no data rows after the header (row {self.header_row})")
+        row_numbers = np.array([i for i, _ in numbered])
+        rows = [r for _, r in numbered]
+        long = [k for k, r in enumerate(rows) if len(r) > width and "".join(r[width:]).strip()]
+        if long:
+            k = long[0]
+            raise ValueError(f"{self._where(int(row_numbers[k]))}: {len(rows[k])} cells, expected {width} (one per "
+                             "column of the header)")
+        short = [k for k, r in enumerate(rows) if len(r) < width]
+        for k in short:  # a row cut short: its missing cells are missing readings
+            rows[k] = rows[k] + [""] * (width - len(rows[k]))
+        columns = list(zip(*rows))
         cols = [self.load_col, *self.sensor_cols]
-        text = [[(r[j].strip() if j < len(r) else "") for r in rows] for j in cols]
-        decimal = self.settings.decimal or self._detect_decimal(text, delimiter)
+        decimal = self.settings.decimal or self._detect_decimal([columns[j][:500] for j in cols], delimiter)
         if decimal == ",":
             self.notes.append("decimal comma")
-        numbers = [self._column(cells, j, decimal, row_numbers) for cells, j in zip(text, cols)]
+        numbers = [self._column(columns[j], j, decimal, row_numbers) for j in cols]
         loads = numbers[0] * self.load_factor
         values = np.column_stack(numbers[1:]) * np.array(self.factors)
         no_load = np.isnan(loads)
@@ -469,7 +479,7 @@ class _Table:
         """``","`` when some cell is a decimal-comma number and none a decimal-point one."""
         if delimiter == ",":
             return "."  # a comma decimal would need quoting in every cell: rare, set decimal = ","
-        sample = [c for col in text for c in col[:2000] if c]
+        sample = [c.strip() for col in text for c in col if c.strip()]
         if any(_DECIMAL_POINT.fullmatch(c) for c in sample):
             return "."
         return "," if any(_DECIMAL_COMMA.fullmatch(c) for c in sample) else "."
@@ -477,24 +487,36 @@ class _Table:
     def _column(self, cells, j, decimal, row_numbers):
         """One column of text as floats (NaN where missing), every bad cell named."""
         name = self.header[j]
-        if decimal == ",":
-            cells = [c.replace(",", ".") for c in cells]
-        cells = ["" if c.casefold() in MISSING else c for c in cells]
         joined = "\n".join(cells)
-        if re.fullmatch(rf"(?:{_NUMBER})?(?:\n(?:{_NUMBER})?)*", joined, re.ASCII) is None:  # a bad cell: find it
-            for i, c in enumerate(cells):
-                if c and _NUMBER_RE.fullmatch(c) is None:
+        if " " in joined or "\t" in joined:
+            joined = _SPACES.sub("\n", joined).strip(" \t")
+        if decimal == ",":
+            joined = joined.replace(",", ".")
+        if _NOT_NUMERIC.search(joined):  # letters: missing-reading words, or a bad cell
+            joined = _MISSING_RE.sub("", joined)
+        out = None
+        if joined.count("\n") == len(cells) - 1 and not _NOT_NUMERIC.search(joined):
+            padded = ("\n" + joined + "\n").replace("\n\n", "\nnan\n").replace("\n\n", "\nnan\n")
+            try:  # only digits, signs, '.', 'e' here: what float() accepts of them is a plain decimal
+                out = np.array(padded[1:-1].split("\n"), dtype=float)
+            except ValueError:
+                out = None
+        if out is None:
+            for i, cell in enumerate(cells):  # a bad cell: find it, for the message
+                c = cell.strip()
+                c = c.replace(",", ".") if decimal == "," else c
+                if c and c.casefold() not in MISSING and _NUMBER_RE.fullmatch(c) is None:
                     where = self._where(int(row_numbers[i]), j + 1, name)
                     if c.lower().lstrip("+-") in ("inf", "infinity"):
-                        raise ValueError(f"{where}: {c!r} is not a finite number")
-                    shown = repr(c) if len(c) <= 40 else repr(c[:40]) + "…"
+                        raise ValueError(f"{where}: {cell.strip()!r} is not a finite number")
+                    shown = repr(cell.strip()) if len(cell.strip()) <= 40 else repr(cell.strip()[:40]) + "…"
                     raise ValueError(f"{where}: {shown} is not a number (write plain decimals such as 0.125 or "
                                      "-1.5e-3; an empty cell is a missing reading)")
-        out = np.array([c or "nan" for c in cells], dtype=float)
+            raise ValueError(f"{self._where(None, j + 1, name)}: unreadable cells")  # pragma: no cover
         inf = np.isinf(out)
         if np.any(inf):
             i = int(np.argmax(inf))
-            raise ValueError(f"{self._where(int(row_numbers[i]), j + 1, name)}: {cells[i]!r} is out of range")
+            raise ValueError(f"{self._where(int(row_numbers[i]), j + 1, name)}: {cells[i].strip()!r} is out of range")
         return out
 
     # ----------------------------------------------------------------------------------- processing

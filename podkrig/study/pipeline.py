@@ -125,9 +125,9 @@ def study_findings(run):
     for record in run.records:
         if "failed" in record.result:  # the FE stages
             found += offline_findings(record.title, record.result)
-    m = study.measurement
-    found += held_out_findings(run.manifest("held_out_validation")["result"], noise_rel=m.noise_rel,
-                               noise_abs=m.noise_abs)
+    noise_rel, noise_abs = study.measurement.noise_levels()
+    found += held_out_findings(run.manifest("held_out_validation")["result"], noise_rel=noise_rel,
+                               noise_abs=noise_abs)
     result = InverseResult.from_dict(run.manifest("inversion")["result"])
     region = stages.load_region(run)
     found += inversion_findings(result, region, context="study", diagnosis_enabled=study.diagnosis.enabled)

@@ -312,6 +312,15 @@ class MeasurementSettings:
             return instrument_noise(self.instrument, sensor_names)
         return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel)
 
+    def noise_levels(self):
+        """``(δ, σ_res)``: the smallest relative and absolute noise levels of these settings (None
+        where absent), for comparisons with the surrogate's error."""
+        if self.instrument is None:
+            return self.noise_rel, self.noise_abs
+        kinds = {self.instrument} if isinstance(self.instrument, str) else set(self.instrument.values())
+        rel = min(INSTRUMENTS[k]["delta"] for k in kinds)
+        return (rel or None), min(INSTRUMENTS[k]["sigma_res_mm"] for k in kinds)
+
     def noise_text(self):
         """The noise model in words, with units."""
         if self.instrument is not None:
