@@ -72,8 +72,9 @@ class ObservationOperator:
         w = np.atleast_2d(np.asarray(self.weights, dtype=float))
         if cols.shape != w.shape:
             raise ValueError(f"columns {cols.shape} and weights {w.shape} must have the same shape")
-        used = np.any(w != 0, axis=0)  # drop columns with zero weight everywhere (exact levels)
-        cols, w = cols[:, used | (np.arange(w.shape[1]) == 0)], w[:, used | (np.arange(w.shape[1]) == 0)]
+        keep = np.any(w != 0, axis=0)  # drop columns of zero weight everywhere (all loads at levels)
+        keep[0] = True
+        cols, w = cols[:, keep], w[:, keep]
         object.__setattr__(self, "columns", cols)
         object.__setattr__(self, "weights", w)
 
@@ -255,6 +256,13 @@ class Measurement:
     @property
     def n_obs(self):
         return int(np.count_nonzero(self.mask))
+
+    def grid(self, v):
+        """Observed-entry values ``(n_obs,)`` on the ``(n_loads, n_sensors)`` grid, NaN where a
+        reading is missing."""
+        out = np.full(self.values.shape, np.nan)
+        out[self.mask] = v
+        return out
 
     def with_data(self, d, source=None):
         """The same measurement with the observed vector replaced by ``d`` ``(n_obs,)``."""

@@ -30,7 +30,6 @@ import difflib
 import io
 import math
 import re
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -252,7 +251,7 @@ def _xlsx_rows(path, sheet):
         book = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except ValueError:
         raise
-    except (OSError, zipfile.BadZipFile, KeyError, Exception) as e:  # noqa: BLE001 - any damage of a user file
+    except Exception as e:  # noqa: BLE001 - any damage of a user file (BadZipFile, KeyError, XML errors ...)
         raise ValueError(f"{path}: not a readable Excel .xlsx workbook ({type(e).__name__}: {str(e)[:200]})") from None
     try:
         if sheet is not None and sheet not in book.sheetnames:
