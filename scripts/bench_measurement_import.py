@@ -53,12 +53,14 @@ def make_log(folder, n_rows, seed=0):
 
 
 def best_of(fn, repeat):
+    """Best wall time (s), the CPU time of that run (s; less sensitive to a loaded machine) and the result."""
     times, out = [], None
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+        times.append((time.perf_counter() - t0, time.process_time() - c0))
+    wall, cpu = min(times)
+    return wall, cpu, out
 
 
 def main():
@@ -73,16 +75,16 @@ def main():
         folder = Path(tmp)
         lab, plain = make_log(folder, args.rows)
         # warm: pint's registry is built once per process (its import is timed separately below)
-        t0 = time.perf_counter()
-        read_measurement(lab, SENSORS, LEVELS, "kN", "affine", ImportSettings(repeats="keep"))
-        first = time.perf_counter() - t0
-        keep_s, keep = best_of(lambda: read_measurement(lab, SENSORS, LEVELS, "kN", "affine",
+        first = best_of(lambda: read_measurement(lab, SENSORS, LEVELS, "kN", "affine",
+                                                 ImportSettings(repeats="keep")), 1)
+        keep_s = best_of(lambda: read_measurement(lab, SENSORS, LEVELS, "kN", "affine",
                                                         ImportSettings(repeats="keep")), args.repeat)
-        avg_s, avg = best_of(lambda: read_measurement(lab, SENSORS, LEVELS, "kN", "affine",
+        avg_s = best_of(lambda: read_measurement(lab, SENSORS, LEVELS, "kN", "affine",
                                                       ImportSettings(repeats="average", load_tolerance=0.5)),
                              args.repeat)
-        op_s, _ = best_of(lambda: keep.observation(SENSORS, LEVELS, "affine", "kN"), args.repeat)
-        peer_s, _ = best_of(lambda: np.loadtxt(plain, delimiter=",", skiprows=1), args.repeat)
+        keep, avg = keep_s[2], avg_s[2]
+        op_s = best_of(lambda: keep.observation(SENSORS, LEVELS, "affine", "kN"), args.repeat)
+        peer_s = best_of(lambda: np.loadtxt(plain, delimiter=",", skiprows=1), args.repeat)
         # Excel: a smaller sheet (openpyxl parses XML cell by cell)
         book = openpyxl.Workbook(write_only=True)
         ws = book.create_sheet("log")
@@ -92,7 +94,7 @@ def main():
             ws.append([0.1 * i, float(row[0]), *(float(1000 * v) for v in row[1:])])
         xlsx = folder / "lab.xlsx"
         book.save(xlsx)
-        xlsx_s, _ = best_of(lambda: read_measurement(xlsx, SENSORS, LEVELS, "kN", "affine",
+        xlsx_s = best_of(lambda: read_measurement(xlsx, SENSORS, LEVELS, "kN", "affine",
                                                      ImportSettings(repeats="keep")), 1)
         size = lab.stat().st_size
     load1 = os.getloadavg()
@@ -100,8 +102,8 @@ def main():
           f"{os.cpu_count()} cores, Python {platform.python_version()}")
     print(f"# load average before / after: {load0[0]:.2f} / {load1[0]:.2f} (1 min)")
     print(f"# log: {args.rows} rows, {size / 2**20:.1f} MiB, ';' + decimal comma, µm headers, 2 extra columns\n")
-    print("| what | rows | time (s) | rows/s |")
-    print("|---|---:|---:|---:|")
+    print("| what | rows | wall (s) | CPU (s) | rows/s (wall) |")
+    print("|---|---:|---:|---:|---:|")
     rows = [
         ("first import in the process (incl. pint registry)", args.rows, first),
         ("import, repeats = keep", args.rows, keep_s),
@@ -110,10 +112,12 @@ def main():
         ("peer: numpy.loadtxt of the same numbers, plain CSV", args.rows, peer_s),
         ("import of an .xlsx sheet (openpyxl)", min(args.xlsx_rows, args.rows), xlsx_s),
     ]
-    for what, n, s in rows:
-        print(f"| {what} | {n} | {s:.3f} | {n / s:,.0f} |")
-    target = "met" if keep_s <= 2.0 and avg_s <= 2.0 else "NOT met"
-    print(f"\ntarget (100 000 rows ≤ 2 s): {target}" if args.rows == 100_000 else "")
+    for what, n, (wall, cpu, _) in rows:
+        print(f"| {what} | {n} | {wall:.3f} | {cpu:.3f} | {n / wall:,.0f} |")
+    if args.rows == 100_000:
+        worst = max(keep_s[0], avg_s[0])
+        print(f"\ntarget (100 000 rows ≤ 2 s wall): {'met' if worst <= 2.0 else 'NOT met'} ({worst:.2f} s at load "
+              f"{load1[0]:.1f} on {os.cpu_count()} cores)")
 
 
 if __name__ == "__main__":

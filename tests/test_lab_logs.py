@@ -288,3 +288,18 @@ def test_run_flags_um_read_as_mm_right_after_the_training_snapshots(tmp_path, mo
     assert ok.exit_code == 0, ok.output
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["stages"]["measurement"]["dof"] == 24 - 3
+
+
+def test_range_check_names_units_and_signs_but_not_noise():
+    """Unit and sign errors are named with the factor; a gauge that reads only noise is not."""
+    from podkrig.study.stages import measurement_range_problems
+
+    levels, names = np.array([10.0, 20.0]), ("A", "B", "C", "N")
+    per_kn = np.array([0.01, -0.002, 0.003, 1e-6])  # mm/kN; N barely moves in the model
+    runs = np.array([s * np.outer(levels, per_kn) for s in (0.8, 1.0, 1.25)]).reshape(3, -1)
+    d = np.outer(levels, per_kn * np.array([1000.0, 1.0, -1.0, 1.0])) + np.array([0, 0, 0, 0.0008])
+    m = Measurement(d, names, levels)
+    found = measurement_range_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
+    assert found[0] == "A is about 1000× larger than every FE run: µm read as mm?"
+    assert found[1].startswith("C has the opposite sign of every FE run")
+    assert len(found) == 2  # B matches; N reads noise (0.8 µm with σ = 1 µm), not a unit error

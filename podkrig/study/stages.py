@@ -191,26 +191,30 @@ def measurement_range_problems(data, noise, sensor_names, levels, response, Y, f
     problems = []
     for j, name in enumerate(data.sensor_names):
         sel = col == j
-        dj, gj = np.abs(d[sel]), G[:, sel]
-        meas, run_max = float(dj.max()), np.abs(gj).max(axis=1)
-        if meas > 0 and run_max.max() > 0 and meas > factor * run_max.max():
-            r = meas / run_max.max()
+        dj, sj, gj = d[sel], sd[sel], G[:, sel]
+        run_max = np.abs(gj).max(axis=1)  # each run's largest reading of this sensor, mm
+        excess = float(np.max(np.abs(dj) - 3 * sj))  # beyond the noise: a noise-level gauge is no unit error
+        upper = float(np.max(np.abs(dj) + 3 * sj))
+        if excess > factor * run_max.max():
+            r = excess / run_max.max() if run_max.max() > 0 else np.inf
             problems.append(f"{name} is about {_power_of_ten(r)}× larger than every FE run"
                             + (": µm read as mm?" if 300 <= r <= 3000 else ": a unit error?"))
-        elif meas > 0 and run_max.min() > factor * meas:
-            r = run_max.min() / meas
+        elif run_max.min() > factor * upper:
+            r = run_max.min() / upper
             problems.append(f"{name} is about {_power_of_ten(r)}× smaller than every FE run"
                             + (": mm read as µm (or m)?" if 300 <= r <= 3000 else ": a unit error?"))
         else:
-            signal = np.abs(d[sel]) > 3 * sd[sel]
+            signal = np.abs(dj) > 3 * sj
             fe_sign = np.sign(gj[:, signal])
-            if signal.sum() >= 1 and fe_sign.size and np.all(fe_sign == -np.sign(d[sel][signal])[None, :]):
+            if fe_sign.size and np.all(fe_sign == -np.sign(dj[signal])[None, :]):
                 problems.append(f"{name} has the opposite sign of every FE run at every reading beyond 3σ: a "
                                 "gauge mounted the other way round, or another sign convention?")
     return problems
 
 
 def _power_of_ten(r):
+    if not np.isfinite(r):
+        return "infinitely"
     return f"{10 ** round(np.log10(r)):g}" if r >= 3 else f"{r:.2g}"
 
 
