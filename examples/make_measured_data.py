@@ -2,9 +2,12 @@
 
 It runs exactly ``podkrig simulate diagonal_compression --set E_b=10500 --set kN_bj=70
 --set kV_bj=28 --set r_hj=0.55 --format csv`` (the default mesh; ν_b = 0.15 is the default) and
-multiplies every reading by ``1 + 0.01 z`` with ``z`` standard normal from
+adds ``σ_i z`` to every reading d_i, with the LVDT noise of the study file (``instrument =
+"lvdt"``): σ_i² = σ_res² + (δ d_i)², σ_res = 1 µm, δ = 1 % (issue 14: a purely relative 1 %
+gave the ~2 µm U1 gauge σ ≈ 0.02 µm, finer than any instrument), and ``z`` standard normal from
 ``numpy.random.default_rng(2026)``, drawn in the file's order (load-major: all gauges at 25 kN,
-then at 50 kN, ...). Readings are written with 6 significant digits (0.1 µm and finer).
+then at 50 kN, ...). Readings are written with 6 significant digits (0.1 µm and finer), under
+headers with units (``load [kN]``, ``D1 [mm]`` ...).
 
 Run from the repository root::
 
@@ -22,6 +25,8 @@ import numpy as np
 #: the hidden parameter values of the demo (units: MPa, N/mm³, N/mm³, -)
 TRUTH = {"E_b": 10500.0, "kN_bj": 70.0, "kV_bj": 28.0, "r_hj": 0.55}
 NOISE_REL = 0.01
+#: the resolution floor σ_res of an LVDT, mm (podkrig.online.measurement.INSTRUMENTS["lvdt"])
+NOISE_RES_MM = 0.001
 SEED = 2026
 OUT = Path(__file__).with_name("diagonal_compression_measured.csv")
 
@@ -41,15 +46,16 @@ def simulate_csv(truth):
     return result.stdout
 
 
-def make(out=OUT, seed=SEED, noise_rel=NOISE_REL, truth=None):
+def make(out=OUT, seed=SEED, noise_rel=NOISE_REL, truth=None, noise_res=NOISE_RES_MM):
     """Write the pseudo-measured CSV to ``out``; returns the path."""
     rows = list(csv.reader(io.StringIO(simulate_csv(truth or TRUTH))))
     header, body = rows[0], rows[1:]
     clean = np.array([[float(c) for c in row[1:]] for row in body])  # (n_loads, n_sensors), mm
-    noisy = clean * (1.0 + noise_rel * np.random.default_rng(seed).standard_normal(clean.shape))
+    sigma = np.sqrt(noise_res**2 + (noise_rel * clean) ** 2)  # σ_i² = σ_res² + (δ d_i)², mm
+    noisy = clean + sigma * np.random.default_rng(seed).standard_normal(clean.shape)
     with Path(out).open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(header)
+        w.writerow(["load [kN]", *(f"{name} [mm]" for name in header[1:])])
         for row, values in zip(body, noisy):
             w.writerow([row[0], *(f"{v:.6g}" for v in values)])
     return Path(out)

@@ -6,7 +6,7 @@ Property: for any input, podkrig either succeeds or raises its own error type wi
 ``RecursionError``, ``OverflowError``, ``UnicodeDecodeError``, ``csv.Error``, ...); the CLI ends
 with exit code 0, 1 or 2 and never a traceback.
 
-Sized for CI: ``PODKRIG_FUZZ_EXAMPLES`` examples per test (default 150; 6 tests), seed
+Sized for CI: ``PODKRIG_FUZZ_EXAMPLES`` examples per test (default 150; 8 tests), seed
 :data:`SEED`. A larger run: ``PODKRIG_FUZZ_EXAMPLES=2000 pytest tests/test_fuzz.py -p no:xdist``.
 Scenario specs are validated without building the FE model (its assembly is not under test).
 """
@@ -17,6 +17,7 @@ import tempfile
 import traceback
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
@@ -26,7 +27,7 @@ from fe.exceptions import FEError
 from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
 from podkrig.cli import app
 from podkrig.exceptions import PodkrigError
-from podkrig.online.measurement_csv import read_measurement_csv
+from podkrig.online.measurement_csv import ImportSettings, read_measurement, read_measurement_csv
 from podkrig.study import load_study
 
 EXAMPLES = int(os.environ.get("PODKRIG_FUZZ_EXAMPLES", "150"))
@@ -86,6 +87,64 @@ def test_fuzz_measurement_csv(content):
     path = FOLDER / "m.csv"
     path.write_bytes(content)
     _own_error_or_success(read_measurement_csv, path, ("D1", "D2", "D3"), (25.0, 50.0, 75.0))
+
+
+# ----------------------------------------------------------------------------- laboratory logs (issue 14)
+LOG_HEADERS = st.one_of(
+    st.sampled_from(["load", "load [kN]", "Load (N)", "load [MPa]", "load [mm]", "load []", "load [", "load [kN",
+                     "time [s]", "ch", "D1", "D1 [µm]", "D1 (mm)", "D1 [um]", "D1 [kN]", "D1 [bananas]", "d1 [m]",
+                     "D2 [μm]", "D2 [in]", "D3 (mm)", "D3 [1/0]", "D3 [mm**99999]", "D1 [K]", "D2 [degC]", ""]),
+    st.text(max_size=8))
+LOG_CELLS = st.one_of(cells, st.sampled_from(["10,03", "10.41", "-32,1", "", "NaN", "n/a", " 5 ", "1,5e-3", "1.5E+3",
+                                              "1e308", "-1e308", "12:00:01", "∞", "1,000.5", "0,0"]),
+                      st.floats(-200, 200).map(lambda v: f"{v:.3f}"))
+
+
+@st.composite
+def log_bytes(draw):
+    sep, nl = draw(st.sampled_from([",", ";", "\t"])), draw(newlines)
+    lines = draw(st.lists(st.text(max_size=15), max_size=2))  # a preamble
+    lines.append(sep.join(draw(st.lists(LOG_HEADERS, min_size=1, max_size=6))))
+    if draw(st.booleans()):
+        lines.append(sep.join(draw(st.lists(st.sampled_from(["[kN]", "[µm]", "mm", "", "s", "[x]"]), max_size=6))))
+    for _ in range(draw(st.integers(0, 8))):
+        lines.append(sep.join(draw(st.lists(LOG_CELLS, max_size=7))))
+    text = nl.join(lines)
+    return text.encode(draw(st.sampled_from(["utf-8", "utf-8-sig", "cp1252", "utf-16"])), errors="replace")
+
+
+import_settings = st.builds(
+    ImportSettings,
+    load_column=st.sampled_from(["load", "Load", "time", "F"]),
+    repeats=st.sampled_from(["average", "keep"]),
+    load_tolerance=st.sampled_from([0.0, 0.05, 1.0, 100.0]),
+    zero=st.one_of(st.none(), st.just("first"), st.floats(-50, 150)),
+    load_range=st.one_of(st.none(), st.tuples(st.floats(-10, 60), st.floats(0, 200)).map(lambda t: tuple(sorted(t)))),
+    delimiter=st.sampled_from([None, None, ";", "\t"]),
+    decimal=st.sampled_from([None, None, ".", ","]),
+)
+
+
+@seed(SEED)
+@FUZZ
+@given(content=log_bytes(), settings=import_settings,
+       model=st.sampled_from([("kN", "affine", (10.0, 20.0, 30.0, 40.0)), ("mm", "path", (0.25, 1.0, 3.0)),
+                              ("step", "discrete", (1.0, 2.0, 3.0)), ("kN", "affine", (25.0,))]))
+def test_fuzz_lab_logs(content, settings, model):
+    """Generated lab logs read with generated settings against linear, nonlinear and stepped models;
+    a log that is read must also give the model's observation operator without a traceback."""
+    path = FOLDER / "log.csv"
+    path.write_bytes(content)
+    unit, response, levels = model
+    sensors = ("D1", "D2", "D3")
+
+    def read_and_observe():
+        m = read_measurement(path, sensors, levels, unit, response, settings)
+        op = m.observation(sensors, levels, response, unit)
+        Y = np.arange(len(levels) * len(sensors), dtype=float)[None]
+        assert op.apply(Y).shape == (1, m.n_obs)
+
+    _own_error_or_success(read_and_observe)
 
 
 # ----------------------------------------------------------------------------- scenario specs
@@ -193,6 +252,35 @@ def test_fuzz_study_files(text):
     path = FOLDER / "study.toml"
     path.write_bytes(text.encode("utf-8", errors="surrogatepass"))
     _own_error_or_success(load_study, path)
+
+
+MEASUREMENT_KEYS = ["file", "noise_rel", "noise_abs", "instrument", "load_column", "repeats", "load_tolerance",
+                    "zero", "load_range", "delimiter", "decimal", "sheet", "range_check", "x"]
+measurement_values = st.one_of(
+    toml_values, st.sampled_from(['"measured.csv"', '"first"', '"none"', '"lvdt"', '"dic"', '{ D1 = "lvdt" }',
+                                  '{ D1 = 0.001 }', '[10, 40]', '[40, 10]', '";"', '","', '"."', '"average"',
+                                  '"keep"', "0.001", "0.01", "true", '"Sheet1"', '"\\t"']))
+
+
+@seed(SEED)
+@FUZZ
+@given(entries=st.dictionaries(st.sampled_from(MEASUREMENT_KEYS), measurement_values, max_size=6))
+def test_fuzz_study_measurement_blocks(entries):
+    """Generated [measurement] tables (issue 14 keys): checked by the study loader, never a traceback."""
+    (FOLDER / "measured.csv").write_text("load [kN];D1 [µm]\n25;-100,5\n")
+    lines = [ln for ln in STUDY_LINES if not ln.startswith(("file =", "noise_rel ="))]
+    at = lines.index("[measurement]") + 1
+    body = [f"{k} = {v}" for k, v in entries.items()]
+    path = FOLDER / "study_m.toml"
+    path.write_bytes("\n".join(lines[:at] + body + lines[at:]).encode("utf-8", errors="surrogatepass"))
+
+    def load_and_read():
+        study = load_study(path)
+        m = study.measurement
+        read_measurement(m.file, ("D1", "D2"), (25.0, 50.0), "kN", "affine", m.import_settings())
+        m.noise_model(("D1",))
+
+    _own_error_or_success(load_and_read)
 
 
 # ----------------------------------------------------------------------------- CLI arguments

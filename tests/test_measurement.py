@@ -31,15 +31,18 @@ def test_round_trip_and_subset(tmp_path):
 @pytest.mark.parametrize(
     "text, match",
     [
-        ("force,D1\n25,1\n", r"row 1, column 1: the first column must be 'load'"),
-        ("load,D9\n25,1\n", r"row 1, column 2: unknown sensor 'D9'"),
+        ("force,D1\n25,1\n", r"row 1: no load column 'load' in the header \['force', 'D1'\]"),
+        ("load,D9\n25,1\n", r"row 1: no column names a sensor of the model"),
         ("load,D1,D1\n25,1,2\n", r"row 1, column 3: sensor 'D1' appears more than once"),
         ("load,D1,D2\n25,1,abc\n", r"row 2, column 3 \(D2\): 'abc' is not a number"),
-        ("load,D1,D2\n25,1,2\n50,nan,2\n", r"row 3, column 2 \(D1\): 'nan' is not a finite number"),
-        ("load,D1\n25,1\n25,2\n", r"row 3, column 1 \(load\): load level 25 kN appears twice"),
+        ("load,D1,D2\n25,1,2\n50,inf,2\n", r"row 3, column 2 \(D1\): 'inf' is not a finite number"),
         ("load,D1\n30,1\n", r"row 2, column 1 \(load\): unknown load level 30 kN"),
         ("load,D1\n25,1,3\n", r"row 2: 3 cells, expected 2"),
         ("load,D1\n", "no data rows"),
+        ("load [kN],D1 [furlongs/fortnight]\n25,1\n", r"row 1, column 2 \(D1 \[furlongs/fortnight\]\): unit "
+                                                        r"'furlongs/fortnight' is not a length"),
+        ("load [kN],D1 [parsecs2]\n25,1\n", r"row 1, column 2 \(D1 \[parsecs2\]\): unknown unit 'parsecs2'"),
+        ("load [MPa],D1\n25,1\n", r"row 1, column 1 \(load \[MPa\]\): unit 'MPa' is not convertible to kN"),
     ],
 )
 def test_bad_files_name_file_row_and_column(tmp_path, text, match):
@@ -61,8 +64,13 @@ def test_noise_models():
     assert_allclose(NoiseModel(delta=0.01, floor=1e-4).std(m), [0.002, 0.001, 0.004, 1e-4])
     C = np.diag([1.0, 2.0, 3.0, 4.0]) * 1e-6
     assert_allclose(NoiseModel(covariance=C).std(m), np.sqrt(np.diag(C)))
-    with pytest.raises(ValueError, match="^give exactly one noise model: an absolute sigma"):
-        NoiseModel(sigma=0.1, delta=0.01)
+    # the instrument model: σ_i² = σ_res² + (δ d_i)², by hand for d = (-0.2, 0.1, -0.4, 0.0) mm
+    assert_allclose(NoiseModel(sigma=0.001, delta=0.01).std(m),
+                    np.sqrt(0.001**2 + (0.01 * np.array([0.2, 0.1, 0.4, 0.0])) ** 2))
+    with pytest.raises(ValueError, match="^give either a covariance or an absolute sigma"):
+        NoiseModel(sigma=0.1, covariance=C)
+    with pytest.raises(ValueError, match="^give a noise model"):
+        NoiseModel()
     with pytest.raises(ValueError, match="sigma must be > 0 mm"):
         NoiseModel(sigma=0.0)
     with pytest.raises(ValueError, match=r"no noise sigma given for sensor\(s\) \['D2'\]"):
@@ -90,7 +98,12 @@ def test_measurement_converts_its_inputs_and_names_bad_values():
     with pytest.raises(ValueError, match=r"^site\.csv: values must have shape \(1, 2\) \(n_loads, n_sensors\); got \(2,\)"):
         Measurement([1.0, 2.0], ["a", "b"], [50], source="site.csv")
     with pytest.raises(ValueError, match=r"^site\.csv: measured values must be finite numbers"):
-        Measurement([[1.0, np.nan]], ["a", "b"], [50], source="site.csv")
+        Measurement([[1.0, np.inf]], ["a", "b"], [50], source="site.csv")
+    # NaN is a missing reading (issue 14): left out of the data, the rest kept in load-major order
+    gap = Measurement([[1.0, np.nan], [3.0, 4.0]], ["a", "b"], [50, 60], source="site.csv")
+    assert gap.data.tolist() == [1.0, 3.0, 4.0] and gap.n_obs == 3 and not gap.complete
+    with pytest.raises(ValueError, match=r"^site\.csv: no readings"):
+        Measurement([[np.nan, np.nan]], ["a", "b"], [50], source="site.csv")
 
 
 @pytest.mark.parametrize(

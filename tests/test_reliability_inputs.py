@@ -19,7 +19,8 @@ from podkrig.exceptions import StoreInUseError
 from podkrig.limits import check_name, check_output_folder, check_region_samples
 from podkrig.offline.sampling import sobol
 from podkrig.offline.store import SnapshotStore
-from podkrig.online.measurement_csv import MAX_FILE_BYTES, read_measurement_csv
+from podkrig.online import measurement_csv
+from podkrig.online.measurement_csv import read_measurement_csv
 from podkrig.parameters import ParameterSpace
 from podkrig.study.stages import _run_store
 
@@ -133,19 +134,24 @@ def test_readings_that_float_accepts_are_refused(tmp_path, cell, message):
         read_measurement_csv(path, SENSORS, LEVELS)
 
 
-def test_bad_files_give_messages_with_the_file(tmp_path):
+def test_bad_files_give_messages_with_the_file(tmp_path, monkeypatch):
     """Finding 8: non-UTF-8 files, huge cells and huge files raised without the file or row."""
-    path = _csv(tmp_path, b"load,D1\n25,\xff\xfe\n", mode="b")
+    path = _csv(tmp_path, b"load,D1\n25,\x81\xfe\n", mode="b")  # 0x81 is not Windows-1252 either
     with pytest.raises(ValueError, match=r"m\.csv: not UTF-8 text at byte 11 \(line 2\)"):
         read_measurement_csv(path, SENSORS, LEVELS)
+    # lab software writes Windows-1252 (issue 14): read as such, and a bad cell is still named
+    path = _csv(tmp_path, b"load,D1\n25,\xff\xfe\n", mode="b")
+    with pytest.raises(ValueError, match=r"m\.csv, row 2, column 2 \(D1\): 'ÿþ' is not a number"):
+        read_measurement_csv(path, SENSORS, LEVELS)
+    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", 2**20)  # the real bound (256 MiB) is slow to test
     path = _csv(tmp_path, "load,D1\n25," + "1" * 200_000 + "\n")
     with pytest.raises(ValueError, match=r"m\.csv, row 2: malformed CSV"):
         read_measurement_csv(path, SENSORS, LEVELS)
-    path = _csv(tmp_path, b"load,D1\n" + b"25,1\n" * (MAX_FILE_BYTES // 5 + 1), mode="b")
-    with pytest.raises(ValueError, match="larger than 16 MiB"):
+    path = _csv(tmp_path, b"load,D1\n" + b"25,1\n" * (measurement_csv.MAX_FILE_BYTES // 5 + 1), mode="b")
+    with pytest.raises(ValueError, match="larger than 1 MiB"):
         read_measurement_csv(path, SENSORS, LEVELS)
     if Path("/dev/zero").exists():
-        with pytest.raises(ValueError, match="larger than 16 MiB"):
+        with pytest.raises(ValueError, match="larger than 1 MiB"):
             read_measurement_csv("/dev/zero", SENSORS, LEVELS)
     with pytest.raises(ValueError, match="cannot read measurement file"):
         read_measurement_csv(tmp_path, SENSORS, LEVELS)

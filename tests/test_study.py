@@ -114,7 +114,7 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     _, out, text = tiny
     assert "identified parameters" in text and "report:" in text and "FE runs" in text
     stages = _stages(out)
-    assert set(stages) == {"offline", "held_out", "validation_model.shear", "surrogate", "held_out_validation",
+    assert set(stages) == {"measurement", "offline", "held_out", "validation_model.shear", "surrogate", "held_out_validation",
                            "inversion", "region", "rvc", "diagnosis"}
     assert stages["offline"]["fe_runs"] == 16 and stages["held_out"]["fe_runs"] == 4
     assert stages["validation_model.shear"]["fe_runs"] == 8 and stages["inversion"]["fe_runs"] == 1
@@ -150,7 +150,7 @@ def test_new_measurement_reruns_only_the_online_stages(tiny, tmp_path, monkeypat
     _run(d / "study.toml", d / "out")
     after = _stages(d / "out")
     rerun = {k for k in after if after[k]["finished"] != before[k]["finished"] or after[k]["input_hash"] != before[k]["input_hash"]}
-    assert rerun == {"inversion", "region", "rvc", "diagnosis"}
+    assert rerun == {"measurement", "inversion", "region", "rvc", "diagnosis"}  # the check does no FE work
     # FE work only in the online stages: the check at the new optimum and the diagnosis' refits
     assert 1 <= counter.calls <= after["inversion"]["fe_runs"] + after["diagnosis"]["fe_runs"]
 

@@ -76,6 +76,10 @@ class Scenario(abc.ABC):
     Options = None
     PARAMETERS = ()
     load_unit = "kN"
+    #: How readings depend on the load level: "affine" (a linear model: r(P) = a + b P exactly,
+    #: so any load can be evaluated from two levels), "path" (nonlinear: interpolate along the
+    #: control variable inside the modelled range) or "discrete" (levels are steps, e.g. flat jack).
+    load_response = "affine"
 
     def __init__(self, spec=None, solver="auto"):
         if spec is None:

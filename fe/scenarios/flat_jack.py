@@ -331,6 +331,7 @@ class FlatJack(Scenario):
     Options = FlatJackOptions
     PARAMETERS = FLAT_JACK_PARAMETERS
     load_unit = "step"
+    load_response = "discrete"  # steps of a test sequence, not a continuous load
 
     def _build(self):
         o = self.options

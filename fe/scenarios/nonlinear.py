@@ -131,6 +131,7 @@ class NonlinearScenario(Scenario):
     """
 
     load_unit = "mm"
+    load_response = "path"  # interpolate along the control displacement, never past the last level
     force_unit = "kN"
     control_sign = 1.0
 

@@ -40,7 +40,7 @@ def register(app):
             from fe.scenarios import build_scenario
 
             from podkrig.diagnosis import diagnose as run_diagnosis
-            from podkrig.online.measurement_csv import read_measurement_csv
+            from podkrig.online.measurement_csv import read_measurement
             from podkrig.parameters import ParameterSpace, parse_params
 
             if format not in ("text", "json"):
@@ -51,8 +51,8 @@ def register(app):
             both = sorted(set(fixed) & set(space.names))
             if both:
                 raise ValueError(f"parameter(s) {both} are both free (--param) and fixed (--set); choose one")
-            measurement = read_measurement_csv(data, sc.sensor_names, sc.load_levels, sc.load_unit)
-            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov)
+            measurement = read_measurement(data, sc.sensor_names, sc.load_levels, sc.load_unit)
+            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names)
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
             with _progress() as progress:
                 result = run_diagnosis(sc, measurement, noise, space, fixed=fixed, candidates=names, alpha=alpha,

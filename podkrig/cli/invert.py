@@ -13,51 +13,91 @@ from rich.table import Table
 from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, user_errors
 from podkrig.cli.simulate import parse_assignment
 from podkrig.limits import check_region_samples
-from podkrig.online.findings import inversion_findings
+from podkrig.online.findings import inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, invert
-from podkrig.online.measurement import NoiseModel
-from podkrig.online.measurement_csv import read_measurement_csv
+from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
+from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement
 from podkrig.online.nested import nested_analyses
 from podkrig.online.posterior import sample_posterior
-from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
+from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc as rvc_of
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.reports.inverse import write_inversion_report
 from podkrig.surrogate.podkriging import PODKriging
 
 
-def noise_model(noise_abs, noise_rel, noise_cov):
-    """Build the NoiseModel from the CLI options (exactly one kind)."""
-    given = [bool(noise_abs), noise_rel is not None, noise_cov is not None]
+def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None):
+    """Build the NoiseModel from the CLI options: --noise-abs (σ_res) and/or --noise-rel (δ), combined
+    as σ² = σ_res² + (δ d)²; or --noise-cov; or --instrument (needs the measured ``sensor_names``)."""
+    given = [bool(noise_abs) or noise_rel is not None, noise_cov is not None, instrument is not None]
     if sum(given) != 1:
-        raise ValueError("give exactly one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor), --noise-rel DELTA or --noise-cov FILE")
+        raise ValueError("give one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor) and/or "
+                         "--noise-rel DELTA, or --noise-cov FILE, or --instrument "
+                         + "|".join(INSTRUMENTS))
+    if instrument is not None:
+        if instrument not in INSTRUMENTS:
+            raise ValueError(f"--instrument {instrument!r}: known instruments are {', '.join(INSTRUMENTS)}")
+        return instrument_noise(instrument, sensor_names), INSTRUMENTS[instrument]["text"]
+    if noise_cov is not None:
+        try:
+            C = np.loadtxt(noise_cov, delimiter=",", ndmin=2)
+        except (OSError, ValueError) as e:
+            raise ValueError(f"--noise-cov {noise_cov}: cannot read a comma-separated matrix (mm²): {e}") from None
+        return NoiseModel(covariance=C), f"covariance from {noise_cov}"
+    sigma = None
     if noise_abs:
         if len(noise_abs) == 1 and "=" not in noise_abs[0]:
             try:
-                return NoiseModel(sigma=float(noise_abs[0])), f"absolute σ = {float(noise_abs[0]):g} mm"
+                sigma = float(noise_abs[0])
             except ValueError:
                 raise ValueError(f"--noise-abs {noise_abs[0]!r}: expected a number (mm) or NAME=SIGMA") from None
-        per = dict(parse_assignment(t, "--noise-abs") for t in noise_abs)
-        return NoiseModel(sigma=per), "absolute σ per sensor: " + ", ".join(f"{k} {v:g} mm" for k, v in per.items())
-    if noise_rel is not None:
-        return NoiseModel(delta=noise_rel), f"relative δ = {noise_rel:g}"
+        else:
+            sigma = dict(parse_assignment(t, "--noise-abs") for t in noise_abs)
+    noise = NoiseModel(sigma=sigma, delta=noise_rel)
+    return noise, noise.describe()
+
+
+def parse_load_range(text):
+    """``"10,40"`` → ``(10.0, 40.0)`` (the scenario's load unit)."""
+    if text is None:
+        return None
+    parts = text.split(",")
     try:
-        C = np.loadtxt(noise_cov, delimiter=",", ndmin=2)
-    except (OSError, ValueError) as e:
-        raise ValueError(f"--noise-cov {noise_cov}: cannot read a comma-separated matrix (mm²): {e}") from None
-    return NoiseModel(covariance=C), f"covariance from {noise_cov}"
+        lo, hi = (float(p) for p in parts)
+    except ValueError:
+        raise ValueError(f"--load-range {text!r}: expected LOWER,UPPER (two numbers, the scenario's load unit)") from None
+    return (lo, hi)
 
 
-def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix):
-    """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text)."""
+def parse_zero(text):
+    """``--zero``: ``first``, ``none`` or a load."""
+    if text is None or text == "none":
+        return None
+    if text == "first":
+        return "first"
+    try:
+        return float(text)
+    except ValueError:
+        raise ValueError(f"--zero {text!r}: expected first, none or a load (number, the scenario's load unit)") from None
+
+
+def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix, import_settings=None,
+                  instrument=None, check=True):
+    """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text).
+
+    ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`)."""
     model = SurrogateModel(PODKriging.load(surrogate_path))
-    measurement = read_measurement_csv(data, model.sensor_names, model.load_levels, model.load_unit)
-    noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov)
+    measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
+                                   model.load_response, import_settings)
+    noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names)
     free_names = None
     if free:
         free_names = tuple(n.strip() for item in free for n in item.split(",") if n.strip())
     free_names, fixed = fix_from_scenario(model, free_names, dict(parse_assignment(t, "--fix") for t in fix))
-    return InverseProblem(model, measurement, noise, free=free_names, fixed=fixed), model, noise_text
+    problem = InverseProblem(model, measurement, noise, free=free_names, fixed=fixed)
+    if check:
+        check_dof(measurement.n_obs, problem.free, str(data))
+    return problem, model, noise_text
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,23 +151,39 @@ def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mc
     posterior = None
     if mcmc_steps:
         posterior = sample_posterior(problem, result.x, n_steps=mcmc_steps, confidence=confidence, rng=seed)
-    findings = inversion_findings(result, region, context="cli")
+    m = problem.measurement
+    findings = measurement_findings(m.check_summary(model.sensor_names, problem.noise), context="cli")
+    findings += inversion_findings(result, region, context="cli")
     return Inversion(result, region, posterior, findings, time.perf_counter() - t0)
 
 
-_NOISE_ABS = typer.Option([], "--noise-abs", help="Absolute noise σ in mm, for all sensors, or NAME=SIGMA per sensor (repeatable).")
-_NOISE_REL = typer.Option(None, "--noise-rel", help="Relative noise δ (σ_i = δ |d_i|).")
+_NOISE_ABS = typer.Option([], "--noise-abs", help="Absolute noise (resolution floor) σ_res in mm, for all sensors, "
+                          "or NAME=SIGMA per sensor (repeatable); with --noise-rel: σ² = σ_res² + (δ d)².")
+_NOISE_REL = typer.Option(None, "--noise-rel", help="Relative noise δ (σ_i = δ |d_i|, or combined with --noise-abs).")
 _NOISE_COV = typer.Option(None, "--noise-cov", help="Noise covariance matrix (CSV, mm², load-major order of the data).")
+_INSTRUMENT = typer.Option(None, "--instrument", help="Noise of a typical instrument for every sensor: "
+                           + ", ".join(INSTRUMENTS) + " (σ² = σ_res² + (δ d)², values in the docs).")
 
 
 def register(app):
     @app.command()
     def invert(
         surrogate: Path = typer.Argument(..., help="Surrogate file written by 'podkrig surrogate build'."),
-        data: Path = typer.Option(..., "--data", help="Measurement CSV: load, then one column per sensor (mm)."),
+        data: Path = typer.Option(..., "--data", help="Measurement log (.csv or .xlsx): a load column and one column "
+                                  "per sensor, units in the headers ('load [kN]', 'D1 [µm]'; mm without)."),
         noise_abs: list[str] = _NOISE_ABS,
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
+        instrument: str = _INSTRUMENT,
+        load_column: str = typer.Option("load", "--load-column", help="Name of the load column (without its unit)."),
+        repeats: str = typer.Option("average", "--repeats", help="Several readings at one load step: average or keep."),
+        load_tolerance: float = typer.Option(0.0, "--load-tolerance",
+                                             help="Rows within this of a step's first load form one step (load unit)."),
+        zero: str = typer.Option(None, "--zero", help="Gauges zeroed at: first (row), a load, or none (default)."),
+        load_range: str = typer.Option(None, "--load-range", help="LOWER,UPPER: use only these loads (load unit)."),
+        delimiter: str = typer.Option(None, "--delimiter", help="CSV delimiter (default: detected)."),
+        decimal: str = typer.Option(None, "--decimal", help="Decimal mark . or , (default: detected)."),
+        sheet: str = typer.Option(None, "--sheet", help="Worksheet of an .xlsx file (default: the first)."),
         free: list[str] = typer.Option([], "--free", help="Free parameters (comma-separated or repeated); default all."),
         fix: list[str] = typer.Option([], "--fix", help="Fixed parameter NAME=VALUE (repeatable)."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
@@ -149,7 +205,14 @@ def register(app):
             if not 0 < confidence < 1:
                 raise ValueError(f"--confidence must be in (0, 1); got {confidence}")
             check_region_samples(region_samples)
-            problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
+            if repeats not in REPEATS:
+                raise ValueError(f"--repeats must be one of {', '.join(REPEATS)}; got {repeats!r}")
+            settings = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
+                                      zero=parse_zero(zero), load_range=parse_load_range(load_range),
+                                      delimiter={"tab": "\t", "\\t": "\t"}.get(delimiter, delimiter),
+                                      decimal=decimal, sheet=sheet)
+            problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
+                                                       settings, instrument)
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
                                 fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)
             if report is not None:

@@ -452,6 +452,9 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     -------
     Diagnosis
     """
+    if not measurement.complete or measurement.reference_load is not None:
+        raise ValueError(f"{measurement.source}: the diagnosis needs every sensor read at each load level (no "
+                         "missing cells, no zero reference); invert such a log with 'podkrig invert' instead")
     t_start = time.perf_counter()
     say = progress or (lambda *a: None)
     names = list(candidates or CANDIDATES)

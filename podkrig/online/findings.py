@@ -196,6 +196,42 @@ def offline_findings(title, store_result):
         "model singular) and narrow the bounds, or inspect the store with 'podkrig snapshots info'.")]
 
 
+def measurement_findings(checked, *, context="cli"):
+    """Findings of the measurement check (``podkrig run``'s first stage, ``podkrig invert``).
+
+    Parameters
+    ----------
+    checked : dict
+        ``not_used`` (sensors of the model without a column), ``ignored`` (columns that name
+        no sensor), ``sigma_below_floor`` (sensor → smallest σ, mm) and ``sigma_floor_mm``.
+    """
+    _check_context(context)
+    found = []
+    if checked.get("not_used") or checked.get("ignored"):
+        parts = []
+        if checked.get("not_used"):
+            parts.append(f"sensor(s) of the model without a column, not used: {', '.join(checked['not_used'])}")
+        if checked.get("ignored"):
+            parts.append(f"column(s) that name no sensor, ignored: {', '.join(checked['ignored'])}")
+        found.append(Finding(
+            "measurement-columns", "study", "; ".join(parts) + ".",
+            "nothing if intended; otherwise name each column as the sensor it reads (see 'podkrig scenarios "
+            "NAME' for the sensor names)."))
+    low = checked.get("sigma_below_floor") or {}
+    if low:
+        floor = checked.get("sigma_floor_mm")
+        listed = ", ".join(f"{k} {1000 * v:.3g} µm" for k, v in low.items())
+        found.append(Finding(
+            "noise-below-floor", "study",
+            f"the noise model gives σ below {1000 * floor:g} µm for {listed}: no laboratory instrument reads that "
+            "finely (an LVDT or dial gauge resolves about 1 µm, DIC 2.5–5 µm), so the region of equivalence is "
+            "optimistic.",
+            ("give a resolution floor: --noise-abs 0.001 with --noise-rel, or --instrument lvdt" if context == "cli"
+             else "give a resolution floor in [measurement]: noise_abs = 0.001 (mm) with noise_rel, or "
+             "instrument = \"lvdt\".")))
+    return found
+
+
 def held_out_findings(held, *, noise_rel=None, noise_abs=None):
     """Findings of the surrogate's check on held-out FE runs.
 

@@ -121,12 +121,13 @@ class InverseResult:
         return {n: float(v) for n, v in zip(self.free, self.x)}
 
     def predicted(self):
-        """Model prediction at the observed entries, ``(n_loads_obs, n_sensors_obs)`` mm, and its std."""
+        """Model prediction at the observed entries, ``(n_loads_obs, n_sensors_obs)`` mm, and its std
+        (NaN where a reading is missing)."""
         if self.problem is None:
             raise ValueError("this result was read back from a dict and has no problem: predictions need the model")
         mean, std = self.problem.misfit.predict(self.x[None])
-        shape = self.problem.measurement.values.shape
-        return mean[0].reshape(shape), None if std is None else std[0].reshape(shape)
+        grid = self.problem.measurement.grid
+        return grid(mean[0]), None if std is None else grid(std[0])
 
     def with_fe_check(self, scenario):
         """This result with :func:`fe_check` against ``scenario`` attached (one FE run)."""
@@ -263,8 +264,7 @@ def fe_check(result, scenario):
     """
     problem = result.problem
     fe = scenario.run(result.parameters).readings.ravel()
-    idx = problem.misfit.output_indices
-    fe_obs = fe[idx]
+    fe_obs = problem.misfit.observation.apply(fe[None])[0]
     mean, _ = problem.misfit.predict(result.x[None])
     diff = fe_obs - mean[0]
     sd = problem.misfit.noise_std

@@ -1,14 +1,193 @@
-"""Measured responses and their noise model (no file reading here; see :mod:`podkrig.measurement_csv`).
+"""Measured responses, how a model is evaluated at them, and their noise model (no file reading
+here; see :mod:`podkrig.online.measurement_csv`).
 
 A :class:`Measurement` holds measured readings ``(n_loads, n_sensors)`` in mm for a subset of a
-scenario's sensors and load levels; :meth:`Measurement.output_indices` maps them into the
-flattened (load-major, C order) output vector of a response or a surrogate. A
-:class:`NoiseModel` gives the data covariance ``C_d`` of the observed vector (thesis eq. 2.9).
+scenario's sensors, at any measured loads (a lab log: 10.03, 10.41 … kN); a missing reading is
+NaN. :meth:`Measurement.observation` gives the :class:`ObservationOperator` that evaluates a
+model's flattened (load-major, C order) output vector at the observed entries:
+
+* at a modelled load level, the model's own output;
+* between or beyond the levels of a **linear** scenario (``load_response = "affine"``), the
+  exact affine combination of two levels (readings of a linear model are affine in the load:
+  ``r(P) = r(L_a) + (P − L_a)/(L_b − L_a) (r(L_b) − r(L_a))``, exact also with a constant
+  pre-compression);
+* between the levels of a **nonlinear** scenario (``"path"``), linear interpolation along the
+  control variable — never extrapolation beyond the modelled range (an error);
+* a scenario whose levels are steps (``"discrete"``, the flat-jack test) takes only its levels.
+
+Readings of gauges zeroed at a reference load ``P_ref`` are compared with ``g(P) − g(P_ref)``.
+
+A :class:`NoiseModel` gives the data covariance ``C_d`` of the observed vector (thesis eq. 2.9);
+the instrument model σ_i² = σ_res,i² + (δ d_i)² combines a resolution floor and a relative part.
+:data:`INSTRUMENTS` gives typical values of common laboratory instruments.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+#: How a scenario's readings depend on its load level (``fe`` scenario attribute ``load_response``).
+LOAD_RESPONSES = ("affine", "path", "discrete")
+
+#: Typical noise of laboratory instruments: σ_res (mm, resolution / repeatability floor) and the
+#: relative part δ of σ_i² = σ_res² + (δ d_i)². Sources: ``shared/reference/flat-jack.md`` §5.7 —
+#: LVDT σ = 1–5 µm (INFERRED there as the levels to test), mechanical deformometer / dial gauge
+#: resolution 1 µm (READ, "millesimal"), DIC 2.5–5 µm per component at 0.25 mm/px (INFERRED
+#: typical); the relative part δ = 1 % is the thesis' "1.0 % error range" (§3.2 caption, the
+#: only noise level it states: READ there, its use as a calibration/linearity term INFERRED).
+INSTRUMENTS = {
+    "lvdt": {"sigma_res_mm": 0.001, "delta": 0.01,
+             "text": "LVDT / extensometer: σ_res = 1 µm (§5.7: 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
+    "dial_gauge": {"sigma_res_mm": 0.001, "delta": 0.01,
+                   "text": "dial gauge / mechanical deformometer: resolution 1 µm (§5.7, READ), δ = 1 %"},
+    "dic": {"sigma_res_mm": 0.0025, "delta": 0.0,
+            "text": "DIC point, per component: σ_res = 2.5 µm (§5.7: 2.5–5 µm, INFERRED), no relative part"},
+}
+#: Smallest credible σ of one reading, mm: half the finest resolution of the instruments above
+#: (1 µm). A smaller σ makes the region of equivalence optimistic (issue 14: a 1 %-relative model
+#: gave the 2 µm U1 gauge σ ≈ 0.02 µm); :meth:`NoiseModel.below_floor` names such sensors.
+SIGMA_FLOOR_MM = 0.0005
+
+
+@dataclass(frozen=True, eq=False)
+class ObservationOperator:
+    """The observed entries as weighted sums of a model's flattened outputs.
+
+    Observed entry ``i`` is ``Σ_k weights[i, k] · Y[:, columns[i, k]]``: one column with weight 1
+    at a modelled load level, two for interpolation between levels (or the exact affine
+    combination of a linear scenario), twice as many for gauges zeroed at a reference load.
+
+    Attributes
+    ----------
+    columns : ndarray of int, shape (n_obs, K)
+    weights : ndarray of shape (n_obs, K)
+    """
+
+    columns: np.ndarray
+    weights: np.ndarray
+
+    def __post_init__(self):
+        cols = np.atleast_2d(np.asarray(self.columns, dtype=np.intp))
+        w = np.atleast_2d(np.asarray(self.weights, dtype=float))
+        if cols.shape != w.shape:
+            raise ValueError(f"columns {cols.shape} and weights {w.shape} must have the same shape")
+        keep = np.any(w != 0, axis=0)  # drop columns of zero weight everywhere (all loads at levels)
+        keep[0] = True
+        cols, w = cols[:, keep], w[:, keep]
+        object.__setattr__(self, "columns", cols)
+        object.__setattr__(self, "weights", w)
+
+    @classmethod
+    def from_indices(cls, indices):
+        """Each observed entry is one model output: ``Y[:, indices]``."""
+        idx = np.asarray(indices, dtype=np.intp).reshape(-1, 1)
+        return cls(idx, np.ones(idx.shape))
+
+    @property
+    def n_obs(self):
+        return len(self.columns)
+
+    @property
+    def exact(self):
+        """Every observed entry is one model output (no interpolation, no reference)."""
+        return self.columns.shape[1] == 1 and bool(np.all(self.weights == 1.0))
+
+    @property
+    def indices(self):
+        """The output of each observed entry, ``(n_obs,)`` (only when :attr:`exact`)."""
+        if not self.exact:
+            raise ValueError("the measurement is not at the model's load levels: its entries are interpolated "
+                             "between levels (or zeroed at a reference load), not single outputs")
+        return self.columns[:, 0]
+
+    def apply(self, Y):
+        """Model outputs ``(n, n_outputs)`` → observed entries ``(n, n_obs)``."""
+        Y = np.atleast_2d(Y)
+        if self.exact:
+            return Y[:, self.columns[:, 0]]
+        out = Y[:, self.columns[:, 0]] * self.weights[:, 0]
+        for k in range(1, self.columns.shape[1]):
+            out += Y[:, self.columns[:, k]] * self.weights[:, k]
+        return out
+
+    def apply_std(self, S):
+        """Predictive std of the outputs ``(n, n_outputs)`` → of the observed entries, ``Σ_k |w_k| s_k``
+        (the bound for fully correlated errors, which the smooth POD-kriging error along the load is)."""
+        if self.exact:
+            return np.atleast_2d(S)[:, self.columns[:, 0]]
+        S = np.atleast_2d(S)
+        out = S[:, self.columns[:, 0]] * np.abs(self.weights[:, 0])
+        for k in range(1, self.columns.shape[1]):
+            out += S[:, self.columns[:, k]] * np.abs(self.weights[:, k])
+        return out
+
+
+def level_weights(loads, levels, load_response="discrete", load_unit="", source="measurement"):
+    """How to evaluate a model at measured loads from its outputs at its load levels.
+
+    Parameters
+    ----------
+    loads : array_like of shape (n,)
+        Measured loads (the scenario's control variable), ``load_unit``.
+    levels : array_like of shape (n_levels,)
+        The model's load levels.
+    load_response : {"affine", "path", "discrete"}
+        See the module docstring.
+
+    Returns
+    -------
+    index : ndarray of int, shape (n, 2)
+        Level indices (into ``levels``).
+    weights : ndarray of shape (n, 2)
+
+    Raises
+    ------
+    ValueError
+        A load that is not a level of a ``discrete`` model, outside the modelled range of a
+        ``path`` model, or a linear model with a single level — naming the load and the range.
+    """
+    if load_response not in LOAD_RESPONSES:
+        raise ValueError(f"load_response must be one of {LOAD_RESPONSES}; got {load_response!r}")
+    loads = np.asarray(loads, dtype=float).ravel()
+    levels = np.asarray(levels, dtype=float).ravel()
+    order = np.argsort(levels, kind="stable")
+    L = levels[order]
+    n_l = len(L)
+    pos = np.searchsorted(L, loads)
+    below, above = np.clip(pos - 1, 0, n_l - 1), np.clip(pos, 0, n_l - 1)
+    hit_below = np.isclose(L[below], loads, rtol=1e-9, atol=1e-12)
+    hit_above = np.isclose(L[above], loads, rtol=1e-9, atol=1e-12)
+    exact = hit_below | hit_above
+    index = np.zeros((len(loads), 2), dtype=np.intp)
+    weights = np.zeros((len(loads), 2))
+    index[:, 0] = np.where(hit_above, above, below)
+    weights[exact, 0] = 1.0
+    off = ~exact
+    unit = f" {load_unit}" if load_unit else ""
+    if np.any(off):
+        first = float(loads[np.argmax(off)])
+        if load_response == "discrete":
+            raise ValueError(f"{source}: unknown load level {first:g}{unit}; the model has {levels.tolist()} "
+                             "(its levels are steps: readings are taken only there)")
+        if n_l < 2:
+            raise ValueError(f"{source}: load {first:g}{unit} is not the model's only level {L[0]:g}{unit}; "
+                             "evaluating between levels needs at least two")
+        if load_response == "path":
+            outside = off & ((loads < L[0]) | (loads > L[-1]))
+            if np.any(outside):
+                bad = loads[outside]
+                raise ValueError(
+                    f"{source}: {int(outside.sum())} measured load(s) lie outside the modelled range "
+                    f"[{L[0]:g}, {L[-1]:g}]{unit} of this nonlinear scenario (e.g. {bad[0]:g}{unit}; extremes "
+                    f"{bad.min():g} and {bad.max():g}{unit}); the model is not extrapolated past its levels: "
+                    "restrict the measurement's load range (load_range) or extend the scenario's load_levels")
+        a = np.clip(pos[off] - 1, 0, n_l - 2)  # the bracketing pair; the end pair beyond the range (affine)
+        b = a + 1
+        t = (loads[off] - L[a]) / (L[b] - L[a])
+        index[off] = np.column_stack([a, b])
+        weights[off] = np.column_stack([1.0 - t, t])
+    return order[index], weights
 
 
 @dataclass(frozen=True, eq=False)
@@ -18,40 +197,93 @@ class Measurement:
     Attributes
     ----------
     values : ndarray of shape (n_loads, n_sensors)
-        Readings, mm.
+        Readings, mm; NaN where a reading is missing.
     sensor_names : tuple of str
     load_levels : ndarray of shape (n_loads,)
-        In the scenario's load unit.
+        Measured loads (the scenario's control variable), in the scenario's load unit; any
+        values (a model is evaluated there, see :meth:`observation`).
     source : str
         Where the data came from (file name), for messages and reports.
+    reference_load : float or None
+        Gauges were zeroed at this load (readings are changes since then); None: readings are
+        absolute, as the model's.
+    notes : tuple of str
+        What the import did (columns ignored, units converted, sensors not used ...), for the user.
+    ignored_columns : tuple of str
+        Columns of the file that name no sensor of the model (time, channel numbers ...).
     """
 
     values: np.ndarray
     sensor_names: tuple
     load_levels: np.ndarray
     source: str = "measurement"
+    reference_load: float | None = None
+    notes: tuple = ()
+    ignored_columns: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "values", np.asarray(self.values, dtype=float))
         object.__setattr__(self, "load_levels", np.asarray(self.load_levels, dtype=float))
         object.__setattr__(self, "sensor_names", tuple(self.sensor_names))
+        object.__setattr__(self, "notes", tuple(self.notes))
         shape = (len(self.load_levels), len(self.sensor_names))
         if self.values.shape != shape:
             raise ValueError(f"{self.source}: values must have shape {shape} (n_loads, n_sensors); got {self.values.shape}")
-        if not np.all(np.isfinite(self.values)):
-            raise ValueError(f"{self.source}: measured values must be finite numbers")
+        if np.any(np.isinf(self.values)):
+            raise ValueError(f"{self.source}: measured values must be finite numbers (NaN marks a missing reading)")
+        if not np.all(np.isfinite(self.load_levels)):
+            raise ValueError(f"{self.source}: loads must be finite numbers")
+        if not np.any(np.isfinite(self.values)):
+            raise ValueError(f"{self.source}: no readings (every value is missing)")
+        if self.reference_load is not None and not math.isfinite(self.reference_load):
+            raise ValueError(f"{self.source}: the reference load must be a finite number")
+
+    @property
+    def mask(self):
+        """Which readings exist, ``(n_loads, n_sensors)`` bool."""
+        return np.isfinite(self.values)
+
+    @property
+    def complete(self):
+        """Every sensor read at every load."""
+        return bool(np.all(self.mask))
 
     @property
     def data(self):
-        """The observed vector ``d_obs``, ``(n_obs,)`` mm, load-major."""
-        return self.values.ravel()
+        """The observed vector ``d_obs``, ``(n_obs,)`` mm, load-major, missing readings left out."""
+        return self.values[self.mask] if not self.complete else self.values.ravel()
 
     @property
     def n_obs(self):
-        return self.values.size
+        return int(np.count_nonzero(self.mask))
 
-    def output_indices(self, sensor_names, load_levels):
-        """Positions of the observed entries in a flattened ``(n_loads_all, n_sensors_all)`` output.
+    def grid(self, v):
+        """Observed-entry values ``(n_obs,)`` on the ``(n_loads, n_sensors)`` grid, NaN where a
+        reading is missing."""
+        out = np.full(self.values.shape, np.nan)
+        out[self.mask] = v
+        return out
+
+    def with_data(self, d, source=None):
+        """The same measurement with the observed vector replaced by ``d`` ``(n_obs,)``."""
+        values = np.full(self.values.shape, np.nan)
+        values[self.mask] = d
+        return Measurement(values, self.sensor_names, self.load_levels, source or self.source,
+                           self.reference_load, self.notes, self.ignored_columns)
+
+    def check_summary(self, sensor_names, noise, floor=SIGMA_FLOOR_MM):
+        """What a user should know before any FE work: counts, columns not used, σ below ``floor``
+        (the input of :func:`podkrig.online.findings.measurement_findings`)."""
+        return {"file": self.source, "n_obs": self.n_obs, "n_loads": len(self.load_levels),
+                "sensors": list(self.sensor_names),
+                "load_min": float(self.load_levels.min()), "load_max": float(self.load_levels.max()),
+                "reference_load": self.reference_load,
+                "not_used": [s for s in sensor_names if s not in self.sensor_names],
+                "ignored": list(self.ignored_columns), "notes": list(self.notes),
+                "sigma_below_floor": noise.below_floor(self, floor), "sigma_floor_mm": floor}
+
+    def observation(self, sensor_names, load_levels, load_response="discrete", load_unit=""):
+        """How a model's flattened output ``(n_loads_all * n_sensors_all,)`` gives the observed entries.
 
         Parameters
         ----------
@@ -59,61 +291,95 @@ class Measurement:
             All sensors of the model, in its order.
         load_levels : array_like of shape (n_loads_all,)
             All load levels of the model.
+        load_response : {"affine", "path", "discrete"}
+            How the model's readings depend on the load (see the module docstring).
+        load_unit : str
+            For messages.
 
         Returns
         -------
-        ndarray of shape (n_obs,)
+        ObservationOperator
         """
         sensor_names = list(sensor_names)
-        load_levels = np.asarray(load_levels, dtype=float)
-        cols = []
-        for s in self.sensor_names:
-            if s not in sensor_names:
-                raise ValueError(f"{self.source}: unknown sensor {s!r}; the model has {sensor_names}")
-            cols.append(sensor_names.index(s))
-        rows = []
-        for level in self.load_levels:
-            hit = np.flatnonzero(np.isclose(load_levels, level, rtol=1e-9, atol=1e-12))
-            if len(hit) == 0:
-                raise ValueError(f"{self.source}: unknown load level {level:g}; the model has {load_levels.tolist()}")
-            rows.append(hit[0])
-        return (np.array(rows)[:, None] * len(sensor_names) + np.array(cols)[None, :]).ravel()
+        unknown = [s for s in self.sensor_names if s not in sensor_names]
+        if unknown:
+            named = repr(unknown[0]) if len(unknown) == 1 else f"(s) {unknown}"
+            raise ValueError(f"{self.source}: unknown sensor {named}; the model has {sensor_names}")
+        cols = np.array([sensor_names.index(s) for s in self.sensor_names], dtype=np.intp)
+        n_s = len(sensor_names)
+        index, weights = level_weights(self.load_levels, load_levels, load_response, load_unit, self.source)
+        if self.reference_load is not None:
+            ref_index, ref_weights = level_weights([self.reference_load], load_levels, load_response, load_unit,
+                                                   f"{self.source} (reference load of the zeroed gauges)")
+            index = np.hstack([index, np.broadcast_to(ref_index, index.shape)])
+            weights = np.hstack([weights, -np.broadcast_to(ref_weights, weights.shape)])
+        columns = index[:, None, :] * n_s + cols[None, :, None]  # (n_loads, n_sensors, K)
+        w = np.broadcast_to(weights[:, None, :], columns.shape)
+        mask = self.mask
+        return ObservationOperator(columns[mask], w[mask])
+
+    def output_indices(self, sensor_names, load_levels):
+        """Positions of the observed entries in a flattened ``(n_loads_all, n_sensors_all)`` output,
+        ``(n_obs,)``: the measured loads must be the model's levels (see :meth:`observation`)."""
+        op = self.observation(sensor_names, load_levels)
+        if not op.exact:
+            raise ValueError(f"{self.source}: readings zeroed at a reference load are not single model outputs")
+        return op.indices
+
+
+def _per_sensor(value, measurement, what):
+    """A number or a dict sensor → number as one value per observed entry, ``(n_obs,)``."""
+    if not isinstance(value, dict):
+        return np.full(measurement.n_obs, float(value))
+    missing = [s for s in measurement.sensor_names if s not in value]
+    if missing:
+        raise ValueError(f"no noise {what} given for sensor(s) {missing}")
+    per_sensor = np.array([value[s] for s in measurement.sensor_names], dtype=float)
+    return np.broadcast_to(per_sensor, measurement.values.shape)[measurement.mask]
 
 
 @dataclass(frozen=True)
 class NoiseModel:
-    """Measurement noise: absolute σ (mm, one for all or one per sensor), relative δ, or a covariance.
+    """Measurement noise: σ_i² = σ_res,i² + (δ_i d_i)² (an instrument), or a full covariance.
 
-    Exactly one of ``sigma``, ``delta`` or ``covariance`` is given.
+    Give ``sigma`` (absolute), ``delta`` (relative) or both (the instrument model, combined in
+    quadrature), or ``covariance`` alone.
 
     Parameters
     ----------
     sigma : float or dict of str to float, optional
-        Absolute standard deviation, mm (a dict gives one per sensor name).
-    delta : float, optional
-        Relative noise level: σ_i = δ |d_i|, floored at ``floor``.
+        Absolute standard deviation σ_res, mm (a dict gives one per sensor name).
+    delta : float or dict of str to float, optional
+        Relative noise level δ (a dict gives one per sensor name, 0 allowed there).
     covariance : ndarray of shape (n_obs, n_obs), optional
         Full data covariance ``C_d``, mm², in the measurement's (load-major) order.
     floor : float
-        Smallest σ for the relative model, mm (a reading of zero is not known exactly either).
+        Smallest σ of a purely relative model, mm (a reading of zero is not known exactly either).
     """
 
     sigma: float | dict | None = None
-    delta: float | None = None
+    delta: float | dict | None = None
     covariance: np.ndarray | None = field(default=None, repr=False)
     floor: float = 1e-6
 
     def __post_init__(self):
-        given = [x is not None for x in (self.sigma, self.delta, self.covariance)]
-        if sum(given) != 1:
-            raise ValueError("give exactly one noise model: an absolute sigma (mm), a relative delta, or a covariance")
+        if self.covariance is not None and (self.sigma is not None or self.delta is not None):
+            raise ValueError("give either a covariance or an absolute sigma (mm) and/or a relative delta, not both")
+        if self.covariance is None and self.sigma is None and self.delta is None:
+            raise ValueError("give a noise model: an absolute sigma (mm), a relative delta, both, or a covariance")
         if isinstance(self.sigma, dict):
             bad = {k: v for k, v in self.sigma.items() if not v > 0}
             if bad:
                 raise ValueError(f"absolute noise sigma must be > 0 mm; got {bad}")
         elif self.sigma is not None and not self.sigma > 0:
             raise ValueError(f"absolute noise sigma must be > 0 mm; got {self.sigma}")
-        if self.delta is not None and not 0 < self.delta < 1:
+        if isinstance(self.delta, dict):
+            bad = {k: v for k, v in self.delta.items() if not 0 <= v < 1}
+            if bad:
+                raise ValueError(f"relative noise delta must be in [0, 1) per sensor; got {bad}")
+            if self.sigma is None and any(v == 0 for v in self.delta.values()):
+                raise ValueError("a relative delta of 0 needs an absolute sigma as well")
+        elif self.delta is not None and not 0 < self.delta < 1:
             raise ValueError(f"relative noise delta must be in (0, 1); got {self.delta}")
 
     @property
@@ -121,19 +387,16 @@ class NoiseModel:
         return self.covariance is None
 
     def std(self, measurement):
-        """Standard deviation of each observed entry, ``(n_obs,)`` mm (diagonal models only)."""
-        n_loads = len(measurement.load_levels)
+        """Standard deviation of each observed entry, ``(n_obs,)`` mm."""
         if self.covariance is not None:
             return np.sqrt(np.diag(self.covariance_matrix(measurement)))
-        if self.delta is not None:
-            return np.maximum(self.delta * np.abs(measurement.data), self.floor)
-        if isinstance(self.sigma, dict):
-            missing = [s for s in measurement.sensor_names if s not in self.sigma]
-            if missing:
-                raise ValueError(f"no noise sigma given for sensor(s) {missing}")
-            per_sensor = np.array([self.sigma[s] for s in measurement.sensor_names], dtype=float)
-            return np.tile(per_sensor, n_loads)
-        return np.full(measurement.n_obs, float(self.sigma))
+        if self.sigma is None:  # relative only
+            return np.maximum(_per_sensor(self.delta, measurement, "delta") * np.abs(measurement.data), self.floor)
+        sigma = _per_sensor(self.sigma, measurement, "sigma")
+        if self.delta is None:
+            return np.array(sigma, dtype=float)
+        rel = _per_sensor(self.delta, measurement, "delta") * measurement.data
+        return np.sqrt(sigma**2 + rel**2)
 
     def covariance_matrix(self, measurement):
         """``C_d``, ``(n_obs, n_obs)`` mm²."""
@@ -148,3 +411,56 @@ class NoiseModel:
         if not np.allclose(C, C.T) or np.linalg.eigvalsh(C).min() <= 0:
             raise ValueError("noise covariance must be symmetric positive definite")
         return C
+
+    def below_floor(self, measurement, floor=SIGMA_FLOOR_MM):
+        """Sensors with a reading whose σ is below ``floor`` (mm): ``{sensor: smallest σ}``, mm."""
+        sd = self.std(measurement)
+        sensors = np.broadcast_to(np.arange(len(measurement.sensor_names)), measurement.values.shape)[measurement.mask]
+        low = {}
+        for j in np.unique(sensors[sd < floor]):
+            low[measurement.sensor_names[j]] = float(sd[sensors == j].min())
+        return low
+
+    def describe(self):
+        """The noise model in words, with units."""
+        if self.covariance is not None:
+            return "full covariance C_d"
+
+        def fmt(v, unit, scale=1.0):
+            if isinstance(v, dict):
+                return ", ".join(f"{k} {scale * x:g}{unit}" for k, x in v.items())
+            return f"{scale * v:g}{unit}"
+        parts = []
+        if self.sigma is not None:
+            parts.append(f"σ_res = {fmt(self.sigma, ' mm')}")
+        if self.delta is not None:
+            parts.append(f"δ = {fmt(self.delta, ' %', 100.0)} of each reading")
+        if len(parts) == 2:
+            return "σ² = σ_res² + (δ d)², " + ", ".join(parts)
+        return ("absolute, " if self.sigma is not None else "relative, ") + parts[0]
+
+
+def instrument_noise(instruments, sensor_names):
+    """Per-sensor σ_res and δ of named instruments (:data:`INSTRUMENTS`).
+
+    Parameters
+    ----------
+    instruments : str or dict of str to str
+        One instrument for every sensor, or sensor name → instrument.
+    sensor_names : sequence of str
+
+    Returns
+    -------
+    NoiseModel
+    """
+    if isinstance(instruments, str):
+        instruments = dict.fromkeys(sensor_names, instruments)
+    unknown = {k: v for k, v in instruments.items() if v not in INSTRUMENTS}
+    if unknown:
+        raise ValueError(f"unknown instrument(s) {unknown}; known: {sorted(INSTRUMENTS)}")
+    missing = [s for s in sensor_names if s not in instruments]
+    if missing:
+        raise ValueError(f"no instrument given for sensor(s) {missing}")
+    sigma = {s: INSTRUMENTS[instruments[s]]["sigma_res_mm"] for s in sensor_names}
+    delta = {s: INSTRUMENTS[instruments[s]]["delta"] for s in sensor_names}
+    return NoiseModel(sigma=sigma, delta=delta)

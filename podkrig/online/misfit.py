@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.online.measurement import ObservationOperator
+
 
 @dataclass(frozen=True, eq=False)
 class Misfit:
@@ -32,9 +34,9 @@ class Misfit:
         ``std`` ``(n, n_outputs)`` mm (``std`` may be None: no modelling error).
     measurement : Measurement
     noise : NoiseModel
-    output_indices : ndarray of shape (n_obs,)
-        Position of each observed entry in the model's flattened output
-        (:meth:`Measurement.output_indices`).
+    output_indices : ObservationOperator or ndarray of shape (n_obs,)
+        How the observed entries follow from the model's flattened output
+        (:meth:`Measurement.observation`), or the position of each (an exact-level measurement).
     prior_mean : ndarray of shape (n_params,), optional
     prior_cov : ndarray of shape (n_params, n_params), optional
         Gaussian prior (thesis eq. 2.11), physical units.
@@ -46,7 +48,7 @@ class Misfit:
     model: object
     measurement: object
     noise: object
-    output_indices: np.ndarray
+    output_indices: object
     prior_mean: np.ndarray | None = None
     prior_cov: np.ndarray | None = None
     kind: str = "gaussian"
@@ -60,8 +62,14 @@ class Misfit:
         object.__setattr__(self, "_d", self.measurement.data)
         object.__setattr__(self, "_Cd", self.noise.covariance_matrix(self.measurement))
         object.__setattr__(self, "_sd", np.sqrt(np.diag(self._Cd)))
-        idx = np.asarray(self.output_indices)
-        object.__setattr__(self, "_identity_indices", bool(np.array_equal(idx, np.arange(len(idx)))))
+        op = self.output_indices
+        if not isinstance(op, ObservationOperator):
+            op = ObservationOperator.from_indices(op)
+        object.__setattr__(self, "observation", op)
+        if op.n_obs != len(self._d):
+            raise ValueError(f"the observation gives {op.n_obs} entries; the measurement has {len(self._d)}")
+        object.__setattr__(self, "_identity_indices",
+                            op.exact and bool(np.array_equal(op.indices, np.arange(op.n_obs))))
         if self.prior_cov is not None:
             object.__setattr__(self, "_prior_chol", np.linalg.cholesky(np.asarray(self.prior_cov, float)))
 
@@ -85,8 +93,8 @@ class Misfit:
         """Model predictions at the observed entries: ``(mean, std)`` each ``(n, n_obs)`` mm."""
         mean, std = self.model(np.atleast_2d(X))
         if not (mean.shape[1] == self.n_obs and self._identity_indices):  # skip a copy when all observed
-            mean = mean[:, self.output_indices]
-            std = None if std is None else std[:, self.output_indices]
+            mean = self.observation.apply(mean)
+            std = None if std is None else self.observation.apply_std(std)
         return mean, None if not self.model_error else std
 
     def whitened_residuals(self, X):

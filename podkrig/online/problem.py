@@ -40,6 +40,7 @@ class FEModel:
         self.sensor_names = tuple(scenario.sensor_names)
         self.load_levels = np.asarray(scenario.load_levels, dtype=float)
         self.load_unit = scenario.load_unit
+        self.load_response = getattr(scenario, "load_response", "discrete")
         self.n_runs = 0
 
     def predict(self, X, return_std=False):
@@ -72,6 +73,8 @@ class SurrogateModel:
         self.load_levels = np.asarray(prov["load_levels"], dtype=float)
         self.load_unit = prov.get("load_unit", "kN")
         self.scenario_spec = prov["scenario_spec"]
+        name = self.scenario_spec.get("scenario") if isinstance(self.scenario_spec, dict) else None
+        self.load_response = getattr(SCENARIOS.get(name), "load_response", "discrete")
 
     def predict(self, X, return_std=False):
         return self.surrogate.predict(X, return_std=return_std)
@@ -149,9 +152,11 @@ class InverseProblem:
             template[names.index(n)] = v
         object.__setattr__(self, "_index", index)
         object.__setattr__(self, "_template", template)
-        indices = self.measurement.output_indices(self.model.sensor_names, self.model.load_levels)
+        observation = self.measurement.observation(self.model.sensor_names, self.model.load_levels,
+                                                   getattr(self.model, "load_response", "discrete"),
+                                                   getattr(self.model, "load_unit", ""))
         misfit = Misfit(
-            self._predict, self.measurement, self.noise, indices, self.prior_mean, self.prior_cov,
+            self._predict, self.measurement, self.noise, observation, self.prior_mean, self.prior_cov,
             kind=self.kind, model_error=self.model_error,
         )
         object.__setattr__(self, "misfit", misfit)
@@ -260,6 +265,26 @@ class InverseProblem:
         return sol.x, int(sol.nfev + 2 * len(u0) * sol.njev)
 
 
+def check_dof(n_obs, free, source="measurement"):
+    """Refuse a calibration without degrees of freedom: ``n_obs − n_free ≤ 0`` fits the data exactly
+    whatever the model (χ²/dof is then undefined, issue 14). A prior-regularised problem built in
+    code may have fewer; the study pipeline and the command line call this.
+
+    Raises
+    ------
+    ValueError
+        With both counts and what to do.
+    """
+    free = tuple(free)
+    dof = int(n_obs) - len(free)
+    if dof <= 0:
+        raise ValueError(
+            f"{source}: {n_obs} reading(s) cannot identify {len(free)} free parameter(s) ({', '.join(free)}): "
+            f"degrees of freedom n_obs − n_free = {n_obs} − {len(free)} = {dof} ≤ 0. Add readings (more sensors "
+            "or load levels) or fix parameters")
+    return dof
+
+
 def fix_from_scenario(model, free=None, fixed=None):
     """Complete a choice of free and fixed parameters of ``model``.
 
@@ -300,4 +325,4 @@ def fix_from_scenario(model, free=None, fixed=None):
     return free, fixed
 
 
-__all__ = ["FEModel", "InverseProblem", "SurrogateModel", "fix_from_scenario"]
+__all__ = ["FEModel", "InverseProblem", "SurrogateModel", "check_dof", "fix_from_scenario"]

@@ -26,7 +26,6 @@ from scipy import stats
 from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, identifiability_verdict
-from podkrig.online.measurement import Measurement
 from podkrig.online.problem import InverseProblem
 
 logger = logging.getLogger(__name__)
@@ -211,7 +210,7 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
     X, n_eval = [], 0
     for _ in range(n_realisations):
         d = mean[0] + L @ gen.standard_normal(len(mean[0]))
-        copy = Measurement(d.reshape(meas.values.shape), meas.sensor_names, meas.load_levels, source=meas.source + " (noisy copy)")
+        copy = meas.with_data(d, source=meas.source + " (noisy copy)")
         sub = InverseProblem(problem.model, copy, problem.noise, problem.free, problem.fixed, problem.prior_mean,
                              problem.prior_cov, problem.kind, problem.model_error)
         x, n = sub.polish(x_best)

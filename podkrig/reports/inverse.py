@@ -23,7 +23,7 @@ def plot_fit(result, path, *, load_unit="kN"):
     plt = pyplot()
     meas = result.problem.measurement
     pred, std = result.predicted()
-    sd = result.problem.misfit.noise_std.reshape(meas.values.shape)
+    sd = meas.grid(result.problem.misfit.noise_std)  # NaN where a reading is missing
     n = len(meas.sensor_names)
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
@@ -51,7 +51,7 @@ def plot_residuals(result, path, *, load_unit="kN"):
     plt = pyplot()
     meas = result.problem.measurement
     pred, _ = result.predicted()
-    sd = result.problem.misfit.noise_std.reshape(meas.values.shape)
+    sd = meas.grid(result.problem.misfit.noise_std)  # NaN where a reading is missing
     z = (pred - meas.values) / sd
     fig, ax = plt.subplots(figsize=(1.2 + 0.9 * len(meas.sensor_names), 1.2 + 0.5 * len(meas.load_levels)))
     lim = max(3.0, float(np.abs(z).max()))

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from podkrig import __version__
 from podkrig.online.findings import (
-    diagnosis_findings, held_out_findings, inversion_findings, offline_findings,
+    diagnosis_findings, held_out_findings, inversion_findings, measurement_findings, offline_findings,
 )
 from podkrig.online.invert import InverseResult
 from podkrig.reports.study import write_study_report
@@ -93,7 +93,9 @@ def run_study(study, out, *, progress=None):
     run = stages.StudyRun(study, out, progress or Progress())
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)
+    stages.measurement_check(run)  # before any FE work: a bad file stops here
     stages.offline(run, "offline", "Training snapshots (FE)", "train.h5", study.train)
+    stages.range_check(run)  # a unit or sign error stops here, before the surrogate
     stages.offline(run, "held_out", "Held-out snapshots (FE)", "held_out.h5", study.held_out)
     for model in study.validation:
         stages.validation_model(run, model)
@@ -119,13 +121,13 @@ def study_findings(run):
     """Every finding of the study, in stage order (:mod:`podkrig.online.findings`), from the
     stage manifests (so cached stages give the same findings)."""
     study = run.study
-    found = []
+    found = measurement_findings(run.manifest("measurement")["result"], context="study")
     for record in run.records:
         if "failed" in record.result:  # the FE stages
             found += offline_findings(record.title, record.result)
-    m = study.measurement
-    found += held_out_findings(run.manifest("held_out_validation")["result"], noise_rel=m.noise_rel,
-                               noise_abs=m.noise_abs)
+    noise_rel, noise_abs = study.measurement.noise_levels()
+    found += held_out_findings(run.manifest("held_out_validation")["result"], noise_rel=noise_rel,
+                               noise_abs=noise_abs)
     result = InverseResult.from_dict(run.manifest("inversion")["result"])
     region = stages.load_region(run)
     found += inversion_findings(result, region, context="study", diagnosis_enabled=study.diagnosis.enabled)

@@ -40,8 +40,10 @@ File layout (units: N, mm, MPa; interface stiffness N/mm³; loads in the scenari
     backend = "podkrig"                     # or "smt-krg", "smt-kpls", "sklearn-gpr"
 
     [measurement]
-    file = "measured.csv"                   # relative to the study file
-    noise_rel = 0.01                        # or noise_abs = 0.002 (mm), or { D1 = 0.002, ... }
+    file = "measured.csv"                   # relative to the study file (.csv or .xlsx; units in headers)
+    instrument = "lvdt"                     # or noise_abs = 0.001 (mm) and/or noise_rel = 0.01
+    # load_column, repeats, load_tolerance, zero, load_range, delimiter, decimal, sheet,
+    # range_check: see docs/measurements.md
 
     [inversion]
     seed = 0

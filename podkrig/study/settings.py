@@ -31,7 +31,8 @@ from pydantic import (
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 from pydantic_core import PydanticCustomError
 
-from podkrig.online.measurement import NoiseModel
+from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
+from podkrig.online.measurement_csv import REPEATS, ImportSettings
 from podkrig.parameters import SCALES, ParameterSpace
 
 __all__ = [
@@ -183,8 +184,11 @@ class SurrogateSettings:
 # ---------------------------------------------------------------------------------------------
 # measurement
 
-_NOISE_ALLOWED = ("exactly one of noise_rel = δ in (0, 1) or noise_abs = σ > 0 mm (a number, or a table "
-                  "sensor = σ)")
+_NOISE_ALLOWED = ("noise_abs = σ_res > 0 mm (a number, or a table sensor = σ) and/or noise_rel = δ in (0, 1) "
+                  "(σ² = σ_res² + (δ d)²), or instrument = " + " | ".join(f'"{k}"' for k in INSTRUMENTS)
+                  + " (or a table sensor = instrument)")
+_FILE_ALLOWED = ("a CSV (.csv, .txt) or Excel (.xlsx) log, relative to the study file: a load column and one "
+                 "column per sensor, units in the headers (e.g. 'load [kN]', 'D1 [µm]'; mm without one)")
 
 
 def _measurement_file(value, info):
@@ -193,10 +197,13 @@ def _measurement_file(value, info):
     if not isinstance(value, str | Path):
         raise study_error(f"must be a string; got {type_name(value)} {value!r}")
     folder = (info.context or {}).get("folder", Path.cwd())
-    full = (Path(folder) / value).resolve()
-    if not full.is_file():
-        raise study_error(f"no measurement file at {full}", allowed="a CSV file (first column 'load', then one "
-                          "column per sensor, mm), relative to the study file")
+    try:
+        full = (Path(folder) / value).resolve()
+        exists = full.is_file()
+    except (OSError, ValueError) as e:
+        raise study_error(f"not a usable path ({e})", allowed=_FILE_ALLOWED) from None
+    if not exists:
+        raise study_error(f"no measurement file at {full}", allowed=_FILE_ALLOWED)
     return full
 
 
@@ -217,38 +224,109 @@ def _noise_abs(value):
     return float(value)
 
 
+def _instrument(value):
+    names = " | ".join(f'"{k}"' for k in INSTRUMENTS)
+    if isinstance(value, str):
+        if value not in INSTRUMENTS:
+            raise study_error(f"{value!r} is not a known instrument", allowed=names)
+        return value
+    if isinstance(value, dict) and value:
+        for sensor, kind in value.items():
+            if not isinstance(kind, str) or kind not in INSTRUMENTS:
+                raise study_error(f"{kind!r} is not a known instrument", sensor, names)
+        return dict(value)
+    raise study_error(f"must be an instrument name or a table sensor = instrument; got {type_name(value)} {value!r}",
+                      allowed=names)
+
+
+def _zero(value):
+    if value is None or value == "first" or (isinstance(value, int | float) and not isinstance(value, bool)
+                                             and math.isfinite(value)):
+        return None if value is None else value if value == "first" else float(value)
+    if value == "none":
+        return None
+    raise study_error(f"{value!r} is not a zero reference", allowed='"first", "none" or a load (number, the '
+                      "scenario's load unit)")
+
+
+def _load_range(value):
+    if (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+            and value[0] <= value[1]):
+        return (float(value[0]), float(value[1]))
+    raise study_error(f"{value!r} is not a load range", allowed="[lower, upper] with lower <= upper (the "
+                      "scenario's load unit)")
+
+
 @_settings
 class MeasurementSettings:
-    """The measurement CSV (absolute path) and its noise model.
+    """The measurement log (absolute path), how to read it and its noise model.
 
-    ``noise_rel`` is a relative level δ (σ_i = δ |d_i|); ``noise_abs`` an absolute σ in mm, one
-    for all sensors (float) or one per sensor (dict). Exactly one of them is set. Validating a
-    table needs the study file's folder in the context (``{"folder": Path}``); constructing
-    one in code takes an existing file.
+    Noise: ``noise_abs`` σ_res in mm (one for all sensors, or one per sensor) and/or ``noise_rel``
+    δ, combined as σ_i² = σ_res,i² + (δ d_i)²; or ``instrument`` (one name, or one per sensor) with
+    the typical σ_res and δ of :data:`~podkrig.online.measurement.INSTRUMENTS`. Reading: see
+    :class:`~podkrig.online.measurement_csv.ImportSettings`. ``range_check`` stops a study whose
+    readings lie far outside every training snapshot (a unit or sign error). Validating a table
+    needs the study file's folder in the context (``{"folder": Path}``); constructing one in
+    code takes an existing file.
     """
 
     file: Annotated[Path, BeforeValidator(_measurement_file)]
     noise_rel: Annotated[StrictFloat, _allowed(_NOISE_ALLOWED, gt=0, lt=1)] | None = None
     noise_abs: Annotated[Any, AfterValidator(lambda v: None if v is None else _noise_abs(v))] = None
+    instrument: Annotated[Any, AfterValidator(lambda v: None if v is None else _instrument(v))] = None
+    load_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
+                           _allowed("the name of the load column (without its unit)")] = "load"
+    repeats: _choice(REPEATS) = "average"
+    load_tolerance: Annotated[StrictFloat, AfterValidator(_finite),
+                              _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = 0.0
+    zero: Annotated[Any, AfterValidator(_zero)] = None
+    load_range: Annotated[Any, AfterValidator(lambda v: None if v is None else _load_range(v))] = None
+    delimiter: _choice((",", ";", "\t"), '",", ";" or "\\t" (default: detected)') | None = None
+    decimal: _choice((".", ","), '"." or "," (default: detected)') | None = None
+    sheet: Annotated[StrictStr, _allowed("a worksheet name of the .xlsx file")] | None = None
+    range_check: StrictBool = True
 
     def __post_init__(self):
-        given = [k for k in ("noise_rel", "noise_abs") if getattr(self, k) is not None]
-        if len(given) != 1:
-            raise study_error("give exactly one noise model", given[1] if given else None, _NOISE_ALLOWED)
+        if self.instrument is not None:
+            other = [k for k in ("noise_abs", "noise_rel") if getattr(self, k) is not None]
+            if other:
+                raise study_error(f"give either instrument or {other[0]}, not both", "instrument", _NOISE_ALLOWED)
+        elif self.noise_rel is None and self.noise_abs is None:
+            raise study_error("give a noise model", None, _NOISE_ALLOWED)
+        if self.delimiter == "," and self.decimal == ",":
+            raise study_error("a comma cannot be both the delimiter and the decimal mark", "decimal")
 
-    def noise_model(self):
-        """The :class:`~podkrig.online.measurement.NoiseModel` of these settings."""
-        if self.noise_rel is not None:
-            return NoiseModel(delta=self.noise_rel)
-        return NoiseModel(sigma=self.noise_abs)
+    def import_settings(self):
+        """The :class:`~podkrig.online.measurement_csv.ImportSettings` of these settings."""
+        return ImportSettings(load_column=self.load_column, repeats=self.repeats, load_tolerance=self.load_tolerance,
+                              zero=self.zero, load_range=self.load_range, delimiter=self.delimiter,
+                              decimal=self.decimal, sheet=self.sheet)
+
+    def noise_model(self, sensor_names=None):
+        """The :class:`~podkrig.online.measurement.NoiseModel` of these settings (``sensor_names``:
+        the measured sensors, needed for ``instrument``)."""
+        if self.instrument is not None:
+            if sensor_names is None:
+                raise ValueError("an instrument noise model needs the measured sensor names")
+            return instrument_noise(self.instrument, sensor_names)
+        return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel)
+
+    def noise_levels(self):
+        """``(δ, σ_res)``: the smallest relative and absolute noise levels of these settings (None
+        where absent), for comparisons with the surrogate's error."""
+        if self.instrument is None:
+            return self.noise_rel, self.noise_abs
+        kinds = {self.instrument} if isinstance(self.instrument, str) else set(self.instrument.values())
+        rel = min(INSTRUMENTS[k]["delta"] for k in kinds)
+        return (rel or None), min(INSTRUMENTS[k]["sigma_res_mm"] for k in kinds)
 
     def noise_text(self):
         """The noise model in words, with units."""
-        if self.noise_rel is not None:
-            return f"relative, δ = {self.noise_rel:g} (σ = {100 * self.noise_rel:g} % of each reading)"
-        if isinstance(self.noise_abs, dict):
-            return "absolute σ per sensor: " + ", ".join(f"{k} {v:g} mm" for k, v in self.noise_abs.items())
-        return f"absolute, σ = {self.noise_abs:g} mm"
+        if self.instrument is not None:
+            kinds = {self.instrument} if isinstance(self.instrument, str) else set(self.instrument.values())
+            return "instruments: " + "; ".join(INSTRUMENTS[k]["text"] for k in sorted(kinds))
+        return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel).describe()
 
 
 # ---------------------------------------------------------------------------------------------

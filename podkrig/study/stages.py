@@ -1,7 +1,10 @@
 """The stages of a study, each run through the stage cache (:mod:`podkrig.study.cache`).
 
-Stages, in order (FE work first, then the online stages)::
+Stages, in order (the measurement check, FE work, then the online stages)::
 
+    measurement              the log read and checked against the     (no files)
+                             scenario: sensors, loads, dof, noise —
+                             before any FE work
     offline                  training snapshots (FE)                  train.h5
     held_out                 held-out snapshots (FE)                  held_out.h5
     validation_model.NAME    snapshots and surrogate of a validation  validation_NAME.h5, validation_NAME_surrogate.h5
@@ -30,8 +33,8 @@ from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.offline.runner import prepare_store, run_snapshots
 from podkrig.offline.store import SnapshotStore, move_aside
 from podkrig.online.invert import InverseResult, invert
-from podkrig.online.measurement_csv import read_measurement_csv
-from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
+from podkrig.online.measurement_csv import read_measurement
+from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.reports import inverse as inverse_figures
@@ -98,6 +101,121 @@ def _store_result(path, summary, notes):
         "fe_seconds_total": float(ran.sum()),
         "failures": failures, "notes": notes,
     }
+
+
+#: A sensor whose readings are this many times larger (or smaller) than in every training run is
+#: a probable unit error (µm read as mm is 1000×); a factor 20 leaves room for parameter bounds
+#: that are somewhat off while catching every power-of-ten unit slip from 100× up.
+RANGE_FACTOR = 20.0
+
+
+def read_study_measurement(study, sensor_names, load_levels, load_unit, load_response):
+    """The study's measurement log read for a model: (Measurement, NoiseModel)."""
+    m = study.measurement
+    data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
+    return data, m.noise_model(data.sensor_names)
+
+
+def measurement_check(run):
+    """Read and check the measurement against the scenario before any FE work: every column, unit
+    and load; the degrees of freedom; the noise model (:meth:`Measurement.check_summary`)."""
+    study = run.study
+    m = study.measurement
+    settings = {**dataclasses.asdict(m), "file": str(m.file)}  # JSON-able (the report shows the inputs)
+    inputs = {"spec": study.spec.to_dict(), "free": list(study.space.names), "measurement": file_sha256(m.file),
+              "settings": settings, "diagnosis": study.diagnosis.enabled}
+
+    def compute():
+        sc = run.scenario()
+        response = getattr(sc, "load_response", "discrete")
+        data, noise = read_study_measurement(study, sc.sensor_names, sc.load_levels, sc.load_unit, response)
+        check_dof(data.n_obs, study.space.names, str(m.file))
+        if study.diagnosis.enabled:
+            exact = np.all(np.any(np.isclose(data.load_levels[:, None], sc.load_levels[None, :], rtol=1e-9,
+                                             atol=1e-12), axis=1))
+            if not (exact and data.complete and data.reference_load is None):
+                raise ValueError(
+                    f"{m.file}: [diagnosis] needs every sensor read at the scenario's load levels "
+                    f"{sc.load_levels.tolist()} {sc.load_unit} (no missing cells, no zero reference); this log has "
+                    f"{len(data.load_levels)} loads from {data.load_levels.min():g} to {data.load_levels.max():g} "
+                    f"{sc.load_unit}{'' if data.complete else ' and missing readings'}. Set [diagnosis] "
+                    "enabled = false, or give the readings at the levels")
+        summary = data.check_summary(sc.sensor_names, noise)
+        summary.update(load_response=response, load_unit=sc.load_unit, n_free=study.space.n_params,
+                       dof=data.n_obs - study.space.n_params, noise=m.noise_text())
+        for note in data.notes:
+            logger.info("%s: %s", m.file.name, note)
+        return summary, [], 0
+
+    run.stage("measurement", "Measurement check (before FE work)", inputs, compute)
+
+
+def range_check(run):
+    """Stop when a sensor's readings lie far outside every training snapshot (a unit or sign error),
+    as soon as the training snapshots exist (``[measurement] range_check``)."""
+    study = run.study
+    if not study.measurement.range_check:
+        return
+    with SnapshotStore.open(run.out / "train.h5") as store:
+        Y = store.readings(only_done=True)
+        sensor_names, levels, unit = list(store.sensor_names), store.load_levels, store.load_unit
+    if not len(Y):
+        return
+    sc = run.scenario()
+    response = getattr(sc, "load_response", "discrete")
+    data, noise = read_study_measurement(study, sensor_names, levels, unit, response)
+    problems = measurement_range_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1))
+    if problems:
+        raise ValueError(
+            f"{study.measurement.file}: the readings do not look like any of the {len(Y)} training FE runs — "
+            + "; ".join(problems) + ". State the unit in the column header (e.g. 'D1 [µm]'), check the sign "
+            "convention, or widen the parameter bounds; [measurement] range_check = false runs anyway")
+
+
+def measurement_range_problems(data, noise, sensor_names, levels, response, Y, factor=RANGE_FACTOR):
+    """Sensors whose readings are ``factor``× larger or smaller than in every FE run, or of the
+    opposite sign: one sentence each, naming the sensor and the factor.
+
+    Parameters
+    ----------
+    data : Measurement
+    Y : ndarray of shape (n_runs, n_loads * n_sensors)
+        FE readings (mm) at the model's levels, load-major.
+    """
+    op = data.observation(sensor_names, levels, response)
+    G = np.nan_to_num(op.apply(Y), nan=0.0)  # (n_runs, n_obs): every FE run at the measured loads (partial
+    # rows of a nonlinear store are NaN past the level they reached)
+    d = data.data
+    sd = noise.std(data)
+    col = np.broadcast_to(np.arange(len(data.sensor_names)), data.values.shape)[data.mask]
+    problems = []
+    for j, name in enumerate(data.sensor_names):
+        sel = col == j
+        dj, sj, gj = d[sel], sd[sel], G[:, sel]
+        run_max = np.abs(gj).max(axis=1)  # each run's largest reading of this sensor, mm
+        excess = float(np.max(np.abs(dj) - 3 * sj))  # beyond the noise: a noise-level gauge is no unit error
+        upper = float(np.max(np.abs(dj) + 3 * sj))
+        if excess > factor * run_max.max():
+            r = excess / run_max.max() if run_max.max() > 0 else np.inf
+            problems.append(f"{name} is about {_power_of_ten(r)}× larger than every FE run"
+                            + (": µm read as mm?" if 300 <= r <= 3000 else ": a unit error?"))
+        elif run_max.min() > factor * upper:
+            r = run_max.min() / upper
+            problems.append(f"{name} is about {_power_of_ten(r)}× smaller than every FE run"
+                            + (": mm read as µm (or m)?" if 300 <= r <= 3000 else ": a unit error?"))
+        else:
+            signal = np.abs(dj) > 3 * sj
+            fe_sign = np.sign(gj[:, signal])
+            if fe_sign.size and np.all(fe_sign == -np.sign(dj[signal])[None, :]):
+                problems.append(f"{name} has the opposite sign of every FE run at every reading beyond 3σ: a "
+                                "gauge mounted the other way round, or another sign convention?")
+    return problems
+
+
+def _power_of_ten(r):
+    if not np.isfinite(r):
+        return "infinitely"
+    return f"{10 ** round(np.log10(r)):g}" if r >= 3 else f"{r:.2g}"
 
 
 def offline(run, name, title, filename, design):
@@ -205,17 +323,18 @@ def held_out_validation(run):
 def _problem(run):
     """The inverse problem of the study on its surrogate: (problem, model)."""
     model = SurrogateModel(PODKriging.load(run.out / "surrogate.h5"))
-    m = run.study.measurement
-    data = read_measurement_csv(m.file, model.sensor_names, model.load_levels, model.load_unit)
+    data, noise = read_study_measurement(run.study, model.sensor_names, model.load_levels, model.load_unit,
+                                         model.load_response)
     free, fixed = fix_from_scenario(model)
-    return InverseProblem(model, data, m.noise_model(), free=free, fixed=fixed), model
+    return InverseProblem(model, data, noise, free=free, fixed=fixed), model
 
 
 def _online_inputs(run):
     """Inputs shared by the online stages: the surrogate, the measurement file and the noise."""
     m = run.study.measurement
     return {"surrogate": run.outputs("surrogate"), "measurement": file_sha256(m.file),
-            "noise": {"rel": m.noise_rel, "abs": m.noise_abs}}
+            "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
+            "import": dataclasses.asdict(m.import_settings())}
 
 
 def inversion(run):

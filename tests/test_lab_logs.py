@@ -1,0 +1,305 @@
+"""Real laboratory logs (issue 14): units in headers, delimiters and decimal commas, extra and missing
+columns, missing cells, repeats, zeroing, load ranges; the model evaluated at the measured loads;
+the checks `podkrig run` makes before any FE work (and right after the training snapshots)."""
+
+import json
+
+import numpy as np
+import openpyxl
+import pytest
+from numpy.testing import assert_allclose
+from typer.testing import CliRunner
+
+from fe.scenarios import build_scenario
+from fe.scenarios.base import Scenario
+from podkrig.cli import app
+from podkrig.online.measurement import Measurement, NoiseModel, instrument_noise, level_weights
+from podkrig.online.measurement_csv import ImportSettings, read_measurement
+from podkrig.online.problem import FEModel, InverseProblem
+from podkrig.parameters import ParameterSpace
+
+SENSORS = ("D1", "D2", "U1")
+LEVELS = (10.0, 20.0, 30.0, 40.0)
+runner = CliRunner()
+
+
+def _write(tmp_path, text, name="log.csv", encoding="utf-8"):
+    p = tmp_path / name
+    p.write_bytes(text.encode(encoding))
+    return p
+
+
+# ----------------------------------------------------------------------------------------- reading
+
+
+def test_semicolon_decimal_comma_units_extra_columns_and_preamble(tmp_path):
+    """The issue's semicolon file: a title line, time and channel columns, µm and mm headers, a
+    decimal comma, an empty cell — read, converted and described."""
+    p = _write(tmp_path, "Wall 3, 2026-11-02\ntime [s];load [kN];D1 [µm];D2 (mm);ch\n"
+                         "0;10,03;-32,1;0,0151;7\n1;10,41;-33,5;;7\n2;20;-65,0;0,030;7\n")
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
+    assert_allclose(m.load_levels, [10.03, 10.41, 20.0])
+    assert_allclose(m.values, [[-0.0321, 0.0151], [-0.0335, np.nan], [-0.065, 0.030]])
+    assert m.sensor_names == ("D1", "D2") and m.n_obs == 5 and m.ignored_columns == ("time [s]", "ch")
+    notes = " | ".join(m.notes)
+    for part in ("skipped 1 line(s) before the header", "ignored column(s) that name no sensor: time [s], ch",
+                 "not in the file, not used: U1", "D1 converted from µm to mm (× 0.001)", "decimal comma"):
+        assert part in notes
+
+
+def test_units_are_converted_and_unknown_or_incompatible_ones_named(tmp_path):
+    p = _write(tmp_path, "load [N],D1 [m],D2 [um]\n10000,-0.0001,15\n20000,-0.0002,30\n")
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
+    assert_allclose(m.load_levels, [10.0, 20.0])
+    assert_allclose(m.values, [[-0.1, 0.015], [-0.2, 0.030]])
+    with pytest.raises(ValueError, match=r"log\.csv, row 1, column 2 \(D1 \[kN\]\): unit 'kN' is not a length"):
+        read_measurement(_write(tmp_path, "load [kN],D1 [kN]\n10,1\n"), SENSORS, LEVELS, "kN", "affine")
+    with pytest.raises(ValueError, match=r"row 1, column 1 \(load \[bananas\]\): unknown unit 'bananas'"):
+        read_measurement(_write(tmp_path, "load [bananas],D1\n10,1\n"), SENSORS, LEVELS, "kN", "affine")
+
+
+def test_units_row_tab_delimiter_and_windows_1252(tmp_path):
+    """A units row below the header, tab-separated, saved by lab software as Windows-1252 (µ = 0xB5)."""
+    p = _write(tmp_path, "load\tD1\n[kN]\t[µm]\n10\t-30\n40\t-120\n", encoding="cp1252")
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
+    assert_allclose(m.values[:, 0], [-0.03, -0.12])
+    assert any("Windows-1252" in n for n in m.notes) and any("units from row 2" in n for n in m.notes)
+
+
+def test_excel_workbook(tmp_path):
+    book = openpyxl.Workbook()
+    ws = book.active
+    ws.title = "log"
+    ws.append(["time [s]", "load [kN]", "D1 [µm]", "U1 [mm]"])
+    ws.append([0, 10.03, -31.5, None])
+    ws.append([1, 25.5, -80.25, 0.0012])
+    book.create_sheet("other")
+    p = tmp_path / "log.xlsx"
+    book.save(p)
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
+    assert_allclose(m.load_levels, [10.03, 25.5])
+    assert_allclose(m.values, [[-0.0315, np.nan], [-0.08025, 0.0012]])
+    with pytest.raises(ValueError, match=r"no worksheet 'nope'; the workbook has \['log', 'other'\]"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(sheet="nope"))
+    bad = tmp_path / "bad.xlsx"
+    bad.write_bytes(b"PK\x03\x04 not really a zip")
+    with pytest.raises(ValueError, match=r"bad\.xlsx: not a readable Excel \.xlsx workbook"):
+        read_measurement(bad, SENSORS, LEVELS, "kN", "affine")
+
+
+def test_repeats_averaged_or_kept_and_load_range(tmp_path):
+    p = _write(tmp_path, "load,D1,D2\n10.0,1,\n10.02,3,5\n20,4,6\n20.01,6,8\n35,9,9\n")
+    avg = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(load_tolerance=0.05))
+    assert_allclose(avg.load_levels, [10.01, 20.005, 35.0])
+    assert_allclose(avg.values, [[2.0, 5.0], [5.0, 7.0], [9.0, 9.0]])  # an empty cell does not count
+    keep = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(repeats="keep"))
+    assert keep.values.shape == (5, 2) and keep.n_obs == 9
+    rng = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(load_range=(15, 30)))
+    assert_allclose(rng.load_levels, [20.0, 20.01])
+    with pytest.raises(ValueError, match=r"no row has a load in load_range \[50, 60\] kN; the loads span \[10, 35\]"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(load_range=(50, 60)))
+
+
+def test_zero_at_first_row_or_a_load(tmp_path):
+    p = _write(tmp_path, "load,D1\n2,0.5\n10,1.3\n30,2.9\n")
+    first = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="first"))
+    assert first.reference_load == 2.0
+    assert_allclose(first.load_levels, [10, 30])
+    assert_allclose(first.values, [[0.8], [2.4]])
+    at = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=6.0))  # between rows 2 and 3
+    assert at.reference_load == 6.0
+    assert_allclose(at.load_levels, [2, 10, 30])
+    assert_allclose(at.values, [[-0.4], [0.4], [2.0]])
+    with pytest.raises(ValueError, match=r"never reaches the zero reference load 50 kN"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=50.0))
+
+
+def test_loads_outside_what_the_model_can_evaluate_are_refused_with_the_row(tmp_path):
+    p = _write(tmp_path, "load [mm],D1\n0.5,1\n3.4,2\n")
+    with pytest.raises(ValueError, match=r"row 3, column 1 \(load \[mm\]\): 1 measured load\(s\) lie outside the "
+                                         r"modelled range \[0\.25, 3\] mm of this nonlinear scenario"):
+        read_measurement(p, SENSORS, (0.25, 1.0, 3.0), "mm", "path")
+    with pytest.raises(ValueError, match=r"row 2, column 1 \(load \[mm\]\): unknown load level 0\.5 mm"):
+        read_measurement(p, SENSORS, (0.25, 1.0, 3.0), "mm", "discrete")
+    with pytest.raises(ValueError, match=r"unit 'kN' is not convertible to mm"):
+        read_measurement(_write(tmp_path, "load [kN],D1\n10,1\n"), SENSORS, (0.25, 1.0), "mm", "path")
+
+
+# --------------------------------------------------------------------------- evaluation at any load
+
+
+@pytest.mark.parametrize("scenario", ["diagonal_compression", "shear_compression"])
+def test_linear_scenarios_are_evaluated_exactly_at_any_load(scenario):
+    """A linear scenario's readings at loads 3.7 … 47 kN from its four levels equal an FE run whose
+    levels are those loads (the independent reference; shear compression adds a constant
+    pre-compression, so the readings are affine, not proportional, in the load)."""
+    spec = {"scenario": scenario, "nx": 2, "ny": 1}
+    base = build_scenario(spec)
+    loads = np.array([3.7, 10.03, 10.41, 25.0, 33.3, 47.0])
+    ref = build_scenario({**spec, "load_levels": loads.tolist()}).run({"E_b": 9000.0}).readings
+    m = Measurement(ref, base.sensor_names, loads)
+    op = m.observation(base.sensor_names, base.load_levels, base.load_response)
+    got = op.apply(base.run({"E_b": 9000.0}).readings.ravel()[None])[0]
+    assert_allclose(got, ref.ravel(), rtol=1e-9, atol=1e-12 * np.abs(ref).max())
+
+
+def test_path_interpolation_weights_and_no_extrapolation():
+    index, w = level_weights([1.5, 2.0, 0.25], [0.25, 1.0, 2.0, 3.0], "path", "mm")
+    assert index[0].tolist() == [1, 2]
+    assert_allclose(w[0], [0.5, 0.5])
+    assert index[1, 0] == 2 and w[1].tolist() == [1.0, 0.0] and index[2, 0] == 0
+    with pytest.raises(ValueError, match=r"outside the modelled range \[0\.25, 3\] mm"):
+        level_weights([3.5], [0.25, 1.0, 2.0, 3.0], "path", "mm")
+
+
+# --------------------------------------------------------------------------- the issue's inversion
+
+
+def test_continuous_log_inverts_like_the_exact_load_file(tmp_path):
+    """The issue's case: a continuous log (loads 10.03, 10.41 … kN, gauges in µm, a time column)
+    identifies the same parameters as a file at the model's exact load levels, within the noise.
+
+    Both are FE readings of one hidden truth with LVDT noise (σ_res = 1 µm, δ = 1 %); each is
+    inverted by least squares on the FE model from the same start. The tolerance is 3 standard
+    errors of the difference, from each fit's Gauss–Newton covariance (JᵀJ)⁻¹ in the unit cube."""
+    spec = {"scenario": "diagonal_compression", "nx": 2, "ny": 1, "load_levels": [25.0, 50.0, 75.0, 100.0]}
+    sc = build_scenario(spec)
+    truth = {"E_b": 10500.0, "kN_bj": 70.0}  # kV_bj, r_hj at the scenario defaults
+    rng = np.random.default_rng(14)
+    noise = instrument_noise("lvdt", sc.sensor_names)
+
+    def noisy(readings, loads):
+        m = Measurement(readings, sc.sensor_names, loads)
+        return readings + noise.std(m).reshape(readings.shape) * rng.standard_normal(readings.shape)
+
+    exact = tmp_path / "exact.csv"
+    d = noisy(sc.run(truth).readings, sc.load_levels)
+    exact.write_text("load," + ",".join(sc.sensor_names) + "\n" + "".join(
+        f"{lv:g}," + ",".join(f"{v:.8g}" for v in row) + "\n" for lv, row in zip(sc.load_levels, d)))
+    loads = np.round(np.sort(np.concatenate([[10.03, 10.41], rng.uniform(11, 100, 22)])), 2)
+    log_readings = noisy(build_scenario({**spec, "load_levels": loads.tolist()}).run(truth).readings, loads)
+    log = tmp_path / "log.csv"
+    log.write_text("time [s];load [kN];" + ";".join(f"{s} [µm]" for s in sc.sensor_names) + "\n" + "".join(
+        f"{i};{str(lv).replace('.', ',')};" + ";".join(f"{1000 * v:.6g}".replace(".", ",") for v in row) + "\n"
+        for i, (lv, row) in enumerate(zip(loads, log_readings))))
+    space = ParameterSpace.from_scenario(sc, {"E_b": (5000.0, 20000.0), "kN_bj": (10.0, 1000.0, "log")})
+    model = FEModel(sc, space)
+    fits = []
+    for path in (exact, log):
+        data = read_measurement(path, sc.sensor_names, sc.load_levels, sc.load_unit, sc.load_response)
+        problem = InverseProblem(model, data, instrument_noise("lvdt", data.sensor_names))
+        x, _ = problem.polish(np.array([9000.0, 100.0]))
+        u = problem.free_space.to_unit(x[None])[0]
+        J = problem.jacobian_unit(u)
+        fits.append((u, np.sqrt(np.diag(np.linalg.inv(J.T @ J)))))
+    (u1, s1), (u2, s2) = fits
+    assert np.all(np.abs(u1 - u2) <= 3 * np.hypot(s1, s2)), (u1, u2, s1, s2)
+    assert np.all(np.hypot(s1, s2) < 0.05), (s1, s2)  # and the test is sharp: both well determined
+
+
+def test_noise_floor_is_flagged():
+    m = Measurement([[0.2, 0.0009]], ("D1", "U1"), [100.0])
+    assert set(NoiseModel(delta=0.01).below_floor(m)) == {"U1"}  # σ = 9 nm
+    assert NoiseModel(sigma=0.001, delta=0.01).below_floor(m) == {}
+    assert_allclose(instrument_noise("lvdt", ("D1", "U1")).std(m), np.hypot(0.001, 0.01 * np.array([0.2, 0.0009])))
+
+
+# --------------------------------------------------------------------------- podkrig run: checked early
+
+STUDY = """\
+name = "lab"
+[scenario]
+scenario = "diagonal_compression"
+nx = 2
+ny = 1
+[parameters]
+kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
+kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
+E_b = { lower = 8000.0, upper = 14000.0 }
+[fixed]
+r_hj = 0.6
+[sampling]
+train = { n = 8, seed = 0 }
+held_out = { n = 4, seed = 1, method = "random" }
+workers = 1
+[measurement]
+file = "log.csv"
+instrument = "lvdt"
+[inversion]
+population_size = 8
+generations = 2
+n_starts = 1
+region_samples = 1024
+"""
+
+
+class _FECounter:
+    def __init__(self, monkeypatch):
+        self.calls = 0
+        original = Scenario.run
+
+        def counted(scenario, *args, **kwargs):
+            self.calls += 1
+            return original(scenario, *args, **kwargs)
+
+        monkeypatch.setattr(Scenario, "run", counted)
+
+
+def _study(tmp_path, csv_text):
+    (tmp_path / "study.toml").write_text(STUDY)
+    (tmp_path / "log.csv").write_text(csv_text)
+    return runner.invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
+
+
+def test_run_refuses_dof_le_0_before_any_fe_work(tmp_path, monkeypatch):
+    fe = _FECounter(monkeypatch)
+    result = _study(tmp_path, "load [kN],D1 [mm]\n50,-0.16\n")
+    assert result.exit_code == 2, result.output
+    assert "1 reading(s) cannot identify 3 free parameter(s)" in result.output
+    assert "n_obs − n_free = 1 − 3 = -2 ≤ 0" in result.output.replace("\n", " ")
+    assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
+
+
+def test_run_refuses_a_bad_file_before_any_fe_work(tmp_path, monkeypatch):
+    fe = _FECounter(monkeypatch)
+    result = _study(tmp_path, "load [kN];D1 [mm];D2 [mm]\n25;-0,08;0,04\n50;-0,16;abc\n")
+    assert result.exit_code == 2, result.output
+    assert "row 3, column 3 (D2 [mm]): 'abc' is not a number" in result.output.replace("\n", "")
+    assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
+
+
+def test_run_flags_um_read_as_mm_right_after_the_training_snapshots(tmp_path, monkeypatch):
+    """The issue's µm-as-mm file (no unit in the header): stopped after the 8 training runs, before
+    the held-out runs, the surrogate and the inversion, naming the sensor and the factor."""
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+    r = sc.run({"E_b": 11000.0, "kN_bj": 90.0, "kV_bj": 35.0}).readings * 1000.0  # µm, written as mm
+    text = "load," + ",".join(sc.sensor_names) + "\n" + "".join(
+        f"{lv:g}," + ",".join(f"{v:.6g}" for v in row) + "\n" for lv, row in zip(sc.load_levels, r))
+    fe = _FECounter(monkeypatch)
+    result = _study(tmp_path, text)
+    out = " ".join(result.output.split())
+    assert result.exit_code == 2, result.output
+    assert "D1 is about 1000× larger than every FE run: µm read as mm?" in out
+    assert fe.calls == 8
+    assert not (tmp_path / "out" / "held_out.h5").exists() and not (tmp_path / "out" / "surrogate.h5").exists()
+    # the same readings with their unit stated in the header pass the check
+    (tmp_path / "log.csv").write_text(text.replace(",".join(sc.sensor_names), ",".join(f"{s} [µm]" for s in sc.sensor_names)))
+    ok = runner.invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
+    assert ok.exit_code == 0, ok.output
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["stages"]["measurement"]["dof"] == 24 - 3
+
+
+def test_range_check_names_units_and_signs_but_not_noise():
+    """Unit and sign errors are named with the factor; a gauge that reads only noise is not."""
+    from podkrig.study.stages import measurement_range_problems
+
+    levels, names = np.array([10.0, 20.0]), ("A", "B", "C", "N")
+    per_kn = np.array([0.01, -0.002, 0.003, 1e-6])  # mm/kN; N barely moves in the model
+    runs = np.array([s * np.outer(levels, per_kn) for s in (0.8, 1.0, 1.25)]).reshape(3, -1)
+    d = np.outer(levels, per_kn * np.array([1000.0, 1.0, -1.0, 1.0])) + np.array([0, 0, 0, 0.0008])
+    m = Measurement(d, names, levels)
+    found = measurement_range_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
+    assert found[0] == "A is about 1000× larger than every FE run: µm read as mm?"
+    assert found[1].startswith("C has the opposite sign of every FE run")
+    assert len(found) == 2  # B matches; N reads noise (0.8 µm with σ = 1 µm), not a unit error
