@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from podkrig.limits import MAX_ABS_READING_MM, check_finite
+
 
 @dataclass(frozen=True, eq=False)
 class Measurement:
@@ -104,6 +106,7 @@ class NoiseModel:
     floor: float = 1e-6
 
     def __post_init__(self):
+        _require_finite_noise(self)
         given = [x is not None for x in (self.sigma, self.delta, self.covariance)]
         if sum(given) != 1:
             raise ValueError("give exactly one noise model: an absolute sigma (mm), a relative delta, or a covariance")
@@ -148,3 +151,18 @@ class NoiseModel:
         if not np.allclose(C, C.T) or np.linalg.eigvalsh(C).min() <= 0:
             raise ValueError("noise covariance must be symmetric positive definite")
         return C
+
+
+def _require_finite_noise(noise):
+    """Refuse NaN, infinite or absurd noise levels (σ = inf made every reading weightless: χ² = 0)."""
+    sigmas = noise.sigma if isinstance(noise.sigma, dict) else {None: noise.sigma}
+    for sensor, sigma in sigmas.items():
+        if sigma is not None:
+            what = "absolute noise sigma (mm)" if sensor is None else f"absolute noise sigma of sensor {sensor!r} (mm)"
+            check_finite(sigma, what, lower=0.0, upper=MAX_ABS_READING_MM)
+    deltas = noise.delta if isinstance(noise.delta, dict) else {None: noise.delta}
+    for sensor, delta in deltas.items():
+        if delta is not None:
+            check_finite(delta, "relative noise delta" if sensor is None else f"relative noise delta of sensor {sensor!r}")
+    if noise.covariance is not None and not np.isfinite(np.asarray(noise.covariance, dtype=float)).all():
+        raise ValueError("noise covariance must hold finite numbers (mm²); it has NaN or infinite entries")
