@@ -129,7 +129,8 @@ def main():
     print("|---|---|---|---|---|---|")
     for name, (a, b, c, wa, wb) in results.items():
         print(f"| {name} | {1e3 * a:.2f} ({1e3 * wa:.2f}) | {1e3 * b:.2f} ({1e3 * wb:.2f}) | "
-              f"{100 * (a / b - 1):+.1f} % ({100 * (wa / wb - 1):+.1f} %) | {1e3 * c:.2f} | {100 * (c / b - 1):+.1f} % |")
+              f"{100 * (a / b - 1):+.1f} % ({100 * (wa / wb - 1):+.1f} %) | {1e3 * c:.2f} | "
+              f"{100 * (c / b - 1):+.1f} % |")
     print()
     print(f"row_digests of the readings alone ({readings.nbytes / 1e6:.1f} MB): {1e3 * digest:.2f} ms "
           f"({readings.nbytes / digest / 1e9:.1f} GB/s)")

@@ -137,7 +137,9 @@ def register(app):
         study: Path = typer.Argument(..., help="Study file (TOML): scenario, parameters, sampling, surrogate, "
                                                "measurement, inversion, validation models."),
         out: Path = typer.Option(None, "--out", help="Output folder (default: out/NAME with the study's name)."),
-        yes: bool = typer.Option(False, "--yes", "-y", help=f"Start more than {CONFIRM_ROWS} FE runs or {CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required without a terminal)."),
+        yes: bool = typer.Option(False, "--yes", "-y", help=f"Start more than {CONFIRM_ROWS} FE runs or "
+                                 f"{CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required "
+                                 "without a terminal)."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run a whole study: FE snapshots, surrogate, held-out check, inversion, region of equivalence, RVC, diagnosis.

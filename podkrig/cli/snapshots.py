@@ -46,7 +46,9 @@ def run(
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="Rerun rows whose FE run failed."),
     chunk_size: int = typer.Option(None, "--chunk-size", help="Rows per task (default: adapted to the work, at most 32)."),
-    yes: bool = typer.Option(False, "--yes", "-y", help=f"Start a job of more than {CONFIRM_ROWS} runs or {CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required without a terminal)."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=f"Start a job of more than {CONFIRM_ROWS} runs or "
+                             f"{CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required without "
+                             "a terminal)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Run a scenario at N sampled parameter vectors into a snapshot store.
@@ -82,7 +84,8 @@ def run(
         size = check_rows(n, store_bytes_per_row(space.n_params, len(sc.load_levels), len(sc.sensor_names),
                                                   sc.mesh.n_nodes, fields))
         todo = rows_to_run(store, n, retry_failed)
-        confirm_large_job(*fe_job_estimate([(todo, sc.n_dofs, isinstance(sc, NonlinearScenario))], size if todo else 0), yes)
+        job = [(todo, sc.n_dofs, isinstance(sc, NonlinearScenario))]
+        confirm_large_job(*fe_job_estimate(job, size if todo else 0), yes)
         progress = Progress(
             TextColumn("snapshots"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),

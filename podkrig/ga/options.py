@@ -270,7 +270,8 @@ class GAOptions:
             _check_range("max_evaluations", self.max_evaluations, 1, np.inf, integer=True)
             check_evaluations(self.max_evaluations)
         else:  # 1000 generations by default (see resolve)
-            check_evaluations(self.population_size * ((1000 if self.max_generations is None else self.max_generations) + 1),
+            generations = 1000 if self.max_generations is None else self.max_generations
+            check_evaluations(self.population_size * (generations + 1),
                               what=f"max_generations = {self.max_generations} with a population of "
                                    f"{self.population_size}")
         if self.target is not None:

@@ -341,8 +341,9 @@ def _write_checksums(f, fields):
 
 def _read_whole(f, name):
     """A whole dataset of an open file through h5py's low-level API: the same array as
-    ``f[name][...]`` at half the cost for the 10⁴-row datasets of a store (0.29 against 0.59 ms for the readings; no selection objects are built), which keeps
-    checksum verification cheap (``scripts/bench_store.py``)."""
+    ``f[name][...]`` at half the cost for the 10⁴-row datasets of a store (0.29 against 0.59 ms
+    for the readings; no selection objects are built), which keeps checksum verification cheap
+    (``scripts/bench_store.py``)."""
     ds = h5py.h5d.open(f.id, name.encode())
     out = np.empty(ds.shape, dtype=ds.dtype)
     if out.size:
@@ -822,7 +823,7 @@ class SnapshotStore:
             if index is Ellipsis:
                 return _read_whole(self._f, name)
             return self._f[name][index]
-        except (OSError, RuntimeError, KeyError, ValueError) as e:
+        except (OSError, RuntimeError, KeyError, ValueError, TypeError) as e:
             raise StoreError(
                 f"{self.path}: dataset {name!r} cannot be read ({type(e).__name__}: {e}): the file is damaged; "
                 "check it with 'podkrig snapshots verify', then rebuild it or restore a copy"

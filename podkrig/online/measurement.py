@@ -163,6 +163,7 @@ def _require_finite_noise(noise):
     deltas = noise.delta if isinstance(noise.delta, dict) else {None: noise.delta}
     for sensor, delta in deltas.items():
         if delta is not None:
-            check_finite(delta, "relative noise delta" if sensor is None else f"relative noise delta of sensor {sensor!r}")
+            what = "relative noise delta" if sensor is None else f"relative noise delta of sensor {sensor!r}"
+            check_finite(delta, what)
     if noise.covariance is not None and not np.isfinite(np.asarray(noise.covariance, dtype=float)).all():
         raise ValueError("noise covariance must hold finite numbers (mm²); it has NaN or infinite entries")

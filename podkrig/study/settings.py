@@ -291,7 +291,8 @@ class InversionSettings:
     confidence: Annotated[StrictFloat, _allowed("a number in (0, 1), e.g. 0.95", gt=0, lt=1)] = 0.95
     region_method: _choice(REGION_METHODS) = "likelihood-ratio"
     region_samples: Annotated[StrictInt, _allowed(_REGION_ALLOWED, ge=1024),
-                              _limit(lambda n: limits.check_region_samples(n, "region_samples"), _REGION_ALLOWED)] = 2**17
+                              _limit(lambda n: limits.check_region_samples(n, "region_samples"),
+                                     _REGION_ALLOWED)] = 2**17
     fe_check: StrictBool = True
 
     def __post_init__(self):
