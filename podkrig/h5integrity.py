@@ -8,7 +8,7 @@ Two tools, both independent of what the file holds:
   key is odd, any change confined to one word (any number of flipped bits in it) changes ``h``:
   ``Δh = k_i · Δw_i`` is a multiple of ``2^64`` only if ``Δw_i`` is. Changes spread over several
   words cancel only by accident (keys are pseudo-random). Cost: one integer dot product per row,
-  ≈ 1 ms for 10⁴ rows of 48 words on one core — cheap enough to verify on every read.
+  ≈ 0.15 ms for 10⁴ rows of 24 words on one core (numba) — cheap enough to verify on every read.
 - :func:`seal` / :func:`verify`: a SHA-256 over a whole file's content (every group, dataset and
   attribute, by name, dtype, shape and value), stored in the root attribute
   :data:`DIGEST_ATTR`. Meant for small files written once (surrogates): one call after saving,
@@ -28,6 +28,7 @@ import json
 from pathlib import Path
 
 import h5py
+import numba
 import numpy as np
 
 from podkrig.exceptions import IntegrityError, StoreError
@@ -56,6 +57,21 @@ def _keys(m):
     return _KEYS[:m]
 
 
+def _words(a):
+    """Each row's little-endian bytes as zero-padded 64-bit words: contiguous (n, m) uint64."""
+    a = np.asarray(a)
+    if a.dtype.byteorder == ">":
+        a = a.astype(a.dtype.newbyteorder("<"))
+    n = a.shape[0]
+    b = np.ascontiguousarray(a).reshape(n, -1).view(np.uint8) if n else np.zeros((0, 8), np.uint8)
+    if b.shape[1] in (1, 2, 4):  # one zero-padded word per row, without a padded byte copy
+        return b.view(f"<u{b.shape[1]}").astype(np.uint64)
+    pad = -b.shape[1] % 8
+    if pad or b.shape[1] == 0:
+        b = np.concatenate([b, np.zeros((n, pad or 8), np.uint8)], axis=1)
+    return b.view("<u8")
+
+
 def row_digests(a):
     """Multilinear 64-bit digest of each row (first axis) of an array.
 
@@ -68,18 +84,57 @@ def row_digests(a):
     -------
     ndarray of shape (n,) uint64
     """
-    a = np.asarray(a)
-    if a.dtype.byteorder == ">":
-        a = a.astype(a.dtype.newbyteorder("<"))
-    n = a.shape[0]
-    b = np.ascontiguousarray(a).reshape(n, -1).view(np.uint8) if n else np.zeros((0, 8), np.uint8)
-    if b.shape[1] in (1, 2, 4):  # one zero-padded word per row, without a padded copy
-        return b.view(f"<u{b.shape[1]}")[:, 0].astype(np.uint64) * _keys(1)[0]
-    pad = -b.shape[1] % 8
-    if pad or b.shape[1] == 0:
-        b = np.concatenate([b, np.zeros((n, pad or 8), np.uint8)], axis=1)
-    words = b.view("<u8")
-    return np.einsum("ij,j->i", words, _keys(words.shape[1]))  # wraps mod 2^64 (unsigned integers)
+    words = _words(a)
+    return _multilinear(words, _keys(words.shape[1]))
+
+
+def mismatched_rows(a, expected):
+    """Rows of ``a`` whose digest differs from ``expected``: ``flatnonzero(row_digests(a) != expected)``
+    in one pass without the intermediate arrays (what verifying a dataset on every read costs).
+
+    Parameters
+    ----------
+    a : ndarray of shape (n, ...)
+    expected : ndarray of shape (n,) uint64 (any stride, e.g. a column of a digest table)
+
+    Returns
+    -------
+    ndarray of int64, ascending row indices
+    """
+    words = _words(a)
+    expected = np.asarray(expected)
+    if expected.shape != (len(words),) or expected.dtype != np.uint64:
+        raise ValueError(f"expected {len(words)} uint64 digests; got {expected.dtype} {expected.shape}")
+    return _mismatches(words, _keys(words.shape[1]), expected)
+
+
+@numba.njit(cache=True)
+def _digest(words, keys, i):
+    h = np.uint64(0)
+    for j in range(words.shape[1]):
+        h += keys[j] * words[i, j]  # uint64 arithmetic wraps: mod 2^64
+    return h
+
+
+@numba.njit(cache=True)
+def _multilinear(words, keys):
+    """``words @ keys`` mod 2^64 row by row: 0.14 ms for 10⁴ rows of 24 words against 0.23 ms for
+    ``np.einsum``, which also allocates."""
+    out = np.empty(words.shape[0], dtype=np.uint64)
+    for i in range(words.shape[0]):
+        out[i] = _digest(words, keys, i)
+    return out
+
+
+@numba.njit(cache=True)
+def _mismatches(words, keys, expected):
+    bad = np.empty(words.shape[0], dtype=np.int64)
+    k = 0
+    for i in range(words.shape[0]):
+        if _digest(words, keys, i) != expected[i]:
+            bad[k] = i
+            k += 1
+    return bad[:k].copy()
 
 
 def _update(h, name, value):

@@ -6,8 +6,11 @@ what is allowed — with a memory or disk estimate where size is the reason.
 """
 
 import math
+import numbers
 import re
 from pathlib import Path
+
+import numpy as np
 
 #: Region-of-equivalence samples per round: below 1024 the sampled region is far too narrow (a
 #: 16-sample "region" called an unidentifiable parameter identified, issue 13 #5); above 2^24 one
@@ -19,12 +22,54 @@ CONFIRM_ROWS = 2**16
 #: ... and never more than this (the design alone needs n × d × 16 B in memory; the store on disk
 #: several hundred bytes per row).
 MAX_ROWS = 2**24
+#: A job whose estimated FE work exceeds this many hours on one core (or whose store exceeds
+#: :data:`CONFIRM_STORE_BYTES`, or which has more than :data:`CONFIRM_ROWS` rows) is started by
+#: the CLI only after a question or with ``--yes``.
+CONFIRM_FE_HOURS = 2.0
+CONFIRM_STORE_BYTES = 4 * 2**30
+#: Seconds of FE work per degree of freedom and linear run on one core: 66 runs/s of the default
+#: diagonal-compression mesh (9 360 dofs) in BENCHMARKS.md "offline" → 1.6 µs per dof.
+FE_SECONDS_PER_DOF = 1.6e-6
+#: A nonlinear (path-following) run costs this many linear runs: J4D 0–3 mm, 8 102 dofs, 38.6 s
+#: against 13 ms (BENCHMARKS.md "Nonlinear wall J4D").
+NONLINEAR_RUN_FACTOR = 3000
+#: GA individuals per generation: a generation's surrogate predictions hold about
+#: :data:`BYTES_PER_INDIVIDUAL` each (kriging cross-covariances with ~10³ training points, the
+#: predicted outputs), so 2^18 individuals need ~2 GiB.
+MAX_POPULATION = 2**18
+BYTES_PER_INDIVIDUAL = 8 * 1024
+#: GA evaluations (population × (generations + 1)): the run keeps every evaluated point, its
+#: misfit and generation (``X_history`` …, ~(parameters + 3) × 8 B each): 2^25 evaluations of 10
+#: parameters are ~3.4 GiB.
+MAX_GA_EVALUATIONS = 2**25
+#: Least-squares polishes after the GA (each up to a few thousand surrogate evaluations).
+MAX_STARTS = 1024
+#: Local FE worker processes (each holds a mesh and a factorisation: ~0.1–1 GiB) and rows per
+#: task; a cluster of more machines is given as a Dask scheduler instead.
+MAX_WORKERS = 1024
+MAX_CHUNK_SIZE = 4096
+#: Candidate-sensor grids (``podkrig sensors``): DIC points are one sensor object and two channels
+#: each (~1 KiB with their sensitivities), so 2^17 points need ~128 MiB; a gauge grid pairs every
+#: two points (the pair arrays take ~100 B per pair), so 2^12 points are ~8·10⁶ pairs, ~0.8 GiB.
+MAX_DIC_POINTS = 2**17
+MAX_GAUGE_GRID_POINTS = 2**12
 #: Names that become paths, HDF5 keys or figure labels: letters, digits, '_', '-', '.', no leading
 #: dot, at most 100 characters.
 NAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", re.ASCII)
 #: A displacement reading beyond 1 km (10^6 mm) is a unit error, and squares of larger numbers
 #: overflow the misfit (1e300² = inf, χ²/dof = 0).
 MAX_ABS_READING_MM = 1e6
+
+
+def human_duration(seconds):
+    """``5400`` → ``"1.5 h"``; ``90`` → ``"1.5 min"``; ``0.25`` → ``"0.25 s"``."""
+    if seconds >= 86400:
+        return f"{seconds / 86400:.3g} days"
+    if seconds >= 3600:
+        return f"{seconds / 3600:.3g} h"
+    if seconds >= 60:
+        return f"{seconds / 60:.3g} min"
+    return f"{seconds:.2g} s"
 
 
 def human_bytes(nbytes):
@@ -36,9 +81,9 @@ def human_bytes(nbytes):
 
 
 def _int(value, what):
-    if isinstance(value, bool) or not isinstance(value, int):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
         raise ValueError(f"{what} must be an integer; got {value!r}")
-    return value
+    return int(value)
 
 
 def check_region_samples(n, what="--region-samples"):
@@ -96,7 +141,7 @@ def check_output_folder(path, what="--out"):
 
 def check_finite(value, what, *, lower=None, upper=None):
     """A finite real number (optionally within [lower, upper])."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise ValueError(f"{what} must be a number; got {value!r}")
     try:
         v = float(value)
@@ -107,3 +152,111 @@ def check_finite(value, what, *, lower=None, upper=None):
     if (lower is not None and v < lower) or (upper is not None and v > upper):
         raise ValueError(f"{what} must be in [{lower}, {upper}]; got {value!r}")
     return v
+
+
+def _bounded_int(n, what, lower, upper, estimate=None):
+    """An integer in [lower, upper]; above it the message gives ``estimate(n)`` (text) if any."""
+    _int(n, what)
+    if n < lower:
+        raise ValueError(f"{what} must be an integer >= {lower}; got {n}")
+    if n > upper:
+        extra = f": {estimate(n)}" if estimate is not None else ""
+        raise ValueError(f"{what} = {n} is above the limit of {upper}{extra}")
+    return n
+
+
+def check_population(n, what="population_size"):
+    """GA individuals per generation: an integer in [4, :data:`MAX_POPULATION`]."""
+    return _bounded_int(n, what, 4, MAX_POPULATION, lambda n: (
+        f"one generation would need about {human_bytes(n * BYTES_PER_INDIVIDUAL)} of memory for its surrogate "
+        "predictions"))
+
+
+def check_evaluations(evaluations, n_params=10, what="max_evaluations"):
+    """GA evaluations: at most :data:`MAX_GA_EVALUATIONS` (the run keeps every evaluated point)."""
+    _int(evaluations, what)
+    if evaluations > MAX_GA_EVALUATIONS:
+        raise ValueError(
+            f"{what} allows {evaluations} GA evaluations, above the limit of {MAX_GA_EVALUATIONS}: the run's "
+            f"history alone would need about {human_bytes(evaluations * (n_params + 3) * 8)}; the GA stops by "
+            "stall long before (see the generations reached in a study's report)"
+        )
+    return evaluations
+
+
+def check_generations(n, population, n_params=10, what="generations"):
+    """GA generations after the first: an integer >= 1 with population × (generations + 1) at most
+    :data:`MAX_GA_EVALUATIONS`."""
+    _bounded_int(n, what, 1, math.inf)
+    check_evaluations(population * (n + 1), n_params, f"{what} = {n} with a population of {population}")
+    return n
+
+
+def check_starts(n, what="n_starts"):
+    """Least-squares polishes after the GA: an integer in [1, :data:`MAX_STARTS`]."""
+    return _bounded_int(n, what, 1, MAX_STARTS)
+
+
+def check_workers(n, what="workers"):
+    """Local FE worker processes: an integer in [1, :data:`MAX_WORKERS`]."""
+    return _bounded_int(n, what, 1, MAX_WORKERS, lambda n: (
+        f"{n} processes each holding a mesh and its factorisation (~0.1–1 GiB); use a Dask scheduler for a "
+        "cluster of several machines"))
+
+
+def check_chunk_size(n, what="chunk_size"):
+    """Rows per FE task: an integer in [1, :data:`MAX_CHUNK_SIZE`]."""
+    return _bounded_int(n, what, 1, MAX_CHUNK_SIZE, lambda n: "a task's results are held in memory until written")
+
+
+def check_grid(n_points, kind, what="grid"):
+    """Points of a candidate grid (``kind`` "dic" or "gauge"): at most :data:`MAX_DIC_POINTS` or
+    :data:`MAX_GAUGE_GRID_POINTS`."""
+    if kind == "dic":
+        limit, need = MAX_DIC_POINTS, n_points * 1024
+    else:
+        limit, need = MAX_GAUGE_GRID_POINTS, n_points * (n_points - 1) // 2 * 100
+    if n_points > limit:
+        raise ValueError(f"{what} has {n_points} points, above the limit of {limit} for {kind} candidates: about "
+                         f"{human_bytes(need)} of memory; use a coarser step")
+    return n_points
+
+
+def check_confidence(c, what="confidence"):
+    """A confidence level: a finite number in (0, 1)."""
+    c = check_finite(c, what)
+    if not 0 < c < 1:
+        raise ValueError(f"{what} must be in (0, 1), e.g. 0.95; got {c!r}")
+    return c
+
+
+def fe_job_estimate(jobs, store_bytes):
+    """The size of an FE job in words (runs, estimated time, disk) and whether to ask first.
+
+    Parameters
+    ----------
+    jobs : sequence of (rows, n_dofs, nonlinear)
+        FE runs to do of each scenario, its mesh's degrees of freedom, and whether its runs are
+        path-following (:data:`NONLINEAR_RUN_FACTOR` linear runs each).
+    store_bytes : int
+        Estimated size of the store(s) on disk, bytes.
+
+    Returns
+    -------
+    text : str
+        E.g. ``"100000 FE runs of 9360 dofs (about 25 min on one core) and 76.3 MiB on disk"``.
+    large : bool
+        More than :data:`CONFIRM_ROWS` runs, :data:`CONFIRM_FE_HOURS` of FE work or
+        :data:`CONFIRM_STORE_BYTES` on disk: ask before starting.
+    """
+    jobs = [(int(r), int(d), bool(nl)) for r, d, nl in jobs if r > 0]
+    rows = sum(r for r, _, _ in jobs)
+    seconds = sum(r * d * FE_SECONDS_PER_DOF * (NONLINEAR_RUN_FACTOR if nl else 1) for r, d, nl in jobs)
+    dofs = sorted({d for _, d, _ in jobs})
+    nonlinear = sum(r for r, _, nl in jobs if nl)
+    kind = ("nonlinear " if nonlinear == rows else f"({nonlinear} nonlinear) ") if nonlinear else ""
+    size = f"{dofs[0]}" if len(dofs) == 1 else f"{dofs[0]}–{dofs[-1]}" if dofs else "0"
+    text = (f"{rows} {kind}FE runs of {size} dofs (about {human_duration(seconds)} on one core) and "
+            f"{human_bytes(store_bytes)} on disk")
+    large = rows > CONFIRM_ROWS or seconds > 3600 * CONFIRM_FE_HOURS or store_bytes > CONFIRM_STORE_BYTES
+    return text, large

@@ -97,7 +97,7 @@ def test_valid_study_and_defaults(tmp_path):
         # out of range, with the allowed range
         ("confidence = 0.95", "confidence = 1.5", "confidence", [r"inversion\.confidence: 1\.5 is out of range",
                                                                  r"allowed: a number in \(0, 1\)"]),
-        ("n = 16,", "n = 2,", "n = 2", [r"sampling\.train\.n: 2 is out of range", r"an integer >= 4"]),
+        ("n = 16,", "n = 2,", "n = 2", [r"sampling\.train\.n: 2 is out of range", r"an integer in \[4, 16777216\]"]),
         ('method = "random"', 'method = "halton"', "halton", [r"held_out\.method: 'halton' is out of range",
                                                              r"allowed: sobol, lhs, random, lhs-ese"]),
         ('scale = "log" }\nkV', 'scale = "ln" }\nkV', '"ln"', [r"parameters\.kN_bj\.scale: 'ln' is out of range",

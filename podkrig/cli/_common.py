@@ -10,12 +10,14 @@ import contextlib
 import csv
 import errno
 import logging
+import sys
 from enum import StrEnum
 
 import typer
 
 from fe.exceptions import FEError
 from podkrig.exceptions import PodkrigError
+from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
 
 __all__ = [
     "KrigingCriterion",
@@ -29,6 +31,7 @@ __all__ = [
     "TextFormat",
     "Variogram",
     "configure_logging",
+    "confirm_large_job",
     "error_message",
     "os_error_message",
     "user_errors",
@@ -172,3 +175,33 @@ def user_errors():
 
 def configure_logging(verbose):
     logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+
+
+def confirm_large_job(estimate, large, yes):
+    """Ask before a large FE job, or refuse it when nobody can answer.
+
+    Parameters
+    ----------
+    estimate : str
+        The job in words (from :func:`podkrig.limits.fe_job_estimate`).
+    large : bool
+        Above the thresholds of :mod:`podkrig.limits` (``CONFIRM_*``).
+    yes : bool
+        ``--yes`` was given: start without asking.
+
+    Raises
+    ------
+    ValueError
+        A large job without ``--yes`` and no terminal to ask on (a script, a batch job).
+    typer.Abort
+        The user answered no.
+    """
+    if not large or yes:
+        return
+    if sys.stdin.isatty():
+        typer.confirm(f"this job is {estimate}; start it? (--yes skips this question)", abort=True, err=True)
+        return
+    raise ValueError(
+        f"this job is {estimate}: above {CONFIRM_ROWS} runs, {CONFIRM_FE_HOURS:g} h of FE work or "
+        f"{CONFIRM_STORE_BYTES // 2**30} GiB on disk, so it starts only with --yes (nothing was run)"
+    )

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
-from podkrig.limits import check_name, check_output_folder
+from podkrig.cli._common import configure_logging, confirm_large_job, user_errors
+from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_name, check_output_folder
 
 DEMO_STUDY = "diagonal_compression.toml"
 
@@ -67,7 +67,7 @@ def _rich_progress():
     return RichProgress()
 
 
-def _run(study_path, out):
+def _run(study_path, out, yes=False):
     """Load, run and summarise a study (inside the CLI's error handling)."""
     from podkrig.study import load_study, run_study
 
@@ -77,7 +77,8 @@ def _run(study_path, out):
     check_output_folder(out)
     progress = _rich_progress()
     try:
-        result = run_study(study, out, progress=progress)
+        result = run_study(study, out, progress=progress,
+                           confirm=lambda text, large: confirm_large_job(text, large, yes))
     except KeyboardInterrupt:
         typer.echo(f"interrupted: finished stages and FE runs are kept in {out}; rerun the same command to resume",
                    err=True)
@@ -136,6 +137,9 @@ def register(app):
         study: Path = typer.Argument(..., help="Study file (TOML): scenario, parameters, sampling, surrogate, "
                                                "measurement, inversion, validation models."),
         out: Path = typer.Option(None, "--out", help="Output folder (default: out/NAME with the study's name)."),
+        yes: bool = typer.Option(False, "--yes", "-y", help=f"Start more than {CONFIRM_ROWS} FE runs or "
+                                 f"{CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required "
+                                 "without a terminal)."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run a whole study: FE snapshots, surrogate, held-out check, inversion, region of equivalence, RVC, diagnosis.
@@ -145,7 +149,7 @@ def register(app):
         """
         configure_logging(verbose)
         with user_errors():
-            _run(study, out)
+            _run(study, out, yes)
 
     @app.command()
     def demo(

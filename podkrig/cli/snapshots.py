@@ -8,9 +8,9 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import SamplingMethod, TextFormat, configure_logging, user_errors
+from podkrig.cli._common import SamplingMethod, TextFormat, configure_logging, confirm_large_job, user_errors
 from podkrig.exceptions import StoreError
-from podkrig.limits import CONFIRM_ROWS, check_rows, human_bytes
+from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_rows, fe_job_estimate
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -46,7 +46,9 @@ def run(
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
     retry_failed: bool = typer.Option(False, "--retry-failed", help="Rerun rows whose FE run failed."),
     chunk_size: int = typer.Option(None, "--chunk-size", help="Rows per task (default: adapted to the work, at most 32)."),
-    yes: bool = typer.Option(False, "--yes", "-y", help=f"Do not ask before creating a store of more than {CONFIRM_ROWS} rows."),
+    yes: bool = typer.Option(False, "--yes", "-y", help=f"Start a job of more than {CONFIRM_ROWS} runs or "
+                             f"{CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required without "
+                             "a terminal)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Run a scenario at N sampled parameter vectors into a snapshot store.
@@ -67,9 +69,10 @@ def run(
     )
 
     from fe.scenarios import build_scenario
+    from fe.scenarios.nonlinear import NonlinearScenario
 
     from podkrig.parameters import ParameterSpace, parse_params
-    from podkrig.offline.runner import run_snapshots
+    from podkrig.offline.runner import rows_to_run, run_snapshots
     from podkrig.offline.store import store_bytes_per_row
 
     with user_errors():
@@ -80,9 +83,9 @@ def run(
         space = ParameterSpace.from_scenario(sc, bounds)
         size = check_rows(n, store_bytes_per_row(space.n_params, len(sc.load_levels), len(sc.sensor_names),
                                                   sc.mesh.n_nodes, fields))
-        if n > CONFIRM_ROWS and not yes and not store.exists():
-            typer.confirm(f"--n {n}: {n} FE runs and a store of about {human_bytes(size)}; continue? "
-                          "(--yes skips this question)", abort=True, err=True)
+        todo = rows_to_run(store, n, retry_failed)
+        job = [(todo, sc.n_dofs, isinstance(sc, NonlinearScenario))]
+        confirm_large_job(*fe_job_estimate(job, size if todo else 0), yes)
         progress = Progress(
             TextColumn("snapshots"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),

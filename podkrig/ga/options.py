@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.limits import check_evaluations, check_population
+
 __all__ = ["GABudgetWarning", "GAOptions"]
 
 
@@ -244,6 +246,7 @@ class GAOptions:
             if not (name == "polish_method" and value is None):
                 _check_choice(name, value, allowed)
         _check_range("population_size", self.population_size, 4, np.inf, integer=True)
+        check_population(self.population_size)
         _check_range("tournament_size", self.tournament_size, 1, self.population_size,
                      integer=True)
         _check_range("scaling_pressure", self.scaling_pressure, 1.0, np.inf, low_open=True)
@@ -265,6 +268,12 @@ class GAOptions:
             _check_range("max_generations", self.max_generations, 0, np.inf, integer=True)
         if self.max_evaluations is not None:
             _check_range("max_evaluations", self.max_evaluations, 1, np.inf, integer=True)
+            check_evaluations(self.max_evaluations)
+        else:  # 1000 generations by default (see resolve)
+            generations = 1000 if self.max_generations is None else self.max_generations
+            check_evaluations(self.population_size * (generations + 1),
+                              what=f"max_generations = {self.max_generations} with a population of "
+                                   f"{self.population_size}")
         if self.target is not None:
             _check_range("target", self.target, -np.inf, np.inf)
         if self.stall_generations is not None:

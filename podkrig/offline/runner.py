@@ -55,6 +55,7 @@ import numpy as np
 
 from podkrig import __version__
 from podkrig.exceptions import PodkrigError, StoreError
+from podkrig.limits import check_chunk_size, check_workers
 from podkrig.parameters import ParameterSpace
 from podkrig.offline.sampling import METHODS, sample
 from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore, acquire_lock, release_lock
@@ -73,10 +74,6 @@ LOCAL_DASK_CONFIG = {
     "distributed.worker.memory.monitor-interval": "1s",
 }
 MAX_CHUNK = 32
-#: Upper bounds of the executor arguments: more local processes than this on one machine only
-#: thrash, and a task of more rows than this loses finished work on a crash.
-MAX_WORKERS = 1024
-MAX_CHUNK_SIZE = 4096
 
 _SCENARIO_CACHE = {}  # (spec JSON, thread id) -> Scenario: each worker thread builds a scenario once
 _SCENARIO_CACHE_SIZE = 8
@@ -364,6 +361,21 @@ def prepare_store(path, spec, space, *, n, seed, sampling="sobol", fields=False)
     return "extended"
 
 
+def rows_to_run(path, n, retry_failed=False):
+    """FE runs that :func:`run_snapshots` with these arguments would do: all ``n`` for a new store,
+    else the pending (and, with ``retry_failed``, failed) rows plus the rows an extension to ``n``
+    adds; 0 for a file that is no usable store (the run itself says what is wrong with it)."""
+    path = Path(path)
+    if not path.exists():
+        return n
+    try:
+        with SnapshotStore.open(path) as store:
+            c = store.counts()
+    except PodkrigError:
+        return 0
+    return c["pending"] + (c["failed"] if retry_failed else 0) + max(n - c["total"], 0)
+
+
 def run_snapshots(path, spec, space, *, n, seed, sampling="sobol", fields=False, workers=None,
                   scheduler=None, retry_failed=False, chunk_size=None, progress=None):
     """Create or resume a snapshot store and run the scenario on its pending rows.
@@ -421,15 +433,10 @@ def run_snapshots(path, spec, space, *, n, seed, sampling="sobol", fields=False,
 def _check_executor(workers, scheduler, chunk_size):
     if scheduler is not None and workers is not None:
         raise ValueError("give either workers (a local cluster) or scheduler (an existing one), not both")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ValueError(f"workers must be an integer >= 1; got {workers!r}")
-    if workers is not None and workers > MAX_WORKERS:
-        raise ValueError(f"workers must be at most {MAX_WORKERS} local processes; got {workers} "
-                         "(use --scheduler for a cluster of more machines)")
-    if chunk_size is not None and (isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1):
-        raise ValueError(f"chunk_size must be an integer >= 1; got {chunk_size!r}")
-    if chunk_size is not None and chunk_size > MAX_CHUNK_SIZE:
-        raise ValueError(f"chunk_size must be at most {MAX_CHUNK_SIZE} rows per task; got {chunk_size}")
+    if workers is not None:
+        check_workers(workers)
+    if chunk_size is not None:
+        check_chunk_size(chunk_size)
 
 
 def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk_size=None,

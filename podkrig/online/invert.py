@@ -18,6 +18,7 @@ import numpy as np
 from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
+from podkrig.limits import check_generations, check_population, check_starts
 from podkrig.online.findings import at_bound, fe_check_ok
 
 logger = logging.getLogger(__name__)
@@ -187,6 +188,9 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
     -------
     InverseResult
     """
+    check_starts(n_starts)
+    check_population(population_size)
+    check_generations(generations, population_size, len(problem.free_space.names))
     t0 = time.perf_counter()
     with one_blas_thread():  # small BLAS calls: see podkrig.parallel
         # the steppable GA, not podkrig.ga.minimize: minimize warns when a run stops on its budget,

@@ -27,6 +27,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from podkrig.limits import MAX_ABS_READING_MM, check_finite
+
 #: How a scenario's readings depend on its load level (``fe`` scenario attribute ``load_response``).
 LOAD_RESPONSES = ("affine", "path", "discrete")
 
@@ -363,6 +365,7 @@ class NoiseModel:
     floor: float = 1e-6
 
     def __post_init__(self):
+        _require_finite_noise(self)
         if self.covariance is not None and (self.sigma is not None or self.delta is not None):
             raise ValueError("give either a covariance or an absolute sigma (mm) and/or a relative delta, not both")
         if self.covariance is None and self.sigma is None and self.delta is None:
@@ -464,3 +467,19 @@ def instrument_noise(instruments, sensor_names):
     sigma = {s: INSTRUMENTS[instruments[s]]["sigma_res_mm"] for s in sensor_names}
     delta = {s: INSTRUMENTS[instruments[s]]["delta"] for s in sensor_names}
     return NoiseModel(sigma=sigma, delta=delta)
+
+
+def _require_finite_noise(noise):
+    """Refuse NaN, infinite or absurd noise levels (σ = inf made every reading weightless: χ² = 0)."""
+    sigmas = noise.sigma if isinstance(noise.sigma, dict) else {None: noise.sigma}
+    for sensor, sigma in sigmas.items():
+        if sigma is not None:
+            what = "absolute noise sigma (mm)" if sensor is None else f"absolute noise sigma of sensor {sensor!r} (mm)"
+            check_finite(sigma, what, lower=0.0, upper=MAX_ABS_READING_MM)
+    deltas = noise.delta if isinstance(noise.delta, dict) else {None: noise.delta}
+    for sensor, delta in deltas.items():
+        if delta is not None:
+            what = "relative noise delta" if sensor is None else f"relative noise delta of sensor {sensor!r}"
+            check_finite(delta, what)
+    if noise.covariance is not None and not np.isfinite(np.asarray(noise.covariance, dtype=float)).all():
+        raise ValueError("noise covariance must hold finite numbers (mm²); it has NaN or infinite entries")

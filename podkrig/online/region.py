@@ -25,6 +25,7 @@ from scipy import stats
 
 from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
+from podkrig.limits import check_confidence, check_region_samples
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, identifiability_verdict
 from podkrig.online.problem import InverseProblem
 
@@ -145,6 +146,8 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
     -------
     Region
     """
+    check_region_samples(n_samples, "n_samples")
+    check_confidence(confidence)
     t0 = time.perf_counter()
     if freeze_model_error and problem.model_error and problem.frozen_model_std is None:
         problem = problem.freeze_model_error(x_best)
@@ -201,6 +204,10 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
     re-identified by bounded least squares from m* (fast on the surrogate). Intervals are the
     central ``confidence`` percentiles of the re-identified parameters.
     """
+    check_confidence(confidence)
+    if isinstance(n_realisations, bool) or not isinstance(n_realisations, int) or not 20 <= n_realisations <= 10**5:
+        raise ValueError(f"n_realisations must be an integer in [20, 100000] (each re-identifies the parameters; "
+                         f"fewer give no percentile of the region); got {n_realisations!r}")
     t0 = time.perf_counter()
     gen = np.random.default_rng(rng)
     meas = problem.measurement

@@ -7,12 +7,14 @@ points lie on a joint or unit mid-plane (where the displacement jumps), outside 
 forbidden zone are dropped when the set is built: :func:`valid_point_mask` says which.
 """
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fe.exceptions import SensorError
 from fe.sensors import DICGrid, Gauge, locate_points, sensor_from_dict
+from podkrig.limits import MAX_DIC_POINTS, check_grid
 
 KINDS = ("lvdt", "dic")
 
@@ -193,6 +195,7 @@ def gauge_grid(mesh, x, y, *, lengths, orientations=(0.0, 45.0, 90.0, 135.0), fo
         Each unordered pair of admissible grid points at most once, ordered by the first point's
         grid index (x-major), then the second's.
     """
+    check_grid(len(x) * len(y), "gauge", "the gauge grid")
     lo, hi = (float(v) for v in lengths)
     if not 0 < lo <= hi:
         raise ValueError(f"gauge lengths must satisfy 0 < min <= max (mm); got {lengths}")
@@ -224,6 +227,7 @@ def dic_points(mesh, x, y, *, forbidden=(), cost=1.0, prefix="P"):
     """DIC measurement points (both displacement components) on the grid ``x × y`` mm; points on
     joints, outside the specimen or in forbidden zones are dropped. Each is a 1 × 1
     :class:`fe.sensors.DICGrid` (channels ``NAME[0,0].ux`` and ``.uy``)."""
+    check_grid(len(x) * len(y), "dic", "the DIC grid")
     X, Y = np.meshgrid(np.asarray(x, float), np.asarray(y, float), indexing="ij")
     pts = np.column_stack([X.ravel(), Y.ravel()])
     pts = pts[valid_point_mask(mesh, pts, forbidden)]
@@ -270,9 +274,15 @@ def parse_range(text, what="--grid-x"):
         a, b, s = (float(v) for v in parts)
     except ValueError:
         raise ValueError(f"{what} {text!r}: expected START:STOP:STEP in mm, e.g. 45:1125:90") from None
+    if not all(math.isfinite(v) for v in (a, b, s)):
+        raise ValueError(f"{what} {text!r}: START, STOP and STEP must be finite numbers (mm)")
     if not s > 0 or b < a:
         raise ValueError(f"{what} {text!r}: need STEP > 0 and STOP >= START")
-    return a + s * np.arange(int(np.floor((b - a) / s + 1e-9)) + 1)
+    count = (b - a) / s + 1e-9
+    if count >= MAX_DIC_POINTS:  # no grid axis is longer than the largest grid
+        raise ValueError(f"{what} {text!r}: {count:.3g} points along one axis, above the limit of {MAX_DIC_POINTS} "
+                         "(podkrig.limits); use a coarser step")
+    return a + s * np.arange(int(np.floor(count)) + 1)
 
 
 __all__ = [

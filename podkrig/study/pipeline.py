@@ -66,7 +66,7 @@ class StudyResult:
         return sum(r.fe_runs for r in self.stages)
 
 
-def run_study(study, out, *, progress=None):
+def run_study(study, out, *, progress=None, confirm=None):
     """Run every stage of a study, reusing cached stages, and write the report.
 
     Parameters
@@ -78,6 +78,10 @@ def run_study(study, out, *, progress=None):
         (``report/index.html``) and ``summary.json``.
     progress : Progress, optional
         Receives stage and FE-run progress.
+    confirm : callable, optional
+        ``confirm(text, large)`` before any FE work with the study's FE work in words and whether it
+        is above the thresholds of :mod:`podkrig.limits` (the CLI asks, or refuses without ``--yes``);
+        it raises to stop.
 
     Returns
     -------
@@ -91,6 +95,8 @@ def run_study(study, out, *, progress=None):
     """
     t0 = time.perf_counter()
     run = stages.StudyRun(study, out, progress or Progress())
+    if confirm is not None:  # before anything is written
+        confirm(*stages.fe_work(run))
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)
     stages.measurement_check(run)  # before any FE work: a bad file stops here

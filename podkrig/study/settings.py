@@ -31,6 +31,7 @@ from pydantic import (
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 from pydantic_core import PydanticCustomError
 
+from podkrig import limits
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings
 from podkrig.parameters import SCALES, ParameterSpace
@@ -101,7 +102,24 @@ def _finite(value):
     return value
 
 
+def _limit(check, allowed):
+    """A validator running one of the shared checks of :mod:`podkrig.limits` (the same bounds as
+    the CLI and the Python API), its message — with the memory estimate — as the study's error."""
+    def validate(value):
+        try:
+            check(value)
+        except ValueError as e:
+            raise study_error(str(e), allowed=allowed) from None
+        return value
+
+    return AfterValidator(validate)
+
+
 Seed = Annotated[StrictInt, _allowed("an integer >= 0", ge=0)]
+#: FE runs of a design: at most limits.MAX_ROWS (the estimate at ~1 KiB per stored row)
+_ROWS_ALLOWED = f"an integer in [{{}}, {limits.MAX_ROWS}] (FE runs)"
+_rows = _limit(lambda n: limits.check_rows(n, 1024, "n"), _ROWS_ALLOWED.format(1))
+_training_rows = _limit(lambda n: limits.check_rows(n, 1024, "n"), _ROWS_ALLOWED.format(4))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -112,7 +130,7 @@ Seed = Annotated[StrictInt, _allowed("an integer >= 0", ge=0)]
 class Design:
     """A seeded sampling design: ``n`` points by ``method`` with ``seed``."""
 
-    n: Annotated[StrictInt, _allowed("an integer >= 1 (FE runs)", ge=1)]
+    n: Annotated[StrictInt, _allowed(_ROWS_ALLOWED.format(1), ge=1), _rows]
     seed: Seed
     method: _choice(SAMPLING_METHODS) = "sobol"
 
@@ -121,7 +139,7 @@ class Design:
 class TrainingDesign(Design):
     """A design that trains a surrogate (training set, validation models): at least 4 points."""
 
-    n: Annotated[StrictInt, _allowed("an integer >= 4 (FE runs)", ge=4)]
+    n: Annotated[StrictInt, _allowed(_ROWS_ALLOWED.format(4), ge=4), _training_rows]
 
 
 @_settings
@@ -130,8 +148,9 @@ class SamplingSettings:
 
     train: TrainingDesign
     held_out: Design
-    workers: Annotated[StrictInt, _allowed("an integer >= 1 (FE processes; 1 runs them in this process)",
-                                           ge=1)] | None = None
+    workers: Annotated[StrictInt, _allowed(f"an integer in [1, {limits.MAX_WORKERS}] (FE processes; 1 runs them in "
+                                           "this process)", ge=1),
+                       _limit(limits.check_workers, f"an integer in [1, {limits.MAX_WORKERS}]")] | None = None
     scheduler: Annotated[StrictStr, AfterValidator(lambda v: v if "://" in v else _raise()),
                          _allowed("a Dask scheduler address such as 'tcp://10.0.0.5:8786'")] | None = None
 
@@ -333,19 +352,33 @@ class MeasurementSettings:
 # inversion and diagnosis
 
 
+_REGION_ALLOWED = (f"an integer in [{limits.REGION_SAMPLES_MIN}, {limits.REGION_SAMPLES_MAX}] (surrogate "
+                   "evaluations per sampling round)")
+
+
 @_settings
 class InversionSettings:
     """GA inversion and region of equivalence settings (see :func:`podkrig.online.invert.invert`)."""
 
     seed: Seed = 0
-    population_size: Annotated[StrictInt, _allowed("an integer >= 4", ge=4)] = 100
+    population_size: Annotated[StrictInt, _allowed(f"an integer in [4, {limits.MAX_POPULATION}]", ge=4),
+                               _limit(limits.check_population, f"an integer in [4, {limits.MAX_POPULATION}]")] = 100
     generations: Annotated[StrictInt, _allowed("an integer >= 1", ge=1)] = 100
-    n_starts: Annotated[StrictInt, _allowed("an integer >= 1 (least-squares polishes)", ge=1)] = 6
+    n_starts: Annotated[StrictInt, _allowed(f"an integer in [1, {limits.MAX_STARTS}] (least-squares polishes)", ge=1),
+                        _limit(limits.check_starts, f"an integer in [1, {limits.MAX_STARTS}]")] = 6
     confidence: Annotated[StrictFloat, _allowed("a number in (0, 1), e.g. 0.95", gt=0, lt=1)] = 0.95
     region_method: _choice(REGION_METHODS) = "likelihood-ratio"
-    region_samples: Annotated[StrictInt, _allowed("an integer >= 1024 (surrogate evaluations per sampling round)",
-                                                  ge=1024)] = 2**17
+    region_samples: Annotated[StrictInt, _allowed(_REGION_ALLOWED, ge=1024),
+                              _limit(lambda n: limits.check_region_samples(n, "region_samples"),
+                                     _REGION_ALLOWED)] = 2**17
     fe_check: StrictBool = True
+
+    def __post_init__(self):
+        try:
+            limits.check_generations(self.generations, self.population_size)
+        except ValueError as e:
+            raise study_error(str(e), "generations", "population_size × (generations + 1) at most "
+                              f"{limits.MAX_GA_EVALUATIONS}") from None
 
 
 @_settings
@@ -378,7 +411,7 @@ class ValidationEntry:
         lambda v: v if re.fullmatch(r"[A-Za-z0-9_-]+", v) and v != "calibration" else _raise()),
         _allowed(_NAME_ALLOWED)]
     scenario: Any
-    n: Annotated[StrictInt, _allowed("an integer >= 4 (FE runs)", ge=4)]
+    n: Annotated[StrictInt, _allowed(_ROWS_ALLOWED.format(4), ge=4), _training_rows]
     seed: Seed
     method: _choice(SAMPLING_METHODS) = "sobol"
     outputs: Annotated[Any, AfterValidator(_outputs)] = None

@@ -28,9 +28,11 @@ import time
 import numpy as np
 
 from fe.scenarios import build_scenario
+from fe.scenarios.nonlinear import NonlinearScenario
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
-from podkrig.offline.runner import prepare_store, run_snapshots
+from podkrig.limits import fe_job_estimate
+from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore, move_aside
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement_csv import read_measurement
@@ -48,6 +50,9 @@ from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_st
 from podkrig.surrogate.validation import held_out_errors
 
 logger = logging.getLogger(__name__)
+#: Estimated bytes per stored row of a study's stores (readings, parameters, status, 512 B of error
+#: text, times), for the size shown before a large job.
+STUDY_BYTES_PER_ROW = 1024
 
 
 class StudyRun(StageCache):
@@ -65,6 +70,29 @@ class StudyRun(StageCache):
         if self._scenario is None:
             self._scenario = build_scenario(self.study.spec)
         return self._scenario
+
+
+def fe_work(run):
+    """The FE work this run of the study would do, in words, and whether it is large enough to ask
+    first (:func:`podkrig.limits.fe_job_estimate`): every design's runs not in its store yet
+    (training, held-out, validation models), each at its scenario's mesh size.
+
+    Returns
+    -------
+    text : str
+    large : bool
+    """
+    study = run.study
+    jobs = [(run.out / "train.h5", None, study.train), (run.out / "held_out.h5", None, study.held_out)]
+    jobs += [(run.out / f"validation_{m.name}.h5", m.spec, m.design) for m in study.validation]
+    work, stored = [], 0
+    for path, spec, design in jobs:
+        todo = rows_to_run(path, design.n)
+        if todo:
+            sc = run.scenario() if spec is None else build_scenario(spec)
+            work.append((todo, sc.n_dofs, isinstance(sc, NonlinearScenario)))
+            stored += STUDY_BYTES_PER_ROW * design.n
+    return fe_job_estimate(work, stored)
 
 
 def _run_store(run, path, spec, space, design):
