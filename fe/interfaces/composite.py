@@ -327,11 +327,8 @@ def _try_set(p, act, k, sig_tr, tau_tr, s, kap_n, alpha, coupled, tol, x0,
 
 
 @numba.njit(cache=True)
-def _return_once(p, u_inc, t_n, up_n, kap_n, t, up, kap, D_alg, tol, f, fg, fk):
+def _return_once(p, u_inc, t_n, up_n, kap_n, t, up, kap, D_alg):
     """One Euler-backward step from (t_n, u^p_n, κ_n) for the increment ``u_inc``.
-
-    ``tol`` (3,), ``f`` (3,), ``fg`` (3, 2), ``fk`` (3, 3) are scratch arrays of the caller
-    (overwritten; allocated once per update, not per point: the elastic check is most of the calls).
 
     Returns (status 0 ok / 2 failed, Newton iterations of the accepted active set).
     """
@@ -339,7 +336,11 @@ def _return_once(p, u_inc, t_n, up_n, kap_n, t, up, kap, D_alg, tol, f, fg, fk):
     sig_tr = t_n[0] + kn * u_inc[0]
     tau_tr = t_n[1] + ks * u_inc[1]
     s = 1.0 if tau_tr >= 0.0 else -1.0
+    tol = np.zeros(3)
     _tolerances(p, sig_tr, tau_tr, tol)
+    f = np.zeros(3)
+    fg = np.zeros((3, 2))
+    fk = np.zeros((3, 3))
     _surfaces(p, sig_tr, tau_tr, s, kap_n, f, fg, fk)
     D_alg[0, 0], D_alg[0, 1], D_alg[1, 0], D_alg[1, 1] = kn, 0.0, 0.0, ks
     for i in range(3):
@@ -441,14 +442,10 @@ def composite_update(du, jump_n, t_n, up_n, kap_n, work_n, props):
     t1 = np.empty(2)
     up1 = np.empty(2)
     k1 = np.empty(3)
-    tol = np.empty(3)
-    f = np.empty(3)
-    fg = np.empty((3, 2))
-    fk = np.empty((3, 3))
     for e in range(n):
         p = props[e]
         inc[0], inc[1] = du[e, 0], du[e, 1]
-        st, it = _return_once(p, inc, t_n[e], up_n[e], kap_n[e], t[e], up[e], kap[e], tangent[e], tol, f, fg, fk)
+        st, it = _return_once(p, inc, t_n[e], up_n[e], kap_n[e], t[e], up[e], kap[e], tangent[e])
         iterations[e] = it
         if st != 0:
             # sub-stepping: 2, 4, ... equal parts of the increment
@@ -460,7 +457,7 @@ def composite_update(du, jump_n, t_n, up_n, kap_n, work_n, props):
                 inc[0], inc[1] = du[e, 0] / parts, du[e, 1] / parts
                 st = 0
                 for _ in range(parts):
-                    st, it = _return_once(p, inc, ts, ups, ks, t1, up1, k1, tangent[e], tol, f, fg, fk)
+                    st, it = _return_once(p, inc, ts, ups, ks, t1, up1, k1, tangent[e])
                     iterations[e] += it
                     if st != 0:
                         break
