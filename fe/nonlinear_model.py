@@ -5,8 +5,9 @@
 interface contributions are scattered through a precomputed position map by a numba kernel), so a
 general sparse solver analyses the pattern once and only refactorises numerically per iteration.
 
-Interfaces are integrated at the node pairs (Newton–Cotes/Lobatto, :mod:`fe.elements.interface`);
-the interface law sees ``(opening, slip)``, normal first.
+Interfaces are integrated at the node pairs (Newton–Cotes/Lobatto, :mod:`fe.elements.interface`)
+or, with ``integration="gauss"``, at Gauss points; the interface law sees ``(opening, slip)``,
+normal first.
 """
 
 import numba
@@ -15,7 +16,6 @@ import scipy.sparse as sp
 
 from .assembly import AffineStiffness, StiffnessPart, element_dofs
 from .elements.interface import IL4, IL6
-from .elements.quadrature import gauss_lobatto
 from .sensors import sensor_operator
 from .solvers import make_general_solver
 
@@ -59,15 +59,20 @@ class NonlinearModel:
     transform : scipy.sparse matrix (n_dofs, n_reduced)
     sensors : sequence of sensors
     solver : {"auto", "pardiso", "superlu"}
+    integration : {"lobatto", "gauss"}
+        Integration rule of the interfaces (:data:`fe.elements.interface.RULES`; Lobatto by default,
+        see :mod:`fe.elements.interface` for why).
     """
 
-    def __init__(self, mesh, unit_parts, interface_elements, thickness, transform, sensors, solver="auto"):
+    def __init__(self, mesh, unit_parts, interface_elements, thickness, transform, sensors, solver="auto",
+                 integration="lobatto"):
         self.mesh = mesh
+        self.integration = integration
         self.transform = T = sp.csr_matrix(transform)
         self.interface_elements = np.asarray(interface_elements, dtype=np.intp)
         conn = mesh.interfaces[self.interface_elements]
         iface = IL6 if mesh.element == "Q8" else IL4
-        Bd, ds = iface.relative_displacement_operator(mesh.nodes[conn])
+        Bd, ds = iface.relative_displacement_operator(mesh.nodes[conn], integration)
         self.B = np.ascontiguousarray(Bd[:, :, ::-1, :])  # rows (opening, slip): normal first
         self.weights = np.ascontiguousarray(thickness * ds)  # (e, p) mm²
         self.n_points_per_element = self.B.shape[1]
@@ -146,15 +151,16 @@ class NonlinearModel:
     def point_coordinates(self):
         """Coordinates ``(n_points, 2)`` mm of the interface integration points (face A)."""
         iface = IL6 if self.mesh.element == "Q8" else IL4
-        s, _ = gauss_lobatto(iface.nodes_per_face)
+        s, _ = iface.integration_points(self.integration)
         N = iface.shape(s)
         conn = self.mesh.interfaces[self.interface_elements][:, : iface.nodes_per_face]
         return np.einsum("pf,efj->epj", N, self.mesh.nodes[conn]).reshape(-1, 2)
 
     def point_nodes(self):
-        """The face-A node of every integration point ``(n_points,)`` (Lobatto points sit on the nodes)."""
+        """The face-A node of every integration point ``(n_points,)``: the node it sits on (Lobatto)
+        or the nearest one (Gauss)."""
         iface = IL6 if self.mesh.element == "Q8" else IL4
-        s, _ = gauss_lobatto(iface.nodes_per_face)
+        s, _ = iface.integration_points(self.integration)
         local = np.argmax(iface.shape(s), axis=1)  # (p,) face node of each point
         conn = self.mesh.interfaces[self.interface_elements][:, : iface.nodes_per_face]
         return conn[:, local].ravel()

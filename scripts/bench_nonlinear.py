@@ -7,7 +7,10 @@ time of one linear solve of the same mesh (factorisation + solve of the linear
 ``shear_compression`` scenario: the peer the issue's "≤ 2× per iteration" target refers to), plus
 the peak load and its displacement. BLAS/MKL are limited to one thread (threadpoolctl); the
 machine load (``os.getloadavg``) is printed beside the table, since timings on a shared machine
-scale with it.
+scale with it. Times are given as wall time and as the process' CPU time (``time.process_time``:
+one thread, so it is the single-core cost, much less inflated by a loaded machine than wall time);
+the CPU time is split into numerical factorisations, solves, interface-law updates and assembly
+(the solver's calls, timed in place).
 
 With ``--snapshots N`` it also runs N J4D snapshots over a Sobol' design of the eight strength and
 stiffness parameters (ranges below, INFERRED from reference §1a/§2.1) on ``--workers`` processes and
@@ -19,6 +22,7 @@ Usage: python scripts/bench_nonlinear.py [--nx 6 --ny 2] [--top fixed_vertical c
 
 import argparse
 import collections
+import dataclasses
 import os
 import platform
 import tempfile
@@ -26,6 +30,8 @@ import time
 from pathlib import Path
 
 from threadpoolctl import threadpool_limits
+
+from fe.interfaces import CompositeInterface, HyperbolicInterface
 
 #: Sobol' ranges of the J4D snapshot study (INFERRED, reference §1a table and §2.1 Set A ± ~40 %)
 SNAPSHOT_RANGES = {
@@ -36,27 +42,63 @@ SNAPSHOT_RANGES = {
 }
 
 
+class CpuTimer:
+    """Accumulates the process CPU time (s) and calls of wrapped callables by label."""
+
+    def __init__(self):
+        self.seconds = collections.Counter()
+        self.calls = collections.Counter()
+
+    def wrap(self, label, fun):
+        def timed(*args, **kwargs):
+            c0 = time.process_time()
+            try:
+                return fun(*args, **kwargs)
+            finally:
+                self.seconds[label] += time.process_time() - c0
+                self.calls[label] += 1
+        return timed
+
+
 def linear_solve_ms(nx, ny, repeat=10):
+    """One linear run of the same mesh: (wall ms, CPU ms)."""
     from fe.scenarios import build_scenario
 
     sc = build_scenario({"scenario": "shear_compression", "nx": nx, "ny": ny})
     sc.run()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for _ in range(repeat):
         sc.run()
-    return (time.perf_counter() - t0) / repeat * 1e3
+    return (time.perf_counter() - t0) / repeat * 1e3, (time.process_time() - c0) / repeat * 1e3
 
 
 def run_j4d(nx, ny, top):
     from fe.scenarios import build_scenario
 
     sc = build_scenario({"scenario": "shear_compression_nl", "nx": nx, "ny": ny, "top": top})
-    t0 = time.perf_counter()
-    r = sc.run()
-    seconds = time.perf_counter() - t0
+    # warm up: numba kernels loaded or compiled, PARDISO's symbolic analysis done
+    sc.run(settings=dataclasses.replace(sc.options.path_settings(), max_steps=10))
+    timer = CpuTimer()
+    model, solver = sc.model, sc.model.solver
+    solver.factorize = timer.wrap("factorisation", solver.factorize)
+    solver.solve = timer.wrap("solve", solver.solve)
+    model.tangent_and_force = timer.wrap("assembly", model.tangent_and_force)
+    laws = (CompositeInterface, HyperbolicInterface)
+    updates = [law.update for law in laws]
+    for law, update in zip(laws, updates):
+        law.update = timer.wrap("law update", update)
+    try:
+        t0, c0 = time.perf_counter(), time.process_time()
+        r = sc.run()
+        seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
+    finally:
+        for law, update in zip(laws, updates):
+            law.update = update
     p = r.path
-    return dict(top=top, dofs=sc.n_dofs, seconds=seconds, steps=len(p.path), attempted=p.attempted_steps,
-                iterations=p.total_iterations, per_iteration=1e3 * seconds / max(p.total_iterations, 1),
+    its = max(p.total_iterations, 1)
+    split = ", ".join(f"{k} {1e3 * v / its:.1f} ms/it ({timer.calls[k]} calls)" for k, v in timer.seconds.items())
+    return dict(top=top, dofs=sc.n_dofs, seconds=seconds, cpu=cpu, steps=len(p.path), attempted=p.attempted_steps,
+                iterations=p.total_iterations, per_iteration=1e3 * cpu / its, split=split,
                 peak=r.peak_load, peak_u=r.peak_displacement, reached=r.reached, status=r.status, message=r.message)
 
 
@@ -89,18 +131,20 @@ def main():
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
           f"load average before: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
     with threadpool_limits(1):
-        lin = linear_solve_ms(args.nx, args.ny)
+        lin_wall, lin_cpu = linear_solve_ms(args.nx, args.ny)
         rows = [run_j4d(args.nx, args.ny, top) for top in args.top]
-    print("\n| top | dofs | time (s) | steps | increments | iterations | ms / iteration | linear solve (ms) "
-          "| ratio | peak (kN) | at (mm) | reached (mm) | status |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    print("\n| top | dofs | wall (s) | CPU (s) | steps | increments | iterations | CPU ms / iteration "
+          "| linear solve CPU (ms) | ratio | peak (kN) | at (mm) | reached (mm) | status |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for r in rows:
-        print(f"| {r['top']} | {r['dofs']} | {r['seconds']:.1f} | {r['steps']} | {r['attempted']} | {r['iterations']} "
-              f"| {r['per_iteration']:.1f} | {lin:.1f} | {r['per_iteration'] / lin:.1f} | {r['peak']:.1f} "
-              f"| {r['peak_u']:.2f} | {r['reached']:.2f} | {r['status']} |")
+        print(f"| {r['top']} | {r['dofs']} | {r['seconds']:.1f} | {r['cpu']:.1f} | {r['steps']} | {r['attempted']} "
+              f"| {r['iterations']} | {r['per_iteration']:.1f} | {lin_cpu:.1f} | {r['per_iteration'] / lin_cpu:.1f} "
+              f"| {r['peak']:.1f} | {r['peak_u']:.2f} | {r['reached']:.2f} | {r['status']} |")
+    print(f"\nlinear solve wall time: {lin_wall:.1f} ms")
     for r in rows:
+        print(f"{r['top']} CPU split: {r['split']}")
         if r["message"]:
-            print(f"\n{r['top']}: {r['message']}")
+            print(f"{r['top']}: {r['message']}")
     if args.snapshots:
         summary, seconds, reasons = snapshots(args.snapshots, args.workers, args.nx, args.ny)
         print(f"\n{args.snapshots} J4D snapshots on {args.workers} workers: {summary.done} reached 3 mm "

@@ -129,3 +129,33 @@ def test_J4D_wall_with_constant_vertical_force_lies_within_its_bounds():
     assert 0.8 * rocking < r.peak_load < 1.2 * rocking
     assert r.loads[-1] < 0.8 * r.peak_load
     assert np.allclose(r.extra["vertical_reaction"], 29.7)
+
+
+def test_gauss_and_lobatto_interface_integration_agree_on_smooth_problems():
+    """The interface rule is a switch (reference §4). Uniform joint tractions (triplet, stiff units):
+    both rules give the closed-form peak 2A(c + σ tanφ0) within 0.5 %, the tolerance of the Lobatto
+    test above. A smooth elastic wall (strengths huge): Gauss (consistent interface stiffness) and
+    Lobatto (lumped) differ only by the quadrature error of the joint energy, < 1 % in the readings;
+    they are not identical (so the switch really changes the rule)."""
+    sigma = 0.2
+    sc = build_scenario({"scenario": "triplet_shear", "precompression": sigma, "integration": "gauss",
+                         "load_levels": np.arange(0.0125, 0.0175, 0.0001).round(6).tolist() + [0.05],
+                         "increment": 0.001, "max_increment": 0.1, "max_steps": 2000})
+    r = sc.run(STIFF_UNITS)
+    assert r.status == CONVERGED
+    assert r.peak_load == pytest.approx(2 * A * (0.35 + sigma * 0.75) / 1000, rel=0.005)
+    huge = {"ft_bj": 1e3, "c_bj": 1e4, "GfI_bj": 1e9, "GfII_bj": 1e9, "fc": 1e6, "ft_bb": 1e4, "GfI_bb": 1e9}
+    readings = {}
+    for rule in ("lobatto", "gauss"):
+        nl = build_scenario({"scenario": "shear_compression_nl", "top": "constant_force", "load_levels": [0.5],
+                             "increment": 0.5, "max_increment": 0.5, "nx": 2, "ny": 1, "integration": rule})
+        r = nl.run(huge)
+        assert r.status == CONVERGED
+        readings[rule] = r.readings[0]
+    diff = np.abs(readings["gauss"] - readings["lobatto"]).max() / np.abs(readings["lobatto"]).max()
+    assert 1e-9 < diff < 0.01
+
+
+def test_unknown_integration_rule_is_refused():
+    with pytest.raises((SpecError, ValueError), match="integration"):
+        build_scenario({"scenario": "couplet_tension", "integration": "simpson"})

@@ -10,14 +10,22 @@ separate). The elastic traction is (thesis eq. 2.3 in 2D)
           = \\operatorname{diag}(k_V, k_N) \\begin{bmatrix} δ_s \\\\ δ_n \\end{bmatrix},
 
 with ``k_V, k_N`` in N/mm³ (stiffness per unit area). Integration is Newton–Cotes/Lobatto at the
-nodes (trapezoidal for 4 nodes, Simpson for 6), which decouples the node pairs.
+nodes (trapezoidal for 4 nodes, Simpson for 6) by default, which decouples the node pairs;
+``rule="gauss"`` selects Gauss–Legendre points (as many as face nodes; exact for the elastic
+stiffness, a consistent rather than lumped interface stiffness). Lobatto is the default for
+nonlinear interfaces: with stiff (dummy) interfaces Gauss integration produces spurious traction
+oscillations [Vignollet, May & de Borst 2015, reference ``nonlinear-interfaces.md`` §4], while Day &
+Potts (1994) attribute them to ill-conditioning, hence the switch.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from .quadrature import gauss_lobatto
+from .quadrature import gauss_legendre, gauss_lobatto
+
+#: Integration rules of the interface elements (Newton–Cotes/Lobatto at the nodes, or Gauss).
+RULES = ("lobatto", "gauss")
 
 
 @dataclass(frozen=True)
@@ -47,13 +55,23 @@ class LineInterface:
             return np.hstack([-0.5 + 0 * s, 0.5 + 0 * s])
         return np.hstack([s - 0.5, s + 0.5, -2 * s])
 
-    def relative_displacement_operator(self, coords):
+    def integration_points(self, rule="lobatto"):
+        """Points ``s`` and weights on [-1, 1] of ``rule`` (see :data:`RULES`), ``nodes_per_face`` each."""
+        if rule == "lobatto":
+            return gauss_lobatto(self.nodes_per_face)
+        if rule == "gauss":
+            return gauss_legendre(self.nodes_per_face)
+        raise ValueError(f"interface integration rule must be one of {RULES}; got {rule!r}")
+
+    def relative_displacement_operator(self, coords, rule="lobatto"):
         """Operator from element dofs to local relative displacement at the integration points.
 
         Parameters
         ----------
         coords : ndarray of shape (n_elements, n_nodes, 2)
             Nodal coordinates, mm (face A then face B).
+        rule : {"lobatto", "gauss"}
+            Integration rule (module docstring).
 
         Returns
         -------
@@ -62,7 +80,7 @@ class LineInterface:
         ds : ndarray of shape (n_elements, n_points)
             Length element |dx/ds| times the integration weight, mm.
         """
-        s, w = gauss_lobatto(self.nodes_per_face)
+        s, w = self.integration_points(rule)
         N = self.shape(s)  # (p, f)
         dN = self.shape_grad(s)
         xa = coords[:, : self.nodes_per_face]

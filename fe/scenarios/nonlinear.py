@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..elements.interface import RULES
 from ..exceptions import SpecError
 from ..interfaces import (
     CompositeInterface,
@@ -60,7 +61,10 @@ class NonlinearOptions(WallOptions):
     the joint ``law`` (``"composite"``: Lourenço–Rots with cap; ``"hyperbolic"``: the thesis'
     eq. 2.4 surface without cap, unit mid-planes keep the tension cut-off),
     the budget (``max_steps`` attempted increments, ``max_iterations`` per increment,
-    ``max_seconds`` wall time) and the relative force ``tolerance``."""
+    ``max_seconds`` wall time), the relative force ``tolerance``, and the interfaces'
+    ``integration`` rule (``"lobatto"``: Newton–Cotes at the node pairs, the default, recommended
+    for interfaces because Gauss points with stiff dummy interfaces give traction oscillations,
+    reference §4 [VMB15]; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness)."""
 
     increment: float = 0.01
     max_increment: float = 0.05
@@ -69,9 +73,13 @@ class NonlinearOptions(WallOptions):
     max_seconds: float = 300.0
     tolerance: float = 1e-3
     law: str = "composite"
+    integration: str = "lobatto"
 
     def __post_init__(self):
         super().__post_init__()
+        if self.integration not in RULES:
+            raise ValueError(f"integration must be one of {RULES} (interface integration rule); "
+                             f"got {self.integration!r}")
         if self.law not in ("composite", "hyperbolic"):
             raise ValueError(f"law must be 'composite' (Lourenço–Rots) or 'hyperbolic' (thesis eq. 2.4); got {self.law!r}")
         if list(self.load_levels) != sorted(self.load_levels) or self.load_levels[0] <= 0:
@@ -143,7 +151,7 @@ class NonlinearScenario(Scenario):
         parts = masonry_parts(self.mesh, o.thickness)[:2]
         elements = np.arange(len(self.mesh.interfaces))
         return NonlinearModel(self.mesh, parts, elements, o.thickness, transform, self.sensors,
-                              solver=self._solver_name)
+                              solver=self._solver_name, integration=o.integration)
 
     def phases(self, values):
         raise NotImplementedError
