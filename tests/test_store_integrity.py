@@ -19,9 +19,10 @@ from typer.testing import CliRunner
 from podkrig.cli import app
 from podkrig.exceptions import IntegrityError, StoreError, StoreInUseError
 from podkrig.offline import store as store_module
+from podkrig.offline.files import acquire_lock, lock_path, release_lock
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.sampling import sobol
-from podkrig.offline.store import DONE, SnapshotStore, acquire_lock, lock_path, release_lock
+from podkrig.offline.store import DONE, SnapshotStore
 from podkrig.parameters import ParameterSpace
 
 COARSE = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
@@ -81,7 +82,7 @@ def test_creation_never_replaces_a_file_that_appeared_meanwhile(tmp_path, scenar
 
 def test_second_writer_gets_the_pid_and_changes_nothing(tmp_path, scenario, space):
     path = tmp_path / "s.h5"
-    job = _holder(f"from podkrig.offline.store import acquire_lock; acquire_lock({str(path)!r})")
+    job = _holder(f"from podkrig.offline.files import acquire_lock; acquire_lock({str(path)!r})")
     try:
         with pytest.raises(StoreInUseError, match=rf"in use by PID {job.pid} on .*nothing was changed"):
             _make(path, scenario, space)

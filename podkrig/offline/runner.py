@@ -56,9 +56,10 @@ import numpy as np
 from podkrig import __version__
 from podkrig.exceptions import PodkrigError, StoreError
 from podkrig.limits import check_chunk_size, check_workers
-from podkrig.parameters import ParameterSpace
+from podkrig.offline.files import acquire_lock, release_lock
 from podkrig.offline.sampling import METHODS, sample
-from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore, acquire_lock, release_lock
+from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore
+from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
 

@@ -48,6 +48,11 @@ datasets whenever they are read, everything by :meth:`SnapshotStore.verify`. A r
 is marked in the digest table first and unmarked after its digests: a writer killed in between
 leaves rows that the next writer reseals (they were verified just before the write began).
 
+Why one long module (~1 000 lines, a third of it documentation): it is one class whose invariants
+— the file layout, the write order that makes a kill harmless, and the checksums that are
+verified on every read — must be read together; the file-safety helpers it relies on (locks,
+atomic publication, moving aside, disk space) are in :mod:`podkrig.offline.files`.
+
 Example
 -------
 >>> with SnapshotStore.open("snapshots/panel.h5") as store:      # doctest: +SKIP
@@ -60,13 +65,10 @@ References
 """
 
 import datetime
-import errno
-import fcntl
 import hashlib
 import json
 import logging
 import os
-import socket
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -78,6 +80,21 @@ from fe.exceptions import FEError
 from podkrig import __version__
 from podkrig.exceptions import IntegrityError, SchemaError, StoreError, StoreInUseError
 from podkrig.h5integrity import attrs_digest, metadata_digest, mismatched_rows, row_digests
+from podkrig.offline.files import (
+    DISK_MARGIN,
+    acquire_lock,
+    check_disk_space,
+    free_bytes,
+    holds_lock,
+    human_bytes,
+    io_reason,
+    lock_holder,
+    lock_path,
+    publish,
+    release_lock,
+    remove_orphans,
+    tmp_path,
+)
 from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
@@ -102,7 +119,6 @@ _ROW_DATASETS = ("parameters", "unit_parameters", "readings", "status", "error",
 _CHECKSUMS = "checksums"  # group: rows (n + 1, 8) uint64, fields (n,) uint64 (see _write_checksums)
 _WRITING = len(_ROW_DATASETS)  # last column of checksums/rows: 1 while the row is being written
 _VERIFIED_AT_OPEN = ("parameters", "status")  # small and always needed; the rest when read
-_DISK_MARGIN = 256 * 1024  # bytes kept free beyond a batch's estimate (HDF5 metadata, other writers)
 REHASH_HINT = "run 'podkrig snapshots verify --rehash {path}' to add them"
 
 
@@ -124,153 +140,6 @@ def _now():
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
-def _tmp_path(path):
-    return path.with_name(f".{path.name}.tmp-{os.getpid()}")
-
-
-def lock_path(path):
-    """The lock file of the store at ``path``: ``.NAME.lock`` beside it, holding the writer's PID."""
-    path = Path(path)
-    return path.with_name(f".{path.name}.lock")
-
-
-_HELD = {}  # resolved lock path -> [fd, count]: a process takes a store's lock once, then counts
-
-
-def _lock_holder(lock):
-    try:
-        return lock.read_text(encoding="utf-8", errors="replace").strip()[:200] or "an unknown process"
-    except OSError:
-        return "an unknown process"
-
-
-def acquire_lock(path):
-    """Take the exclusive writer lock of the store at ``path`` (re-entrant within a process).
-
-    The lock is an advisory ``fcntl.flock`` on ``.NAME.lock``, held until :func:`release_lock`;
-    the operating system drops it when the process dies, so a killed job never leaves a stale lock.
-
-    Raises
-    ------
-    StoreInUseError
-        Another process holds it (the message gives its PID and host).
-    StoreError
-        The lock file cannot be created (read-only folder, ...).
-    """
-    lock = lock_path(path)
-    key = str(lock.resolve())
-    if key in _HELD:
-        _HELD[key][1] += 1
-        return
-    while True:
-        try:
-            lock.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as e:
-            raise StoreError(f"cannot create the lock file {lock}: {e.strerror}; is the folder writable?") from e
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as e:
-            os.close(fd)
-            if e.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                raise StoreInUseError(
-                    f"{path} is in use by {_lock_holder(lock)} (lock {lock.name}); wait for that job to "
-                    "finish or stop it — nothing was changed"
-                ) from None
-            raise StoreError(f"cannot lock {lock}: {e.strerror}") from e
-        try:  # the holder we waited for may have removed the file: lock the one on disk
-            same = os.path.samestat(os.fstat(fd), os.stat(lock))
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, f"PID {os.getpid()} on {socket.gethostname()}\n".encode())
-    _HELD[key] = [fd, 1]
-
-
-def release_lock(path):
-    """Release one :func:`acquire_lock` of this process; the last one removes the lock file."""
-    lock = lock_path(path)
-    key = str(lock.resolve())
-    held = _HELD.get(key)
-    if held is None:
-        return
-    held[1] -= 1
-    if held[1] == 0:
-        del _HELD[key]
-        lock.unlink(missing_ok=True)  # while still locked: a waiter re-checks the path (see acquire_lock)
-        os.close(held[0])
-
-
-def move_aside(path):
-    """Rename an unusable store to ``NAME.unusable-YYYYmmddTHHMMSSZ[-k].SUFFIX`` beside it, under the
-    store's lock; never replaces a file. Returns the new path.
-
-    Raises
-    ------
-    StoreInUseError
-        Another process writes the store.
-    """
-    path = Path(path)
-    acquire_lock(path)
-    try:
-        stamp = datetime.datetime.now(datetime.UTC).strftime("%Y%m%dT%H%M%SZ")
-        for k in range(1000):
-            target = path.with_name(f"{path.stem}.unusable-{stamp}{f'-{k}' if k else ''}{path.suffix}")
-            try:
-                os.link(path, target)  # fails if target exists, unlike a rename
-            except FileExistsError:
-                continue
-            except OSError as e:
-                if e.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK) or target.exists():
-                    raise
-                os.rename(path, target)  # no hard links on this file system; target checked just now
-                return target
-            path.unlink()
-            return target
-        raise StoreError(f"cannot find a free name to keep {path} aside")
-    except OSError as e:
-        raise StoreError(f"cannot move {path} aside: {_io_reason(e)}") from e
-    finally:
-        release_lock(path)
-
-
-def _remove_orphans(path):
-    """Delete temporary files of an interrupted create/extend of ``path`` (call with the lock held)."""
-    for tmp in path.parent.glob(f".{path.name}.tmp-*"):
-        try:
-            tmp.unlink()
-            logger.warning("removed %s, left by an interrupted creation of %s", tmp, path)
-        except OSError as e:
-            logger.warning("cannot remove the leftover %s: %s", tmp, e.strerror)
-
-
-def _free_bytes(folder):
-    try:
-        st = os.statvfs(folder)
-    except OSError:
-        return None
-    return st.f_bavail * st.f_frsize
-
-
-def _check_disk_space(folder, need, what):
-    free = _free_bytes(folder)
-    if free is not None and free < need + _DISK_MARGIN:
-        raise StoreError(
-            f"disk full: {what} needs about {_human(need)} but {folder} has {_human(free)} free; "
-            "free some space and rerun"
-        )
-
-
-def _human(nbytes):
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if abs(nbytes) < 1024 or unit == "TiB":
-            return f"{nbytes:.0f} {unit}" if unit == "B" else f"{nbytes:.1f} {unit}"
-        nbytes /= 1024
-
-
 def _row_bytes(n_params, n_loads, n_sensors):
     """Bytes per row of the contiguous datasets (checksums included)."""
     return 16 * n_params + 8 * n_loads * n_sensors + 1 + ERROR_BYTES + 16 + 8 * len(_ROW_DATASETS) + 9
@@ -284,33 +153,6 @@ def store_bytes_per_row(n_params, n_loads, n_sensors, n_nodes=0, fields=False):
 def estimate_store_bytes(n, n_params, n_loads, n_sensors, n_nodes=0, fields=False):
     """Upper estimate of a store's size on disk, bytes (fields counted uncompressed)."""
     return int(n) * store_bytes_per_row(n_params, n_loads, n_sensors, n_nodes, fields) + 64 * 1024
-
-
-def _io_reason(e):
-    """A short reason for an OS or HDF5 I/O error, with what to do."""
-    text = str(e)
-    code = getattr(e, "errno", None)
-    if code == errno.ENOSPC or "errno = 28" in text or "No space left" in text:
-        return "disk full (no space left on device); free some space and rerun"
-    if code in (errno.EACCES, errno.EPERM) or "Permission denied" in text:
-        return "permission denied; choose a folder you can write to"
-    if code == errno.EROFS or "Read-only file system" in text:
-        return "read-only file system; choose a writable folder"
-    return f"{type(e).__name__}: {text[:300]}"
-
-
-def _publish(tmp, path):
-    """Move a finished temporary file to ``path``, never replacing an existing file."""
-    try:
-        os.link(tmp, path)  # atomic and fails if path exists, unlike a rename
-    except FileExistsError:
-        raise StoreError(f"{path} already exists; a store is never overwritten") from None
-    except OSError as e:
-        if e.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EMLINK):
-            raise StoreError(f"cannot create {path}: {_io_reason(e)}") from e
-        if path.exists():  # no hard links here (some network file systems); we hold the lock
-            raise StoreError(f"{path} already exists; a store is never overwritten") from None
-        os.replace(tmp, path)
 
 
 def _write_checksums(f, fields):
@@ -542,8 +384,8 @@ class SnapshotStore:
         except OSError as e:
             if isinstance(e, BlockingIOError) or "unable to lock file" in str(e):
                 lock = lock_path(path)
-                mine = str(lock.resolve()) in _HELD
-                holder = _lock_holder(lock) if lock.exists() and not mine else "another process"
+                mine = holds_lock(path)
+                holder = lock_holder(lock) if lock.exists() and not mine else "another process"
                 raise StoreInUseError(
                     f"{path} is in use by {holder} (HDF5 file lock); wait for that job to "
                     "finish or stop it"
@@ -660,7 +502,7 @@ class SnapshotStore:
 
     @classmethod
     def _create_locked(cls, path, scenario, space, U, sampling, seed, fields):
-        _remove_orphans(path)
+        remove_orphans(path)
         if path.exists():  # created by another writer since the check above
             raise StoreError(f"{path} already exists; a store is never overwritten")
         n_loads, n_sensors = len(scenario.load_levels), len(scenario.sensor_names)
@@ -684,17 +526,17 @@ class SnapshotStore:
             "history": [{"time": _now(), "event": "created", "rows": int(U.shape[0])}],
         }
         n_nodes = int(scenario.mesh.n_nodes)
-        _check_disk_space(path.parent, estimate_store_bytes(U.shape[0], space.n_params, n_loads, n_sensors),
+        check_disk_space(path.parent, estimate_store_bytes(U.shape[0], space.n_params, n_loads, n_sensors),
                           f"a store of {U.shape[0]} rows")
-        tmp = _tmp_path(path)
+        tmp = tmp_path(path)
         try:
             try:
                 with h5py.File(tmp, "w") as f:
                     _write_layout(f, attrs, space, U, n_loads, n_sensors, n_nodes, fields)
                     _write_checksums(f, fields)
             except (OSError, RuntimeError) as e:
-                raise StoreError(f"cannot create {path}: {_io_reason(e)}") from e
-            _publish(tmp, path)
+                raise StoreError(f"cannot create {path}: {io_reason(e)}") from e
+            publish(tmp, path)
         finally:
             tmp.unlink(missing_ok=True)
         logger.info("created snapshot store %s with %d pending rows", path, U.shape[0])
@@ -724,14 +566,14 @@ class SnapshotStore:
         path = Path(path)
         acquire_lock(path)
         try:
-            _remove_orphans(path)
+            remove_orphans(path)
             cls._extend_locked(path, unit_samples, source)
         finally:
             release_lock(path)
 
     @classmethod
     def _extend_locked(cls, path, unit_samples, source):
-        tmp = _tmp_path(path)
+        tmp = tmp_path(path)
         with cls.open(path, "r") as old:
             U_new = np.asarray(unit_samples, dtype=float)
             if U_new.ndim != 2 or U_new.shape[1] != old.space.n_params:
@@ -747,7 +589,7 @@ class SnapshotStore:
                  "software": software_versions()}
             ]
             U = np.vstack([old._read("unit_parameters"), U_new])
-            _check_disk_space(path.parent, path.stat().st_size + estimate_store_bytes(
+            check_disk_space(path.parent, path.stat().st_size + estimate_store_bytes(
                 n, old.space.n_params, old.n_loads, old.n_sensors), f"growing the store to {n} rows")
             try:
                 with h5py.File(tmp, "w") as f:
@@ -764,7 +606,7 @@ class SnapshotStore:
                     _write_checksums(f, old.has_fields)
                 os.replace(tmp, path)  # we hold the store's lock: nobody else writes it
             except (OSError, RuntimeError) as e:
-                raise StoreError(f"cannot grow {path} (it is unchanged): {_io_reason(e)}") from e
+                raise StoreError(f"cannot grow {path} (it is unchanged): {io_reason(e)}") from e
             finally:
                 tmp.unlink(missing_ok=True)
         logger.info("extended snapshot store %s from %d to %d rows", path, n_old, n)
@@ -919,14 +761,14 @@ class SnapshotStore:
                 f"{self.path} already has checksums; they are never recomputed (that would hide damage). "
                 "Use 'podkrig snapshots verify' to check it"
             )
-        _check_disk_space(self.path.parent, self.n_rows * 9 * 8, "adding checksums")
+        check_disk_space(self.path.parent, self.n_rows * 9 * 8, "adding checksums")
         try:
             _write_checksums(self._f, self.has_fields)
             self._f.flush()
             table = self._table[...]
             self._digests, self._meta_words = table[:self.n_rows], table[self.n_rows]
         except (OSError, RuntimeError) as e:
-            raise StoreError(f"cannot add checksums to {self.path}: {_io_reason(e)}") from e
+            raise StoreError(f"cannot add checksums to {self.path}: {io_reason(e)}") from e
         self.checksummed = True
 
     # ------------------------------------------------------------------ reading
@@ -1137,15 +979,15 @@ class SnapshotStore:
             need = int((status == DONE).sum()) * fields[0].nbytes * 101 // 100  # gzip never grows more than ~0.03 %
         else:
             need = 0
-        free = _free_bytes(self.path.parent)
-        if free is not None and free < need + _DISK_MARGIN:
+        free = free_bytes(self.path.parent)
+        if free is not None and free < need + DISK_MARGIN:
             raise StoreError(self._stopped(
-                f"disk full: {_human(free)} free in {self.path.parent}, the next {k} rows need about "
-                f"{_human(need + _DISK_MARGIN)}"))
+                f"disk full: {human_bytes(free)} free in {self.path.parent}, the next {k} rows need about "
+                f"{human_bytes(need + DISK_MARGIN)}"))
         try:
             self._write_rows(rows, status, readings, text, wall, cpu, fields)
         except (OSError, RuntimeError) as e:
-            reason = _io_reason(e)
+            reason = io_reason(e)
             head = "disk full" if reason.startswith("disk full") else f"cannot write {self.path} ({reason})"
             raise StoreError(self._stopped(head)) from e
 

@@ -32,8 +32,9 @@ from fe.scenarios.nonlinear import NonlinearScenario
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.limits import fe_job_estimate
+from podkrig.offline.files import move_aside
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
-from podkrig.offline.store import SnapshotStore, move_aside
+from podkrig.offline.store import SnapshotStore
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
