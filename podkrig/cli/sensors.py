@@ -77,6 +77,7 @@ def register(app):
             TextColumn,
             TimeElapsedColumn,
         )
+        from rich.markup import escape
         from rich.table import Table
 
         from fe.scenarios import SCENARIOS, build_scenario
@@ -161,7 +162,7 @@ def register(app):
             table.add_column(col)
         for i, c in zip(lay.indices, result.contributions):
             s = result.candidates.sensors[i]
-            table.add_row(s.name, json.dumps(s.to_dict()), f"{c:.4g}")
+            table.add_row(escape(s.name), escape(json.dumps(s.to_dict())), f"{c:.4g}")
         console.print(table)
         comp = Table(title="layouts compared: 95 % interval width, fraction of the box (log10 for log parameters)")
         comp.add_column("layout")

@@ -41,6 +41,29 @@ COVERAGE_LIMIT = 0.8
 
 CONTEXTS = ("cli", "study")
 
+#: the one sign convention of standardised residuals, on every page, table and JSON field:
+#: positive where the specimen moved more than the model predicts
+RESIDUAL_CONVENTION = "(measured − model)/σ"
+
+#: what each χ²/dof of a study measures: the model whose readings are compared with the data,
+#: and what the covariance C_D in χ² = rᵀ C_D⁻¹ r holds. Three numbers for "the best fit" differ
+#: for these reasons only (the diagnosis also refits the parameters with the FE model).
+CHI2_BASIS = {
+    "surrogate": "surrogate at its best fit; C_D = data noise C_d + surrogate variance C_T",
+    "surrogate-noise": "surrogate at its best fit; C_D = data noise C_d only",
+    "fe_check": "FE model at the surrogate's best fit; C_D = data noise C_d only",
+    "diagnosis": "FE model refitted by the diagnosis; C_D = data noise C_d + model-form tolerance (ε·d)²",
+}
+
+
+def chi2_basis(kind, model_tolerance=None):
+    """The sentence of :data:`CHI2_BASIS` for ``kind``; for ``"diagnosis"`` with the model-form
+    tolerance ε (relative, -) filled in."""
+    text = CHI2_BASIS[kind]
+    if kind == "diagnosis" and model_tolerance is not None:
+        text = text.replace("(ε·d)²", f"(ε·d)², ε = {100 * model_tolerance:g} % of each reading")
+    return text
+
 
 @dataclass(frozen=True)
 class Finding:

@@ -18,7 +18,7 @@ import numpy as np
 from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
-from podkrig.online.findings import at_bound, fe_check_ok
+from podkrig.online.findings import RESIDUAL_CONVENTION, at_bound, chi2_basis, fe_check_ok
 
 logger = logging.getLogger(__name__)
 
@@ -53,7 +53,8 @@ class FECheck:
     def to_dict(self):
         """The numbers, without the FE readings (JSON-able)."""
         return {"max_abs_diff": self.max_abs_diff, "max_diff_over_noise": self.max_diff_over_noise,
-                "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe, "ok": self.ok}
+                "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe,
+                "chi2_dof_fe_basis": chi2_basis("fe_check"), "ok": self.ok}
 
     @classmethod
     def from_dict(cls, d):
@@ -116,6 +117,13 @@ class InverseResult:
         return self.chi2 / max(self.dof, 1)
 
     @property
+    def chi2_basis(self):
+        """What :attr:`chi2` measures: the model (surrogate) and what C_D holds
+        (:data:`~podkrig.online.findings.CHI2_BASIS`)."""
+        model_error = True if self.problem is None else bool(self.problem.misfit.model_error)
+        return chi2_basis("surrogate" if model_error else "surrogate-noise")
+
+    @property
     def free_parameters(self):
         """The free parameters at the optimum, ``{name: value}`` physical units."""
         return {n: float(v) for n, v in zip(self.free, self.x)}
@@ -128,19 +136,22 @@ class InverseResult:
         shape = self.problem.measurement.values.shape
         return mean[0].reshape(shape), None if std is None else std[0].reshape(shape)
 
-    def with_fe_check(self, scenario):
-        """This result with :func:`fe_check` against ``scenario`` attached (one FE run)."""
-        return dataclasses.replace(self, fe_check=fe_check(self, scenario))
+    def with_fe_check(self, scenario, response=None):
+        """This result with :func:`fe_check` against ``scenario`` attached (one FE run, or none
+        when ``response``, the scenario's response at :attr:`parameters`, is given)."""
+        return dataclasses.replace(self, fe_check=fe_check(self, scenario, response))
 
     def to_dict(self):
         """JSON-able numbers: ``x``, ``parameters`` (free), ``units``, ``at_bound``, ``misfit``,
-        ``chi2``, ``dof``, ``chi2_dof``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
+        ``chi2``, ``dof``, ``chi2_dof``, ``chi2_basis`` (what the χ² includes),
+        ``residual_convention``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
         return {
             "x": self.x.tolist(),
             "parameters": self.free_parameters,
             "units": dict(zip(self.free, self.units)),
             "at_bound": list(self.at_bound),
             "misfit": self.misfit, "chi2": self.chi2, "dof": self.dof, "chi2_dof": self.chi2_dof,
+            "chi2_basis": self.chi2_basis, "residual_convention": RESIDUAL_CONVENTION,
             "n_evaluations": self.n_evaluations, "seconds": self.seconds,
             "measurement": self.measurement,
             "fe_check": None if self.fe_check is None else self.fe_check.to_dict(),
@@ -247,7 +258,7 @@ def _distinct_starts(problem, X, omega, k, min_distance=0.15):
     return X[order][chosen]
 
 
-def fe_check(result, scenario):
+def fe_check(result, scenario, response=None):
     """One FE run at the optimum: the surrogate-vs-FE difference at the observed entries.
 
     Parameters
@@ -255,13 +266,18 @@ def fe_check(result, scenario):
     result : InverseResult
     scenario : fe.Scenario
         The scenario the surrogate was trained on.
+    response : fe.Response, optional
+        ``scenario.run(result.parameters)`` when the caller ran it already (e.g. with the
+        displacement field for a figure); default: run it here.
 
     Returns
     -------
     FECheck
     """
     problem = result.problem
-    fe = scenario.run(result.parameters).readings.ravel()
+    if response is None:
+        response = scenario.run(result.parameters)
+    fe = response.readings.ravel()
     idx = problem.misfit.output_indices
     fe_obs = fe[idx]
     mean, _ = problem.misfit.predict(result.x[None])

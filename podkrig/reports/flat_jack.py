@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
-from podkrig.reports.figures import pyplot
+from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
 
 _SLOT_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
@@ -101,8 +101,7 @@ def plot_setup(scenario, path):
             ax.set_ylim(y0 - 20, y1 + 20)
             ax.set_title(f"{scenario.name}: {x1 - x0:g} × {y1 - y0:g} mm")
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path, dpi=130)
     return Path(path)
 
 
@@ -140,8 +139,7 @@ def plot_readings(scenario, response, path):
     ax.set_ylabel("reading since the pre-cut state (µm)" if getattr(scenario, "steps", None) else "reading (µm)")
     ax.legend(fontsize=7, ncol=2 if len(gauge_names) > 9 else 1, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
     return Path(path)
 
 
@@ -181,8 +179,7 @@ def plot_deformed(scenario, response, path, step=-1, scale=None):
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path, dpi=130)
     return Path(path)
 
 
