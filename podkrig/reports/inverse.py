@@ -18,6 +18,21 @@ def _label(name, unit):
     return f"{name} ({unit})" if unit and unit != "-" else f"{name} (-)"
 
 
+def log_axis(ax, which, lo, hi):
+    """Put the ``which`` ("x" or "y") axis of ``ax``, a log-sampled parameter spanning
+    [``lo``, ``hi``], on a log scale;
+    over less than a decade, with 4 plain-number ticks (the default labels every minor tick in
+    ``a × 10^b`` form, which overlap)."""
+    from matplotlib import ticker  # matplotlib is imported by the figure being drawn
+
+    getattr(ax, f"set_{which}scale")("log")
+    axis = getattr(ax, f"{which}axis")
+    if hi < 10 * lo:
+        axis.set_major_locator(ticker.MaxNLocator(4))
+        axis.set_minor_locator(ticker.NullLocator())
+        axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:.4g}"))
+
+
 def plot_fit(result, path, *, load_unit="kN"):
     """Measured and fitted readings per sensor, load on the vertical axis (the convention of test
     reports: reading (mm) across, load up), measured with ±2σ noise bars, the calibrated surrogate
@@ -42,6 +57,8 @@ def plot_fit(result, path, *, load_unit="kN"):
         ax.set_title(name)
         ax.set_xlabel(f"{name} reading (mm)")
         ax.set_ylabel(f"load ({load_unit})")
+        ax.locator_params(axis="x", nbins=4)  # µm-size readings: few, readable ticks
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7)
@@ -100,10 +117,10 @@ def plot_region(region, path, *, best=None, truth=None, posterior=None, space=No
                 ax.plot(truth[i], truth[j], "kx", ms=9, mew=2, label="truth")
             ax.set_ylabel(_label(region.names[j], region.units[j]))
             if log[j]:
-                ax.set_yscale("log")
+                log_axis(ax, "y", X[:, j].min(), X[:, j].max())
         ax.set_xlabel(_label(region.names[i], region.units[i]))
         if log[i]:
-            ax.set_xscale("log")
+            log_axis(ax, "x", X[:, i].min(), X[:, i].max())
     for ax in list(axes.flat)[len(pairs):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7, markerscale=2)
