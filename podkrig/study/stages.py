@@ -84,6 +84,8 @@ def _run_store(run, path, spec, space, design):
         logger.warning("%s could not be used (%s); kept it as %s and building a new store", path, e, kept)
     summary = run_snapshots(path, spec, space, workers=run.study.workers, scheduler=run.study.scheduler,
                             progress=run.progress.advance, **kwargs)
+    if summary.executor.startswith("serial:"):  # workers > 1 asked, the job too small for a cluster
+        notes.append(summary.executor)
     return summary, notes
 
 
