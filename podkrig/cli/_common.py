@@ -160,5 +160,15 @@ def user_errors():
         raise typer.Exit(code=2) from None
 
 
+def print_findings(console, findings):
+    """Print each finding (:class:`~podkrig.online.findings.Finding`) as ``warning: MESSAGE`` and
+    ``what to do: REMEDY`` on a rich ``console``, the texts literally: rich markup would take a
+    bracketed word such as ``[fixed]`` (a study-file table) for a style tag and drop it."""
+    from rich.markup import escape  # rich is imported by the caller's console already
+
+    for f in findings:
+        console.print(f"[bold yellow]warning:[/] {escape(f.message)}\n  what to do: {escape(f.remedy)}")
+
+
 def configure_logging(verbose):
     logging.basicConfig(level=logging.DEBUG if verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")

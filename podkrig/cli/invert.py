@@ -11,7 +11,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, user_errors
+from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, print_findings, user_errors
 from podkrig.cli.simulate import parse_assignment
 from podkrig.limits import check_region_samples
 from podkrig.online.findings import chi2_basis, inversion_findings
@@ -262,7 +262,6 @@ def _print_table(out, report):
         console.print(escape(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
                              f"({r.fe_check.max_diff_over_noise:.2f}× the noise); χ²/dof of the FE model = "
                              f"{r.fe_check.chi2_dof_fe:.3g} ({chi2_basis('fe_check')})"))
-    for f in out.findings:
-        console.print(f"[bold yellow]warning:[/] {escape(f.message)}\n  what to do: {escape(f.remedy)}")
+    print_findings(console, out.findings)
     if report is not None:
         console.print(escape(f"report: {report / 'index.html'}"))

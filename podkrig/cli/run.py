@@ -4,7 +4,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, user_errors
+from podkrig.cli._common import configure_logging, print_findings, user_errors
 from podkrig.limits import check_name, check_output_folder
 
 DEMO_STUDY = "diagonal_compression.toml"
@@ -61,6 +61,8 @@ def _rich_progress():
             else:
                 fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
                 console.print(f"[green]✓[/] {escape(record.title)}: {record.seconds:.1f} s{fe}")
+                for note in record.result.get("notes", ()):  # e.g. a small job run serially, and why
+                    console.print(f"  [dim]{escape(note)}[/]")
 
         def stop(self):
             if self.bar is not None:
@@ -143,8 +145,7 @@ def _print_summary(result):
     for r in result.stages:
         stages.add_row(escape(r.title), "cached" if r.cached else "ran", f"{r.seconds:.1f}", str(r.fe_runs))
     console.print(stages)
-    for w in result.warnings:
-        console.print(f"[bold yellow]warning:[/] {escape(w.message)}\n  what to do: {escape(w.remedy)}")
+    print_findings(console, result.warnings)
     console.print(escape(f"{result.fe_runs} FE runs in {result.seconds:.1f} s; report: {result.report}"))
 
 

@@ -479,7 +479,7 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
                     todo, X = todo[len(probe.rows):], X[len(probe.rows):]
                     if executor.startswith("serial"):
                         workers = 1
-                        logger.warning("%s", executor)
+                        logger.info("%s", executor)  # the caller shows it (RunSummary.executor)
             if len(todo) and scheduler is None and workers == 1:
                 results = _serial(spec_json, store, todo, X, chunk_size)
             elif len(todo):
