@@ -18,8 +18,11 @@ from podkrig.cli import app
 from podkrig.online.measurement import Measurement
 from podkrig.online.measurement_csv import write_measurement_csv
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
+from podkrig.online.invert import InverseResult
+from podkrig.online.region import Region
 from podkrig.reports.figures import read_panels
 from podkrig.reports.study import SECTIONS
+from podkrig.study import load_study, run_study
 
 runner = CliRunner()
 
@@ -361,3 +364,25 @@ def test_study_with_a_library_backend(tmp_path):
     assert sur["backend"] == "sklearn-gpr" and "beta" not in sur and "scikit-learn" in sur["description"]
     assert summary["stages"]["inversion"]["chi2_dof"] < 5
     assert "sklearn-gpr" in (tmp_path / "out" / "report" / "index.html").read_text()
+
+
+def test_results_show_in_jupyter(tiny):
+    """The study result, the inversion and the region render as HTML tables (Jupyter's
+    ``_repr_html_``): well-formed, with the numbers, what each χ² includes, and the figures inline."""
+    study, out, _ = tiny
+    result = run_study(load_study(study), out)  # every stage cached: seconds
+    inv = InverseResult.from_dict(result.stage("inversion").result)
+    with np.load(out / "region.npz") as f:
+        region = Region.from_dict(result.stage("region").result, samples=f["samples"], omega=f["omega"])
+    for obj, words in ((result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION]),
+                       (inv, ["kN_bj", "N/mm³", f"{inv.chi2_dof:.3g}", "χ² includes"]),
+                       (region, ["kN_bj", "identified", f"{100 * region.confidence:.0f} %"])):
+        text = obj._repr_html_()
+        page = _Page()
+        page.feed(text)
+        page.close()
+        assert not page.errors and page.stack == [], (type(obj).__name__, page.errors, page.stack)
+        for rows in page.tables:
+            assert rows and len(set(rows)) == 1, (type(obj).__name__, rows)
+        for w in words:
+            assert w in html.unescape(text), (type(obj).__name__, w)

@@ -6,8 +6,11 @@ Presentation only: :func:`write_study_report` reads the stage manifests of
 and draws nothing (the figures are stage outputs, already in the report folder).
 """
 
+import base64
+import html
 import json
 import math
+from pathlib import Path
 
 from podkrig.diagnosis.engine import CHI2_ALPHA_SHARE
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION, chi2_basis
@@ -105,6 +108,33 @@ def write_study_report(path, study, records, warnings):
     section("provenance")
     _provenance(page, records)
     return page.write(path)
+
+
+def study_summary_html(name, res, warnings, report, figures):
+    """An HTML fragment summarising a study (Jupyter's view of a StudyResult): the identified
+    parameters with their region, every χ²/dof with its model and covariance, the warnings, and
+    ``figures`` of the report folder inline (base64 PNG)."""
+    e = html.escape
+    inv, region = res["inversion"], res["region"]
+    rows = "".join(
+        f"<tr><td>{e(n)}</td><td>{e(_unit(inv['units'][n]))}</td><td>{_num(inv['parameters'][n])}</td>"
+        f"<td>[{_num(region['intervals'][n][0])}, {_num(region['intervals'][n][1])}]</td>"
+        f"<td>{'yes' if region['identifiability'][n]['identifiable'] else 'NO'}</td></tr>" for n in region["names"])
+    parts = [f"<h3>podkrig study: {e(name)}</h3>",
+             "<table><thead><tr><th>parameter</th><th>unit</th><th>best fit</th>"
+             f"<th>region of equivalence ({100 * region['confidence']:.0f} %)</th><th>identified</th></tr></thead>"
+             f"<tbody>{rows}</tbody></table>",
+             "<table><thead><tr><th>χ²/dof of</th><th>value</th><th>χ² includes</th></tr></thead><tbody>"
+             + "".join(f"<tr><td>{e(m)}</td><td>{v}</td><td>{e(b)}</td></tr>" for m, v, b, _ in chi2_rows(res))
+             + "</tbody></table>",
+             f"<p>Residuals {e(RESIDUAL_CONVENTION)}. Full report: <code>{e(str(report))}</code></p>"]
+    parts += [f"<p><b>warning:</b> {e(w.message)}<br><b>what to do:</b> {e(w.remedy)}</p>" for w in warnings]
+    folder = Path(report).parent
+    for f in figures:
+        if (folder / f).is_file():
+            data = base64.b64encode((folder / f).read_bytes()).decode("ascii")
+            parts.append(f'<img src="data:image/png;base64,{data}" alt="{e(f)}" style="max-width:100%">')
+    return "\n".join(parts)
 
 
 def _summary(page, study, res, warnings):

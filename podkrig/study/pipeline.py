@@ -21,7 +21,7 @@ from podkrig.online.findings import (
     diagnosis_findings, held_out_findings, inversion_findings, offline_findings,
 )
 from podkrig.online.invert import InverseResult
-from podkrig.reports.study import write_study_report
+from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
 from podkrig.study.cache import Progress, StageRecord, now, write_json
 
@@ -64,6 +64,15 @@ class StudyResult:
     def fe_runs(self):
         """FE runs done by this run, all stages."""
         return sum(r.fe_runs for r in self.stages)
+
+    #: report figures shown inline by :meth:`_repr_html_`, in this order (those that exist)
+    INLINE_FIGURES = ("fit.png", "residuals.png", "region.png", "deformed.png")
+
+    def _repr_html_(self):
+        """The study's identified parameters, its χ²/dof with what each includes, its warnings and
+        the main figures (inline PNG), for Jupyter; the full report is ``self.report``."""
+        return study_summary_html(self.study.name, {r.name: r.result for r in self.stages}, self.warnings,
+                                  self.report, self.INLINE_FIGURES)
 
 
 def run_study(study, out, *, progress=None):
