@@ -14,7 +14,7 @@ from rich.table import Table
 from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, print_findings, user_errors
 from podkrig.cli.simulate import parse_assignment
 from podkrig.limits import check_region_samples
-from podkrig.online.findings import chi2_basis, inversion_findings
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement import NoiseModel
 from podkrig.online.measurement_csv import read_measurement_csv
@@ -81,6 +81,8 @@ class Inversion:
             "intervals": region.to_dict()["intervals"],
             "confidence": region.confidence,
             "chi2_dof": r.chi2_dof,
+            "chi2_basis": r.chi2_basis,
+            "residual_convention": RESIDUAL_CONVENTION,
             "misfit": r.misfit,
             "n_evaluations": r.n_evaluations,
             "seconds": self.seconds,

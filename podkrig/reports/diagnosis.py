@@ -207,6 +207,9 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
         f"{d['n_fe_runs']} FE runs, {d['seconds']:.1f} s.", "meta")
 
     page.heading("Verdict")
+    page.paragraph(f"χ² here: {d['adequacy']['basis']}. The inversion's χ²/dof (surrogate, with its variance C_T) "
+                   "and the FE check's (data noise only) differ from it by what their C_D holds and by the fit.",
+                   "meta")
     if d["verdict"] == "adequate":
         page.success(
             f"The calibrated base model explains the data within the noise: χ²/dof = {d['adequacy']['chi2_dof']:.2f} "
@@ -282,7 +285,8 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
         e = d["extended"]
         rows.append(["extended", ", ".join(f"{k} = {fmt(v)}" for k, v in e["parameters"].items()) + f"; effect {fmt(e['effect'])}",
                      fmt(e["chi2"]), fmt(e["chi2_dof"]), fmt(e["aic"]), fmt(e["bic"])])
-    page.table(["model", "parameters (N/mm³, MPa, -)", "χ² (-)", "χ²/dof (-)", "AIC (-)", "BIC (-)"], rows)
+    page.table(["model", "parameters (N/mm³, MPa, -)", "χ² (-)", "χ²/dof (-)", "AIC (-)", "BIC (-)"], rows,
+               caption=f"FE fits of the diagnosis; χ² includes: {d['adequacy']['basis']}")
     g = d["gain"]
     if g is not None and "held_out" in g:
         h = g["held_out"]

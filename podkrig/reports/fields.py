@@ -112,3 +112,21 @@ def plot_deformed_field(scenario, field, path, *, level=-1, magnification=None, 
         fig.suptitle(title, fontsize=11)
     save(fig, path, dpi=110)
     return path
+
+
+def plot_load_readings(response, path):
+    """Every gauge's reading (mm) across, load up — the convention of test reports — one line per
+    sensor, for a linear test at its load levels."""
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 4.8))
+    load = np.asarray(response.load_levels, float)
+    for j, name in enumerate(response.sensor_names):
+        ax.plot(response.readings[:, j], load, "-o", ms=3, lw=1.2, label=name)
+    ax.axvline(0, color="#666", lw=0.6)
+    ax.set_xlabel("reading (mm)")
+    ax.set_ylabel(f"load ({response.load_unit})")
+    ax.legend(fontsize=7, ncol=2 if len(response.sensor_names) > 9 else 1, loc="center left",
+              bbox_to_anchor=(1.0, 0.5))
+    fig.tight_layout()
+    save(fig, path, dpi=120)
+    return path

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
+from podkrig.reports.fields import plot_deformed_field, plot_load_readings
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
 
@@ -94,7 +95,8 @@ def plot_setup(scenario, path):
             ax.set_xlim(x0, x1)
             ax.set_ylim(y0, y1)
             ax.set_title("test region")
-            ax.legend(fontsize=7, loc="upper right")
+            if ax.get_legend_handles_labels()[0]:  # slots and jacks, when the test has them
+                ax.legend(fontsize=7, loc="upper right")
         else:
             (x0, y0), (x1, y1) = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
             ax.set_xlim(x0 - 20, x1 + 20)
@@ -190,15 +192,23 @@ def write_simulation_report(scenario, response, values, out_dir, *, seconds=None
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    figures = [("The specimen: joints, supports, slots and jacks (loaded length shaded), sensors.", plot_setup(scenario, out / "setup.png")),
-               ("Readings per step.", plot_readings(scenario, response, out / "readings.png"))]
     steps = getattr(scenario, "steps", None)
-    phases = [s.phase for s in steps] if steps else []
-    shown = sorted({len(phases) - 1 - phases[::-1].index(p) for p in dict.fromkeys(phases)}) if steps else [len(response.load_levels) - 1]
-    for i in shown:
-        name = f"deformed_step{int(response.load_levels[i])}.png"
-        figures.append((f"Deformed shape at the last step of phase {phases[i]}." if steps else "Deformed shape at the last load level.",
-                        plot_deformed(scenario, response, out / name, step=i)))
+    drawn = "joints, supports, slots and jacks (loaded length shaded), sensors" if getattr(scenario, "slots", ()) \
+        else "joints, supports and sensors"
+    figures = [(f"The specimen: {drawn}; right the test region enlarged.", plot_setup(scenario, out / "setup.png"))]
+    if steps:
+        figures.append(("Readings per step.", plot_readings(scenario, response, out / "readings.png")))
+        phases = [s.phase for s in steps]
+        for i in sorted({len(phases) - 1 - phases[::-1].index(p) for p in dict.fromkeys(phases)}):
+            name = f"deformed_step{int(response.load_levels[i])}.png"
+            figures.append((f"Deformed shape at the last step of phase {phases[i]}.",
+                            plot_deformed(scenario, response, out / name, step=i)))
+    else:  # a linear test at load levels: readings with load up, the whole specimen deformed
+        figures.append(("Readings (mm) across, load up, one line per sensor.",
+                        plot_load_readings(response, out / "readings.png")))
+        figures.append(("At the highest load: left the deformed mesh (magnified, with a length and a displacement "
+                        "scale bar), right the displacement magnitude |u| (mm).",
+                        plot_deformed_field(scenario, response.field, out / "deformed.png")))
     page = Page(f"podkrig simulate {scenario.name}")
     page.paragraph(f"{scenario.n_dofs} dofs" + (f", {seconds:.3f} s" if seconds is not None else "") + "; readings in mm"
                    + (", since the pre-cut state (gauges zeroed before the cut)." if steps else "."))

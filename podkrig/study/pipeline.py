@@ -18,7 +18,7 @@ from pathlib import Path
 
 from podkrig import __version__
 from podkrig.online.findings import (
-    diagnosis_findings, held_out_findings, inversion_findings, offline_findings,
+    CHI2_BASIS, RESIDUAL_CONVENTION, diagnosis_findings, held_out_findings, inversion_findings, offline_findings,
 )
 from podkrig.online.invert import InverseResult
 from podkrig.reports.study import study_summary_html, write_study_report
@@ -117,6 +117,7 @@ def run_study(study, out, *, progress=None):
     report = write_study_report(run.figures / "index.html", study, run.records, found)
     write_json(run.out / "summary.json", {
         "study": str(study.path), "name": study.name, "podkrig": __version__, "finished": now(),
+        "conventions": {"residuals": RESIDUAL_CONVENTION, "chi2": CHI2_BASIS},
         "stages": {r.name: {"cached": r.cached, "seconds": r.seconds, "fe_runs": r.fe_runs, **r.result}
                    for r in run.records},
         "warnings": [f.to_dict() for f in found],
