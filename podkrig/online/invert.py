@@ -95,6 +95,9 @@ class InverseResult:
     ga : GAResult or None
     fe_check : FECheck or None
         Set by :meth:`with_fe_check`.
+    basis : str or None
+        What :attr:`chi2` includes, as read back by :meth:`from_dict`; None: from the problem
+        (:attr:`chi2_basis`).
     """
 
     x: np.ndarray
@@ -111,6 +114,7 @@ class InverseResult:
     problem: object = None
     ga: object = None
     fe_check: FECheck | None = None
+    basis: str | None = None
 
     @property
     def chi2_dof(self):
@@ -121,6 +125,8 @@ class InverseResult:
     def chi2_basis(self):
         """What :attr:`chi2` measures: the model (surrogate) and what C_D holds
         (:data:`~podkrig.online.findings.CHI2_BASIS`)."""
+        if self.basis is not None:
+            return self.basis
         model_error = True if self.problem is None else bool(self.problem.misfit.model_error)
         return chi2_basis("surrogate" if model_error else "surrogate-noise")
 
@@ -181,7 +187,7 @@ class InverseResult:
             np.asarray(d["x"], dtype=float), dict(d["parameters"]), float(d["misfit"]), float(d["chi2"]),
             int(d["dof"]), int(d["n_evaluations"]), float(d["seconds"]), free, tuple(d["units"][n] for n in free),
             tuple(d["at_bound"]), dict(d["measurement"]), problem, ga,
-            None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]),
+            None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]), d.get("chi2_basis"),
         )
 
 

@@ -141,7 +141,7 @@ def plot_parameters(result, axes=None, *, log=None, xscale=None):
         points = ax.scatter(result.X_history[:, i], f, s=5, alpha=0.4, c=result.generation_history,
                             cmap="viridis")
         ax.axvline(result.x[i], color="k", lw=0.8, ls="--")
-        unit = f" [{units[i]}]" if units is not None and units[i] else ""
+        unit = f" ({units[i]})" if units is not None and units[i] else ""  # "(unit)" as on every report axis
         ax.set_xlabel(f"{result.parameter_names[i]}{unit}")
         ax.set_ylabel("objective f")
         if use_log:
