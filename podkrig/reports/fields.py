@@ -34,22 +34,18 @@ def auto_magnification(mesh, u, share=0.05):
 
 
 def _scale_bars(ax, mesh, magnification, umax):
-    """A length bar (mm of specimen) and a displacement bar (mm of displacement at this
-    magnification) under the specimen."""
+    """Under the specimen, two bars from its left edge, each labelled to its right: a length bar
+    (mm of specimen) and a displacement bar (mm of displacement, drawn at this magnification)."""
     span = max(mesh.width, mesh.height)
-    y = -0.08 * mesh.height
-    length = _nice(0.25 * mesh.width)
-    ax.plot([0, length], [y, y], color="k", lw=2.5, solid_capstyle="butt")
-    ax.text(0.5 * length, y - 0.02 * span, f"{length:g} mm", ha="center", va="top", fontsize=8)
+    rows = [(-0.06 * span, _nice(0.25 * mesh.width), "k", None)]
     if umax > 0:
         disp = _nice(umax)
-        drawn = disp * magnification
-        x0 = 0.55 * mesh.width
-        ax.plot([x0, x0 + drawn], [y, y], color="tab:red", lw=2.5, solid_capstyle="butt")
-        ax.text(x0, y - 0.02 * span, f"displacement {disp:.3g} mm (drawn × {magnification:.3g})", ha="left",
-                va="top",
-                fontsize=8, color="tab:red")
-    ax.set_ylim(y - 0.1 * span, mesh.height + 0.05 * span)
+        rows.append((-0.12 * span, disp * magnification, "tab:red", disp))
+    for y, drawn, colour, disp in rows:
+        ax.plot([0, drawn], [y, y], color=colour, lw=2.5, solid_capstyle="butt")
+        label = f"{drawn:g} mm" if disp is None else f"displacement {disp:.3g} mm (× {magnification:.3g})"
+        ax.text(drawn + 0.02 * span, y, label, ha="left", va="center", fontsize=8, color=colour)
+    ax.set_ylim(rows[-1][0] - 0.05 * span, mesh.height + 0.05 * span)
 
 
 def plot_deformed_field(scenario, field, path, *, level=-1, magnification=None, title=None):
@@ -86,7 +82,8 @@ def plot_deformed_field(scenario, field, path, *, level=-1, magnification=None, 
     deformed = mesh.nodes[corners] + magnification * u[corners]
     magnitude = np.linalg.norm(u, axis=1)
     umax = float(magnitude.max())
-    load = f"{scenario.load_levels[level]:g} {scenario.load_unit}"
+    value = scenario.load_levels[level]
+    load = f"step {value:g}" if scenario.load_unit == "step" else f"{value:g} {scenario.load_unit}"
     aspect = mesh.height / mesh.width
     fig, axes = plt.subplots(1, 2, figsize=(11.5, 5.2 * max(aspect, 0.5) + 1.0), layout="constrained")
     left, right = axes

@@ -291,7 +291,7 @@ def _inversion(page, r, deformed):
     page.figure("residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, "
                                  "per gauge and load level, with their colour scale (-).")
     if deformed:
-        page.figure("deformed.png", "FE model at the best fit, highest load: left the deformed mesh (magnified, with a "
+        page.figure("deformed.png", "FE model at the best fit, last load level: left the deformed mesh (magnified, with a "
                                     "length and a displacement scale bar), right the displacement magnitude |u| (mm).")
     page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics.")
     page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, coloured by "
