@@ -88,7 +88,7 @@ def main():
         t = ms_per_run(s)
         n_star = start / (t / 1000 * (1 - 1 / K))
         print(f"{label:40s} {t:8.1f} {n_star:20.0f}")
-    print(f"\nend to end, run_snapshots (s), serial fallback off; demo mesh")
+    print("\nend to end, run_snapshots (s), serial fallback off; demo mesh")
     print(f"{'runs':>6s} {'workers=1':>10s} {f'workers={K}':>10s}")
     saved = runner.LOCAL_CLUSTER_STARTUP_S
     runner.LOCAL_CLUSTER_STARTUP_S = 0.0  # never fall back: measure the cluster itself

@@ -7,10 +7,10 @@ from numpy.testing import assert_array_equal
 from fe.exceptions import SolverError
 from fe.scenarios import Scenario, build_scenario
 from podkrig.exceptions import StoreError
-from podkrig.parameters import ParameterSpace
 from podkrig.offline import runner
 from podkrig.offline.runner import prepare_store, run_pending, run_snapshots
 from podkrig.offline.store import DONE, FAILED, PENDING, SnapshotStore
+from podkrig.parameters import ParameterSpace
 
 COARSE = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
 

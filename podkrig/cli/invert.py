@@ -11,7 +11,13 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, print_findings, user_errors
+from podkrig.cli._common import (
+    RegionMethod,
+    TableFormat,
+    configure_logging,
+    print_findings,
+    user_errors,
+)
 from podkrig.cli.simulate import parse_assignment
 from podkrig.limits import check_region_samples
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings

@@ -18,6 +18,7 @@ def examples_dir():
 def _rich_progress():
     """A :class:`podkrig.study.pipeline.Progress` drawing one line or bar per stage on stderr."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -26,8 +27,6 @@ def _rich_progress():
         TextColumn,
         TimeElapsedColumn,
     )
-
-    from rich.markup import escape
 
     from podkrig.study.pipeline import Progress as StageProgress
 

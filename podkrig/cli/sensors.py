@@ -70,6 +70,7 @@ def register(app):
         # imported here, not at module top: the FE, surrogate and online stacks take ~6.5 s to import
         # (measured under load, 2026-11-24) and every other podkrig command would pay for them
         from rich.console import Console
+        from rich.markup import escape
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
@@ -77,7 +78,6 @@ def register(app):
             TextColumn,
             TimeElapsedColumn,
         )
-        from rich.markup import escape
         from rich.table import Table
 
         from fe.scenarios import SCENARIOS, build_scenario

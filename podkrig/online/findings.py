@@ -278,7 +278,7 @@ def diagnosis_findings(d):
 
 
 __all__ = [
-    "AT_BOUND_SHARE", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding", "UNIDENTIFIABLE_SHARE",
-    "at_bound", "diagnosis_findings", "fe_check_ok", "held_out_findings", "identifiability_verdict",
+    "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding",
+    "RESIDUAL_CONVENTION", "UNIDENTIFIABLE_SHARE", "at_bound", "chi2_basis", "diagnosis_findings", "fe_check_ok", "held_out_findings", "identifiability_verdict",
     "inversion_findings", "offline_findings",
 ]

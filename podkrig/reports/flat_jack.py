@@ -206,8 +206,8 @@ def write_simulation_report(scenario, response, values, out_dir, *, seconds=None
     else:  # a linear test at load levels: readings with load up, the whole specimen deformed
         figures.append(("Readings (mm) across, load up, one line per sensor.",
                         plot_load_readings(response, out / "readings.png")))
-        figures.append(("At the highest load: left the deformed mesh (magnified, with a length and a displacement "
-                        "scale bar), right the displacement magnitude |u| (mm).",
+        figures.append((("At the highest load: left the deformed mesh (magnified, with a length and a "
+                         "displacement scale bar), right the displacement magnitude |u| (mm)."),
                         plot_deformed_field(scenario, response.field, out / "deformed.png")))
     page = Page(f"podkrig simulate {scenario.name}")
     page.paragraph(f"{scenario.n_dofs} dofs" + (f", {seconds:.3f} s" if seconds is not None else "") + "; readings in mm"

@@ -121,9 +121,9 @@ def study_summary_html(name, res, warnings, report, figures):
         f"<td>[{_num(region['intervals'][n][0])}, {_num(region['intervals'][n][1])}]</td>"
         f"<td>{'yes' if region['identifiability'][n]['identifiable'] else 'NO'}</td></tr>" for n in region["names"])
     parts = [f"<h3>podkrig study: {e(name)}</h3>",
-             "<table><thead><tr><th>parameter</th><th>unit</th><th>best fit</th>"
-             f"<th>region of equivalence ({100 * region['confidence']:.0f} %)</th><th>identified</th></tr></thead>"
-             f"<tbody>{rows}</tbody></table>",
+             ("<table><thead><tr><th>parameter</th><th>unit</th><th>best fit</th>"
+              f"<th>region of equivalence ({100 * region['confidence']:.0f} %)</th><th>identified</th></tr></thead>"
+              f"<tbody>{rows}</tbody></table>"),
              "<table><thead><tr><th>χ²/dof of</th><th>value</th><th>χ² includes</th></tr></thead><tbody>"
              + "".join(f"<tr><td>{e(m)}</td><td>{v}</td><td>{e(b)}</td></tr>" for m, v, b, _ in chi2_rows(res))
              + "</tbody></table>",

@@ -18,7 +18,12 @@ from pathlib import Path
 
 from podkrig import __version__
 from podkrig.online.findings import (
-    CHI2_BASIS, RESIDUAL_CONVENTION, diagnosis_findings, held_out_findings, inversion_findings, offline_findings,
+    CHI2_BASIS,
+    RESIDUAL_CONVENTION,
+    diagnosis_findings,
+    held_out_findings,
+    inversion_findings,
+    offline_findings,
 )
 from podkrig.online.invert import InverseResult
 from podkrig.reports.study import study_summary_html, write_study_report
