@@ -29,7 +29,9 @@ __all__ = [
     "Variogram",
     "configure_logging",
     "error_message",
+    "number",
     "os_error_message",
+    "print_findings",
     "user_errors",
 ]
 
@@ -158,6 +160,13 @@ def user_errors():
             MemoryError) as e:
         typer.echo(f"error: {error_message(e)}", err=True)
         raise typer.Exit(code=2) from None
+
+
+def number(value, digits=4):
+    """``value`` with ``digits`` significant digits for a table, without an exponent below 10⁶
+    (``15934``, not ``1.593e+04``), so that the two ends of an interval read alike."""
+    text = f"{value:.{digits}g}"
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
 
 
 def print_findings(console, findings):

@@ -15,6 +15,7 @@ from podkrig.cli._common import (
     RegionMethod,
     TableFormat,
     configure_logging,
+    number,
     print_findings,
     user_errors,
 )
@@ -263,7 +264,7 @@ def _print_table(out, report):
     for j, name in enumerate(r.free):
         lo, hi = region.intervals[name]
         unit = units[name] if units[name] != "-" else ""
-        table.add_row(name, f"{r.x[j]:.5g} {unit}", escape(f"[{lo:.4g}, {hi:.4g}] {unit}"), "yes" if region.identifiability[name]["identifiable"] else "NO")
+        table.add_row(name, f"{number(r.x[j], 5)} {unit}", escape(f"[{number(lo)}, {number(hi)}] {unit}"), "yes" if region.identifiability[name]["identifiable"] else "NO")
     console = Console()
     console.print(table)
     if r.fe_check is not None:

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, print_findings, user_errors
+from podkrig.cli._common import configure_logging, number, print_findings, user_errors
 from podkrig.limits import check_name, check_output_folder
 
 DEMO_STUDY = "diagonal_compression.toml"
@@ -109,7 +109,7 @@ def _print_summary(result):
     for name in region["names"]:
         lo, hi = region["intervals"][name]
         unit = inv["units"][name]
-        table.add_row(name, unit, f"{inv['parameters'][name]:.5g}", escape(f"[{lo:.4g}, {hi:.4g}]"),
+        table.add_row(name, unit, number(inv["parameters"][name], 5), escape(f"[{number(lo)}, {number(hi)}]"),
                       "yes" if region["identifiability"][name]["identifiable"] else "NO")
     console.print(table)
     numbers = Table(title="checks")

@@ -41,6 +41,13 @@ COVERAGE_LIMIT = 0.8
 
 CONTEXTS = ("cli", "study")
 
+
+def _g(value):
+    """4 significant digits without an exponent below 10⁶ (``15934``, not ``1.593e+04``): both ends
+    of an interval read alike."""
+    text = f"{value:.4g}"
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
 #: the one sign convention of standardised residuals, on every page, table and JSON field:
 #: positive where the specimen moved more than the model predicts
 RESIDUAL_CONVENTION = "(measured − model)/σ"
@@ -125,9 +132,9 @@ def identifiability_verdict(name, interval, unit, share):
     ok = share <= UNIDENTIFIABLE_SHARE
     unit = unit if unit != "-" else ""
     msg = (
-        f"{name} is identified: [{lo:.4g}, {hi:.4g}] {unit} spans {100 * share:.0f} % of its search range"
+        f"{name} is identified: [{_g(lo)}, {_g(hi)}] {unit} spans {100 * share:.0f} % of its search range"
         if ok else
-        f"{name} is NOT pinned down by these data: values from {lo:.4g} to {hi:.4g} {unit} "
+        f"{name} is NOT pinned down by these data: values from {_g(lo)} to {_g(hi)} {unit} "
         f"({100 * share:.0f} % of its search range) fit equally well; fix it from other tests, "
         "add sensors sensitive to it, or report it as unidentified"
     )
@@ -201,7 +208,7 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
             how = f"--fix {name}=VALUE" if context == "cli" else "[fixed]"
             found.append(Finding(
                 "unidentified", "region",
-                f"{name} is not pinned down by these data: values from {lo:.4g} to {hi:.4g}"
+                f"{name} is not pinned down by these data: values from {_g(lo)} to {_g(hi)}"
                 f"{_unit(units[name])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
                 f"fix {name} from other tests ({how}), add sensors sensitive to it, or report it as unidentified."))
     return found
