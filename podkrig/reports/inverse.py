@@ -79,9 +79,10 @@ def plot_residuals(result, path, *, load_unit="kN"):
     lim = max(3.0, float(np.abs(z).max()))
     im = ax.imshow(z, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
     ax.set_xticks(range(len(meas.sensor_names)), meas.sensor_names, rotation=45)
-    ax.set_yticks(range(len(meas.load_levels)), [f"{v:g} {load_unit}" for v in meas.load_levels])
-    for (i, j), v in np.ndenumerate(z):
-        ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7)
+    ax.set_yticks(range(len(meas.load_levels)),
+                  [f"step {v:g}" if load_unit == "step" else f"{v:g} {load_unit}" for v in meas.load_levels])
+    for (i, j), v in np.ndenumerate(z):  # white on the dark ends of the scale
+        ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7, color="w" if abs(v) > 0.6 * lim else "k")
     fig.colorbar(im, ax=ax, label=f"{RESIDUAL_CONVENTION} (-)")
     fig.tight_layout()
     save(fig, path, dpi=110)
