@@ -192,9 +192,54 @@ class DICGrid:
         return d
 
 
+#: the forms a spec's ``sensors`` take (TOML), for error messages and docs
+SENSOR_TABLE_FORMS = (
+    "a table of named sensors:\n"
+    "    [sensors]                      # [scenario.sensors] in a study file\n"
+    '    D1 = { kind = "gauge", p1 = [302.2, 302.2], p2 = [867.8, 867.8] }\n'
+    "or an array of tables, each with its name:\n"
+    "    [[sensors]]                    # [[scenario.sensors]] in a study file\n"
+    '    name = "D1"\n'
+    '    kind = "gauge"\n'
+    "    p1 = [302.2, 302.2]\n"
+    "    p2 = [867.8, 867.8]\n"
+    "(kinds: gauge, point, dic, slip; `podkrig scenarios NAME` shows their fields)"
+)
+
+
+def sensor_table(value):
+    """A spec's ``sensors`` as a dict name → definition: a table of named sensors as is, an
+    array of tables (TOML ``[[sensors]]``) keyed by each entry's ``name``; None stays None.
+
+    Raises
+    ------
+    SensorError
+        Any other form, an entry without a string ``name`` or a repeated name; the message shows
+        the accepted forms (:data:`SENSOR_TABLE_FORMS`).
+    """
+    if value is None or isinstance(value, dict):
+        return value
+    if not isinstance(value, (list, tuple)):
+        raise SensorError(f"sensors: got {type(value).__name__} {str(value)[:60]!r}; give {SENSOR_TABLE_FORMS}")
+    table = {}
+    for k, entry in enumerate(value):
+        if not isinstance(entry, dict) or not isinstance(entry.get("name"), str):
+            raise SensorError(f"sensors: entry {k + 1} of the array ({str(entry)[:60]}) has no name = \"...\"; "
+                              f"give {SENSOR_TABLE_FORMS}")
+        definition = {key: v for key, v in entry.items() if key != "name"}
+        if entry["name"] in table:
+            raise SensorError(f"sensors: the name {entry['name']!r} is used twice (entries of the array); "
+                              "give each sensor its own name")
+        table[entry["name"]] = definition
+    return table
+
+
 def sensor_from_dict(name, d):
     """Rebuild a sensor from its ``to_dict()`` form."""
     kinds = {"gauge": Gauge, "slip": SlipGauge, "point": PointDisplacement, "dic": DICGrid}
+    if not isinstance(d, dict):
+        raise SensorError(f"sensor {name!r}: its definition must be a table such as "
+                          f'{{ kind = "gauge", p1 = [x1, y1], p2 = [x2, y2] }}; got {str(d)[:60]!r}')
     d = dict(d)
     kind = d.pop("kind", None)
     if kind not in kinds:
@@ -235,15 +280,15 @@ def locate_points(mesh, points, owner="point"):
     for k, p in enumerate(points):
         cand = np.flatnonzero(np.all((p >= lo - tol) & (p <= hi + tol), axis=1))
         if len(cand) == 0:
-            raise SensorError(f"sensor {owners[k]!r}: point {tuple(p)} mm lies outside the specimen")
+            raise SensorError(f"sensor {owners[k]!r}: point ({p[0]:g}, {p[1]:g}) mm lies outside the specimen")
         ref = etype.inverse_map(mesh.nodes[mesh.quads[cand]], np.repeat(p[None], len(cand), axis=0))
         inside = np.all(np.abs(ref) <= 1 + _INSIDE_TOL, axis=1)
         if not inside.any():
-            raise SensorError(f"sensor {owners[k]!r}: point {tuple(p)} mm lies outside the specimen")
+            raise SensorError(f"sensor {owners[k]!r}: point ({p[0]:g}, {p[1]:g}) mm lies outside the specimen")
         blocks = np.unique(mesh.quad_block[cand[inside]])
         if len(blocks) > 1:
             raise SensorError(
-                f"sensor {owners[k]!r}: point {tuple(p)} mm lies on an interface (joint or unit "
+                f"sensor {owners[k]!r}: point ({p[0]:g}, {p[1]:g}) mm lies on an interface (joint or unit "
                 "mid-plane) where the displacement jumps; move it off the joint"
             )
         first = np.flatnonzero(inside)[0]

@@ -23,7 +23,9 @@ def default_diagonal():
 def _project_loggers_enabled():
     """Importing ``distributed`` (a Dask test earlier in the same worker) runs
     ``logging.config.dictConfig``, which disables every logger that exists then; a later test that
-    checks a podkrig warning with ``caplog`` would see nothing. Re-enable ours before each test."""
+    checks a podkrig warning with ``caplog`` would see nothing. The product repairs this after its
+    own import (:func:`podkrig.offline.runner.import_distributed`); a test that imports
+    ``distributed`` directly bypasses that, so ours are re-enabled before each test too."""
     for name, logger in list(logging.root.manager.loggerDict.items()):
         if isinstance(logger, logging.Logger) and name.split(".")[0] in ("podkrig", "fe"):
             logger.disabled = False

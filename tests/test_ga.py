@@ -550,7 +550,7 @@ def test_figures_have_labelled_axes():
     axes = [plot_history(res), plot_statistics(res), *plot_parameters(res, xscale=["log"] * 2)]
     for ax in axes:
         assert ax.get_xlabel() and ax.get_ylabel()
-    assert axes[2].get_xlabel() == "k0 [N/mm3]"
+    assert axes[2].get_xlabel() == "k0 (N/mm3)"
     plt.close("all")
 
 

@@ -7,9 +7,10 @@ from numpy.testing import assert_array_equal
 from fe.exceptions import SolverError
 from fe.scenarios import Scenario, build_scenario
 from podkrig.exceptions import StoreError
-from podkrig.parameters import ParameterSpace
+from podkrig.offline import runner
 from podkrig.offline.runner import prepare_store, run_pending, run_snapshots
 from podkrig.offline.store import DONE, FAILED, PENDING, SnapshotStore
+from podkrig.parameters import ParameterSpace
 
 COARSE = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
 
@@ -163,8 +164,24 @@ def test_argument_errors(tmp_path, scenario, space):
         run_pending(tmp_path / "missing.h5", workers=1)
 
 
+def test_a_small_job_runs_serially_with_workers_2_and_says_why(tmp_path, reference, scenario, space, monkeypatch):
+    """64 coarse runs (≈ 7 ms each) save far less than a local cluster takes to start: the runner
+    runs them in this process (no cluster is started) and the executor text gives the numbers."""
+    def no_cluster(*args):
+        raise AssertionError("a local cluster was started for a small job")
+
+    monkeypatch.setattr(runner, "_dask_client", no_cluster)
+    path = tmp_path / "small.h5"
+    summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2)
+    assert summary.executor.startswith("serial: 2 workers asked, but 64 runs ×"), summary.executor
+    assert "less than a local cluster takes to start" in summary.executor
+    assert summary.done == 64 and summary.ran == 64
+    _assert_same_store(path, reference)
+
+
 @pytest.mark.slow
-def test_two_local_dask_workers_give_the_serial_store(tmp_path, reference, scenario, space):
+def test_two_local_dask_workers_give_the_serial_store(tmp_path, reference, scenario, space, monkeypatch):
+    monkeypatch.setattr(runner, "LOCAL_CLUSTER_STARTUP_S", 0.0)  # use the cluster however small the job
     path = tmp_path / "dask.h5"
     summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2, chunk_size=4)
     assert summary.executor == "local Dask cluster, 2 workers" and summary.done == 64
@@ -215,3 +232,37 @@ def test_benchmark_script_imports_cleanly_and_has_help():
                             check=False)
     assert result.returncode == 0, result.stderr
     assert "--n N" in result.stdout and "snapshots per measurement" in result.stdout
+
+
+def test_importing_distributed_keeps_project_warnings_and_quiets_dask(caplog):
+    """A dict-schema logging config (what importing ``distributed`` applies when the Dask config
+    has ``logging: {version: 1}``) disables every logger that exists; after
+    :func:`runner.import_distributed` podkrig's warnings are recorded again, and Dask's loggers are
+    at WARNING unless podkrig logs at DEBUG."""
+    import logging.config
+
+    ours = logging.getLogger("podkrig.offline.runner")
+    dask_logger = logging.getLogger("distributed")
+    level = dask_logger.level
+    loggers = [lg for lg in logging.root.manager.loggerDict.values() if isinstance(lg, logging.Logger)]
+    was_disabled = [lg.disabled for lg in loggers]
+    try:
+        logging.config.dictConfig({"version": 1})  # disable_existing_loggers defaults to True
+        assert ours.disabled
+        runner.import_distributed()
+        assert not ours.disabled
+        with caplog.at_level(logging.WARNING, logger="podkrig"):
+            ours.warning("still heard")
+        assert "still heard" in caplog.text
+        dask_logger.setLevel(logging.INFO)
+        runner.import_distributed()
+        assert dask_logger.level == logging.WARNING  # podkrig at WARNING: Dask quiet
+        dask_logger.setLevel(logging.INFO)
+        logging.getLogger("podkrig").setLevel(logging.DEBUG)  # --verbose
+        runner.import_distributed()
+        assert dask_logger.level == logging.INFO
+    finally:
+        logging.getLogger("podkrig").setLevel(logging.NOTSET)
+        dask_logger.setLevel(level)
+        for lg, disabled in zip(loggers, was_disabled):  # other libraries' loggers as they were
+            lg.disabled = disabled

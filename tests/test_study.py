@@ -1,5 +1,6 @@
 """``podkrig run``: a tiny study end to end, its stage cache, and the structure of its HTML report."""
 
+import html
 import html.parser
 import json
 import re
@@ -14,9 +15,14 @@ from typer.testing import CliRunner
 from fe.scenarios import build_scenario
 from fe.scenarios.base import Scenario
 from podkrig.cli import app
+from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
+from podkrig.online.invert import InverseResult
 from podkrig.online.measurement import Measurement
 from podkrig.online.measurement_csv import write_measurement_csv
+from podkrig.online.region import Region
+from podkrig.reports.figures import read_panels
 from podkrig.reports.study import SECTIONS
+from podkrig.study import load_study, run_study
 
 runner = CliRunner()
 
@@ -237,7 +243,7 @@ def test_report_structure(tiny):
     assert set(internal) <= set(page.ids) and len(internal) == len(SECTIONS)
     # every figure exists beside the page and is a valid PNG; each stage's figures are shown
     expected = {"energy.png", "modes.png", "predicted_vs_fe.png", "fit.png", "residuals.png", "ga_history.png",
-                "ga_parameters.png", "region.png", "rvc.png"}
+                "ga_parameters.png", "region.png", "rvc.png", "deformed.png"}
     assert set(page.images) == expected
     for src in page.images:
         _check_png(page_path.parent / src)
@@ -262,6 +268,72 @@ def test_report_structure(tiny):
     warnings = json.loads((out / "summary.json").read_text(encoding="utf-8"))["warnings"]
     assert source.count("<b>Warning:</b>") == 2 * len(warnings)  # in the summary and in its section
     assert ("No warnings" in source) is (not warnings)
+
+
+_FIGURE = re.compile(r'<figure><img src="([^"]+)" alt="[^"]*"><figcaption>([^<]*)</figcaption></figure>')
+
+
+def _figures(page_path):
+    """(file, caption, panels) of every figure of a report page; panels as recorded by
+    :func:`podkrig.reports.figures.save`."""
+    source = page_path.read_text(encoding="utf-8")
+    out = []
+    for src, caption in _FIGURE.findall(source):
+        panels = read_panels(page_path.parent / src)
+        assert panels is not None, f"{src}: saved without its panel description (not through reports.figures.save)"
+        out.append((src, html.unescape(caption), panels))
+    return source, out
+
+
+def test_report_figures_and_words_agree(tiny):
+    """The structural checks of issue 14: every figure of the study page and the diagnosis page has
+    no empty panel, a colour bar for every colour scale, log axes for the log-sampled parameters and
+    a caption that names only panels that exist; one residual sign convention across the pages and
+    summary.json; every χ²/dof says what it includes; no range printed with equal ends."""
+    _, out, cli_text = tiny
+    report = out / "report"
+    log_params = ("kN_bj", "kV_bj")  # scale = "log" in TINY
+    sources = []
+    for page_path in (report / "index.html", report / "diagnosis" / "index.html"):
+        source, figures = _figures(page_path)
+        sources.append(source)
+        assert figures
+        for src, caption, panels in figures:
+            assert panels, src
+            for panel in panels:
+                assert not panel["empty"], f"{src}: empty panel {panel}"
+                if panel["colour_mapped"]:
+                    assert panel["colourbar"], f"{src}: colour scale without a colour bar in {panel['title']!r}"
+                for axis in ("x", "y"):
+                    if panel[f"{axis}label"].split(" ")[0] in log_params and src in ("region.png", "ga_parameters.png"):
+                        assert panel[f"{axis}scale"] == "log", f"{src}: {panel[f'{axis}label']} on a linear axis"
+            if re.search(r"\b(left|right)(-hand)?\b(?! out)", caption.lower()):  # "left out" names no panel
+                assert len(panels) >= 2, f"{src}: caption {caption!r} names panels the figure does not have"
+        assert "model − measured" not in html.unescape(source)
+        assert RESIDUAL_CONVENTION in html.unescape(source)
+        equal_ends = re.findall(r"(\d[\d.]*)–(\d[\d.]*) ?mm", html.unescape(source))
+        assert all(a != b for a, b in equal_ends), equal_ends
+    study_page = html.unescape(sources[0])
+    for basis in (CHI2_BASIS["surrogate"], CHI2_BASIS["fe_check"], "model-form tolerance"):
+        assert basis in study_page, basis
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))["stages"]
+    assert summary["inversion"]["residual_convention"] == RESIDUAL_CONVENTION
+    assert summary["diagnosis"]["residual_convention"] == RESIDUAL_CONVENTION
+    assert summary["inversion"]["chi2_basis"] == CHI2_BASIS["surrogate"]
+    assert "model-form tolerance" in summary["diagnosis"]["adequacy"]["basis"]
+    # the CLI prints the three χ²/dof with their bases too
+    flat = " ".join(cli_text.split())
+    assert "χ² includes" in flat and "FE refit" in flat
+    # a candidate that is not significant: its fitted value carries the caveat, and an empty
+    # evidence chart is replaced by words
+    d = summary["diagnosis"]
+    diag_page = html.unescape(sources[1])
+    for c in d["candidates"]:
+        if c["applicable"] and c["p_corrected"] >= d["alpha"]:
+            assert f"{c['parameter']['name']} = " in diag_page
+            assert "not significant" in diag_page
+    if "candidates.png" not in diag_page:
+        assert "Nothing significant" in diag_page
 
 
 def test_report_warning_in_plain_words(tiny, tmp_path):
@@ -292,3 +364,25 @@ def test_study_with_a_library_backend(tmp_path):
     assert sur["backend"] == "sklearn-gpr" and "beta" not in sur and "scikit-learn" in sur["description"]
     assert summary["stages"]["inversion"]["chi2_dof"] < 5
     assert "sklearn-gpr" in (tmp_path / "out" / "report" / "index.html").read_text()
+
+
+def test_results_show_in_jupyter(tiny):
+    """The study result, the inversion and the region render as HTML tables (Jupyter's
+    ``_repr_html_``): well-formed, with the numbers, what each χ² includes, and the figures inline."""
+    study, out, _ = tiny
+    result = run_study(load_study(study), out)  # every stage cached: seconds
+    inv = InverseResult.from_dict(result.stage("inversion").result)
+    with np.load(out / "region.npz") as f:
+        region = Region.from_dict(result.stage("region").result, samples=f["samples"], omega=f["omega"])
+    for obj, words in ((result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION]),
+                       (inv, ["kN_bj", "N/mm³", f"{inv.chi2_dof:.3g}", "χ² includes"]),
+                       (region, ["kN_bj", "identified", f"{100 * region.confidence:.0f} %"])):
+        text = obj._repr_html_()
+        page = _Page()
+        page.feed(text)
+        page.close()
+        assert not page.errors and page.stack == [], (type(obj).__name__, page.errors, page.stack)
+        for rows in page.tables:
+            assert rows and len(set(rows)) == 1, (type(obj).__name__, rows)
+        for w in words:
+            assert w in html.unescape(text), (type(obj).__name__, w)

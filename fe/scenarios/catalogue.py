@@ -31,12 +31,41 @@ SENSOR_KINDS = {
         "one displacement component of a point (absolute, mm)",
         '{ kind = "point", point = [x, y], component = "x" }   # or "y"',
     ),
+    "slip": (
+        "relative displacement of two anchors along a fixed direction (default +x), e.g. the slip "
+        "of a bed joint read by anchors one above the other, mm",
+        '{ kind = "slip", p1 = [x1, y1], p2 = [x2, y2], direction = [1.0, 0.0] }',
+    ),
     "dic": (
         "both displacement components on a regular nx × ny grid of points, as digital image "
-        "correlation gives them (mm); channels NAME[i,j]_x / _y",
+        "correlation gives them (mm); channels NAME[i,j].ux / .uy",
         '{ kind = "dic", x0 = 0.0, y0 = 0.0, x1 = 100.0, y1 = 100.0, nx = 5, ny = 5 }',
     ),
 }
+
+
+#: typical range of a parameter in tests of clay-brick masonry: (low, high) in the parameter's unit,
+#: a starting point for the [parameters] bounds of a study (wider than the values of one wall,
+#: narrower than what the model admits). Sources, all collected in ../shared/reference:
+#: flat-jack.md §5.2 (E_b, r_hj, Km, sigma0: prior ranges for sampling), nonlinear-interfaces.md
+#: "Parameters with units" (joint and unit-interface stiffness 10–10³ and 10⁵–10⁶ N/mm³,
+#: strengths, fracture energies, friction, dilatancy, cap). These are literature placeholders
+#: (marked INFERRED there), not measured values of any one specimen.
+TYPICAL_RANGES = {
+    "E_b": (5000.0, 16000.0), "nu_b": (0.1, 0.2), "kN_bj": (10.0, 1000.0), "kV_bj": (10.0, 1000.0),
+    "r_hj": (0.2, 1.0), "kN_bb": (1e5, 1e6), "kV_bb": (1e5, 1e6),
+    "ft_bj": (0.1, 0.9), "c_bj": (0.1, 1.8), "tanphi_bj": (0.6, 1.2), "tanphir_bj": (0.6, 0.9),
+    "GfI_bj": (0.005, 0.02), "GfII_bj": (0.01, 0.25), "tanpsi_bj": (0.0, 0.7), "ft_bb": (1.0, 3.0),
+    "GfI_bb": (0.05, 0.1), "Km": (0.75, 0.95), "sigma0": (0.1, 0.8),
+}
+
+
+def typical_range(name, unit="-"):
+    """``"10–1000 N/mm³"`` for a parameter of :data:`TYPICAL_RANGES`, ``"—"`` for others."""
+    if name not in TYPICAL_RANGES:
+        return "—"
+    lo, hi = (f"{v:.0e}".replace("e+0", "e") if v >= 1e5 else f"{v:g}" for v in TYPICAL_RANGES[name])
+    return f"{lo}–{hi}" + ("" if unit in ("-", "") else f" {unit}")
 
 
 @dataclass(frozen=True)
@@ -73,7 +102,8 @@ class ScenarioDescription:
         return {
             "name": self.name, "summary": self.summary, "load_unit": self.load_unit,
             "load_levels": list(self.load_levels),
-            "parameters": [dataclasses.asdict(p) for p in self.parameters],
+            "parameters": [{**dataclasses.asdict(p), "typical": list(TYPICAL_RANGES[p.name])
+                            if p.name in TYPICAL_RANGES else None} for p in self.parameters],
             "options": {k: list(v) if isinstance(v, tuple) else v for k, v in self.options.items()},
             "sensors": self.sensors, "n_dofs": self.n_dofs,
             "sensor_kinds": {k: {"reads": r, "toml": f} for k, (r, f) in SENSOR_KINDS.items()},
@@ -82,7 +112,7 @@ class ScenarioDescription:
     @classmethod
     def from_dict(cls, d):
         return cls(d["name"], d["summary"], d["load_unit"], tuple(d["load_levels"]),
-                   tuple(ParameterInfo(**p) for p in d["parameters"]),
+                   tuple(ParameterInfo(**{k: v for k, v in p.items() if k != "typical"}) for p in d["parameters"]),
                    {k: tuple(v) if isinstance(v, list) else v for k, v in d["options"].items()},
                    dict(d["sensors"]), int(d["n_dofs"]))
 

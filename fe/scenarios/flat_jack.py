@@ -88,7 +88,7 @@ from ..mesh import BrickWallLayout
 from ..mesh.ring import add_ring
 from ..model import LinearModel
 from ..response import Response
-from ..sensors import DICGrid, Gauge, SlipGauge, sensor_from_dict
+from ..sensors import DICGrid, Gauge, SlipGauge, sensor_from_dict, sensor_table
 from .base import ParameterInfo, Scenario
 from .masonry import MASONRY_PARAMETERS, wall_mesh
 
@@ -306,6 +306,7 @@ class FlatJackOptions:
     ring_layers: int = 6
 
     def __post_init__(self):
+        object.__setattr__(self, "sensors", sensor_table(self.sensors))  # [[sensors]] arrays become a table
         if self.preset not in PRESETS:
             raise ValueError(f"preset must be one of {sorted(PRESETS)}; got {self.preset!r}")
         if self.layout not in LAYOUTS:

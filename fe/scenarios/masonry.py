@@ -16,6 +16,7 @@ from ..elements.interface import IL4, IL6
 from ..elements.quad import QUADS
 from ..materials import D0, D1, plane_stress_coefficients
 from ..mesh import BrickWallLayout, brick_wall
+from ..sensors import sensor_table
 from .base import ParameterInfo
 
 _BIG = 1e9
@@ -90,6 +91,7 @@ class WallOptions:
                                                           for v in self.load_levels):
             raise ValueError(f"load_levels must be at most {MAX_LOAD_LEVELS} finite numbers of magnitude "
                              f"<= {MAX_LOAD:g}; got {str(self.load_levels)[:200]}")
+        object.__setattr__(self, "sensors", sensor_table(self.sensors))  # [[sensors]] arrays become a table
         if self.sensors is not None and not self.sensors:
             raise ValueError("sensors must define at least one sensor (leave it out for the scenario's default set)")
         for name in self.sensors or ():

@@ -33,7 +33,9 @@ __all__ = [
     "configure_logging",
     "confirm_large_job",
     "error_message",
+    "number",
     "os_error_message",
+    "print_findings",
     "user_errors",
 ]
 
@@ -171,6 +173,23 @@ def user_errors():
             MemoryError) as e:
         typer.echo(f"error: {error_message(e)}", err=True)
         raise typer.Exit(code=2) from None
+
+
+def number(value, digits=4):
+    """``value`` with ``digits`` significant digits for a table, without an exponent below 10⁶
+    (``15934``, not ``1.593e+04``), so that the two ends of an interval read alike."""
+    text = f"{value:.{digits}g}"
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
+def print_findings(console, findings):
+    """Print each finding (:class:`~podkrig.online.findings.Finding`) as ``warning: MESSAGE`` and
+    ``what to do: REMEDY`` on a rich ``console``, the texts literally: rich markup would take a
+    bracketed word such as ``[fixed]`` (a study-file table) for a style tag and drop it."""
+    from rich.markup import escape  # rich is imported by the caller's console already
+
+    for f in findings:
+        console.print(f"[bold yellow]warning:[/] {escape(f.message)}\n  what to do: {escape(f.remedy)}")
 
 
 def configure_logging(verbose):

@@ -96,6 +96,7 @@ def _stderr_console():
 def _print_text(out):
     a = out["adequacy"]
     typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}, χ² test at α = {a['alpha']:g})")
+    typer.echo(f"  χ² includes: {a['basis']}; residuals {out['residual_convention']}")
     typer.echo("base fit: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["base"]["parameters"].items()))
     if out["cause"] is not None:
         d = out["detail"]
@@ -120,7 +121,8 @@ def _print_text(out):
     for c in out["candidates"]:
         if c["applicable"]:
             vis = "" if c["visible"] else "  [not visible to these sensors]"
-            typer.echo(f"  {c['name']:22s} {c['p_corrected']:9.3g}  {c['location']}{vis}")
+            sig = "" if c["p_corrected"] < out["alpha"] else "  (not significant)"
+            typer.echo(f"  {c['name']:22s} {c['p_corrected']:9.3g}  {c['location']}{vis}{sig}")
         else:
             typer.echo(f"  {c['name']:22s} not applicable: {c['reason']}")
     typer.echo(f"{out['n_fe_runs']} FE runs in {out['seconds']:.1f} s")

@@ -8,12 +8,20 @@ from pathlib import Path
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
-from podkrig.cli._common import RegionMethod, TableFormat, configure_logging, user_errors
+from podkrig.cli._common import (
+    RegionMethod,
+    TableFormat,
+    configure_logging,
+    number,
+    print_findings,
+    user_errors,
+)
 from podkrig.cli.simulate import parse_assignment
 from podkrig.limits import check_region_samples
-from podkrig.online.findings import inversion_findings, measurement_findings
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement
@@ -120,6 +128,8 @@ class Inversion:
             "intervals": region.to_dict()["intervals"],
             "confidence": region.confidence,
             "chi2_dof": r.chi2_dof,
+            "chi2_basis": r.chi2_basis,
+            "residual_convention": RESIDUAL_CONVENTION,
             "misfit": r.misfit,
             "n_evaluations": r.n_evaluations,
             "seconds": self.seconds,
@@ -310,19 +320,20 @@ def register(app):
 def _print_table(out, report):
     r, region = out.result, out.region
     units = dict(zip(r.free, r.units))
-    table = Table(title=f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, {r.n_evaluations} evaluations, {r.seconds:.2f} s)")
+    table = Table(title=escape(f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, "
+                               f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: {r.chi2_basis}"))
     for col in ("parameter", "best fit", f"{100 * region.confidence:.0f} % region of equivalence", "identified"):
         table.add_column(col, justify="right")
     for j, name in enumerate(r.free):
         lo, hi = region.intervals[name]
         unit = units[name] if units[name] != "-" else ""
-        table.add_row(name, f"{r.x[j]:.5g} {unit}", f"[{lo:.4g}, {hi:.4g}] {unit}", "yes" if region.identifiability[name]["identifiable"] else "NO")
+        table.add_row(name, f"{number(r.x[j], 5)} {unit}", escape(f"[{number(lo)}, {number(hi)}] {unit}"), "yes" if region.identifiability[name]["identifiable"] else "NO")
     console = Console()
     console.print(table)
     if r.fe_check is not None:
-        console.print(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
-                      f"({r.fe_check.max_diff_over_noise:.2f}× the noise)")
-    for f in out.findings:
-        console.print(f"[bold yellow]warning:[/] {f.message}\n  what to do: {f.remedy}")
+        console.print(escape(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
+                             f"({r.fe_check.max_diff_over_noise:.2f}× the noise); χ²/dof of the FE model = "
+                             f"{r.fe_check.chi2_dof_fe:.3g} ({chi2_basis('fe_check')})"))
+    print_findings(console, out.findings)
     if report is not None:
-        console.print(f"report: {report / 'index.html'}")
+        console.print(escape(f"report: {report / 'index.html'}"))

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, confirm_large_job, user_errors
+from podkrig.cli._common import configure_logging, confirm_large_job, number, print_findings, user_errors
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_name, check_output_folder
 
 DEMO_STUDY = "diagonal_compression.toml"
@@ -18,6 +18,7 @@ def examples_dir():
 def _rich_progress():
     """A :class:`podkrig.study.pipeline.Progress` drawing one line or bar per stage on stderr."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -55,10 +56,12 @@ def _rich_progress():
                 self.bar.stop()
                 self.bar = None
             if record.cached:
-                console.print(f"[dim]· {record.title}: cached[/]")
+                console.print(f"[dim]· {escape(record.title)}: cached[/]")
             else:
                 fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
-                console.print(f"[green]✓[/] {record.title}: {record.seconds:.1f} s{fe}")
+                console.print(f"[green]✓[/] {escape(record.title)}: {record.seconds:.1f} s{fe}")
+                for note in record.result.get("notes", ()):  # e.g. a small job run serially, and why
+                    console.print(f"  [dim]{escape(note)}[/]")
 
         def stop(self):
             if self.bar is not None:
@@ -90,20 +93,24 @@ def _run(study_path, out, yes=False):
 
 def _print_summary(result):
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
+
+    from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 
     console = Console()
     inv = result.stage("inversion").result
     region = result.stage("region").result
     held = result.stage("held_out_validation").result
-    table = Table(title=f"{result.study.name}: identified parameters (χ²/dof = {inv['chi2_dof']:.3g})")
+    table = Table(title=escape(f"{result.study.name}: identified parameters (χ²/dof of the surrogate fit = "
+                               f"{inv['chi2_dof']:.3g})"))
     for col in ("parameter", "unit", "best fit", f"{100 * region['confidence']:.0f} % region of equivalence",
                 "identified"):
         table.add_column(col, justify="right")
     for name in region["names"]:
         lo, hi = region["intervals"][name]
         unit = inv["units"][name]
-        table.add_row(name, unit, f"{inv['parameters'][name]:.5g}", f"[{lo:.4g}, {hi:.4g}]",
+        table.add_row(name, unit, number(inv["parameters"][name], 5), escape(f"[{number(lo)}, {number(hi)}]"),
                       "yes" if region["identifiability"][name]["identifiable"] else "NO")
     console.print(table)
     numbers = Table(title="checks")
@@ -118,17 +125,28 @@ def _print_summary(result):
         numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r['cv']):.3g} %")
     if result.study.diagnosis.enabled:
         d = result.stage("diagnosis").result
-        numbers.add_row("model diagnosis", d["verdict"] + (f": {d['cause']}" if d["cause"] else ""))
+        numbers.add_row("model diagnosis", escape(d["verdict"] + (f": {d['cause']}" if d["cause"] else "")))
     console.print(numbers)
+    fits = Table(title=escape(f"χ²/dof: about 1 when a model explains the data within its C_D; residuals "
+                              f"{RESIDUAL_CONVENTION}"))
+    for col, justify in (("model", "right"), ("χ²/dof", "right"), ("χ² includes", "left")):
+        fits.add_column(col, justify=justify)
+    fe = inv["fe_check"]
+    fits.add_row("inversion (surrogate)", f"{inv['chi2_dof']:.3g}", escape(inv.get("chi2_basis", CHI2_BASIS["surrogate"])))
+    if fe is not None:
+        fits.add_row("FE check", f"{fe['chi2_dof_fe']:.3g}", escape(fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"])))
+    if result.study.diagnosis.enabled:
+        a = result.stage("diagnosis").result["adequacy"]
+        fits.add_row("diagnosis (FE refit)", f"{a['chi2_dof']:.3g}", escape(a.get("basis", CHI2_BASIS["diagnosis"])))
+    console.print(fits)
     stages = Table(title="stages")
     for col in ("stage", "this run", "time (s)", "FE runs"):
         stages.add_column(col, justify="right")
     for r in result.stages:
-        stages.add_row(r.title, "cached" if r.cached else "ran", f"{r.seconds:.1f}", str(r.fe_runs))
+        stages.add_row(escape(r.title), "cached" if r.cached else "ran", f"{r.seconds:.1f}", str(r.fe_runs))
     console.print(stages)
-    for w in result.warnings:
-        console.print(f"[bold yellow]warning:[/] {w.message}\n  what to do: {w.remedy}")
-    console.print(f"{result.fe_runs} FE runs in {result.seconds:.1f} s; report: {result.report}")
+    print_findings(console, result.warnings)
+    console.print(escape(f"{result.fe_runs} FE runs in {result.seconds:.1f} s; report: {result.report}"))
 
 
 def register(app):

@@ -8,7 +8,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from fe.scenarios import SCENARIOS
-from fe.scenarios.catalogue import SENSOR_KINDS, describe_scenario
+from fe.scenarios.catalogue import SENSOR_KINDS, describe_scenario, typical_range
 from podkrig.cli._common import user_errors
 
 
@@ -24,10 +24,11 @@ def _print_one(console, d):
     console.print(f"[bold]{d.name}[/bold] — {escape(d.summary)}")
     console.print(f"default mesh: {d.n_dofs} dofs; load levels {_fmt(d.load_levels)} {d.load_unit}")
     t = Table(title=escape("parameters ([parameters] / [fixed] of a study, --set of simulate)"), title_justify="left")
-    for col in ("name", "default", "unit", "admissible", "meaning"):
+    for col in ("name", "default", "unit", "typical", "admissible", "meaning"):
         t.add_column(col, justify="right" if col == "default" else "left")
     for p in d.parameters:
-        t.add_row(p.name, f"{p.default:g}", p.unit, escape(p.admissible_range()), escape(p.description))
+        t.add_row(p.name, f"{p.default:g}", p.unit, escape(typical_range(p.name, p.unit)), escape(p.admissible_range()),
+                  escape(p.description))
     console.print(t)
     t = Table(title=escape("options (keys of the [scenario] table or a spec file; lengths mm)"), title_justify="left")
     t.add_column("option")
@@ -35,12 +36,15 @@ def _print_one(console, d):
     for k, v in d.options.items():
         t.add_row(k, escape(_fmt(v)))
     console.print(t)
-    t = Table(title=escape("default sensors (replace them with a [scenario.sensors] table)"), title_justify="left")
+    t = Table(title=escape("default sensors (replace them with a [scenario.sensors] table or [[scenario.sensors]] "
+                           "entries; docs/scenarios.md)"), title_justify="left")
     t.add_column("name")
     t.add_column("definition (mm)")
     for k, v in d.sensors.items():
         t.add_row(escape(k), escape(json.dumps(v)))
     console.print(t)
+    console.print(escape("typical: a starting range for a study's [parameters] bounds (clay-brick masonry, "
+                         "literature); admissible: what the model accepts."))
     t = Table(title=escape("sensor kinds"), title_justify="left")
     t.add_column("kind")
     t.add_column("reads")
@@ -74,6 +78,8 @@ def register(app):
         for col in ("test", "load unit", "parameters", "default sensors"):
             t.add_column(col)
         for d in descriptions:
-            t.add_row(d.name, escape(d.summary), d.load_unit, ", ".join(p.name for p in d.parameters),
+            names = [p.name for p in d.parameters]
+            t.add_row(d.name, escape(d.summary), d.load_unit,
+                      ", ".join(names[:5]) + (f" … ({len(names)} in all)" if len(names) > 5 else ""),
                       escape(", ".join(list(d.sensors)[:8]) + (" …" if len(d.sensors) > 8 else "")))
         console.print(t)

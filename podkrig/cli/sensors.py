@@ -74,6 +74,7 @@ def register(app):
         # imported here, not at module top: the FE, surrogate and online stacks take ~6.5 s to import
         # (measured under load, 2026-11-24) and every other podkrig command would pay for them
         from rich.console import Console
+        from rich.markup import escape
         from rich.progress import (
             BarColumn,
             MofNCompleteColumn,
@@ -165,7 +166,7 @@ def register(app):
             table.add_column(col)
         for i, c in zip(lay.indices, result.contributions):
             s = result.candidates.sensors[i]
-            table.add_row(s.name, json.dumps(s.to_dict()), f"{c:.4g}")
+            table.add_row(escape(s.name), escape(json.dumps(s.to_dict())), f"{c:.4g}")
         console.print(table)
         comp = Table(title="layouts compared: 95 % interval width, fraction of the box (log10 for log parameters)")
         comp.add_column("layout")

@@ -167,6 +167,13 @@ class FEContext:
         return self._cache[key]
 
 
+def span(axis, bounds, unit="mm"):
+    """``"x 910–1040 mm"`` for a coordinate range, ``"y 1105 mm"`` when both ends agree (to the
+    printed precision): a joint segment along x sits at one y."""
+    lo, hi = (f"{v:g}" for v in bounds)
+    return f"{axis} {lo} {unit}" if lo == hi else f"{axis} {lo}–{hi} {unit}"
+
+
 def _joint_segments(scenario):
     """Group the bed/head interface elements of the scenario's joint parts by the pair of units
     they join (interfaces outside those parts, e.g. a flat-jack slot, belong to no segment)."""
@@ -274,7 +281,7 @@ class WeakJoint(Candidate):
     def locations(self, ctx):
         out = []
         for i, (kind, _, d) in enumerate(ctx.joint_segments()):
-            label = f"{kind} joint between units {d['units'][0]} and {d['units'][1]}, x {d['x'][0]:g}–{d['x'][1]:g} mm, y {d['y'][0]:g}–{d['y'][1]:g} mm"
+            label = f"{kind} joint between units {d['units'][0]} and {d['units'][1]}, {span('x', d['x'])}, {span('y', d['y'])}"
             out.append(Location(f"{kind} {d['units'][0]}|{d['units'][1]}", label, {**d, "segment": i}))
         return out
 

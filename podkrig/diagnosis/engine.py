@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, optimize, stats
 
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.online.invert import invert
 from podkrig.online.problem import InverseProblem, SurrogateModel
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -225,6 +226,7 @@ class Diagnosis:
     n_fe_runs: int
     surrogate_fit: dict
     extended_p_value: float | None = None
+    model_tolerance: float = 0.0
 
     @property
     def fully_explained(self):
@@ -286,6 +288,7 @@ class Diagnosis:
                 "alternatives": [{"name": a.name, "location": dataclasses.asdict(a.location),
                                   "delta_chi2": float(a.delta_chi2)} for a in self.alternatives],
                 "structure": self.structure, "held_out": self.held_out, "surrogate_fit": self.surrogate_fit,
+                "model_tolerance": float(self.model_tolerance),
             }
         return d
 
@@ -314,12 +317,14 @@ class Diagnosis:
             alternatives=[_Alternative(a["name"], Location(**a["location"]), a["delta_chi2"]) for a in s["alternatives"]],
             candidates=candidates, structure=s["structure"], held_out=s["held_out"], seconds=d["seconds"],
             n_fe_runs=d["n_fe_runs"], surrogate_fit=s["surrogate_fit"], extended_p_value=s["extended_p_value"],
+            model_tolerance=float(s.get("model_tolerance", 0.0)),
         )
 
     def _report_dict(self):
         return {
             "verdict": self.verdict,
             "cause": self.cause,
+            "alpha": float(self.alpha),
             "detail": self.detail(),
             "candidates": [c.to_dict() for c in self.candidates],
             "base": self.base.summary(),
@@ -330,7 +335,10 @@ class Diagnosis:
             "adequacy": {
                 "chi2": float(self.base.chi2), "dof": int(self.base.dof), "chi2_dof": float(self.base.chi2_dof),
                 "p_value": float(self.chi2_p_value), "alpha": self.alpha * CHI2_ALPHA_SHARE,
+                "model_tolerance": float(self.model_tolerance),
+                "basis": chi2_basis("diagnosis", self.model_tolerance),
             },
+            "residual_convention": RESIDUAL_CONVENTION,
             "residual_structure": self.structure,
             "scenario": self.scenario.name,
             "sensors": list(self.measurement.sensor_names),
@@ -532,7 +540,9 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=cause, best=best if cause else None,
         alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,
         held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs, extended_p_value=extended_p,
-        surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)}},
+        surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)},
+                       "basis": inv.chi2_basis + " (the diagnosis's own starting surrogate)"},
+        model_tolerance=float(model_tolerance),
     )
 
 

@@ -75,6 +75,15 @@ LOCAL_DASK_CONFIG = {
     "distributed.worker.memory.monitor-interval": "1s",
 }
 MAX_CHUNK = 32
+#: Wall time to start a local cluster of the runner's kind and get its first results, s: the
+#: worker processes start, import podkrig and build the scenario. Measured 2026-11-24 with
+#: ``scripts/bench_local_cluster.py`` on the shared 2-core machine (load 2.4): 2 workers, median
+#: 5.9 s (3.8-10.2 s over 3 starts), shut-down 0.55 s. A job of ``n`` runs of ``t`` s each pays for
+#: a cluster of K workers only when ``n t (1 − 1/K) > LOCAL_CLUSTER_STARTUP_S``: with K = 2 that
+#: is n ≳ 1 750 runs of the coarse diagonal test (6.8 ms/run) and n ≳ 210 runs of the demo mesh
+#: (57 ms/run; end to end 8 runs: 0.46 s serial vs 7.4 s on the cluster, 64 runs: 1.9 vs 7.5 s).
+#: Below it, :func:`run_pending` runs serially and says so in :attr:`RunSummary.executor`.
+LOCAL_CLUSTER_STARTUP_S = 6.0
 
 _SCENARIO_CACHE = {}  # (spec JSON, thread id) -> Scenario: each worker thread builds a scenario once
 _SCENARIO_CACHE_SIZE = 8
@@ -463,10 +472,22 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
         status = store.status()
         todo = np.flatnonzero((status != DONE) if retry_failed else (status != DONE) & (status != FAILED))
         X = store.parameters(physical=True, only_done=False)[todo]
+        n_todo = len(todo)
         executor = "serial"
         n_failed = completed = 0
         client = cluster = results = None
         try:
+            if len(todo) and scheduler is None and workers > 1:
+                probe, executor = _serial_if_small(spec_json, store, todo, X, workers)
+                if probe is not None:  # the first row ran here, to time an FE run
+                    _write(store, probe)
+                    completed, n_failed = len(probe.rows), int((probe.status == FAILED).sum())
+                    if progress is not None:
+                        progress(completed, n_todo)
+                    todo, X = todo[len(probe.rows):], X[len(probe.rows):]
+                    if executor.startswith("serial"):
+                        workers = 1
+                        logger.info("%s", executor)  # the caller shows it (RunSummary.executor)
             if len(todo) and scheduler is None and workers == 1:
                 results = _serial(spec_json, store, todo, X, chunk_size)
             elif len(todo):
@@ -474,17 +495,11 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
                 results = _dask(client, spec_json, store, todo, X, chunk_size, n_workers)
             logger.info("%s: running %d rows on %s", path, len(todo), executor)
             for res in results or ():
-                if res.version != __version__:
-                    raise PodkrigError(
-                        f"a Dask worker runs podkrig {res.version}, this client {__version__}; install "
-                        "the same podkrig version on every worker and rerun (finished rows are kept)"
-                    )
-                store.write_results(res.rows, res.status, res.readings, res.errors, res.wall_times,
-                                    res.fields, res.cpu_times)
+                _write(store, res)
                 completed += len(res.rows)
                 n_failed += int((res.status == FAILED).sum())
                 if progress is not None:
-                    progress(completed, len(todo))
+                    progress(completed, n_todo)
         finally:  # also on Ctrl-C: cancel what is left, stop a local cluster
             if results is not None:
                 results.close()
@@ -494,7 +509,36 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
                 cluster.close()
         counts = store.counts()
     return RunSummary(path, counts["total"], counts["done"], counts["failed"], counts["pending"],
-                      len(todo), n_failed, time.perf_counter() - t0, executor)
+                      n_todo, n_failed, time.perf_counter() - t0, executor)
+
+
+def _write(store, res):
+    if res.version != __version__:
+        raise PodkrigError(
+            f"a Dask worker runs podkrig {res.version}, this client {__version__}; install "
+            "the same podkrig version on every worker and rerun (finished rows are kept)"
+        )
+    store.write_results(res.rows, res.status, res.readings, res.errors, res.wall_times, res.fields, res.cpu_times)
+
+
+def _serial_if_small(spec_json, store, todo, X, workers):
+    """Run the first two pending rows here to time an FE run, and decide whether a local cluster of
+    ``workers`` pays for the rest: the serial time saved, ``n t (1 − 1/K)``, must exceed
+    :data:`LOCAL_CLUSTER_STARTUP_S`. Returns (the first row's :class:`ChunkResult`, the executor
+    text: ``"serial (...)"`` with the reason, or the local cluster's); (None, "") when the cluster
+    start-up is set to 0 (always use the cluster)."""
+    if LOCAL_CLUSTER_STARTUP_S <= 0:
+        return None, ""
+    # two rows: the first FE run in a process also pays one-off set-up (caches, JIT compilation)
+    probe = run_chunk(spec_json, store.space.names, todo[:2], X[:2], store.has_fields)
+    t = float(np.min(probe.wall_times))
+    rest = len(todo) - len(probe.rows)
+    saved = rest * t * (1 - 1 / workers)
+    if saved < LOCAL_CLUSTER_STARTUP_S:
+        return probe, (f"serial: {workers} workers asked, but {len(todo)} runs × {1000 * t:.0f} ms per run would save "
+                       f"{saved:.1f} s on {workers} processes, less than a local cluster takes to start "
+                       f"(≈ {LOCAL_CLUSTER_STARTUP_S:g} s)")
+    return probe, f"local Dask cluster, {workers} workers"
 
 
 def _chunks(todo, X, chunk_size, n_workers):
@@ -508,8 +552,39 @@ def _serial(spec_json, store, todo, X, chunk_size):
         yield run_chunk(spec_json, store.space.names, rows, Xc, store.has_fields)
 
 
+#: top-level loggers of this project (:func:`import_distributed` re-enables them)
+PROJECT_LOGGERS = ("podkrig", "fe")
+#: loggers of Dask and its dependencies, quiet (WARNING and above) unless podkrig logs at DEBUG
+DASK_LOGGERS = ("distributed", "dask", "tornado", "bokeh")
+
+
+def import_distributed():
+    """Import :mod:`distributed` (≈ 0.6 s, so only when a Dask executor is used) and repair what its
+    import does to logging in this process.
+
+    - Importing ``distributed`` configures logging from the Dask config; with a dict-schema
+      ``logging`` config (``version: 1``) that is :func:`logging.config.dictConfig`, which
+      *disables every logger that exists then* — podkrig's and fe's warnings would vanish for the
+      rest of the process. Every disabled ``podkrig.*`` / ``fe.*`` logger is enabled again.
+    - Dask's own loggers print INFO lines (cluster start, worker registration, ...): they are set
+      to WARNING unless podkrig logs at DEBUG (``--verbose``).
+
+    Returns the module.
+    """
+    import distributed  # local: ≈ 0.6 s of imports (measured 2026-11-24) that a serial run never needs
+
+    for name, logger in list(logging.root.manager.loggerDict.items()):
+        if isinstance(logger, logging.Logger) and name.split(".")[0] in PROJECT_LOGGERS:
+            logger.disabled = False
+    if not logging.getLogger("podkrig").isEnabledFor(logging.DEBUG):
+        for name in DASK_LOGGERS:
+            if logging.getLogger(name).getEffectiveLevel() < logging.WARNING:
+                logging.getLogger(name).setLevel(logging.WARNING)
+    return distributed
+
+
 def _dask_client(workers, scheduler):
-    from distributed import Client
+    Client = import_distributed().Client
 
     if scheduler is not None:
         try:
@@ -538,18 +613,20 @@ def start_local_cluster(workers):
     cluster : distributed.LocalCluster
     """
     import dask
-    from distributed import Client, LocalCluster
 
+    distributed = import_distributed()
+    verbose = logging.getLogger("podkrig").isEnabledFor(logging.DEBUG)
     with dask.config.set(LOCAL_DASK_CONFIG):  # read by the scheduler and passed on to the workers
-        cluster = LocalCluster(
+        cluster = distributed.LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-            scheduler_kwargs={"dashboard_address": ":0"}, env=ONE_THREAD_ENV, silence_logs=logging.WARNING,
+            scheduler_kwargs={"dashboard_address": ":0"}, env=ONE_THREAD_ENV,
+            silence_logs=logging.INFO if verbose else logging.WARNING,
         )
-        return Client(cluster), cluster
+        return distributed.Client(cluster), cluster
 
 
 def _dask(client, spec_json, store, todo, X, chunk_size, n_workers):
-    from distributed import as_completed
+    as_completed = import_distributed().as_completed
 
     names = store.space.names
     tag = uuid.uuid4().hex[:8]

@@ -42,6 +42,36 @@ COVERAGE_LIMIT = 0.8
 CONTEXTS = ("cli", "study")
 
 
+def _g(value):
+    """4 significant digits without an exponent below 10⁶ (``15934``, not ``1.593e+04``): both ends
+    of an interval read alike."""
+    text = f"{value:.4g}"
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+#: the one sign convention of standardised residuals, on every page, table and JSON field:
+#: positive where the specimen moved more than the model predicts
+RESIDUAL_CONVENTION = "(measured − model)/σ"
+
+#: what each χ²/dof of a study measures: the model whose readings are compared with the data,
+#: and what the covariance C_D in χ² = rᵀ C_D⁻¹ r holds. Three numbers for "the best fit" differ
+#: for these reasons only (the diagnosis also refits the parameters with the FE model).
+CHI2_BASIS = {
+    "surrogate": "surrogate at its best fit; C_D = data noise C_d + surrogate variance C_T",
+    "surrogate-noise": "surrogate at its best fit; C_D = data noise C_d only",
+    "fe_check": "FE model at the surrogate's best fit; C_D = data noise C_d only",
+    "diagnosis": "FE model refitted by the diagnosis; C_D = data noise C_d + model-form tolerance (ε·d)²",
+}
+
+
+def chi2_basis(kind, model_tolerance=None):
+    """The sentence of :data:`CHI2_BASIS` for ``kind``; for ``"diagnosis"`` with the model-form
+    tolerance ε (relative, -) filled in."""
+    text = CHI2_BASIS[kind]
+    if kind == "diagnosis" and model_tolerance is not None:
+        text = text.replace("(ε·d)²", f"(ε·d)², ε = {100 * model_tolerance:g} % of each reading")
+    return text
+
+
 @dataclass(frozen=True)
 class Finding:
     """A warning in plain words.
@@ -102,9 +132,9 @@ def identifiability_verdict(name, interval, unit, share):
     ok = share <= UNIDENTIFIABLE_SHARE
     unit = unit if unit != "-" else ""
     msg = (
-        f"{name} is identified: [{lo:.4g}, {hi:.4g}] {unit} spans {100 * share:.0f} % of its search range"
+        f"{name} is identified: [{_g(lo)}, {_g(hi)}] {unit} spans {100 * share:.0f} % of its search range"
         if ok else
-        f"{name} is NOT pinned down by these data: values from {lo:.4g} to {hi:.4g} {unit} "
+        f"{name} is NOT pinned down by these data: values from {_g(lo)} to {_g(hi)} {unit} "
         f"({100 * share:.0f} % of its search range) fit equally well; fix it from other tests, "
         "add sensors sensitive to it, or report it as unidentified"
     )
@@ -178,7 +208,7 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
             how = f"--fix {name}=VALUE" if context == "cli" else "[fixed]"
             found.append(Finding(
                 "unidentified", "region",
-                f"{name} is not pinned down by these data: values from {lo:.4g} to {hi:.4g}"
+                f"{name} is not pinned down by these data: values from {_g(lo)} to {_g(hi)}"
                 f"{_unit(units[name])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
                 f"fix {name} from other tests ({how}), add sensors sensitive to it, or report it as unidentified."))
     return found
@@ -291,7 +321,7 @@ def diagnosis_findings(d):
 
 
 __all__ = [
-    "AT_BOUND_SHARE", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding", "UNIDENTIFIABLE_SHARE",
-    "at_bound", "diagnosis_findings", "fe_check_ok", "held_out_findings", "identifiability_verdict",
+    "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding",
+    "RESIDUAL_CONVENTION", "UNIDENTIFIABLE_SHARE", "at_bound", "chi2_basis", "diagnosis_findings", "fe_check_ok", "held_out_findings", "identifiability_verdict",
     "inversion_findings", "offline_findings",
 ]

@@ -19,7 +19,8 @@ from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
-from podkrig.online.findings import at_bound, fe_check_ok
+from podkrig.online._repr import html_table, number
+from podkrig.online.findings import RESIDUAL_CONVENTION, at_bound, chi2_basis, fe_check_ok
 
 logger = logging.getLogger(__name__)
 
@@ -54,7 +55,8 @@ class FECheck:
     def to_dict(self):
         """The numbers, without the FE readings (JSON-able)."""
         return {"max_abs_diff": self.max_abs_diff, "max_diff_over_noise": self.max_diff_over_noise,
-                "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe, "ok": self.ok}
+                "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe,
+                "chi2_dof_fe_basis": chi2_basis("fe_check"), "ok": self.ok}
 
     @classmethod
     def from_dict(cls, d):
@@ -94,6 +96,9 @@ class InverseResult:
     ga : GAResult or None
     fe_check : FECheck or None
         Set by :meth:`with_fe_check`.
+    basis : str or None
+        What :attr:`chi2` includes, as read back by :meth:`from_dict`; None: from the problem
+        (:attr:`chi2_basis`).
     """
 
     x: np.ndarray
@@ -110,6 +115,7 @@ class InverseResult:
     problem: object = None
     ga: object = None
     fe_check: FECheck | None = None
+    basis: str | None = None
 
     @property
     def chi2_dof(self):
@@ -117,9 +123,33 @@ class InverseResult:
         return self.chi2 / max(self.dof, 1)
 
     @property
+    def chi2_basis(self):
+        """What :attr:`chi2` measures: the model (surrogate) and what C_D holds
+        (:data:`~podkrig.online.findings.CHI2_BASIS`)."""
+        if self.basis is not None:
+            return self.basis
+        model_error = True if self.problem is None else bool(self.problem.misfit.model_error)
+        return chi2_basis("surrogate" if model_error else "surrogate-noise")
+
+    @property
     def free_parameters(self):
         """The free parameters at the optimum, ``{name: value}`` physical units."""
         return {n: float(v) for n, v in zip(self.free, self.x)}
+
+    def _repr_html_(self):
+        """The best fit and its χ² (with what it includes) as HTML tables, for Jupyter."""
+        params = html_table(["parameter", "unit", "best fit", "on a bound"],
+                            [[n, u, number(float(v), 6), "yes" if n in self.at_bound else ""]
+                             for n, u, v in zip(self.free, self.units, self.x)],
+                            caption=f"Inversion: {len(self.free)} free parameters, {self.measurement.get('n_obs', '?')} "
+                                    f"readings")
+        rows = [["surrogate", number(self.chi2, 4), self.dof, number(self.chi2_dof, 3), self.chi2_basis]]
+        if self.fe_check is not None:
+            rows.append(["FE check", "—", self.dof, number(self.fe_check.chi2_dof_fe, 3), chi2_basis("fe_check")])
+        fit = html_table(["model", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"], rows,
+                         caption=f"Misfit ω = {number(self.misfit)}; {self.n_evaluations} evaluations in "
+                                 f"{self.seconds:.2f} s; residuals {RESIDUAL_CONVENTION}")
+        return params + fit
 
     def predicted(self):
         """Model prediction at the observed entries, ``(n_loads_obs, n_sensors_obs)`` mm, and its std
@@ -130,19 +160,22 @@ class InverseResult:
         grid = self.problem.measurement.grid
         return grid(mean[0]), None if std is None else grid(std[0])
 
-    def with_fe_check(self, scenario):
-        """This result with :func:`fe_check` against ``scenario`` attached (one FE run)."""
-        return dataclasses.replace(self, fe_check=fe_check(self, scenario))
+    def with_fe_check(self, scenario, response=None):
+        """This result with :func:`fe_check` against ``scenario`` attached (one FE run, or none
+        when ``response``, the scenario's response at :attr:`parameters`, is given)."""
+        return dataclasses.replace(self, fe_check=fe_check(self, scenario, response))
 
     def to_dict(self):
         """JSON-able numbers: ``x``, ``parameters`` (free), ``units``, ``at_bound``, ``misfit``,
-        ``chi2``, ``dof``, ``chi2_dof``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
+        ``chi2``, ``dof``, ``chi2_dof``, ``chi2_basis`` (what the χ² includes),
+        ``residual_convention``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
         return {
             "x": self.x.tolist(),
             "parameters": self.free_parameters,
             "units": dict(zip(self.free, self.units)),
             "at_bound": list(self.at_bound),
             "misfit": self.misfit, "chi2": self.chi2, "dof": self.dof, "chi2_dof": self.chi2_dof,
+            "chi2_basis": self.chi2_basis, "residual_convention": RESIDUAL_CONVENTION,
             "n_evaluations": self.n_evaluations, "seconds": self.seconds,
             "measurement": self.measurement,
             "fe_check": None if self.fe_check is None else self.fe_check.to_dict(),
@@ -156,7 +189,7 @@ class InverseResult:
             np.asarray(d["x"], dtype=float), dict(d["parameters"]), float(d["misfit"]), float(d["chi2"]),
             int(d["dof"]), int(d["n_evaluations"]), float(d["seconds"]), free, tuple(d["units"][n] for n in free),
             tuple(d["at_bound"]), dict(d["measurement"]), problem, ga,
-            None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]),
+            None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]), d.get("chi2_basis"),
         )
 
 
@@ -253,7 +286,7 @@ def _distinct_starts(U, omega, k, min_distance=0.15):
     return U[chosen]
 
 
-def fe_check(result, scenario):
+def fe_check(result, scenario, response=None):
     """One FE run at the optimum: the surrogate-vs-FE difference at the observed entries.
 
     Parameters
@@ -261,13 +294,18 @@ def fe_check(result, scenario):
     result : InverseResult
     scenario : fe.Scenario
         The scenario the surrogate was trained on.
+    response : fe.Response, optional
+        ``scenario.run(result.parameters)`` when the caller ran it already (e.g. with the
+        displacement field for a figure); default: run it here.
 
     Returns
     -------
     FECheck
     """
     problem = result.problem
-    fe = scenario.run(result.parameters).readings.ravel()
+    if response is None:
+        response = scenario.run(result.parameters)
+    fe = response.readings.ravel()
     fe_obs = problem.misfit.observation.apply(fe[None])[0]
     mean, _ = problem.misfit.predict(result.x[None])
     diff = fe_obs - mean[0]

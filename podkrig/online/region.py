@@ -26,6 +26,7 @@ from scipy import stats
 from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.limits import check_confidence, check_region_samples
+from podkrig.online._repr import html_table, number
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, identifiability_verdict
 from podkrig.online.problem import InverseProblem
 
@@ -90,6 +91,16 @@ class Region:
     n_evaluated: int
     seconds: float
     identifiability: dict
+
+    def _repr_html_(self):
+        """The intervals and their identifiability as an HTML table, for Jupyter."""
+        rows = [[n, u, number(float(self.intervals[n][0])), number(float(self.intervals[n][1])),
+                 f"{100 * self.identifiability[n]['share']:.0f}",
+                 "yes" if self.identifiability[n]["identifiable"] else "NO"]
+                for n, u in zip(self.names, self.units)]
+        return html_table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows,
+                          caption=f"Region of equivalence ({self.method}, {100 * self.confidence:.0f} %): "
+                                  f"{len(self.samples)} members of {self.n_evaluated} evaluations")
 
     def to_dict(self, *, members=False):
         """JSON-able summary: ``method``, ``confidence``, ``threshold``, ``intervals``, ``names``,

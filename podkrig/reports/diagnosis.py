@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
-from podkrig.reports.figures import pyplot
+from podkrig.online.findings import RESIDUAL_CONVENTION
+from podkrig.reports.figures import colourbar, pyplot, save
 from podkrig.reports.html import Page, fmt
 
 
@@ -122,9 +123,8 @@ def plot_residuals_on_specimen(diagnosis, path):
         if handles:
             ax.legend(fontsize=7, loc="upper left")
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, ax=axes[0].tolist(), shrink=0.7, label="gauge residual (measured − model)/σ (-)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    colourbar(fig, sm, axes[0].tolist(), shrink=0.7, label=f"gauge residual {RESIDUAL_CONVENTION} (-)")
+    save(fig, path, dpi=110)
     return path
 
 
@@ -147,31 +147,50 @@ def plot_residuals_vs_load(diagnosis, path, max_channels=12):
         ax.axhline(0, color="k", lw=0.6)
         ax.set_title(m.sensor_names[j], fontsize=9)
         ax.set_xlabel(f"load ({diagnosis.scenario.load_unit})")
-        ax.set_ylabel("(measured − model)/σ (-)")
+        ax.set_ylabel(f"{RESIDUAL_CONVENTION} (-)")
     for ax in axes.ravel()[n:]:
         ax.axis("off")
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
 
 
-def plot_candidate_scores(diagnosis, path):
-    """Evidence of each candidate: −log10 of its multiplicity-corrected p-value, with the α line."""
-    plt = pyplot()
+def candidate_evidence(diagnosis):
+    """(name, evidence) of each applicable candidate with some evidence: −log10 of its
+    multiplicity-corrected p-value, capped at 50; empty when no candidate improves the fit at all."""
     cands = [c for c in diagnosis.candidates if c.applicable]
-    scores = [min(-c.log10_p_corrected, 50.0) for c in cands]
-    fig, ax = plt.subplots(figsize=(7, 0.5 * len(cands) + 1.2))
-    colours = ["C3" if (diagnosis.cause == c.name) else "C0" for c in cands]
-    ax.barh([c.name for c in cands][::-1], scores[::-1], color=colours[::-1])
+    scores = [(c.name, min(-c.log10_p_corrected, 50.0)) for c in cands]
+    return scores if any(v > 1e-9 for _, v in scores) else []
+
+
+def plot_candidate_scores(diagnosis, path):
+    """Evidence of each candidate: −log10 of its multiplicity-corrected p-value, with the α line.
+    Returns None (and draws nothing) when no candidate has any evidence
+    (:func:`candidate_evidence` is empty): the page says so in words instead of an empty chart."""
+    scores = candidate_evidence(diagnosis)
+    if not scores:
+        return None
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 0.5 * len(scores) + 1.2))
+    colours = ["C3" if (diagnosis.cause == name) else "C0" for name, _ in scores]
+    ax.barh([n for n, _ in scores][::-1], [v for _, v in scores][::-1], color=colours[::-1])
     ax.axvline(-np.log10(diagnosis.alpha), color="k", ls="--", label=f"α = {diagnosis.alpha:g}")
     ax.set_xlabel("evidence −log10(corrected p) (-), capped at 50")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
+
+
+def fitted_parameter_text(candidate, alpha):
+    """``"f = 0.066 -"`` for a candidate's fitted parameter, with a caveat when the candidate is not
+    significant (its fitted value then only says where the fit went, not that the effect exists)."""
+    par = candidate["parameter"]
+    text = f"{par['name']} = {fmt(par['value'])} {par['unit']}".rstrip(" -")
+    if candidate["p_corrected"] >= alpha:
+        text += " (not significant: not evidence of the effect)"
+    return text
 
 
 def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
@@ -188,6 +207,9 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
         f"{d['n_fe_runs']} FE runs, {d['seconds']:.1f} s.", "meta")
 
     page.heading("Verdict")
+    page.paragraph(f"χ² here: {d['adequacy']['basis']}. The inversion's χ²/dof (surrogate, with its variance C_T) "
+                   "and the FE check's (data noise only) differ from it by what their C_D holds and by the fit.",
+                   "meta")
     if d["verdict"] == "adequate":
         page.success(
             f"The calibrated base model explains the data within the noise: χ²/dof = {d['adequacy']['chi2_dof']:.2f} "
@@ -217,9 +239,11 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
                 "add a sensor that separates them (e.g. near the named location) or inspect both on the specimen.")
 
     page.heading("Residuals on the specimen")
+    panels = ("left the calibrated base model, right the extended model with the named cause marked"
+              if diagnosis.extended is not None else "the calibrated base model (no cause named, so no extended model)")
     page.figure(Path(plot_residuals_on_specimen(diagnosis, out / "residuals_specimen.png")).name,
-                "Standardised residuals (measured − model)/σ at the highest load: gauges coloured, displacement pairs as arrows; "
-                "left the calibrated base model, right the extended model with the named cause marked.")
+                f"Standardised residuals {RESIDUAL_CONVENTION} at the highest load: gauges coloured, displacement pairs "
+                f"as arrows; {panels}.")
     page.figure(Path(plot_residuals_vs_load(diagnosis, out / "residuals_load.png")).name,
                 "Standardised residuals against load for the channels with the largest base residuals (grey band: ±2σ).")
     st = d["residual_structure"]
@@ -230,15 +254,22 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
                caption="Where the base model's residual sits (largest shares first).")
 
     page.heading("Candidate causes")
-    page.figure(Path(plot_candidate_scores(diagnosis, out / "candidates.png")).name,
-                "Evidence for each candidate at its best location; bars beyond the dashed line are significant.")
+    scores = plot_candidate_scores(diagnosis, out / "candidates.png")
+    if scores is None:
+        (out / "candidates.png").unlink(missing_ok=True)  # a chart of an earlier run must not stay beside the page
+        page.paragraph("Nothing significant: no candidate cause improves the fit at all (every Δχ² is 0), so there "
+                       "is no evidence to chart.")
+    else:
+        page.figure(Path(scores).name,
+                    "Evidence for each candidate at its best location; bars beyond the dashed line are significant.")
+        if d["cause"] is None:
+            page.paragraph(f"Nothing significant: no bar reaches the dashed line (α = {diagnosis.alpha:g}).")
     crow = []
     for c in d["candidates"]:
         if not c["applicable"]:
             crow.append([c["name"], "not applicable: " + c["reason"], "", "", "", "", ""])
             continue
-        par = c["parameter"]
-        crow.append([c["name"], c["location"], f"{par['name']} = {fmt(par['value'])} {par['unit']}", c["n_locations"],
+        crow.append([c["name"], c["location"], fitted_parameter_text(c, diagnosis.alpha), c["n_locations"],
                      fmt(c["delta_chi2"]), f"{c['p_corrected']:.2g}",
                      "yes" if c["visible"] else "no: these sensors cannot see it"])
     page.table(["candidate", "best location", "fitted parameter", "locations tried", "Δχ² (-)", "corrected p (-)",
@@ -254,7 +285,8 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
         e = d["extended"]
         rows.append(["extended", ", ".join(f"{k} = {fmt(v)}" for k, v in e["parameters"].items()) + f"; effect {fmt(e['effect'])}",
                      fmt(e["chi2"]), fmt(e["chi2_dof"]), fmt(e["aic"]), fmt(e["bic"])])
-    page.table(["model", "parameters (N/mm³, MPa, -)", "χ² (-)", "χ²/dof (-)", "AIC (-)", "BIC (-)"], rows)
+    page.table(["model", "parameters (N/mm³, MPa, -)", "χ² (-)", "χ²/dof (-)", "AIC (-)", "BIC (-)"], rows,
+               caption=f"FE fits of the diagnosis; χ² includes: {d['adequacy']['basis']}")
     g = d["gain"]
     if g is not None and "held_out" in g:
         h = g["held_out"]

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
-from podkrig.reports.figures import pyplot
+from podkrig.reports.fields import plot_deformed_field, plot_load_readings
+from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
 
 _SLOT_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
@@ -94,15 +95,15 @@ def plot_setup(scenario, path):
             ax.set_xlim(x0, x1)
             ax.set_ylim(y0, y1)
             ax.set_title("test region")
-            ax.legend(fontsize=7, loc="upper right")
+            if ax.get_legend_handles_labels()[0]:  # slots and jacks, when the test has them
+                ax.legend(fontsize=7, loc="upper right")
         else:
             (x0, y0), (x1, y1) = mesh.nodes.min(axis=0), mesh.nodes.max(axis=0)
             ax.set_xlim(x0 - 20, x1 + 20)
             ax.set_ylim(y0 - 20, y1 + 20)
             ax.set_title(f"{scenario.name}: {x1 - x0:g} × {y1 - y0:g} mm")
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path, dpi=130)
     return Path(path)
 
 
@@ -140,8 +141,7 @@ def plot_readings(scenario, response, path):
     ax.set_ylabel("reading since the pre-cut state (µm)" if getattr(scenario, "steps", None) else "reading (µm)")
     ax.legend(fontsize=7, ncol=2 if len(gauge_names) > 9 else 1, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
     return Path(path)
 
 
@@ -181,8 +181,7 @@ def plot_deformed(scenario, response, path, step=-1, scale=None):
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     fig.tight_layout()
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
+    save(fig, path, dpi=130)
     return Path(path)
 
 
@@ -193,15 +192,23 @@ def write_simulation_report(scenario, response, values, out_dir, *, seconds=None
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    figures = [("The specimen: joints, supports, slots and jacks (loaded length shaded), sensors.", plot_setup(scenario, out / "setup.png")),
-               ("Readings per step.", plot_readings(scenario, response, out / "readings.png"))]
     steps = getattr(scenario, "steps", None)
-    phases = [s.phase for s in steps] if steps else []
-    shown = sorted({len(phases) - 1 - phases[::-1].index(p) for p in dict.fromkeys(phases)}) if steps else [len(response.load_levels) - 1]
-    for i in shown:
-        name = f"deformed_step{int(response.load_levels[i])}.png"
-        figures.append((f"Deformed shape at the last step of phase {phases[i]}." if steps else "Deformed shape at the last load level.",
-                        plot_deformed(scenario, response, out / name, step=i)))
+    drawn = "joints, supports, slots and jacks (loaded length shaded), sensors" if getattr(scenario, "slots", ()) \
+        else "joints, supports and sensors"
+    figures = [(f"The specimen: {drawn}; right the test region enlarged.", plot_setup(scenario, out / "setup.png"))]
+    if steps:
+        figures.append(("Readings per step.", plot_readings(scenario, response, out / "readings.png")))
+        phases = [s.phase for s in steps]
+        for i in sorted({len(phases) - 1 - phases[::-1].index(p) for p in dict.fromkeys(phases)}):
+            name = f"deformed_step{int(response.load_levels[i])}.png"
+            figures.append((f"Deformed shape at the last step of phase {phases[i]}.",
+                            plot_deformed(scenario, response, out / name, step=i)))
+    else:  # a linear test at load levels: readings with load up, the whole specimen deformed
+        figures.append(("Readings (mm) across, load up, one line per sensor.",
+                        plot_load_readings(response, out / "readings.png")))
+        figures.append((("At the highest load: left the deformed mesh (magnified, with a length and a "
+                         "displacement scale bar), right the displacement magnitude |u| (mm)."),
+                        plot_deformed_field(scenario, response.field, out / "deformed.png")))
     page = Page(f"podkrig simulate {scenario.name}")
     page.paragraph(f"{scenario.n_dofs} dofs" + (f", {seconds:.3f} s" if seconds is not None else "") + "; readings in mm"
                    + (", since the pre-cut state (gauges zeroed before the cut)." if steps else "."))

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from podkrig.reports.figures import colourbar
+
 __all__ = ["plot_history", "plot_parameters", "plot_statistics"]
 
 
@@ -136,14 +138,15 @@ def plot_parameters(result, axes=None, *, log=None, xscale=None):
     use_log = _use_log(f, log)
     units = result.parameter_units
     for i, ax in enumerate(axes):
-        ax.scatter(result.X_history[:, i], f, s=5, alpha=0.4, c=result.generation_history,
-                   cmap="viridis")
+        points = ax.scatter(result.X_history[:, i], f, s=5, alpha=0.4, c=result.generation_history,
+                            cmap="viridis")
         ax.axvline(result.x[i], color="k", lw=0.8, ls="--")
-        unit = f" [{units[i]}]" if units is not None and units[i] else ""
+        unit = f" ({units[i]})" if units is not None and units[i] else ""  # "(unit)" as on every report axis
         ax.set_xlabel(f"{result.parameter_names[i]}{unit}")
         ax.set_ylabel("objective f")
         if use_log:
             ax.set_yscale("log")
         if xscale is not None:
             ax.set_xscale(xscale[i])
+    colourbar(axes[0].figure, points, list(axes), label="generation", shrink=0.9)  # one scale for every panel
     return axes

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.online.findings import inversion_findings
-from podkrig.reports.figures import pyplot
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings
+from podkrig.reports.figures import pyplot, save
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 from podkrig.reports.html import Page, fmt
 
@@ -18,8 +18,25 @@ def _label(name, unit):
     return f"{name} ({unit})" if unit and unit != "-" else f"{name} (-)"
 
 
+def log_axis(ax, which, lo, hi):
+    """Put the ``which`` ("x" or "y") axis of ``ax``, a log-sampled parameter spanning
+    [``lo``, ``hi``], on a log scale;
+    over less than a decade, with 4 plain-number ticks (the default labels every minor tick in
+    ``a × 10^b`` form, which overlap)."""
+    from matplotlib import ticker  # matplotlib is imported by the figure being drawn
+
+    getattr(ax, f"set_{which}scale")("log")
+    axis = getattr(ax, f"{which}axis")
+    if hi < 10 * lo:
+        axis.set_major_locator(ticker.MaxNLocator(4))
+        axis.set_minor_locator(ticker.NullLocator())
+        axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:.4g}"))
+
+
 def plot_fit(result, path, *, load_unit="kN"):
-    """Measured vs predicted readings per sensor against load, with ±2σ noise bars."""
+    """Measured and fitted readings per sensor, load on the vertical axis (the convention of test
+    reports: reading (mm) across, load up), measured with ±2σ noise bars, the calibrated surrogate
+    as a line with its ±2σ band."""
     plt = pyplot()
     meas = result.problem.measurement
     pred, std = result.predicted()
@@ -28,42 +45,47 @@ def plot_fit(result, path, *, load_unit="kN"):
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+    load = np.asarray(meas.load_levels, float)
     for j, name in enumerate(meas.sensor_names):
         ax = axes.flat[j]
-        ax.errorbar(meas.load_levels, meas.values[:, j], yerr=2 * sd[:, j], fmt="o", color="k", ms=4, capsize=3, label="measured ±2σ noise")
-        ax.plot(meas.load_levels, pred[:, j], "-", color="tab:red", label="calibrated model")
+        ax.errorbar(meas.values[:, j], load, xerr=2 * sd[:, j], fmt="o", color="k", ms=4, capsize=3,
+                    label="measured ±2σ noise")
+        ax.plot(pred[:, j], load, "-", color="tab:red", label="calibrated model (surrogate)")
         if std is not None:
-            ax.fill_between(meas.load_levels, pred[:, j] - 2 * std[:, j], pred[:, j] + 2 * std[:, j], color="tab:red", alpha=0.2, label="surrogate ±2σ")
+            ax.fill_betweenx(load, pred[:, j] - 2 * std[:, j], pred[:, j] + 2 * std[:, j], color="tab:red",
+                             alpha=0.2, label="surrogate ±2σ")
         ax.set_title(name)
-        ax.set_xlabel(f"load ({load_unit})")
-        ax.set_ylabel("reading (mm)")
+        ax.set_xlabel(f"{name} reading (mm)")
+        ax.set_ylabel(f"load ({load_unit})")
+        ax.locator_params(axis="x", nbins=4)  # µm-size readings: few, readable ticks
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
 
 
 def plot_residuals(result, path, *, load_unit="kN"):
-    """Standardised residuals (model − measured)/σ per sensor and load level, as a heat map."""
+    """Standardised residuals (measured − model)/σ (:data:`RESIDUAL_CONVENTION`) per sensor and load
+    level, as a heat map with its colour bar."""
     plt = pyplot()
     meas = result.problem.measurement
     pred, _ = result.predicted()
     sd = meas.grid(result.problem.misfit.noise_std)  # NaN where a reading is missing
-    z = (pred - meas.values) / sd
+    z = (meas.values - pred) / sd
     fig, ax = plt.subplots(figsize=(1.2 + 0.9 * len(meas.sensor_names), 1.2 + 0.5 * len(meas.load_levels)))
     lim = max(3.0, float(np.abs(z).max()))
     im = ax.imshow(z, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
     ax.set_xticks(range(len(meas.sensor_names)), meas.sensor_names, rotation=45)
-    ax.set_yticks(range(len(meas.load_levels)), [f"{v:g} {load_unit}" for v in meas.load_levels])
-    for (i, j), v in np.ndenumerate(z):
-        ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7)
-    fig.colorbar(im, ax=ax, label="(model − measured)/σ (-)")
+    ax.set_yticks(range(len(meas.load_levels)),
+                  [f"step {v:g}" if load_unit == "step" else f"{v:g} {load_unit}" for v in meas.load_levels])
+    for (i, j), v in np.ndenumerate(z):  # white on the dark ends of the scale
+        ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7, color="w" if abs(v) > 0.6 * lim else "k")
+    fig.colorbar(im, ax=ax, label=f"{RESIDUAL_CONVENTION} (-)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
 
 
@@ -79,9 +101,9 @@ def plot_region(region, path, *, best=None, truth=None, posterior=None, space=No
     cols = min(len(pairs), 3)
     rows = int(np.ceil(len(pairs) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.6 * rows), squeeze=False)
-    # a log axis only where the region spans a factor > 3 (narrow log axes have unreadable ticks)
+    # a log axis for every parameter sampled on a log scale (the axis the search and the region live on)
     scales = space.scales if space is not None else ["linear"] * p
-    log = [sc == "log" and X[:, k].min() > 0 and X[:, k].max() / X[:, k].min() > 3 for k, sc in enumerate(scales)]
+    log = [sc == "log" and X[:, k].min() > 0 for k, sc in enumerate(scales)]
     for ax, (i, j) in zip(axes.flat, pairs):
         if i == j:
             ax.hist(X[:, i], bins=40, color="0.6")
@@ -96,17 +118,16 @@ def plot_region(region, path, *, best=None, truth=None, posterior=None, space=No
                 ax.plot(truth[i], truth[j], "kx", ms=9, mew=2, label="truth")
             ax.set_ylabel(_label(region.names[j], region.units[j]))
             if log[j]:
-                ax.set_yscale("log")
+                log_axis(ax, "y", X[:, j].min(), X[:, j].max())
         ax.set_xlabel(_label(region.names[i], region.units[i]))
         if log[i]:
-            ax.set_xscale("log")
+            log_axis(ax, "x", X[:, i].min(), X[:, i].max())
     for ax in list(axes.flat)[len(pairs):]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=7, markerscale=2)
     fig.suptitle(f"region of equivalence ({region.method}, {len(region.samples)} members of {region.n_evaluated} evaluated)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
 
 
@@ -129,8 +150,7 @@ def plot_rvc(rvc_results, path):
     ax.set_ylabel("output / mean over the region (-)")
     ax.set_title("response variability over the region of equivalence (RVC)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
 
 
@@ -176,20 +196,25 @@ def write_inversion_report(out_dir, result, region, *, posterior=None, rvc_resul
         rows.append([f"{name} ({units[name]})", fmt(result.x[j]), f"[{fmt(lo)}, {fmt(hi)}]", post, verdict])
     page.table(["parameter (unit)", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",
                 "MCMC credible interval", "verdict"], rows)
-    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "evaluations", "seconds (s)"],
-               [[fmt(result.misfit), fmt(result.chi2), result.dof, fmt(result.chi2_dof), result.n_evaluations, fmt(result.seconds, 3)]])
+    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "χ² includes", "evaluations", "seconds (s)"],
+               [[fmt(result.misfit), fmt(result.chi2), result.dof, fmt(result.chi2_dof), result.chi2_basis,
+                 result.n_evaluations, fmt(result.seconds, 3)]])
 
     page.heading("Fit to the measurements")
     page.figure(Path(plot_fit(result, out / "fit.png", load_unit=load_unit)).name,
-                "Measured readings (±2σ noise) and the calibrated model (mm) against load.")
+                "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: reading (mm) "
+                "across, load up, one panel per sensor.")
     page.figure(Path(plot_residuals(result, out / "residuals.png", load_unit=load_unit)).name,
-                "Standardised residuals (model − measured)/σ per sensor and load level.")
+                f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, per sensor and load "
+                "level, with their colour scale.")
 
     fe = result.fe_check
     if fe is not None:
         page.heading("FE check at the optimum")
-        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)", "χ²/dof of the FE model (-)"],
-                   [[fmt(fe.max_abs_diff), fmt(fe.max_diff_over_noise), fmt(fe.rel_diff), fmt(fe.chi2_dof_fe)]])
+        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
+                    "χ²/dof of the FE model (-)", "χ² includes"],
+                   [[fmt(fe.max_abs_diff), fmt(fe.max_diff_over_noise), fmt(fe.rel_diff), fmt(fe.chi2_dof_fe),
+                     chi2_basis("fe_check")]])
         if fe.ok:
             page.success("The surrogate agrees with the FE model at the optimum within the measurement noise.")
 
@@ -221,7 +246,7 @@ def write_inversion_report(out_dir, result, region, *, posterior=None, rvc_resul
     page.heading("Genetic algorithm")
     page.figure(Path(plot_ga_history(result.ga, out / "ga_history.png")).name,
                 "Every evaluated individual's misfit by generation, and population statistics (thesis Fig. 3.17).")
-    page.figure(Path(plot_ga_parameters(result.ga, out / "ga_parameters.png")).name,
+    page.figure(Path(plot_ga_parameters(result.ga, out / "ga_parameters.png", problem.free_space)).name,
                 "Parameter values of evaluated individuals against misfit (thesis Fig. 3.23).")
     return page.write(out / "index.html")
 
@@ -233,15 +258,14 @@ def plot_ga_history(ga, path):
     plot_history(ga, ax=axes[0])
     plot_statistics(ga, ax=axes[1])
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return path
 
 
-def plot_ga_parameters(ga, path):
-    """Parameter values of the GA's evaluated individuals against their misfit."""
-    plt = pyplot()
-    fig = np.ravel(plot_parameters(ga))[0].figure
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+def plot_ga_parameters(ga, path, space=None):
+    """Parameter values of the GA's evaluated individuals against their misfit, coloured by
+    generation; a log axis for each parameter the search space samples on a log scale."""
+    pyplot()
+    fig = np.ravel(plot_parameters(ga, xscale=None if space is None else list(space.scales)))[0].figure
+    save(fig, path, dpi=110)
     return path

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.reports.figures import pyplot
+from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
 
 
@@ -29,8 +29,7 @@ def plot_load_displacement(scenario, response, path):
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
     return path
 
 
@@ -68,8 +67,7 @@ def plot_deformed_mesh(scenario, response, path, level=-1, magnification=None):
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
     return path
 
 

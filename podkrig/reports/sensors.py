@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from podkrig.reports.figures import pyplot
+from podkrig.reports.figures import pyplot, save
 
 
 def plot_layout(result, path, *, show_candidates=True):
@@ -53,8 +53,7 @@ def plot_layout(result, path, *, show_candidates=True):
     ax.set_title(f"{result.base_spec.scenario}: chosen {len(result.layout.indices)} sensors (solid, coloured), "
                  "current (dashed)", fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)
     return path
 
 

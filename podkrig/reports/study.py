@@ -6,9 +6,15 @@ Presentation only: :func:`write_study_report` reads the stage manifests of
 and draws nothing (the figures are stage outputs, already in the report folder).
 """
 
+import base64
+import html
 import json
 import math
+from pathlib import Path
 
+from podkrig.diagnosis.engine import CHI2_ALPHA_SHARE
+from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION, chi2_basis
+from podkrig.reports.diagnosis import fitted_parameter_text
 from podkrig.reports.html import Page, fmt
 
 #: report sections: (anchor, heading), in page order
@@ -92,7 +98,7 @@ def write_study_report(path, study, records, warnings):
     section("held-out")
     _held_out(page, res["held_out_validation"])
     section("inversion")
-    _inversion(page, res["inversion"])
+    _inversion(page, res["inversion"], "report/deformed.png" in stages["inversion"].manifest["outputs"])
     section("region")
     _region(page, res["region"])
     section("rvc")
@@ -102,6 +108,33 @@ def write_study_report(path, study, records, warnings):
     section("provenance")
     _provenance(page, records)
     return page.write(path)
+
+
+def study_summary_html(name, res, warnings, report, figures):
+    """An HTML fragment summarising a study (Jupyter's view of a StudyResult): the identified
+    parameters with their region, every χ²/dof with its model and covariance, the warnings, and
+    ``figures`` of the report folder inline (base64 PNG)."""
+    e = html.escape
+    inv, region = res["inversion"], res["region"]
+    rows = "".join(
+        f"<tr><td>{e(n)}</td><td>{e(_unit(inv['units'][n]))}</td><td>{_num(inv['parameters'][n])}</td>"
+        f"<td>[{_num(region['intervals'][n][0])}, {_num(region['intervals'][n][1])}]</td>"
+        f"<td>{'yes' if region['identifiability'][n]['identifiable'] else 'NO'}</td></tr>" for n in region["names"])
+    parts = [f"<h3>podkrig study: {e(name)}</h3>",
+             ("<table><thead><tr><th>parameter</th><th>unit</th><th>best fit</th>"
+              f"<th>region of equivalence ({100 * region['confidence']:.0f} %)</th><th>identified</th></tr></thead>"
+              f"<tbody>{rows}</tbody></table>"),
+             "<table><thead><tr><th>χ²/dof of</th><th>value</th><th>χ² includes</th></tr></thead><tbody>"
+             + "".join(f"<tr><td>{e(m)}</td><td>{v}</td><td>{e(b)}</td></tr>" for m, v, b, _ in chi2_rows(res))
+             + "</tbody></table>",
+             f"<p>Residuals {e(RESIDUAL_CONVENTION)}. Full report: <code>{e(str(report))}</code></p>"]
+    parts += [f"<p><b>warning:</b> {e(w.message)}<br><b>what to do:</b> {e(w.remedy)}</p>" for w in warnings]
+    folder = Path(report).parent
+    for f in figures:
+        if (folder / f).is_file():
+            data = base64.b64encode((folder / f).read_bytes()).decode("ascii")
+            parts.append(f'<img src="data:image/png;base64,{data}" alt="{e(f)}" style="max-width:100%">')
+    return "\n".join(parts)
 
 
 def _summary(page, study, res, warnings):
@@ -118,8 +151,8 @@ def _summary(page, study, res, warnings):
                 f"region of equivalence ({100 * region['confidence']:.0f} %)", "identified",
                 "share of search range (%)"], rows, caption="Identified parameters")
     fe = inv["fe_check"]
-    numbers = [
-        ["χ²/dof at the best fit (-)", _num(inv["chi2_dof"], 3), "about 1 when the model explains the data within the noise"],
+    numbers = [[f"χ²/dof, {model} (-)", value, f"{basis}; {note}"] for model, value, basis, note in chi2_rows(res)]
+    numbers += [
         ["surrogate median error on held-out FE runs (%)", _pct(held["rel_error"]["median"]),
          f"{held['n_held_out']} runs, {held['n_train']} training snapshots, {held['n_modes']} POD modes"],
         ["max |FE − surrogate| at the best fit / noise σ (-)", _num(fe["max_diff_over_noise"], 3) if fe else "—",
@@ -129,6 +162,10 @@ def _summary(page, study, res, warnings):
         numbers.append([f"largest output CV over the region, {model} (%)", _pct(max(r["cv"])),
                         f"{len(r['outputs'])} outputs, {r['n_samples']} members of the region"])
     page.table(["quantity", "value", "note"], numbers, caption="Key numbers")
+    page.paragraph("Each χ²/dof is about 1 when its model explains the data within what its C_D allows; they differ "
+                   "because they compare different models (surrogate or FE, fitted by the inversion or refitted by "
+                   "the diagnosis) with the data under different covariances C_D. Residuals everywhere in this report "
+                   f"are {RESIDUAL_CONVENTION}: positive where the specimen moved more than the model.", "meta")
     if warnings:
         page.paragraph(f"{len(warnings)} warning(s), each in its section below:")
         for w in warnings:
@@ -136,6 +173,25 @@ def _summary(page, study, res, warnings):
     else:
         page.success("No warnings: the surrogate is accurate enough for the data, the calibrated model explains "
                      "the measurements within the noise, and every free parameter is identified.")
+
+
+def chi2_rows(res):
+    """The χ²/dof of a study, each with its model and what its covariance includes: rows of
+    (model, value text, basis, note) for the inversion (surrogate), the FE check and the
+    diagnosis's FE refit, those that ran."""
+    inv = res["inversion"]
+    rows = [("inversion (surrogate)", _num(inv["chi2_dof"], 3), inv.get("chi2_basis", CHI2_BASIS["surrogate"]),
+             f"dof = {inv['dof']}; the number the inversion minimised")]
+    fe = inv["fe_check"]
+    if fe is not None:
+        rows.append(("FE check", _num(fe["chi2_dof_fe"], 3), fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"]),
+                     "no surrogate error: only the FE model against the data"))
+    d = res.get("diagnosis")
+    if d is not None:
+        a = d["adequacy"]
+        rows.append(("diagnosis (FE refit)", _num(a["chi2_dof"], 3),
+                     a.get("basis", chi2_basis("diagnosis")), f"dof = {a['dof']}; p = {_num(a['p_value'], 3)}"))
+    return rows
 
 
 def _study(page, study):
@@ -209,7 +265,7 @@ def _held_out(page, r):
     page.figure("predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
 
 
-def _inversion(page, r):
+def _inversion(page, r, deformed):
     m = r["measurement"]
     page.paragraph(
         f"Data: {m['file']} ({m['n_obs']} readings: gauges {', '.join(m['sensors'])} at "
@@ -217,21 +273,29 @@ def _inversion(page, r):
     )
     page.table(["parameter", "unit", "best fit"],
                [[n, _unit(r["units"][n]), _num(v)] for n, v in r["parameters"].items()])
-    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "surrogate evaluations", "time (s)"],
-               [[_num(r["misfit"]), _num(r["chi2"]), r["dof"], _num(r["chi2_dof"], 3), r["n_evaluations"],
-                 _num(r["seconds"], 3)]])
+    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "χ² includes", "surrogate evaluations",
+                "time (s)"],
+               [[_num(r["misfit"]), _num(r["chi2"]), r["dof"], _num(r["chi2_dof"], 3),
+                 r.get("chi2_basis", CHI2_BASIS["surrogate"]), r["n_evaluations"], _num(r["seconds"], 3)]])
     fe = r["fe_check"]
     if fe is not None:
         page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
-                    "χ²/dof of the FE model (-)"],
+                    "χ²/dof of the FE model (-)", "χ² includes"],
                    [[_num(fe["max_abs_diff"], 3), _num(fe["max_diff_over_noise"], 3), _num(fe["rel_diff"], 3),
-                     _num(fe["chi2_dof_fe"], 3)]], caption="FE check at the best fit")
+                     _num(fe["chi2_dof_fe"], 3), fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"])]],
+                   caption="FE check at the best fit")
         if fe["ok"]:
             page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
-    page.figure("fit.png", "Measured readings (±2σ noise) and the calibrated model against load (mm).")
-    page.figure("residuals.png", "Standardised residuals (model − measured)/σ per gauge and load level (-).")
+    page.figure("fit.png", "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: reading "
+                           "(mm) across, load up, one panel per gauge.")
+    page.figure("residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, "
+                                 "per gauge and load level, with their colour scale (-).")
+    if deformed:
+        page.figure("deformed.png", "FE model at the best fit, last load level: left the deformed mesh (magnified, with a "
+                                    "length and a displacement scale bar), right the displacement magnitude |u| (mm).")
     page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics.")
-    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit.")
+    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, coloured by "
+                                     "generation (log axes for log-sampled parameters).")
 
 
 def _region(page, r):
@@ -279,6 +343,7 @@ def _diagnosis(page, r):
     a = r["adequacy"]
     adequacy = f"{_num(a['chi2_dof'], 3)} (p = {_num(a['p_value'], 3)}, significance level {a['alpha']:g})"
     rows = [["verdict", r["verdict"]], ["χ²/dof of the FE model at the base fit (-)", adequacy],
+            ["χ² includes", a.get("basis", chi2_basis("diagnosis"))],
             ["cause", r["cause"] or "none"]]
     d = r["detail"]
     if d:
@@ -298,9 +363,17 @@ def _diagnosis(page, r):
         page.success("The calibrated model explains the data within the noise; no candidate cause improves the fit "
                      "significantly.")
     cands = [c for c in r["candidates"] if c["applicable"]]
-    page.table(["candidate cause", "best location", "Δχ² (-)", "corrected p (-)"],
-               [[c["name"], c["location"] or "—", _num(c["delta_chi2"], 3), _num(c["p_corrected"], 3)] for c in cands],
-               caption="Candidate causes, as ranked by the diagnosis")
+    alpha = r.get("alpha", r["adequacy"]["alpha"] / CHI2_ALPHA_SHARE)  # candidates' α (older manifests lack it)
+    if not cands:
+        page.paragraph("No candidate cause applies to this scenario and these sensors.")
+    else:
+        if r["cause"] is None:
+            page.paragraph(f"Nothing significant: no candidate cause improves the fit beyond chance (every corrected "
+                           f"p ≥ α = {alpha:g}); the fitted values below only show where each fit went.")
+        page.table(["candidate cause", "best location", "fitted parameter", "Δχ² (-)", "corrected p (-)"],
+                   [[c["name"], c["location"] or "—", fitted_parameter_text(c, alpha), _num(c["delta_chi2"], 3),
+                     _num(c["p_corrected"], 3)] for c in cands],
+                   caption="Candidate causes, as ranked by the diagnosis")
     page.links([("diagnosis/index.html",
                  "The diagnosis report: residuals on the specimen and against load, candidate scores, before and after")])
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.reports.figures import pyplot
+from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
 
 logger = logging.getLogger(__name__)
@@ -32,8 +32,7 @@ def plot_energy(pod, path):
     ax.set_title("POD energy decay")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return Path(path)
 
 
@@ -54,8 +53,7 @@ def plot_reading_modes(pod, sensor_names, load_levels, load_unit, path, n_show=4
         ax.axhline(0, color="k", lw=0.5)
     axes[0, 0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return Path(path)
 
 
@@ -76,8 +74,7 @@ def plot_field_modes(pod, nodes, path, n_show=3, load_index=-1):
         ax.set_ylabel("y (mm)")
         fig.colorbar(sc, ax=ax, label="|mode| (mm per unit coefficient)", shrink=0.8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return Path(path)
 
 
@@ -100,8 +97,7 @@ def plot_error_histograms(errors_by_label, path):
         ax.legend(fontsize=7)
     axes[-1, 0].set_xlabel(r"held-out relative error $\|\hat y - y\| / \|y\|$ (-)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return Path(path)
 
 
@@ -121,8 +117,7 @@ def plot_predicted_vs_fe(report, path, unit="mm"):
     ax.set_title("held-out outputs")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, dpi=110)
     return Path(path)
 
 

@@ -18,10 +18,16 @@ from pathlib import Path
 
 from podkrig import __version__
 from podkrig.online.findings import (
-    diagnosis_findings, held_out_findings, inversion_findings, measurement_findings, offline_findings,
+    CHI2_BASIS,
+    RESIDUAL_CONVENTION,
+    diagnosis_findings,
+    held_out_findings,
+    inversion_findings,
+    measurement_findings,
+    offline_findings,
 )
 from podkrig.online.invert import InverseResult
-from podkrig.reports.study import write_study_report
+from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
 from podkrig.study.cache import Progress, StageRecord, now, write_json
 
@@ -64,6 +70,15 @@ class StudyResult:
     def fe_runs(self):
         """FE runs done by this run, all stages."""
         return sum(r.fe_runs for r in self.stages)
+
+    #: report figures shown inline by :meth:`_repr_html_`, in this order (those that exist)
+    INLINE_FIGURES = ("fit.png", "residuals.png", "region.png", "deformed.png")
+
+    def _repr_html_(self):
+        """The study's identified parameters, its χ²/dof with what each includes, its warnings and
+        the main figures (inline PNG), for Jupyter; the full report is ``self.report``."""
+        return study_summary_html(self.study.name, {r.name: r.result for r in self.stages}, self.warnings,
+                                  self.report, self.INLINE_FIGURES)
 
 
 def run_study(study, out, *, progress=None, confirm=None):
@@ -116,6 +131,7 @@ def run_study(study, out, *, progress=None, confirm=None):
     report = write_study_report(run.figures / "index.html", study, run.records, found)
     write_json(run.out / "summary.json", {
         "study": str(study.path), "name": study.name, "podkrig": __version__, "finished": now(),
+        "conventions": {"residuals": RESIDUAL_CONVENTION, "chi2": CHI2_BASIS},
         "stages": {r.name: {"cached": r.cached, "seconds": r.seconds, "fe_runs": r.fe_runs, **r.result}
                    for r in run.records},
         "warnings": [f.to_dict() for f in found],

@@ -180,6 +180,9 @@ class _Reader:
     def unknown_key(self, path, key, allowed):
         close = difflib.get_close_matches(key, allowed, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
+        if key == "sensors" and not path and "scenario" in allowed:  # sensors belong to the scenario
+            hint = (" (sensors belong to the scenario: write [[scenario.sensors]] with a name = \"...\" in each, "
+                    "or a [scenario.sensors] table of named sensors; docs/scenarios.md)")
         where = f"in [{show_key(path)}]" if path else "at the top level"
         self.fail((*path, key), f"unknown key{hint}", f"keys {where}: {', '.join(sorted(allowed))}")
 

@@ -11,7 +11,8 @@ Stages, in order (the measurement check, FE work, then the online stages)::
                              scenario (FE), one stage per model
     surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
     held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
-    inversion                GA + polish, FE check at the optimum     report/fit.png, residuals.png, ga_*.png
+    inversion                GA + polish, FE check at the optimum     report/fit.png, residuals.png, ga_*.png,
+                                                                      deformed.png (with the FE check)
     region                   region of equivalence, identifiability   region.npz, report/region.png
     rvc                      response variability over the region     report/rvc.png
     diagnosis                model diagnosis ([diagnosis] enabled)    report/diagnosis/ (its own page)
@@ -43,6 +44,7 @@ from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_c
 from podkrig.reports import inverse as inverse_figures
 from podkrig.reports import surrogate as surrogate_figures
 from podkrig.reports.diagnosis import write_diagnosis_report
+from podkrig.reports.fields import plot_deformed_field
 from podkrig.study.cache import StageCache, file_sha256
 from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -114,6 +116,8 @@ def _run_store(run, path, spec, space, design):
         logger.warning("%s could not be used (%s); kept it as %s and building a new store", path, e, kept)
     summary = run_snapshots(path, spec, space, workers=run.study.workers, scheduler=run.study.scheduler,
                             progress=run.progress.advance, **kwargs)
+    if summary.executor.startswith("serial:"):  # workers > 1 asked, the job too small for a cluster
+        notes.append(summary.executor)
     return summary, notes
 
 
@@ -377,14 +381,20 @@ def inversion(run):
         problem, model = _problem(run)
         result = invert(problem, rng=s.seed, population_size=s.population_size, generations=s.generations,
                         n_starts=s.n_starts)
-        if s.fe_check:
-            result = result.with_fe_check(run.scenario())
+        response = None
+        if s.fe_check:  # the FE run of the check keeps its field for the deformed-specimen figure
+            response = run.scenario().run(result.parameters, field=True)
+            result = result.with_fe_check(run.scenario(), response)
         unit = model.load_unit
         inverse_figures.plot_fit(result, run.figures / "fit.png", load_unit=unit)
         inverse_figures.plot_residuals(result, run.figures / "residuals.png", load_unit=unit)
         inverse_figures.plot_ga_history(result.ga, run.figures / "ga_history.png")
-        inverse_figures.plot_ga_parameters(result.ga, run.figures / "ga_parameters.png")
+        inverse_figures.plot_ga_parameters(result.ga, run.figures / "ga_parameters.png", problem.free_space)
         files = ["report/fit.png", "report/residuals.png", "report/ga_history.png", "report/ga_parameters.png"]
+        if getattr(response, "field", None) is not None:
+            plot_deformed_field(run.scenario(), response.field, run.figures / "deformed.png",
+                                title="FE model at the best fit")
+            files.append("report/deformed.png")
         return result.to_dict(), files, int(result.fe_check is not None)
 
     run.stage("inversion", "Inversion (GA + FE check)", inputs, compute)
