@@ -4,7 +4,7 @@ import logging
 
 import pytest
 
-from fe.scenarios import build_scenario
+from fe.scenarios import Scenario, build_scenario
 
 
 @pytest.fixture(scope="session")
@@ -17,6 +17,27 @@ def coarse_diagonal():
 def default_diagonal():
     """The diagonal compression test with its default (converged) mesh."""
     return build_scenario("diagonal_compression")
+
+
+class FECounter:
+    """Counts FE runs (``Scenario.run`` calls) in this process while a test runs."""
+
+    def __init__(self, monkeypatch):
+        self.calls = 0
+        original = Scenario.run
+
+        def counted(scenario, *args, **kwargs):
+            self.calls += 1
+            return original(scenario, *args, **kwargs)
+
+        monkeypatch.setattr(Scenario, "run", counted)
+
+
+@pytest.fixture
+def fe_counter(monkeypatch):
+    """Start counting FE runs at any point of a test: ``counter = fe_counter()``, then
+    ``counter.calls``."""
+    return lambda: FECounter(monkeypatch)
 
 
 @pytest.fixture(autouse=True)

@@ -11,7 +11,6 @@ from numpy.testing import assert_allclose
 from typer.testing import CliRunner
 
 from fe.scenarios import build_scenario
-from fe.scenarios.base import Scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement, NoiseModel, instrument_noise, level_weights
 from podkrig.online.measurement_csv import ImportSettings, read_measurement
@@ -233,26 +232,14 @@ region_samples = 1024
 """
 
 
-class _FECounter:
-    def __init__(self, monkeypatch):
-        self.calls = 0
-        original = Scenario.run
-
-        def counted(scenario, *args, **kwargs):
-            self.calls += 1
-            return original(scenario, *args, **kwargs)
-
-        monkeypatch.setattr(Scenario, "run", counted)
-
-
 def _study(tmp_path, csv_text):
     (tmp_path / "study.toml").write_text(STUDY)
     (tmp_path / "log.csv").write_text(csv_text)
     return runner.invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
 
 
-def test_run_refuses_dof_le_0_before_any_fe_work(tmp_path, monkeypatch):
-    fe = _FECounter(monkeypatch)
+def test_run_refuses_dof_le_0_before_any_fe_work(tmp_path, fe_counter):
+    fe = fe_counter()
     result = _study(tmp_path, "load [kN],D1 [mm]\n50,-0.16\n")
     assert result.exit_code == 2, result.output
     assert "1 reading(s) cannot identify 3 free parameter(s)" in result.output
@@ -260,22 +247,22 @@ def test_run_refuses_dof_le_0_before_any_fe_work(tmp_path, monkeypatch):
     assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
 
 
-def test_run_refuses_a_bad_file_before_any_fe_work(tmp_path, monkeypatch):
-    fe = _FECounter(monkeypatch)
+def test_run_refuses_a_bad_file_before_any_fe_work(tmp_path, fe_counter):
+    fe = fe_counter()
     result = _study(tmp_path, "load [kN];D1 [mm];D2 [mm]\n25;-0,08;0,04\n50;-0,16;abc\n")
     assert result.exit_code == 2, result.output
     assert "row 3, column 3 (D2 [mm]): 'abc' is not a number" in result.output.replace("\n", "")
     assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
 
 
-def test_run_flags_um_read_as_mm_right_after_the_training_snapshots(tmp_path, monkeypatch):
+def test_run_flags_um_read_as_mm_right_after_the_training_snapshots(tmp_path, fe_counter):
     """The issue's µm-as-mm file (no unit in the header): stopped after the 8 training runs, before
     the held-out runs, the surrogate and the inversion, naming the sensor and the factor."""
     sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
     r = sc.run({"E_b": 11000.0, "kN_bj": 90.0, "kV_bj": 35.0}).readings * 1000.0  # µm, written as mm
     text = "load," + ",".join(sc.sensor_names) + "\n" + "".join(
         f"{lv:g}," + ",".join(f"{v:.6g}" for v in row) + "\n" for lv, row in zip(sc.load_levels, r))
-    fe = _FECounter(monkeypatch)
+    fe = fe_counter()
     result = _study(tmp_path, text)
     out = " ".join(result.output.split())
     assert result.exit_code == 2, result.output

@@ -13,7 +13,6 @@ import pytest
 from typer.testing import CliRunner
 
 from fe.scenarios import build_scenario
-from fe.scenarios.base import Scenario
 from podkrig.cli import app
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.invert import InverseResult
@@ -82,20 +81,6 @@ def _measured(path, seed):
     write_measurement_csv(path, Measurement(noisy, sc.sensor_names, sc.load_levels))
 
 
-class _FECounter:
-    """Counts FE runs (``Scenario.run`` calls) in this process."""
-
-    def __init__(self, monkeypatch):
-        self.calls = 0
-        original = Scenario.run
-
-        def counted(scenario, *args, **kwargs):
-            self.calls += 1
-            return original(scenario, *args, **kwargs)
-
-        monkeypatch.setattr(Scenario, "run", counted)
-
-
 def _run(study, out):
     result = runner.invoke(app, ["run", str(study), "--out", str(out)])
     assert result.exit_code == 0, result.output
@@ -135,24 +120,24 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     assert summary["stages"]["rvc"]["models"]["shear"]["outputs"] == ["top_ux@40", "D1@40"]
 
 
-def test_rerun_with_nothing_changed_does_no_fe_work(tiny, monkeypatch):
+def test_rerun_with_nothing_changed_does_no_fe_work(tiny, fe_counter):
     study, out, _ = tiny
     before = _stages(out)
-    counter = _FECounter(monkeypatch)
+    counter = fe_counter()
     _run(study, out)
     assert counter.calls == 0
     after = _stages(out)
     assert {k: v["finished"] for k, v in after.items()} == {k: v["finished"] for k, v in before.items()}
 
 
-def test_new_measurement_reruns_only_the_online_stages(tiny, tmp_path, monkeypatch):
+def test_new_measurement_reruns_only_the_online_stages(tiny, tmp_path, fe_counter):
     study, _, _ = tiny
     # a copy of the study and its cache, with another noise realisation in the measurement file
     d = tmp_path / "copy"
     shutil.copytree(study.parent, d)
     before = _stages(d / "out")
     _measured(d / "measured.csv", seed=1)
-    counter = _FECounter(monkeypatch)
+    counter = fe_counter()
     _run(d / "study.toml", d / "out")
     after = _stages(d / "out")
     rerun = {k for k in after if after[k]["finished"] != before[k]["finished"] or after[k]["input_hash"] != before[k]["input_hash"]}
