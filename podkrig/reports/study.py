@@ -12,7 +12,7 @@ import json
 import math
 from pathlib import Path
 
-from podkrig.diagnosis.engine import CHI2_ALPHA_SHARE
+from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION, chi2_basis
 from podkrig.reports.diagnosis import fitted_parameter_text
 from podkrig.reports.html import Page, fmt
