@@ -68,6 +68,10 @@ a nuisance, as the example study does); the jack's stiffness and welded edges ar
 removes the edges from the loaded length); collar joints and other wythes are ignored; the slot
 faces never touch (the closure at the cut is ≈ 0.09 mm at σ0 = 0.3 MPa, far below a 3–10 mm
 slot, so no contact is modelled).
+
+Why one module of ~760 lines (a third documentation): one scenario with its presets, gauge
+layouts, loading phases and slot geometry, which refer to each other by name; the closed forms it
+is checked against are in :mod:`podkrig.analytical.flat_jack`.
 """
 
 import dataclasses

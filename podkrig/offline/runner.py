@@ -38,6 +38,10 @@ Example
 >>> summary = run_snapshots("snapshots/demo.h5", sc, space, n=16, seed=0, workers=1)  # doctest: +SKIP
 >>> summary.done                                                                     # doctest: +SKIP
 16
+
+Why one module of ~650 lines (half documentation): the resumable run loop and its two executors
+(serial and Dask) share the batching, retry and failure-recording rules; the store and its file
+safety are :mod:`.store` and :mod:`.files`.
 """
 
 import dataclasses

@@ -23,6 +23,10 @@ What the reader does, in order:
 
 Every problem is reported with the file, the row (1-based, as a spreadsheet shows it) and the
 column.
+
+Why one module of ~650 lines (a third documentation): one reader whose format detection
+(delimiter, decimal comma, units rows, title lines), unit conversion and error messages by file,
+row and column must agree with each other.
 """
 
 import csv

@@ -17,6 +17,10 @@ Example
 >>> mean, std = ok.predict(X[:3], return_std=True)
 >>> bool(np.allclose(mean, Y[:3], rtol=0, atol=1e-8)), bool(np.all(std < 1e-4))
 (True, True)
+
+Why one module of ~670 lines (half documentation): it is the estimator — settings, the
+hyperparameter search per output, persistence and prediction — whose state must be read
+together; the kriging system at given hyperparameters is :mod:`.system`, the kernels :mod:`._kernels`.
 """
 
 import logging
