@@ -52,8 +52,9 @@ def register(app):
             elif noise_abs or noise_rel is not None:
                 raise ValueError("a noise model needs --data (the misfit's indices); without it only the readings' are computed")
             out.mkdir(parents=True, exist_ok=True)
+            fixable = set(readings.negligible()) & set(misfit.negligible() if misfit else readings.parameters)
             result = {"readings": readings.to_dict(), "misfit": None if misfit is None else misfit.to_dict(),
-                      "propose_fixing": sorted(set(readings.negligible()) & set(misfit.negligible() if misfit else readings.negligible()))}
+                      "propose_fixing": sorted(fixable)}
             (out / "sensitivity.json").write_text(json.dumps(result, indent=2))
             plot_sensitivity(readings, out / "sensitivity.png", misfit=misfit)
 

@@ -22,8 +22,8 @@ in the parameters). The first point's readings of the scenario's own sensors are
 ``scenario.run`` (one more factorisation): a scenario whose run is not this combination (the flat
 jack with ``release = "exact"``) is an error pointing to :class:`CandidateFEModel`.
 
-``∂θ/∂m`` comes from central differences of the scenario's ``theta`` (exact to round-off for
-the masonry scenarios, whose θ is linear in each parameter). Sensitivities are returned with
+``∂θ/∂m`` comes from central differences of the scenario's ``theta`` (exact to round-off for the
+masonry scenarios, whose θ is linear in each parameter). Sensitivities are returned with
 respect to the *unit* coordinates ``u`` of the parameter space (log-scaled parameters in log10),
 which is the scaling the criteria use: ``∂m/∂u = b − a`` (linear) or ``m ln(b/a)`` (log).
 """
@@ -98,15 +98,17 @@ def prior_points(space, n, seed=0):
     return space.from_unit(sobol(n, space.n_params, seed))
 
 
-def _dtheta_dm(scenario, values, names, rel_step=1e-6):
-    """``∂θ/∂m_j`` by central differences, ``(n_free, n_parts)``."""
+def _central_differences(f, values, names, rel_step=1e-6):
+    """``∂f/∂m_j`` of a function of the full parameter dict by central differences (relative step
+    ``rel_step``), ``(n_free, *f.shape)``; exact to round-off for ``f`` linear in each parameter
+    (the masonry θ, the flat jack's load multipliers)."""
     out = []
     for name in names:
         m = values[name]
         h = rel_step * max(abs(m), 1e-12)
         plus, minus = dict(values), dict(values)
         plus[name], minus[name] = m + h, m - h
-        out.append((scenario.theta(plus) - scenario.theta(minus)) / (2 * h))
+        out.append((np.asarray(f(plus), dtype=float) - np.asarray(f(minus), dtype=float)) / (2 * h))
     return np.array(out)
 
 
@@ -167,7 +169,7 @@ def candidate_sensitivities(scenario, space, candidates, X, *, fixed=None, progr
     for k, x in enumerate(X):
         values = scenario.resolve({**(fixed or {}), **dict(zip(names, x.tolist()))})
         theta = scenario.theta(values)
-        dtheta = _dtheta_dm(scenario, values, names)  # (p, n_parts)
+        dtheta = _central_differences(scenario.theta, values, names)  # (p, n_parts)
         C, dC = _load_coefficients(scenario, values, names)  # (n_loads, n_pat), (p, n_loads, n_pat)
         model.solver.factorize(stiff.values(theta))
         Q = model.solver.solve(model.rhs).reshape(model.n_dofs, n_pat)
@@ -196,23 +198,16 @@ class ExactSensitivitiesUnavailable(ValueError):
     represent it; :class:`CandidateFEModel` with :func:`model_sensitivities` can."""
 
 
-def _load_coefficients(scenario, values, names, rel_step=1e-6):
-    """The load multipliers at ``values`` ``(n_loads, n_patterns)`` and their derivatives by
-    central differences ``(n_free, n_loads, n_patterns)`` (zero for the wall tests; exact to
-    round-off for the flat jack's, linear in Km and σ0)."""
+def _load_coefficients(scenario, values, names):
+    """The load multipliers at ``values`` ``(n_loads, n_patterns)`` and their derivatives
+    ``(n_free, n_loads, n_patterns)`` (zero for the wall tests; exact to round-off for the flat
+    jack's, linear in Km and σ0)."""
     try:
         C = np.asarray(scenario.load_coefficients_at(values), dtype=float)
     except NotImplementedError as e:
         raise ExactSensitivitiesUnavailable(f"scenario {scenario.name!r}: {e}; use differences of FE runs "
                                             "(podkrig sensors --sensitivities fe; place_sensors(..., model='fe'))") from None
-    dC = np.empty((len(names),) + C.shape)
-    for j, name in enumerate(names):
-        m = values[name]
-        h = rel_step * max(abs(m), 1e-12)
-        plus, minus = dict(values), dict(values)
-        plus[name], minus[name] = m + h, m - h
-        dC[j] = (np.asarray(scenario.load_coefficients_at(plus)) - np.asarray(scenario.load_coefficients_at(minus))) / (2 * h)
-    return C, dC
+    return C, _central_differences(scenario.load_coefficients_at, values, names).reshape((len(names),) + C.shape)
 
 
 def _check_affine_readings(scenario, values, C, Q, rtol=1e-6):
