@@ -166,10 +166,7 @@ class InverseProblem:
         # units, and the fixed parameters are scaled once, here
         unit_misfit = None
         if hasattr(self.model, "predict_unit") and self.prior_mean is None:
-            inside = template.copy()
-            inside[index] = [space.parameters[i].lower for i in index]  # placeholders, overwritten
-            template_unit = space.to_unit(inside[None])[0]
-            object.__setattr__(self, "_template_unit", template_unit)
+            object.__setattr__(self, "_template_unit", unit_template(space, index, self.fixed))
             unit_misfit = dataclasses.replace(misfit, model=self._predict_unit)
         object.__setattr__(self, "_unit_misfit", unit_misfit)
 
@@ -283,6 +280,20 @@ def check_dof(n_obs, free, source="measurement"):
             f"degrees of freedom n_obs − n_free = {n_obs} − {len(free)} = {dof} ≤ 0. Add readings (more sensors "
             "or load levels) or fix parameters")
     return dof
+
+
+def unit_template(space, free_index, fixed):
+    """Unit-cube coordinates ``(n_params,)`` of a full parameter vector of ``space`` with the
+    ``fixed`` values (name → value, physical) in place; the entries at ``free_index`` are
+    placeholders for the free coordinates. Raises when a parameter is neither free nor fixed."""
+    names = list(space.names)
+    physical = np.array([p.lower for p in space.parameters], dtype=float)  # placeholders for the free
+    for n, v in fixed.items():
+        physical[names.index(n)] = v
+    missing = [n for i, n in enumerate(names) if i not in set(np.asarray(free_index).tolist()) and n not in fixed]
+    if missing:
+        raise ValueError(f"parameter(s) {missing} are neither free nor fixed: give each a value (--fix NAME=VALUE)")
+    return space.to_unit(physical[None])[0]
 
 
 def fix_from_scenario(model, free=None, fixed=None):

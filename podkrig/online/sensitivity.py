@@ -32,7 +32,7 @@ import numpy as np
 from scipy import stats
 
 from podkrig._qmc import scrambled_sobol
-from podkrig.online.problem import fix_from_scenario
+from podkrig.online.problem import fix_from_scenario, unit_template
 
 #: total index below which a parameter is proposed for fixing (1 % of an output's variance)
 NEGLIGIBLE_TOTAL_INDEX = 0.01
@@ -222,10 +222,7 @@ def reading_sensitivity(model, *, free=None, fixed=None, **options):
     space = model.space
     names = tuple(space.names if free is None else free)
     index = np.array([space.names.index(nm) for nm in names])
-    template = np.array([space.parameters[i].lower for i in range(space.n_params)], dtype=float)
-    for k, v in fixed.items():
-        template[space.names.index(k)] = v
-    template_unit = space.to_unit(template[None])[0]
+    template_unit = unit_template(space, index, fixed)
 
     def readings(U):
         full = np.tile(template_unit, (len(U), 1))
