@@ -99,6 +99,10 @@ class InverseResult:
     basis : str or None
         What :attr:`chi2` includes, as read back by :meth:`from_dict`; None: from the problem
         (:attr:`chi2_basis`).
+    tests : dict of str to InverseResult
+        For a joint calibration (:class:`~podkrig.online.joint.JointProblem`): each test's own view
+        of the optimum — its parameters, χ² over its readings, its dof (n_obs of the test − the free
+        parameters it depends on) and its FE check; empty for one test.
     """
 
     x: np.ndarray
@@ -116,6 +120,7 @@ class InverseResult:
     ga: object = None
     fe_check: FECheck | None = None
     basis: str | None = None
+    tests: dict = dataclasses.field(default_factory=dict)
 
     @property
     def chi2_dof(self):
@@ -128,7 +133,7 @@ class InverseResult:
         (:data:`~podkrig.online.findings.CHI2_BASIS`)."""
         if self.basis is not None:
             return self.basis
-        model_error = True if self.problem is None else bool(self.problem.misfit.model_error)
+        model_error = True if self.problem is None else bool(self.problem.model_error)
         return chi2_basis("surrogate" if model_error else "surrogate-noise")
 
     @property
@@ -156,6 +161,9 @@ class InverseResult:
         (NaN where a reading is missing)."""
         if self.problem is None:
             raise ValueError("this result was read back from a dict and has no problem: predictions need the model")
+        if self.tests:
+            raise ValueError(f"a joint calibration predicts per test: use result.tests[name].predicted() for one of "
+                             f"{list(self.tests)}")
         mean, std = self.problem.misfit.predict(self.x[None])
         grid = self.problem.measurement.grid
         return grid(mean[0]), None if std is None else grid(std[0])
@@ -164,6 +172,12 @@ class InverseResult:
         """This result with :func:`fe_check` against ``scenario`` attached (one FE run, or none
         when ``response``, the scenario's response at :attr:`parameters`, is given)."""
         return dataclasses.replace(self, fe_check=fe_check(self, scenario, response))
+
+    def with_test(self, name, result):
+        """This joint result with the view of test ``name`` replaced (e.g. by one with its FE check)."""
+        if name not in self.tests:
+            raise KeyError(f"no test {name!r}; tests: {list(self.tests)}")
+        return dataclasses.replace(self, tests={**self.tests, name: result})
 
     def to_dict(self):
         """JSON-able numbers: ``x``, ``parameters`` (free), ``units``, ``at_bound``, ``misfit``,
@@ -179,6 +193,7 @@ class InverseResult:
             "n_evaluations": self.n_evaluations, "seconds": self.seconds,
             "measurement": self.measurement,
             "fe_check": None if self.fe_check is None else self.fe_check.to_dict(),
+            **({"tests": {name: t.to_dict() for name, t in self.tests.items()}} if self.tests else {}),
         }
 
     @classmethod
@@ -190,7 +205,20 @@ class InverseResult:
             int(d["dof"]), int(d["n_evaluations"]), float(d["seconds"]), free, tuple(d["units"][n] for n in free),
             tuple(d["at_bound"]), dict(d["measurement"]), problem, ga,
             None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]), d.get("chi2_basis"),
+            {name: cls.from_dict(t) for name, t in d.get("tests", {}).items()},
         )
+
+    @classmethod
+    def at(cls, problem, x, *, n_evaluations=0, seconds=0.0, ga=None):
+        """The result of ``problem`` at free values ``x`` ``(n_free,)`` (physical): misfit, χ², dof,
+        bounds touched, the data summary and, for a joint problem, each test's view."""
+        x = np.asarray(x, dtype=float)
+        space = problem.free_space
+        tests = {name: cls.at(part, x_part) for name, (part, x_part) in problem.parts(x).items()}
+        return cls(x, problem.parameters_at(x), float(problem.omega(x[None])[0]), float(problem.chi2(x[None])[0]),
+                   problem.n_obs - problem.n_free, n_evaluations, seconds, tuple(problem.free), tuple(space.units),
+                   tuple(at_bound(space.names, space.to_unit(x[None])[0])), problem.measurement_summary(), problem,
+                   ga, tests=tests)
 
 
 def invert(problem, *, rng=0, population_size=100, generations=100, polish=True, n_starts=6, **ga_options):
@@ -198,7 +226,7 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
 
     Parameters
     ----------
-    problem : InverseProblem
+    problem : InverseProblem or JointProblem
     rng : int or numpy.random.Generator
         Seed of the GA (recorded in the GA result).
     population_size, generations : int
@@ -233,18 +261,10 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
         x, n_eval = np.asarray(ga.x, dtype=float), ga.nfev
         if polish:
             x, n_eval = _polish_from_starts(problem, ga, x, n_eval, rng, n_starts)
-    omega = float(problem.omega(x[None])[0])
-    chi2 = float(problem.misfit.chi2(x[None])[0])
-    params = dict(zip(problem.model.space.names, problem.full(x[None])[0].tolist()))
-    seconds = time.perf_counter() - t0
-    dof = problem.n_obs - problem.n_free
-    logger.info("inversion: omega=%.4g chi2/dof=%.3g in %.3f s (%d evaluations)", omega, chi2 / max(dof, 1), seconds, n_eval)
-    space = problem.free_space
-    meas = problem.measurement
-    measurement = {"file": str(meas.source), "sensors": list(meas.sensor_names), "load_levels": meas.load_levels.tolist(),
-                   "load_unit": getattr(problem.model, "load_unit", "kN"), "n_obs": problem.n_obs}
-    return InverseResult(x, params, omega, chi2, dof, n_eval, seconds, tuple(problem.free), tuple(space.units),
-                         tuple(at_bound(space.names, space.to_unit(x[None])[0])), measurement, problem, ga)
+    result = InverseResult.at(problem, x, n_evaluations=n_eval, seconds=time.perf_counter() - t0, ga=ga)
+    logger.info("inversion: omega=%.4g chi2/dof=%.3g in %.3f s (%d evaluations)", result.misfit, result.chi2_dof,
+                result.seconds, n_eval)
+    return result
 
 
 def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):

@@ -88,8 +88,45 @@ class SurrogateModel:
         return build_scenario(self.scenario_spec, solver=solver)
 
 
+class UnitCubeLeastSquares:
+    """Least squares on whitened residuals in the unit cube of ``free_space``: the Jacobian and the
+    bounded polish shared by :class:`InverseProblem` and :class:`~podkrig.online.joint.JointProblem`.
+    A subclass gives ``free_space`` and ``_residuals_batch(U)`` (whitened residuals, and prior
+    residuals if any, at unit-cube points ``(n, n_free)`` → ``(n, n_residuals)``)."""
+
+    def residuals_unit(self, u):
+        """Whitened residuals (and prior residuals) at one unit-cube point, ``(n_obs [+ n_free],)``."""
+        return self._residuals_batch(u)[0]
+
+    def jacobian_unit(self, u, step=1e-5):
+        """Jacobian of the residuals of :meth:`residuals_unit` w.r.t. unit coordinates (central
+        differences, one-sided at the box faces), ``(n_residuals, n_free)``; one batched model call."""
+        u = np.asarray(u, dtype=float)
+        p = len(u)
+        U = np.repeat(u[None], 2 * p, axis=0)
+        idx = np.arange(p)
+        U[2 * idx, idx] = np.minimum(u + step, 1.0)  # one-sided at the box faces: never extrapolate
+        U[2 * idx + 1, idx] = np.maximum(u - step, 0.0)
+        W = self._residuals_batch(U)
+        h = U[2 * idx, idx] - U[2 * idx + 1, idx]
+        return ((W[0::2] - W[1::2]) / h[:, None]).T
+
+    def polish(self, x0, max_nfev=200):
+        """Bounded least squares on the whitened residuals from ``x0`` (physical); returns
+        ``(x, n_evaluations)``."""
+        u, nfev = self.polish_unit(np.clip(self.free_space.to_unit(np.atleast_2d(x0))[0], 0.0, 1.0), max_nfev)
+        return self.free_space.from_unit(u[None])[0], nfev
+
+    def polish_unit(self, u0, max_nfev=200):
+        """:meth:`polish` in the unit cube of the free space: from ``u0`` ``(n_free,)`` in [0, 1];
+        returns ``(u, n_evaluations)``."""
+        sol = optimize.least_squares(self.residuals_unit, u0, jac=self.jacobian_unit, bounds=(0.0, 1.0),
+                                     x_scale=1.0, max_nfev=max_nfev, method="trf")
+        return sol.x, int(sol.nfev + 2 * len(u0) * sol.njev)
+
+
 @dataclass(frozen=True, eq=False)
-class InverseProblem:
+class InverseProblem(UnitCubeLeastSquares):
     """A calibration problem: model + measurement + noise over the free parameters.
 
     Parameters
@@ -203,9 +240,12 @@ class InverseProblem:
         """The same problem with the model's predictive std frozen at ``x`` (free, physical).
 
         Only the model mean is then evaluated (several times cheaper for kriging). Used for dense
-        sampling near the optimum, where the surrogate variance C_T changes little.
+        sampling near the optimum, where the surrogate variance C_T changes little. A model without
+        predictive variance (the FE model) has nothing to freeze: the problem is returned as it is.
         """
         _, std = self.model.predict(self.full(np.atleast_2d(x)), return_std=True)
+        if std is None:
+            return self
         return dataclasses.replace(self, frozen_model_std=np.asarray(std[0]))
 
     def omega(self, X):
@@ -223,6 +263,33 @@ class InverseProblem:
             return self._unit_misfit(U)
         return self.misfit(self.free_space.from_unit(U))
 
+    def chi2(self, X):
+        """Data term (g − d)ᵀ C_D⁻¹ (g − d) at free parameter vectors ``(n, n_free)`` (physical), ``(n,)``."""
+        return self.misfit.chi2(X)
+
+    def parameters_at(self, x):
+        """Every model parameter (free and fixed) at free values ``x`` ``(n_free,)``, ``{name: value}``."""
+        return dict(zip(self.model.space.names, self.full(np.atleast_2d(x))[0].tolist()))
+
+    def parts(self, x):
+        """The tests of a joint problem at ``x``; none for one test (see :class:`~podkrig.online.joint.JointProblem`)."""
+        return {}
+
+    def measurement_summary(self):
+        """``file``, ``sensors``, ``load_levels``, ``load_unit`` and ``n_obs`` of the data (JSON-able)."""
+        meas = self.measurement
+        return {"file": str(meas.source), "sensors": list(meas.sensor_names),
+                "load_levels": meas.load_levels.tolist(), "load_unit": getattr(self.model, "load_unit", "kN"),
+                "n_obs": self.n_obs}
+
+    def with_noisy_data(self, x, rng):
+        """The same problem with data g(x) + e, e ~ N(0, C_d) (a noise Monte Carlo copy; ``x`` free, physical)."""
+        meas = self.measurement
+        mean, _ = self.misfit.predict(np.atleast_2d(x))
+        L = np.linalg.cholesky(self.noise.covariance_matrix(meas))
+        copy = meas.with_data(mean[0] + L @ rng.standard_normal(len(mean[0])), source=meas.source + " (noisy copy)")
+        return dataclasses.replace(self, measurement=copy)
+
     def _residuals_batch(self, U):
         """Whitened data residuals and prior residuals at unit-cube points, ``(n, n_obs [+ n_free])``."""
         U = np.atleast_2d(np.asarray(U, dtype=float))
@@ -230,37 +297,6 @@ class InverseProblem:
             return self._unit_misfit.whitened_residuals(U)
         X = self.free_space.from_unit(U)
         return np.hstack([self.misfit.whitened_residuals(X), self.misfit.prior_residuals(X)])
-
-    def residuals_unit(self, u):
-        """Whitened residuals (and prior residuals) at one unit-cube point, ``(n_obs [+ n_free],)``."""
-        return self._residuals_batch(u)[0]
-
-    def jacobian_unit(self, u, step=1e-5):
-        """Jacobian of the residuals of :meth:`residuals_unit` w.r.t. unit coordinates (central
-        differences, one-sided at the box faces), ``(n_residuals, n_free)``; one batched model call."""
-        u = np.asarray(u, dtype=float)
-        p = len(u)
-        U = np.repeat(u[None], 2 * p, axis=0)
-        idx = np.arange(p)
-        U[2 * idx, idx] = np.minimum(u + step, 1.0)  # one-sided at the box faces: never extrapolate
-        U[2 * idx + 1, idx] = np.maximum(u - step, 0.0)
-        W = self._residuals_batch(U)
-        h = U[2 * idx, idx] - U[2 * idx + 1, idx]
-        return ((W[0::2] - W[1::2]) / h[:, None]).T
-
-    def polish(self, x0, max_nfev=200):
-        """Bounded least squares on the whitened residuals from ``x0`` (physical); returns
-        ``(x, n_evaluations)``."""
-        u, nfev = self.polish_unit(np.clip(self.free_space.to_unit(np.atleast_2d(x0))[0], 0.0, 1.0), max_nfev)
-        return self.free_space.from_unit(u[None])[0], nfev
-
-    def polish_unit(self, u0, max_nfev=200):
-        """:meth:`polish` in the unit cube of the free space: from ``u0`` ``(n_free,)`` in [0, 1];
-        returns ``(u, n_evaluations)``."""
-        sol = optimize.least_squares(self.residuals_unit, u0, jac=self.jacobian_unit, bounds=(0.0, 1.0),
-                                     x_scale=1.0, max_nfev=max_nfev, method="trf")
-        return sol.x, int(sol.nfev + 2 * len(u0) * sol.njev)
-
 
 def check_dof(n_obs, free, source="measurement"):
     """Refuse a calibration without degrees of freedom: ``n_obs − n_free ≤ 0`` fits the data exactly
@@ -336,4 +372,4 @@ def fix_from_scenario(model, free=None, fixed=None):
     return free, fixed
 
 
-__all__ = ["FEModel", "InverseProblem", "SurrogateModel", "check_dof", "fix_from_scenario"]
+__all__ = ["FEModel", "InverseProblem", "SurrogateModel", "UnitCubeLeastSquares", "check_dof", "fix_from_scenario"]

@@ -28,7 +28,6 @@ from podkrig.parallel import one_blas_thread
 from podkrig.limits import check_confidence, check_region_samples
 from podkrig.online._repr import html_table, number
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, identifiability_verdict
-from podkrig.online.problem import InverseProblem
 
 logger = logging.getLogger(__name__)
 
@@ -221,17 +220,9 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
                          f"fewer give no percentile of the region); got {n_realisations!r}")
     t0 = time.perf_counter()
     gen = np.random.default_rng(rng)
-    meas = problem.measurement
-    mean, _ = problem.misfit.predict(np.atleast_2d(x_best))
-    C = problem.noise.covariance_matrix(meas)
-    L = np.linalg.cholesky(C)
     X, n_eval = [], 0
     for _ in range(n_realisations):
-        d = mean[0] + L @ gen.standard_normal(len(mean[0]))
-        copy = meas.with_data(d, source=meas.source + " (noisy copy)")
-        sub = InverseProblem(problem.model, copy, problem.noise, problem.free, problem.fixed, problem.prior_mean,
-                             problem.prior_cov, problem.kind, problem.model_error)
-        x, n = sub.polish(x_best)
+        x, n = problem.with_noisy_data(x_best, gen).polish(x_best)
         X.append(x)
         n_eval += n
     X = np.array(X)
