@@ -1,4 +1,6 @@
-"""Regenerate the demo's pseudo-measured data, ``examples/diagonal_compression_measured.csv``.
+"""Regenerate the pseudo-measured data of the demo (``examples/diagonal_compression_measured.csv``)
+and of the joint calibration's shear wall (``examples/shear_wall_measured.csv``, ``--scenario
+shear_compression``: the same hidden values, the same noise model, seed 2027).
 
 It runs exactly ``podkrig simulate diagonal_compression --set E_b=10500 --set kN_bj=70
 --set kV_bj=28 --set r_hj=0.55 --format csv`` (the default mesh; ν_b = 0.15 is the default) and
@@ -12,6 +14,7 @@ headers with units (``load [kN]``, ``D1 [mm]`` ...).
 Run from the repository root::
 
     python examples/make_measured_data.py            # rewrites the shipped file
+    python examples/make_measured_data.py --scenario shear_compression    # the shear wall's file
     python examples/make_measured_data.py --out x.csv --seed 7
 """
 
@@ -29,15 +32,18 @@ NOISE_REL = 0.01
 NOISE_RES_MM = 0.001
 SEED = 2026
 OUT = Path(__file__).with_name("diagonal_compression_measured.csv")
+#: the shipped file and noise seed of each scenario
+SHIPPED = {"diagonal_compression": (OUT, SEED),
+           "shear_compression": (Path(__file__).with_name("shear_wall_measured.csv"), 2027)}
 
 
-def simulate_csv(truth):
-    """The output of ``podkrig simulate diagonal_compression --set ... --format csv`` (text)."""
+def simulate_csv(truth, scenario="diagonal_compression"):
+    """The output of ``podkrig simulate SCENARIO --set ... --format csv`` (text)."""
     from typer.testing import CliRunner
 
     from podkrig.cli import app
 
-    args = ["simulate", "diagonal_compression", "--format", "csv"]
+    args = ["simulate", scenario, "--format", "csv"]
     for name, value in truth.items():
         args += ["--set", f"{name}={value:g}"]
     result = CliRunner().invoke(app, args)
@@ -46,9 +52,9 @@ def simulate_csv(truth):
     return result.stdout
 
 
-def make(out=OUT, seed=SEED, noise_rel=NOISE_REL, truth=None, noise_res=NOISE_RES_MM):
-    """Write the pseudo-measured CSV to ``out``; returns the path."""
-    rows = list(csv.reader(io.StringIO(simulate_csv(truth or TRUTH))))
+def make(out=OUT, seed=SEED, noise_rel=NOISE_REL, truth=None, noise_res=NOISE_RES_MM, scenario="diagonal_compression"):
+    """Write the pseudo-measured CSV of ``scenario`` (default options) to ``out``; returns the path."""
+    rows = list(csv.reader(io.StringIO(simulate_csv(truth or TRUTH, scenario))))
     header, body = rows[0], rows[1:]
     clean = np.array([[float(c) for c in row[1:]] for row in body])  # (n_loads, n_sensors), mm
     sigma = np.sqrt(noise_res**2 + (noise_rel * clean) ** 2)  # σ_i² = σ_res² + (δ d_i)², mm
@@ -63,10 +69,14 @@ def make(out=OUT, seed=SEED, noise_rel=NOISE_REL, truth=None, noise_res=NOISE_RE
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=OUT, help="CSV file to write (default: the shipped file).")
-    parser.add_argument("--seed", type=int, default=SEED, help="Seed of the noise (default: %(default)s).")
+    parser.add_argument("--scenario", choices=sorted(SHIPPED), default="diagonal_compression",
+                        help="The test to simulate (default options; default: %(default)s).")
+    parser.add_argument("--out", type=Path, help="CSV file to write (default: the shipped file of the scenario).")
+    parser.add_argument("--seed", type=int, help="Seed of the noise (default: the shipped file's, 2026 or 2027).")
     args = parser.parse_args()
-    print(f"wrote {make(args.out, args.seed)}")
+    out, seed = SHIPPED[args.scenario]
+    path = make(args.out or out, seed if args.seed is None else args.seed, scenario=args.scenario)
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":

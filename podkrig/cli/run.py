@@ -96,12 +96,12 @@ def _print_summary(result):
     from rich.markup import escape
     from rich.table import Table
 
-    from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
+    from podkrig.online.findings import RESIDUAL_CONVENTION
+    from podkrig.reports.study import chi2_rows
 
     console = Console()
     inv = result.stage("inversion").result
     region = result.stage("region").result
-    held = result.stage("held_out_validation").result
     table = Table(title=escape(f"{result.study.name}: identified parameters (χ²/dof of the surrogate fit = "
                                f"{inv['chi2_dof']:.3g})"))
     for col in ("parameter", "unit", "best fit", f"{100 * region['confidence']:.0f} % region of equivalence",
@@ -116,28 +116,29 @@ def _print_summary(result):
     numbers = Table(title="checks")
     for col in ("quantity", "value"):
         numbers.add_column(col, justify="right")
-    numbers.add_row("surrogate median error on held-out FE runs", f"{100 * held['rel_error']['median']:.3g} %")
-    fe = inv["fe_check"]
-    if fe is not None:
-        numbers.add_row("max |FE − surrogate| at the best fit", f"{fe['max_abs_diff']:.3g} mm "
-                                                                f"({fe['max_diff_over_noise']:.2f} σ)")
+    study = result.study
+    for t in study.calibration_tests:
+        label = "" if t.name is None else f"test {t.name}: "
+        held = result.stage(t.stage("held_out_validation")).result
+        numbers.add_row(f"{label}surrogate median error on held-out FE runs", f"{100 * held['rel_error']['median']:.3g} %")
+        fe = (inv if t.name is None else inv["tests"][t.name])["fe_check"]
+        if fe is not None:
+            numbers.add_row(f"{label}max |FE − surrogate| at the best fit", f"{fe['max_abs_diff']:.3g} mm "
+                                                                            f"({fe['max_diff_over_noise']:.2f} σ)")
     for model, r in result.stage("rvc").result["models"].items():
         numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r['cv']):.3g} %")
-    if result.study.diagnosis.enabled:
-        d = result.stage("diagnosis").result
-        numbers.add_row("model diagnosis", escape(d["verdict"] + (f": {d['cause']}" if d["cause"] else "")))
+    if study.diagnosis.enabled:
+        for t in study.calibration_tests:
+            d = result.stage(t.stage("diagnosis")).result
+            numbers.add_row("model diagnosis" + ("" if t.name is None else f", test {t.name}"),
+                            escape(d["verdict"] + (f": {d['cause']}" if d["cause"] else "")))
     console.print(numbers)
     fits = Table(title=escape(f"χ²/dof: about 1 when a model explains the data within its C_D; residuals "
                               f"{RESIDUAL_CONVENTION}"))
     for col, justify in (("model", "right"), ("χ²/dof", "right"), ("χ² includes", "left")):
         fits.add_column(col, justify=justify)
-    fe = inv["fe_check"]
-    fits.add_row("inversion (surrogate)", f"{inv['chi2_dof']:.3g}", escape(inv.get("chi2_basis", CHI2_BASIS["surrogate"])))
-    if fe is not None:
-        fits.add_row("FE check", f"{fe['chi2_dof_fe']:.3g}", escape(fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"])))
-    if result.study.diagnosis.enabled:
-        a = result.stage("diagnosis").result["adequacy"]
-        fits.add_row("diagnosis (FE refit)", f"{a['chi2_dof']:.3g}", escape(a.get("basis", CHI2_BASIS["diagnosis"])))
+    for model, value, basis, _ in chi2_rows({r.name: r.result for r in result.stages}):
+        fits.add_row(escape(model), value, escape(basis))
     console.print(fits)
     stages = Table(title="stages")
     for col in ("stage", "this run", "time (s)", "FE runs"):

@@ -151,7 +151,7 @@ def fe_check_ok(max_diff_over_noise):
     return bool(max_diff_over_noise <= FE_CHECK_LIMIT)
 
 
-def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=False):
+def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=False, per_test=False):
     """Findings of an inversion and its region of equivalence, in report order.
 
     Parameters
@@ -163,6 +163,9 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
         Where the remedies point: command-line options or study-file settings.
     diagnosis_enabled : bool
         (study) whether the study runs the model diagnosis, which names a missing effect.
+    per_test : bool
+        ``result`` is one test's view of a joint calibration: only its FE check and χ²/dof are
+        judged (bounds and the region belong to the joint result).
 
     Returns
     -------
@@ -180,7 +183,7 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
             "and invert again." if context == "cli" else
             "add training snapshots or narrow the bounds around the identified values, and run again."))
     units = dict(zip(result.free, result.units))
-    for name in result.at_bound:
+    for name in () if per_test else result.at_bound:
         found.append(Finding(
             "at-bound", "inversion",
             f"the best fit of {name} ({result.free_parameters[name]:.4g}{_unit(units[name])}) lies on a bound "

@@ -75,9 +75,12 @@ def write_study_report(path, study, records, warnings):
     """
     stages = {r.name: r for r in records}
     res = {name: r.result for name, r in stages.items()}
+    tests = study.calibration_tests
     page = Page(f"podkrig study: {study.name}")
+    units = sorted({res[t.stage("measurement")]["load_unit"] for t in tests})
     page.paragraph(f"Study file {study.path}. Units: N, mm, MPa; interface stiffness N/mm³; loads in "
-                   f"{res['inversion']['measurement']['load_unit']}.", "meta")
+                   f"{', '.join(units)}." + (f" A joint calibration over {len(tests)} tests: "
+                                             f"{', '.join(t.name for t in tests)}." if study.tests else ""), "meta")
     page.links([(f"#{anchor}", title) for anchor, title in SECTIONS])
     by_section = {}
     for w in warnings:
@@ -94,17 +97,34 @@ def write_study_report(path, study, records, warnings):
     section("offline")
     _offline(page, stages)
     section("surrogate")
-    _surrogate(page, study, res["surrogate"])
+    for t in tests:
+        _test_heading(page, t)
+        _surrogate(page, study, res[t.stage("surrogate")], t.file(""))
     section("held-out")
-    _held_out(page, res["held_out_validation"])
+    for t in tests:
+        _test_heading(page, t)
+        _held_out(page, res[t.stage("held_out_validation")], t.file(""))
     section("inversion")
-    _inversion(page, res["inversion"], "report/deformed.png" in stages["inversion"].manifest["outputs"])
+    inv = res["inversion"]
+    if study.tests:
+        _joint_inversion(page, inv)
+    outputs = stages["inversion"].manifest["outputs"]
+    for t in tests:
+        _test_heading(page, t)
+        _inversion(page, inv if t.name is None else inv["tests"][t.name],
+                   f"report/{t.file('deformed.png')}" in outputs, t.file(""))
+    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics.")
+    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, "
+                                     "coloured by generation (log axes for log-sampled parameters).")
     section("region")
     _region(page, res["region"])
     section("rvc")
     _rvc(page, study, res["rvc"])
     section("diagnosis")
-    _diagnosis(page, res.get("diagnosis"))
+    _diagnosis_intro(page)
+    for t in tests:
+        _test_heading(page, t)
+        _diagnosis(page, res.get(t.stage("diagnosis")), t.file(""))
     section("provenance")
     _provenance(page, records)
     return page.write(path)
@@ -140,7 +160,6 @@ def study_summary_html(name, res, warnings, report, figures):
 def _summary(page, study, res, warnings):
     page.heading("Summary", anchor="summary")
     inv, region = res["inversion"], res["region"]
-    held = res["held_out_validation"]
     rows = []
     for name in region["names"]:
         lo, hi = region["intervals"][name]
@@ -150,14 +169,18 @@ def _summary(page, study, res, warnings):
     page.table(["parameter", "unit", "best fit",
                 f"region of equivalence ({100 * region['confidence']:.0f} %)", "identified",
                 "share of search range (%)"], rows, caption="Identified parameters")
-    fe = inv["fe_check"]
     numbers = [[f"χ²/dof, {model} (-)", value, f"{basis}; {note}"] for model, value, basis, note in chi2_rows(res)]
-    numbers += [
-        ["surrogate median error on held-out FE runs (%)", _pct(held["rel_error"]["median"]),
-         f"{held['n_held_out']} runs, {held['n_train']} training snapshots, {held['n_modes']} POD modes"],
-        ["max |FE − surrogate| at the best fit / noise σ (-)", _num(fe["max_diff_over_noise"], 3) if fe else "—",
-         "below 1: the surrogate is as good as the data there" if fe else "FE check switched off"],
-    ]
+    for t in study.calibration_tests:
+        label = "" if t.name is None else f"test {t.name}: "
+        held = res[t.stage("held_out_validation")]
+        fe = (inv if t.name is None else inv["tests"][t.name])["fe_check"]
+        numbers += [
+            [f"{label}surrogate median error on held-out FE runs (%)", _pct(held["rel_error"]["median"]),
+             f"{held['n_held_out']} runs, {held['n_train']} training snapshots, {held['n_modes']} POD modes"],
+            [f"{label}max |FE − surrogate| at the best fit / noise σ (-)",
+             _num(fe["max_diff_over_noise"], 3) if fe else "—",
+             "below 1: the surrogate is as good as the data there" if fe else "FE check switched off"],
+        ]
     for model, r in res["rvc"]["models"].items():
         numbers.append([f"largest output CV over the region, {model} (%)", _pct(max(r["cv"])),
                         f"{len(r['outputs'])} outputs, {r['n_samples']} members of the region"])
@@ -178,42 +201,83 @@ def _summary(page, study, res, warnings):
 def chi2_rows(res):
     """The χ²/dof of a study, each with its model and what its covariance includes: rows of
     (model, value text, basis, note) for the inversion (surrogate), the FE check and the
-    diagnosis's FE refit, those that ran."""
+    diagnosis's FE refit, those that ran — in a joint calibration, the joint inversion and then
+    each test's rows."""
     inv = res["inversion"]
-    rows = [("inversion (surrogate)", _num(inv["chi2_dof"], 3), inv.get("chi2_basis", CHI2_BASIS["surrogate"]),
-             f"dof = {inv['dof']}; the number the inversion minimised")]
+    rows = [("inversion (surrogate)" + (", all tests" if "tests" in inv else ""), _num(inv["chi2_dof"], 3),
+             inv.get("chi2_basis", CHI2_BASIS["surrogate"]), f"dof = {inv['dof']}; the number the inversion minimised")]
+    if "tests" not in inv:
+        return rows + _test_chi2_rows(inv, res.get("diagnosis"), "")
+    for name, one in inv["tests"].items():
+        rows.append((f"test {name}: inversion (surrogate)", _num(one["chi2_dof"], 3),
+                     one.get("chi2_basis", CHI2_BASIS["surrogate"]),
+                     f"dof = {one['dof']} (its readings − the free parameters it depends on)"))
+        rows += _test_chi2_rows(one, res.get(f"diagnosis.{name}"), f"test {name}: ")
+    return rows
+
+
+def _test_chi2_rows(inv, d, label):
+    rows = []
     fe = inv["fe_check"]
     if fe is not None:
-        rows.append(("FE check", _num(fe["chi2_dof_fe"], 3), fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"]),
+        rows.append((f"{label}FE check", _num(fe["chi2_dof_fe"], 3), fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"]),
                      "no surrogate error: only the FE model against the data"))
-    d = res.get("diagnosis")
     if d is not None:
         a = d["adequacy"]
-        rows.append(("diagnosis (FE refit)", _num(a["chi2_dof"], 3),
+        rows.append((f"{label}diagnosis (FE refit)", _num(a["chi2_dof"], 3),
                      a.get("basis", chi2_basis("diagnosis")), f"dof = {a['dof']}; p = {_num(a['p_value'], 3)}"))
     return rows
 
 
+def _test_heading(page, test):
+    """A sub-heading naming the test of a joint calibration (nothing for a single-test study)."""
+    if test.name is not None:
+        page.heading(f"Test {test.name} ({test.spec.scenario})", level=3)
+
+
+def _joint_inversion(page, inv):
+    """The joint fit: the shared and per-test parameters, and each test's share of the misfit."""
+    page.paragraph("One set of parameters fitted to every test at once: the misfit is the sum of the tests' "
+                   "misfits (thesis eq. 2.13 per test, independent noise between tests).")
+    page.table(["parameter", "unit", "best fit", "tests that depend on it"],
+               [[n, _unit(inv["units"][n]), _num(v),
+                 ", ".join(t for t, one in inv["tests"].items() if n in one["parameters"])]
+                for n, v in inv["parameters"].items() if n in inv["units"]])
+    page.table(["test", "readings", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"],
+               [[name, one["measurement"]["n_obs"], _num(one["chi2"]), one["dof"], _num(one["chi2_dof"], 3),
+                 one.get("chi2_basis", CHI2_BASIS["surrogate"])] for name, one in inv["tests"].items()]
+               + [["all tests", inv["measurement"]["n_obs"], _num(inv["chi2"]), inv["dof"], _num(inv["chi2_dof"], 3),
+                   inv.get("chi2_basis", CHI2_BASIS["surrogate"])]],
+               caption="Each test's share of the joint fit")
+
+
 def _study(page, study):
-    spec = study.spec.to_dict()
-    fixed = spec.pop("parameters")
-    name = spec.pop("scenario")
-    page.paragraph(f"Scenario {name}; options: " + ", ".join(f"{k} = {v}" for k, v in spec.items() if v is not None) + ".")
-    page.table(["free parameter", "unit", "lower", "upper", "scale"],
-               [[p.name, _unit(p.unit), _num(p.lower), _num(p.upper), p.scale] for p in study.space.parameters])
-    if fixed:
-        page.table(["fixed parameter", "value"], [[k, _num(v)] for k, v in fixed.items()])
-    m = study.measurement
-    designs = [["training", study.train.n, study.train.method, study.train.seed],
-               ["held-out", study.held_out.n, study.held_out.method, study.held_out.seed]]
+    if study.tests:
+        page.table(["shared free parameter", "unit", "lower", "upper", "scale"],
+                   [[p.name, _unit(p.unit), _num(p.lower), _num(p.upper), p.scale] for p in study.space.parameters])
+    designs = []
+    for t in study.calibration_tests:
+        _test_heading(page, t)
+        spec = t.spec.to_dict()
+        fixed = spec.pop("parameters")
+        name = spec.pop("scenario")
+        page.paragraph(f"Scenario {name}; options: " + ", ".join(f"{k} = {v}" for k, v in spec.items() if v is not None)
+                       + ".")
+        page.table(["free parameter", "unit", "lower", "upper", "scale"],
+                   [[p.name, _unit(p.unit), _num(p.lower), _num(p.upper), p.scale] for p in t.space.parameters])
+        if fixed:
+            page.table(["fixed parameter", "value"], [[k, _num(v)] for k, v in fixed.items()])
+        m = t.measurement
+        page.table(["setting", "value"], [["measurement", f"{m.file.name} ({m.file})"], ["noise model", m.noise_text()]])
+        label = "" if t.name is None else f" ({t.name})"
+        designs += [[f"training{label}", t.train.n, t.train.method, t.train.seed],
+                    [f"held-out{label}", t.held_out.n, t.held_out.method, t.held_out.seed]]
     designs += [[f"validation model {v.name} ({v.spec.scenario})", v.design.n, v.design.method, v.design.seed]
                 for v in study.validation]
     page.table(["FE design", "runs", "sampling", "seed"], designs)
     s, i = study.surrogate, study.inversion
     pod = f"{s.modes} modes" if s.modes is not None else f"energy {s.energy}" if s.energy is not None else "default energy"
     page.table(["setting", "value"], [
-        ["measurement", f"{m.file.name} ({m.file})"],
-        ["noise model", m.noise_text()],
         ["surrogate", (f"POD ({pod}); kriging: {s.variogram} semivariogram, β {s.beta}, criterion {s.criterion}, "
                        f"nugget {s.nugget}")],
         ["inversion", (f"GA population {i.population_size} × {i.generations} generations, {i.n_starts} "
@@ -238,18 +302,18 @@ def _offline(page, stages):
             page.paragraph(f"{r.title}: {note}", "meta")
 
 
-def _surrogate(page, study, r):
+def _surrogate(page, study, r, folder=""):
     regression = (", ".join(f"{b:.3g}" for b in r["beta"]) if "beta" in r
                   else r.get("description", r.get("backend", "")))
     page.table(["training snapshots", "POD modes", "retained energy (-)",
                 "β per mode (-)" if "beta" in r else "backend", "training time (s)"],
                [[r["n_train"], r["n_modes"], f"{r['retained_energy']:.10f}", regression,
                  _num(r["training_seconds"], 3)]])
-    page.figure("energy.png", "POD energy decay: share of each mode and the energy left out (log scale).")
-    page.figure("modes.png", "First POD modes of the readings: one line per gauge over the load levels.")
+    page.figure(f"{folder}energy.png", "POD energy decay: share of each mode and the energy left out (log scale).")
+    page.figure(f"{folder}modes.png", "First POD modes of the readings: one line per gauge over the load levels.")
 
 
-def _held_out(page, r):
+def _held_out(page, r, folder=""):
     page.paragraph(
         "The surrogate against FE runs it was not trained on. Relative error per run: ‖ŷ − y‖ / ‖y‖ over all "
         "readings; POD part: what the retained modes cannot represent; interpolation part: the kriging error."
@@ -262,10 +326,10 @@ def _held_out(page, r):
     page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
                [[r["n_held_out"], _num(r["rms_abs_error_mm"], 3), _num(r["max_abs_error_mm"], 3),
                  _pct(r["coverage_2sigma"])]])
-    page.figure("predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
+    page.figure(f"{folder}predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
 
 
-def _inversion(page, r, deformed):
+def _inversion(page, r, deformed, folder=""):
     m = r["measurement"]
     page.paragraph(
         f"Data: {m['file']} ({m['n_obs']} readings: gauges {', '.join(m['sensors'])} at "
@@ -286,16 +350,13 @@ def _inversion(page, r, deformed):
                    caption="FE check at the best fit")
         if fe["ok"]:
             page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
-    page.figure("fit.png", "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: reading "
+    page.figure(f"{folder}fit.png", "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: reading "
                            "(mm) across, load up, one panel per gauge.")
-    page.figure("residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, "
+    page.figure(f"{folder}residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, "
                                  "per gauge and load level, with their colour scale (-).")
     if deformed:
-        page.figure("deformed.png", "FE model at the best fit, last load level: left the deformed mesh (magnified, with a "
+        page.figure(f"{folder}deformed.png", "FE model at the best fit, last load level: left the deformed mesh (magnified, with a "
                                     "length and a displacement scale bar), right the displacement magnitude |u| (mm).")
-    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics.")
-    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, coloured by "
-                                     "generation (log axes for log-sampled parameters).")
 
 
 def _region(page, r):
@@ -330,13 +391,16 @@ def _rvc(page, study, r):
     page.figure("rvc.png", "Spread of each output over the region of equivalence, relative to its mean.")
 
 
-def _diagnosis(page, r):
+def _diagnosis_intro(page):
     page.paragraph(
         "Does the calibrated model explain the data within the noise? If not, which physical effect does it leave "
         "out? Each candidate cause (softer head joints, a weak joint, compliant supports, a faulty gauge, an "
         "eccentric load, ...) is fitted as an extension of the model and tested, with a correction for the number "
         "of candidates and locations tried."
     )
+
+
+def _diagnosis(page, r, folder=""):
     if r is None:
         page.paragraph("Switched off for this study: set [diagnosis] enabled = true in the study file to run it.")
         return
@@ -374,7 +438,7 @@ def _diagnosis(page, r):
                    [[c["name"], c["location"] or "—", fitted_parameter_text(c, alpha), _num(c["delta_chi2"], 3),
                      _num(c["p_corrected"], 3)] for c in cands],
                    caption="Candidate causes, as ranked by the diagnosis")
-    page.links([("diagnosis/index.html",
+    page.links([(f"{folder}diagnosis/index.html",
                  "The diagnosis report: residuals on the specimen and against load, candidate scores, before and after")])
 
 

@@ -12,6 +12,7 @@ Finally the report ``DIR/report/index.html`` is written from the manifests (alwa
 and ``DIR/summary.json`` gathers every stage's results and the findings.
 """
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -114,19 +115,24 @@ def run_study(study, out, *, progress=None, confirm=None):
         confirm(*stages.fe_work(run))
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)
-    stages.measurement_check(run)  # before any FE work: a bad file stops here
-    stages.offline(run, "offline", "Training snapshots (FE)", "train.h5", study.train)
-    stages.range_check(run)  # a unit or sign error stops here, before the surrogate
-    stages.offline(run, "held_out", "Held-out snapshots (FE)", "held_out.h5", study.held_out)
+    tests = study.calibration_tests
+    for test in tests:  # before any FE work: a bad file stops here
+        stages.measurement_check(run, test)
+    for test in tests:
+        stages.offline(run, test, "offline", "Training snapshots (FE)", "train.h5", test.train)
+        stages.range_check(run, test)  # a unit or sign error stops here, before the surrogate
+        stages.offline(run, test, "held_out", "Held-out snapshots (FE)", "held_out.h5", test.held_out)
     for model in study.validation:
         stages.validation_model(run, model)
-    stages.surrogate(run)
-    stages.held_out_validation(run)
+    for test in tests:
+        stages.surrogate(run, test)
+        stages.held_out_validation(run, test)
     stages.inversion(run)
     stages.region(run)
     stages.rvc_stage(run)
     if study.diagnosis.enabled:
-        stages.diagnosis(run)
+        for test in tests:
+            stages.diagnosis(run, test)
     found = study_findings(run)
     report = write_study_report(run.figures / "index.html", study, run.records, found)
     write_json(run.out / "summary.json", {
@@ -141,21 +147,37 @@ def run_study(study, out, *, progress=None, confirm=None):
 
 def study_findings(run):
     """Every finding of the study, in stage order (:mod:`podkrig.online.findings`), from the
-    stage manifests (so cached stages give the same findings)."""
+    stage manifests (so cached stages give the same findings). In a joint calibration each test's
+    findings name the test."""
     study = run.study
-    found = measurement_findings(run.manifest("measurement")["result"], context="study")
+    tests = study.calibration_tests
+    found = []
+    for t in tests:
+        found += _named(t, measurement_findings(run.manifest(t.stage("measurement"))["result"], context="study"))
     for record in run.records:
         if "failed" in record.result:  # the FE stages
             found += offline_findings(record.title, record.result)
-    noise_rel, noise_abs = study.measurement.noise_levels()
-    found += held_out_findings(run.manifest("held_out_validation")["result"], noise_rel=noise_rel,
-                               noise_abs=noise_abs)
+    for t in tests:
+        noise_rel, noise_abs = t.measurement.noise_levels()
+        found += _named(t, held_out_findings(run.manifest(t.stage("held_out_validation"))["result"],
+                                             noise_rel=noise_rel, noise_abs=noise_abs))
     result = InverseResult.from_dict(run.manifest("inversion")["result"])
     region = stages.load_region(run)
     found += inversion_findings(result, region, context="study", diagnosis_enabled=study.diagnosis.enabled)
+    for t in tests if study.tests else ():
+        found += _named(t, inversion_findings(result.tests[t.name], context="study",
+                                              diagnosis_enabled=study.diagnosis.enabled, per_test=True))
     if study.diagnosis.enabled:
-        found += diagnosis_findings(run.manifest("diagnosis")["result"])
+        for t in tests:
+            found += _named(t, diagnosis_findings(run.manifest(t.stage("diagnosis"))["result"]))
     return found
+
+
+def _named(test, findings):
+    """``findings`` of one test of a joint calibration, their messages prefixed with the test's name."""
+    if test.name is None:
+        return findings
+    return [dataclasses.replace(f, message=f"test {test.name}: {f.message}") for f in findings]
 
 
 __all__ = ["Progress", "StageRecord", "StudyResult", "run_study", "study_findings"]

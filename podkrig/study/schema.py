@@ -79,6 +79,7 @@ from fe.scenarios import SCENARIOS, ScenarioSpec
 from podkrig.exceptions import PodkrigError
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
+    CalibrationTest,
     Study,
     StudyFile,
     TrainingDesign,
@@ -284,24 +285,71 @@ def load_study(path):
     except ValidationError as e:
         r.explain(e)
 
+    s = f.sampling
+    common = dict(path=path.resolve(), name=path.stem if f.name is None else f.name, fixed=dict(f.fixed),
+                  train=s.train, held_out=s.held_out, workers=s.workers, scheduler=s.scheduler, surrogate=f.surrogate,
+                  inversion=f.inversion, diagnosis=f.diagnosis)
+    if f.test:
+        space, tests = _tests(r, data, f, path.parent)
+        return Study(spec=None, space=space, measurement=None, tests=tests,
+                     validation=_validation(r, f.validation, path.parent, f.fixed, space), **common)
     spec = _scenario(r, f.scenario, ("scenario",), path.parent, f.fixed)
     space = _parameters(r, data["parameters"], f.parameters, spec)
     both = sorted(set(space.names) & set(f.fixed))
     if both:
         r.fail(("fixed", both[0]), "is also a free parameter in [parameters]; choose one")
-    s = f.sampling
-    return Study(
-        path=path.resolve(), name=path.stem if f.name is None else f.name, spec=spec, space=space,
-        fixed=dict(f.fixed), train=s.train, held_out=s.held_out, workers=s.workers, scheduler=s.scheduler,
-        surrogate=f.surrogate, measurement=f.measurement, inversion=f.inversion,
-        validation=_validation(r, f.validation, path.parent, f.fixed, space),
-        diagnosis=f.diagnosis,
-    )
+    return Study(spec=spec, space=space, measurement=f.measurement,
+                 validation=_validation(r, f.validation, path.parent, f.fixed, space), **common)
 
 
-def _scenario(r, value, path, folder, fixed):
+def _tests(r, data, f, folder):
+    """The shared parameter space and the :class:`CalibrationTest` of each ``[[test]]`` table."""
+    known = {}  # parameter name -> ParameterInfo, over every test's scenario
+    specs = []
+    for k, t in enumerate(f.test):
+        where = ("test", k, "scenario")
+        # the study's fixed values apply to the tests whose scenario has them; the test's own override
+        spec = _scenario(r, t.scenario, where, folder, t.fixed, ("test", k, "fixed"))
+        info = {p.name for p in SCENARIOS[spec.scenario].PARAMETERS}
+        shared_fixed = {n: v for n, v in f.fixed.items() if n in info and n not in t.fixed}
+        _scenario(r, t.scenario, where, folder, shared_fixed)  # the study's [fixed] values in this scenario's ranges
+        spec = _scenario(r, t.scenario, where, folder, {**shared_fixed, **t.fixed}, ("test", k, "fixed"))
+        specs.append(spec)
+        known.update({p.name: p for p in SCENARIOS[spec.scenario].PARAMETERS})
+    for n in f.fixed:
+        if n not in known:
+            r.fail(("fixed", n), "is a parameter of none of the tests' scenarios", ", ".join(known))
+    shared = _parameters(r, data["parameters"], f.parameters, None, known)
+    both = sorted(set(shared.names) & set(f.fixed))
+    if both:
+        r.fail(("fixed", both[0]), "is also a free parameter in [parameters]; choose one")
+    tests = []
+    for k, (t, spec) in enumerate(zip(f.test, specs)):
+        where = ("test", k)
+        info = {p.name for p in SCENARIOS[spec.scenario].PARAMETERS}
+        for n in t.parameters:
+            if n in shared.names:
+                r.fail((*where, "parameters", n), "is already a shared parameter in [parameters]; give it once")
+        own = _parameters(r, data["test"][k].get("parameters", {}), t.parameters, spec, allow_empty=True,
+                          path=(*where, "parameters"))
+        mine = [p for p in shared.parameters if p.name in info] + list(own.parameters if own else ())
+        for n in t.fixed:
+            if any(p.name == n for p in mine):
+                r.fail((*where, "fixed", n), "is also a free parameter of this test; choose one")
+        if not mine:
+            r.fail((*where, "scenario"), f"scenario {spec.scenario} has none of the free parameters "
+                   f"{list(shared.names)}: it cannot inform the calibration")
+        d = t.sampling
+        tests.append(CalibrationTest(t.name, spec, ParameterSpace(tuple(mine)),
+                                     {**{n: v for n, v in f.fixed.items() if n in info}, **t.fixed},
+                                     d.train or f.sampling.train, d.held_out or f.sampling.held_out, t.measurement))
+    return shared, tuple(tests)
+
+
+def _scenario(r, value, path, folder, fixed, fixed_path=("fixed",)):
     """The scenario spec of ``value`` (a name, a spec file or an inline table), normalised (every
-    option explicit), with ``fixed`` among its parameters."""
+    option explicit), with ``fixed`` among its parameters (a mistake in them is reported under
+    ``fixed_path``)."""
     names = ", ".join(sorted(SCENARIOS))
     allowed = f"a scenario name ({names}), a spec file (.toml or .json) or an inline table"
     source = None
@@ -330,7 +378,7 @@ def _scenario(r, value, path, folder, fixed):
     params = value.get("parameters", {})
     merged = {}
     for k, v in {**params, **fixed}.items():
-        where = ("fixed", k) if k in fixed else (*path, "parameters", k)
+        where = (*fixed_path, k) if k in fixed else (*path, "parameters", k)
         if k not in info:
             r.fail(where, f"unknown parameter of {name}", ", ".join(info))
         if k in fixed and k in params and float(params[k]) != fixed[k]:
@@ -345,17 +393,21 @@ def _scenario(r, value, path, folder, fixed):
     return ScenarioSpec(name, dataclasses.asdict(parsed), merged)
 
 
-def _parameters(r, raw, bounds, spec):
-    """The free parameters: names known to the scenario, bounds within their physical range."""
-    path = ("parameters",)
-    info = {p.name: p for p in SCENARIOS[spec.scenario].PARAMETERS}
+def _parameters(r, raw, bounds, spec, known=None, *, allow_empty=False, path=("parameters",)):
+    """Free parameters: names known to the scenario (or in ``known``, name → ParameterInfo, for the
+    shared parameters of a joint calibration), bounds within their physical range. Returns None for
+    an empty table when ``allow_empty``."""
+    info = known if spec is None else {p.name: p for p in SCENARIOS[spec.scenario].PARAMETERS}
+    owner = spec.scenario if spec is not None else "any test's scenario"
     if not bounds:
+        if allow_empty:
+            return None
         r.fail(path, "no free parameters", f"some of {', '.join(info)}, e.g. kN_bj = {{ lower = 10.0, upper = 1000.0, scale = \"log\" }}")
     params = []
     for name, b in bounds.items():
         where = (*path, name)
         if name not in info:
-            r.fail(where, f"unknown parameter of {spec.scenario}", ", ".join(info))
+            r.fail(where, f"unknown parameter of {owner}", ", ".join(info))
         p = info[name]
         for key in ("lower", "upper"):
             if not _admissible(p, getattr(b, key)):

@@ -38,7 +38,7 @@ from podkrig.parameters import SCALES, ParameterSpace
 
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
-    "Design", "DiagnosisSettings", "InversionSettings", "MeasurementSettings", "Study",
+    "CalibrationTest", "Design", "DiagnosisSettings", "InversionSettings", "MeasurementSettings", "Study",
     "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error", "type_name",
 ]
 
@@ -427,13 +427,47 @@ class Bounds:
 
 
 @_settings
-class StudyFile:
-    """The study file as written: every table's shape (see :mod:`podkrig.study.schema`)."""
+class TestDesigns:
+    """A ``[test.sampling]`` table: a test's own training and held-out designs (default: ``[sampling]``'s)."""
 
+    train: TrainingDesign | None = None
+    held_out: Design | None = None
+
+
+@_settings
+class TestEntry:
+    """One ``[[test]]`` table of a joint calibration as written: its scenario, measurement and noise,
+    its own (nuisance) free parameters and fixed values, and optionally its own designs."""
+
+    name: Annotated[StrictStr, AfterValidator(
+        lambda v: v if re.fullmatch(r"[A-Za-z0-9_-]+", v) and v != "calibration" else _raise()),
+        _allowed(_NAME_ALLOWED)]
     scenario: Any
+    measurement: MeasurementSettings
+    parameters: Annotated[dict[str, Bounds], Field(json_schema_extra={"table": "a table"})] = dataclasses.field(
+        default_factory=dict)
+    fixed: Annotated[dict[str, StrictFloat],
+                     Field(json_schema_extra={"table": "a table of parameter = value"})] = dataclasses.field(
+        default_factory=dict)
+    sampling: TestDesigns = dataclasses.field(default_factory=TestDesigns)
+
+
+_REQUIRED = ("required top-level keys: measurement, parameters, sampling, scenario; or, for a joint calibration, "
+             "parameters, sampling and two or more [[test]] tables each with name, scenario and [test.measurement]")
+
+
+@_settings
+class StudyFile:
+    """The study file as written: every table's shape (see :mod:`podkrig.study.schema`). One test
+    (``scenario`` and ``[measurement]`` at the top level) or a joint calibration (``[[test]]``
+    tables, each with its scenario and measurement, sharing ``[parameters]``)."""
+
     parameters: Annotated[dict[str, Bounds], Field(json_schema_extra={"table": "a table"})]
     sampling: SamplingSettings
-    measurement: MeasurementSettings
+    scenario: Any = None
+    measurement: MeasurementSettings | None = None
+    test: Annotated[list[TestEntry], Field(json_schema_extra={"array": "an array of tables ([[test]])"})] = (
+        dataclasses.field(default_factory=list))
     name: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
                     _allowed("a non-empty string")] | None = None
     fixed: Annotated[dict[str, StrictFloat],
@@ -445,6 +479,26 @@ class StudyFile:
                           Field(json_schema_extra={"array": "an array of tables ([[validation]])"})] = (
         dataclasses.field(default_factory=list))
     diagnosis: DiagnosisSettings = dataclasses.field(default_factory=DiagnosisSettings)
+
+    def __post_init__(self):
+        if self.test:
+            for key in ("scenario", "measurement"):
+                if getattr(self, key) is not None:
+                    raise study_error("a joint calibration gives each [[test]] its own scenario and measurement; "
+                                      f"move the top-level {key} into the [[test]] tables", key)
+            if len(self.test) < 2:
+                raise study_error("one [[test]] table: a joint calibration needs two or more tests (for one test, "
+                                  "write scenario and [measurement] at the top level)", "test")
+            names = [t.name for t in self.test]
+            twice = sorted({n for n in names if names.count(n) > 1})
+            if twice:
+                second = len(names) - 1 - names[::-1].index(twice[0])
+                raise study_error(f"{twice[0]!r} names two tests", ("test", second, "name"),
+                                  "distinct names")
+            return
+        for key in ("scenario", "measurement"):
+            if getattr(self, key) is None:
+                raise study_error(f"missing key {key!r}", (), _REQUIRED)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -487,6 +541,11 @@ class Study:
     inversion : InversionSettings
     validation : tuple of ValidationModel
     diagnosis : DiagnosisSettings
+    tests : tuple of CalibrationTest
+        The tests of a joint calibration (``[[test]]`` tables); empty for a study of one test, whose
+        scenario, designs and measurement are :attr:`spec`, :attr:`train`, :attr:`held_out` and
+        :attr:`measurement` (then ``None`` in a joint calibration). :attr:`space` holds the shared
+        parameters; each test's own are in its ``space``.
     """
 
     path: Path
@@ -503,3 +562,52 @@ class Study:
     inversion: InversionSettings
     validation: tuple
     diagnosis: DiagnosisSettings
+    tests: tuple = ()
+
+    @property
+    def calibration_tests(self):
+        """The tests the calibration fits, as :class:`CalibrationTest` objects: the ``[[test]]``
+        tables, or the one test of a single-test study (``name`` None: stages and files keep their
+        single-test names)."""
+        if self.tests:
+            return self.tests
+        return (CalibrationTest(None, self.spec, self.space, dict(self.fixed), self.train, self.held_out,
+                                self.measurement),)
+
+
+@dataclasses.dataclass(frozen=True)
+class CalibrationTest:
+    """One test of a calibration: its scenario, free parameters, designs and measurement.
+
+    Attributes
+    ----------
+    name : str or None
+        The ``[[test]]`` name; None for the one test of a single-test study.
+    spec : fe.ScenarioSpec
+        With the study's fixed values it knows and the test's own.
+    space : ParameterSpace
+        The free parameters this test depends on: the shared ones its scenario has, then its own.
+    fixed : dict of str to float
+    train, held_out : Design
+    measurement : MeasurementSettings
+    """
+
+    name: str | None
+    spec: object
+    space: ParameterSpace
+    fixed: dict
+    train: Design
+    held_out: Design
+    measurement: MeasurementSettings
+
+    def stage(self, stage):
+        """The stage name of this test's ``stage`` (``"offline"`` → ``"offline.NAME"``)."""
+        return stage if self.name is None else f"{stage}.{self.name}"
+
+    def file(self, filename):
+        """Where this test's output ``filename`` goes, relative to the study's output folder."""
+        return filename if self.name is None else f"{self.name}/{filename}"
+
+    def title(self, title):
+        """A stage title naming the test."""
+        return title if self.name is None else f"{title} — test {self.name}"

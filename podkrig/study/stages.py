@@ -37,6 +37,7 @@ from podkrig.offline.files import move_aside
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.invert import InverseResult, invert
+from podkrig.online.joint import JointProblem
 from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
@@ -66,13 +67,19 @@ class StudyRun(StageCache):
         super().__init__(out, progress)
         self.study = study
         self.figures = self.out / "report"
-        self._scenario = None
+        self._scenarios = {}
 
-    def scenario(self):
-        """The calibration scenario, built once (only when a stage needs the FE model)."""
-        if self._scenario is None:
-            self._scenario = build_scenario(self.study.spec)
-        return self._scenario
+    def scenario(self, test):
+        """The scenario of a calibration test, built once (only when a stage needs the FE model)."""
+        if test.name not in self._scenarios:
+            self._scenarios[test.name] = build_scenario(test.spec)
+        return self._scenarios[test.name]
+
+    def figure(self, test, filename):
+        """Path of a report figure of ``test`` (``report/NAME/filename`` in a joint calibration)."""
+        path = self.figures / test.file(filename)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return path
 
 
 def fe_work(run):
@@ -86,13 +93,14 @@ def fe_work(run):
     large : bool
     """
     study = run.study
-    jobs = [(run.out / "train.h5", None, study.train), (run.out / "held_out.h5", None, study.held_out)]
+    jobs = [(run.out / t.file(f), t.spec, d) for t in study.calibration_tests
+            for f, d in (("train.h5", t.train), ("held_out.h5", t.held_out))]
     jobs += [(run.out / f"validation_{m.name}.h5", m.spec, m.design) for m in study.validation]
     work, stored = [], 0
     for path, spec, design in jobs:
         todo = rows_to_run(path, design.n)
         if todo:
-            sc = run.scenario() if spec is None else build_scenario(spec)
+            sc = build_scenario(spec)
             work.append((todo, sc.n_dofs, isinstance(sc, NonlinearScenario)))
             stored += STUDY_BYTES_PER_ROW * design.n
     return fe_job_estimate(work, stored)
@@ -104,6 +112,7 @@ def _run_store(run, path, spec, space, design):
     A store another run is filling is never touched (:class:`StoreInUseError` propagates)."""
     kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method}
     notes = []
+    path.parent.mkdir(parents=True, exist_ok=True)
     try:
         prepare_store(path, spec, space, **kwargs)
     except StoreInUseError:
@@ -142,27 +151,27 @@ def _store_result(path, summary, notes):
 RANGE_FACTOR = 20.0
 
 
-def read_study_measurement(study, sensor_names, load_levels, load_unit, load_response):
-    """The study's measurement log read for a model: (Measurement, NoiseModel)."""
-    m = study.measurement
+def read_study_measurement(test, sensor_names, load_levels, load_unit, load_response):
+    """A test's measurement log read for a model: (Measurement, NoiseModel)."""
+    m = test.measurement
     data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
     return data, m.noise_model(data.sensor_names)
 
 
-def measurement_check(run):
-    """Read and check the measurement against the scenario before any FE work: every column, unit
-    and load; the degrees of freedom; the noise model (:meth:`Measurement.check_summary`)."""
+def measurement_check(run, test):
+    """Read and check a test's measurement against its scenario before any FE work: every column,
+    unit and load; the degrees of freedom; the noise model (:meth:`Measurement.check_summary`)."""
     study = run.study
-    m = study.measurement
+    m = test.measurement
     settings = {**dataclasses.asdict(m), "file": str(m.file)}  # JSON-able (the report shows the inputs)
-    inputs = {"spec": study.spec.to_dict(), "free": list(study.space.names), "measurement": file_sha256(m.file),
+    inputs = {"spec": test.spec.to_dict(), "free": list(test.space.names), "measurement": file_sha256(m.file),
               "settings": settings, "diagnosis": study.diagnosis.enabled}
 
     def compute():
-        sc = run.scenario()
+        sc = run.scenario(test)
         response = getattr(sc, "load_response", "discrete")
-        data, noise = read_study_measurement(study, sc.sensor_names, sc.load_levels, sc.load_unit, response)
-        check_dof(data.n_obs, study.space.names, str(m.file))
+        data, noise = read_study_measurement(test, sc.sensor_names, sc.load_levels, sc.load_unit, response)
+        check_dof(data.n_obs, test.space.names, str(m.file))
         if study.diagnosis.enabled:
             exact = np.all(np.any(np.isclose(data.load_levels[:, None], sc.load_levels[None, :], rtol=1e-9,
                                              atol=1e-12), axis=1))
@@ -174,33 +183,32 @@ def measurement_check(run):
                     f"{sc.load_unit}{'' if data.complete else ' and missing readings'}. Set [diagnosis] "
                     "enabled = false, or give the readings at the levels")
         summary = data.check_summary(sc.sensor_names, noise)
-        summary.update(load_response=response, load_unit=sc.load_unit, n_free=study.space.n_params,
-                       dof=data.n_obs - study.space.n_params, noise=m.noise_text())
+        summary.update(load_response=response, load_unit=sc.load_unit, n_free=test.space.n_params,
+                       dof=data.n_obs - test.space.n_params, noise=m.noise_text())
         for note in data.notes:
             logger.info("%s: %s", m.file.name, note)
         return summary, [], 0
 
-    run.stage("measurement", "Measurement check (before FE work)", inputs, compute)
+    run.stage(test.stage("measurement"), test.title("Measurement check (before FE work)"), inputs, compute)
 
 
-def range_check(run):
+def range_check(run, test):
     """Stop when a sensor's readings lie far outside every training snapshot (a unit or sign error),
-    as soon as the training snapshots exist (``[measurement] range_check``)."""
-    study = run.study
-    if not study.measurement.range_check:
+    as soon as a test's training snapshots exist (``[measurement] range_check``)."""
+    if not test.measurement.range_check:
         return
-    with SnapshotStore.open(run.out / "train.h5") as store:
+    with SnapshotStore.open(run.out / test.file("train.h5")) as store:
         Y = store.readings(only_done=True)
         sensor_names, levels, unit = list(store.sensor_names), store.load_levels, store.load_unit
     if not len(Y):
         return
-    sc = run.scenario()
+    sc = run.scenario(test)
     response = getattr(sc, "load_response", "discrete")
-    data, noise = read_study_measurement(study, sensor_names, levels, unit, response)
+    data, noise = read_study_measurement(test, sensor_names, levels, unit, response)
     problems = measurement_range_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1))
     if problems:
         raise ValueError(
-            f"{study.measurement.file}: the readings do not look like any of the {len(Y)} training FE runs — "
+            f"{test.measurement.file}: the readings do not look like any of the {len(Y)} training FE runs — "
             + "; ".join(problems) + ". State the unit in the column header (e.g. 'D1 [µm]'), check the sign "
             "convention, or widen the parameter bounds; [measurement] range_check = false runs anyway")
 
@@ -251,17 +259,17 @@ def _power_of_ten(r):
     return f"{10 ** round(np.log10(r)):g}" if r >= 3 else f"{r:.2g}"
 
 
-def offline(run, name, title, filename, design):
-    """FE snapshots of a design into ``filename`` (training or held-out): the store's numbers."""
-    study = run.study
-    inputs = {"spec": study.spec.to_dict(), "space": study.space.to_dict(), "design": dataclasses.asdict(design)}
+def offline(run, test, name, title, filename, design):
+    """FE snapshots of a test's design into ``filename`` (training or held-out): the store's numbers."""
+    inputs = {"spec": test.spec.to_dict(), "space": test.space.to_dict(), "design": dataclasses.asdict(design)}
+    filename = test.file(filename)
 
     def compute():
         path = run.out / filename
-        summary, notes = _run_store(run, path, run.scenario(), study.space, design)
+        summary, notes = _run_store(run, path, run.scenario(test), test.space, design)
         return _store_result(path, summary, notes), [filename], summary.ran
 
-    run.stage(name, title, inputs, compute, total=design.n)
+    run.stage(test.stage(name), test.title(title), inputs, compute, total=design.n)
 
 
 def _templates(settings):
@@ -319,85 +327,117 @@ def validation_model(run, model):
     run.stage(name, f"Validation model '{model.name}' (FE + surrogate)", inputs, compute, total=model.design.n)
 
 
-def surrogate(run):
-    """POD + kriging fit on the training store: sizes, retained energy, exponents, training time."""
+def surrogate(run, test):
+    """POD + kriging fit on a test's training store: sizes, retained energy, exponents, training time."""
     settings = run.study.surrogate
-    inputs = {"settings": dataclasses.asdict(settings), "train": run.outputs("offline")}
+    inputs = {"settings": dataclasses.asdict(settings), "train": run.outputs(test.stage("offline"))}
 
     def compute():
-        sur, seconds = _fit(run.out / "train.h5", settings, run.out / "surrogate.h5")
+        sur, seconds = _fit(run.out / test.file("train.h5"), settings, run.out / test.file("surrogate.h5"))
         prov = sur.provenance_
-        surrogate_figures.plot_energy(sur.pod_, run.figures / "energy.png")
+        surrogate_figures.plot_energy(sur.pod_, run.figure(test, "energy.png"))
         surrogate_figures.plot_reading_modes(sur.pod_, prov["sensor_names"], prov["load_levels"], prov["load_unit"],
-                                             run.figures / "modes.png")
-        return _surrogate_result(sur, seconds), ["surrogate.h5", "report/energy.png", "report/modes.png"], 0
+                                             run.figure(test, "modes.png"))
+        files = [test.file("surrogate.h5")] + [f"report/{test.file(f)}" for f in ("energy.png", "modes.png")]
+        return _surrogate_result(sur, seconds), files, 0
 
-    run.stage("surrogate", "Surrogate fit (POD + kriging)", inputs, compute)
+    run.stage(test.stage("surrogate"), test.title("Surrogate fit (POD + kriging)"), inputs, compute)
 
 
-def held_out_validation(run):
-    """The surrogate against the held-out FE runs: :meth:`HeldOutReport.summary` plus RMS and max errors (mm)."""
-    inputs = {"surrogate": run.outputs("surrogate"), "held_out": run.outputs("held_out")}
+def held_out_validation(run, test):
+    """A test's surrogate against its held-out FE runs: :meth:`HeldOutReport.summary` plus RMS and
+    max errors (mm)."""
+    inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
 
     def compute():
-        sur = PODKriging.load(run.out / "surrogate.h5")
-        with SnapshotStore.open(run.out / "held_out.h5") as store:
+        sur = PODKriging.load(run.out / test.file("surrogate.h5"))
+        with SnapshotStore.open(run.out / test.file("held_out.h5")) as store:
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
-        surrogate_figures.plot_predicted_vs_fe(rep, run.figures / "predicted_vs_fe.png")
+        surrogate_figures.plot_predicted_vs_fe(rep, run.figure(test, "predicted_vs_fe.png"))
         result = rep.summary()
         result["rms_abs_error_mm"] = float(np.sqrt(np.mean((rep.Y_pred - rep.Y_true) ** 2)))
         result["max_abs_error_mm"] = float(np.max(np.abs(rep.Y_pred - rep.Y_true)))
-        return result, ["report/predicted_vs_fe.png"], 0
+        return result, [f"report/{test.file('predicted_vs_fe.png')}"], 0
 
-    run.stage("held_out_validation", "Surrogate check on held-out runs", inputs, compute)
+    run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 
 
-def _problem(run):
-    """The inverse problem of the study on its surrogate: (problem, model)."""
-    model = SurrogateModel(PODKriging.load(run.out / "surrogate.h5"))
-    data, noise = read_study_measurement(run.study, model.sensor_names, model.load_levels, model.load_unit,
+def _problem(run, test):
+    """The inverse problem of one test on its surrogate: (problem, model)."""
+    model = SurrogateModel(PODKriging.load(run.out / test.file("surrogate.h5")))
+    data, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
                                          model.load_response)
     free, fixed = fix_from_scenario(model)
     return InverseProblem(model, data, noise, free=free, fixed=fixed), model
 
 
+def calibration_problem(run):
+    """The study's calibration problem: the one test's :class:`InverseProblem`, or the
+    :class:`~podkrig.online.joint.JointProblem` of every ``[[test]]``."""
+    tests = run.study.calibration_tests
+    if not run.study.tests:
+        return _problem(run, tests[0])[0]
+    return JointProblem({t.name: _problem(run, t)[0] for t in tests})
+
+
 def _online_inputs(run):
-    """Inputs shared by the online stages: the surrogate, the measurement file and the noise."""
-    m = run.study.measurement
-    return {"surrogate": run.outputs("surrogate"), "measurement": file_sha256(m.file),
-            "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
-            "import": dataclasses.asdict(m.import_settings())}
+    """Inputs shared by the online stages: each test's surrogate, measurement file and noise."""
+    inputs = {}
+    for t in run.study.calibration_tests:
+        m = t.measurement
+        one = {"surrogate": run.outputs(t.stage("surrogate")), "measurement": file_sha256(m.file),
+               "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
+               "import": dataclasses.asdict(m.import_settings())}
+        if t.name is None:
+            return one
+        inputs[t.name] = one
+    return {"tests": inputs}
 
 
 def inversion(run):
-    """GA + polish on the surrogate, FE check at the optimum: :meth:`InverseResult.to_dict`."""
+    """GA + polish on the surrogate(s), FE check at the optimum: :meth:`InverseResult.to_dict` (with
+    each test's view under ``tests`` in a joint calibration)."""
     s = run.study.inversion
     inputs = {**_online_inputs(run), "ga": {"seed": s.seed, "population_size": s.population_size,
                                             "generations": s.generations, "n_starts": s.n_starts},
               "fe_check": s.fe_check}
 
     def compute():
-        problem, model = _problem(run)
+        problem = calibration_problem(run)
         result = invert(problem, rng=s.seed, population_size=s.population_size, generations=s.generations,
                         n_starts=s.n_starts)
-        response = None
-        if s.fe_check:  # the FE run of the check keeps its field for the deformed-specimen figure
-            response = run.scenario().run(result.parameters, field=True)
-            result = result.with_fe_check(run.scenario(), response)
-        unit = model.load_unit
-        inverse_figures.plot_fit(result, run.figures / "fit.png", load_unit=unit)
-        inverse_figures.plot_residuals(result, run.figures / "residuals.png", load_unit=unit)
+        files, fe_runs = [], 0
+        for test in run.study.calibration_tests:
+            one = result if test.name is None else result.tests[test.name]
+            one, drawn = _check_and_draw(run, test, one, s.fe_check)
+            result = one if test.name is None else result.with_test(test.name, one)
+            files += drawn
+            fe_runs += int(one.fe_check is not None)
         inverse_figures.plot_ga_history(result.ga, run.figures / "ga_history.png")
         inverse_figures.plot_ga_parameters(result.ga, run.figures / "ga_parameters.png", problem.free_space)
-        files = ["report/fit.png", "report/residuals.png", "report/ga_history.png", "report/ga_parameters.png"]
-        if getattr(response, "field", None) is not None:
-            plot_deformed_field(run.scenario(), response.field, run.figures / "deformed.png",
-                                title="FE model at the best fit")
-            files.append("report/deformed.png")
-        return result.to_dict(), files, int(result.fe_check is not None)
+        files += ["report/ga_history.png", "report/ga_parameters.png"]
+        return result.to_dict(), files, fe_runs
 
     run.stage("inversion", "Inversion (GA + FE check)", inputs, compute)
+
+
+def _check_and_draw(run, test, result, check):
+    """A test's FE check at the optimum (``check``) and its fit, residual and deformed-specimen
+    figures: (result with its FE check, report files)."""
+    response = None
+    if check:  # the FE run of the check keeps its field for the deformed-specimen figure
+        response = run.scenario(test).run(result.parameters, field=True)
+        result = result.with_fe_check(run.scenario(test), response)
+    unit = result.problem.model.load_unit
+    inverse_figures.plot_fit(result, run.figure(test, "fit.png"), load_unit=unit)
+    inverse_figures.plot_residuals(result, run.figure(test, "residuals.png"), load_unit=unit)
+    files = ["fit.png", "residuals.png"]
+    if getattr(response, "field", None) is not None:
+        plot_deformed_field(run.scenario(test), response.field, run.figure(test, "deformed.png"),
+                            title="FE model at the best fit" + ("" if test.name is None else f" — test {test.name}"))
+        files.append("deformed.png")
+    return result, [f"report/{test.file(f)}" for f in files]
 
 
 def region(run):
@@ -408,7 +448,7 @@ def region(run):
               "method": s.region_method, "samples": s.region_samples, "seed": s.seed}
 
     def compute():
-        problem, _ = _problem(run)
+        problem = calibration_problem(run)
         x = InverseResult.from_dict(inv["result"]).x
         if s.region_method == "noise-mc":
             found = noise_monte_carlo_region(problem, x, confidence=s.confidence, rng=s.seed)
@@ -429,16 +469,22 @@ def load_region(run):
 
 
 def rvc_stage(run):
-    """RVC of the calibration and validation models over the region: ``{"models": {name: RVCResult.to_dict()}}``."""
+    """RVC of the calibration and validation models over the region: ``{"models": {name: RVCResult.to_dict()}}``
+    (the calibration models are ``calibration``, or ``calibration.TEST`` per test of a joint calibration)."""
     study = run.study
-    inputs = {"region": run.outputs("region"), "calibration": run.outputs("surrogate"), "seed": study.inversion.seed,
+    tests = study.calibration_tests
+    inputs = {"region": run.outputs("region"), "seed": study.inversion.seed,
+              "calibration": {str(t.name): run.outputs(t.stage("surrogate")) for t in tests},
               "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
                                       "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
 
     def compute():
         found = load_region(run)
         seed = study.inversion.seed
-        results = {"calibration": rvc(found, SurrogateModel(PODKriging.load(run.out / "surrogate.h5")), rng=seed)}
+        results = {}
+        for t in tests:
+            model = SurrogateModel(PODKriging.load(run.out / t.file("surrogate.h5")))
+            results[t.stage("calibration")] = rvc(found, model, fixed=t.fixed, rng=seed)
         for m in study.validation:
             model = SurrogateModel(PODKriging.load(run.out / f"validation_{m.name}_surrogate.h5"))
             results[m.name] = rvc(found, model, outputs=list(m.outputs) if m.outputs else None, rng=seed)
@@ -448,20 +494,20 @@ def rvc_stage(run):
     run.stage("rvc", "Response variability (RVC)", inputs, compute)
 
 
-def diagnosis(run):
-    """The model diagnosis on the FE model (its own report page): :meth:`Diagnosis.to_dict`."""
+def diagnosis(run, test):
+    """The model diagnosis of a test on its FE model (its own report page): :meth:`Diagnosis.to_dict`."""
     study = run.study
     inputs = {**_online_inputs(run), "seed": study.diagnosis.seed}
 
     def compute():
-        problem, model = _problem(run)
-        folder = run.figures / "diagnosis"
+        problem, model = _problem(run, test)
+        folder = run.figures / test.file("diagnosis")
         shutil.rmtree(folder, ignore_errors=True)  # figures of an earlier diagnosis
-        result = diagnose(run.scenario(), problem.measurement, problem.noise, study.space, fixed=study.fixed,
+        result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, fixed=test.fixed,
                           surrogate=model.surrogate, rng=study.diagnosis.seed,
                           progress=lambda stage, done, total: run.progress.advance(done, total))
-        write_diagnosis_report(result, folder, noise_text=study.measurement.noise_text())
+        write_diagnosis_report(result, folder, noise_text=test.measurement.noise_text())
         files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())
         return result.to_dict(), files, result.n_fe_runs
 
-    run.stage("diagnosis", "Model diagnosis", inputs, compute, total=1)
+    run.stage(test.stage("diagnosis"), test.title("Model diagnosis"), inputs, compute, total=1)
