@@ -286,9 +286,9 @@ def load_study(path):
         r.explain(e)
 
     s = f.sampling
-    common = dict(path=path.resolve(), name=path.stem if f.name is None else f.name, fixed=dict(f.fixed),
-                  train=s.train, held_out=s.held_out, workers=s.workers, scheduler=s.scheduler, surrogate=f.surrogate,
-                  inversion=f.inversion, diagnosis=f.diagnosis)
+    common = {"path": path.resolve(), "name": path.stem if f.name is None else f.name, "fixed": dict(f.fixed),
+              "train": s.train, "held_out": s.held_out, "workers": s.workers, "scheduler": s.scheduler,
+              "surrogate": f.surrogate, "inversion": f.inversion, "diagnosis": f.diagnosis}
     if f.test:
         space, tests = _tests(r, data, f, path.parent)
         return Study(spec=None, space=space, measurement=None, tests=tests,
