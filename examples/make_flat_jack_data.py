@@ -9,7 +9,13 @@ order (step-major: all gauges at step 1, then step 2, ...). Readings are written
 Run from the repository root::
 
     python examples/make_flat_jack_data.py            # rewrites the shipped file
+    python examples/make_flat_jack_data.py --joint    # the joint calibration's file (below)
     python examples/make_flat_jack_data.py --out x.csv --seed 7
+
+``--joint`` writes ``examples/joint_flat_jack_measured.csv`` for ``joint_three_tests.toml``: the
+same test at the demo's hidden values (E_b = 10 500 MPa, kN_bj = 70, kV_bj = 28 N/mm³,
+r_hj = 0.55; Km = 0.82), so that it describes the same masonry as the diagonal and shear-wall
+files, with the same 2 µm noise drawn with ``default_rng(2028)``.
 """
 
 import argparse
@@ -26,6 +32,9 @@ SEED = 2027
 HERE = Path(__file__).parent
 SPEC = HERE / "flat_jack_scenario.toml"
 OUT = HERE / "flat_jack_measured.csv"
+#: the joint calibration's file: the demo's hidden values (make_measured_data.TRUTH) and Km
+JOINT_TRUTH = {"E_b": 10500.0, "kN_bj": 70.0, "kV_bj": 28.0, "r_hj": 0.55, "Km": 0.82}
+JOINT_OUT, JOINT_SEED = HERE / "joint_flat_jack_measured.csv", 2028
 
 
 def simulate_csv(truth, spec=SPEC):
@@ -59,10 +68,13 @@ def make(out=OUT, seed=SEED, noise_abs=NOISE_ABS, truth=None):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=OUT, help="CSV file to write (default: the shipped file).")
-    parser.add_argument("--seed", type=int, default=SEED, help="Seed of the noise (default: %(default)s).")
+    parser.add_argument("--joint", action="store_true",
+                        help="The joint calibration's file (the demo's hidden values; joint_three_tests.toml).")
+    parser.add_argument("--out", type=Path, help="CSV file to write (default: the shipped file).")
+    parser.add_argument("--seed", type=int, help="Seed of the noise (default: 2027, or 2028 with --joint).")
     args = parser.parse_args()
-    print(f"wrote {make(args.out, args.seed)}")
+    out, seed, truth = (JOINT_OUT, JOINT_SEED, JOINT_TRUTH) if args.joint else (OUT, SEED, TRUTH)
+    print(f"wrote {make(args.out or out, seed if args.seed is None else args.seed, truth=truth)}")
 
 
 if __name__ == "__main__":

@@ -20,14 +20,17 @@ def test_flat_jack_study_is_valid():
 
 
 def test_flat_jack_data_is_reproducible(tmp_path):
-    """examples/make_flat_jack_data.py regenerates the shipped pseudo-measured data."""
+    """examples/make_flat_jack_data.py regenerates the shipped pseudo-measured data (the flat-jack
+    study's, and the joint calibration's at the demo's hidden values)."""
     spec = importlib.util.spec_from_file_location("make_flat_jack_data", EXAMPLES / "make_flat_jack_data.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    made = module.make(tmp_path / "made.csv").read_text().splitlines()
-    shipped = (EXAMPLES / "flat_jack_measured.csv").read_text().splitlines()
-    assert made[0] == shipped[0] and len(made) == 21  # header + 20 steps
-    a = np.array([[float(c) for c in row.split(",")] for row in made[1:]])
-    b = np.array([[float(c) for c in row.split(",")] for row in shipped[1:]])
-    # written to 0.01 µm; solver differences are far below
-    np.testing.assert_allclose(a, b, rtol=0, atol=1.5e-8)
+    for shipped_path, seed, truth in ((module.OUT, module.SEED, module.TRUTH),
+                                      (module.JOINT_OUT, module.JOINT_SEED, module.JOINT_TRUTH)):
+        made = module.make(tmp_path / "made.csv", seed, truth=truth).read_text().splitlines()
+        shipped = shipped_path.read_text().splitlines()
+        assert made[0] == shipped[0] and len(made) == 21  # header + 20 steps
+        a = np.array([[float(c) for c in row.split(",")] for row in made[1:]])
+        b = np.array([[float(c) for c in row.split(",")] for row in shipped[1:]])
+        # written to 0.01 µm; solver differences are far below
+        np.testing.assert_allclose(a, b, rtol=0, atol=1.5e-8, err_msg=shipped_path.name)

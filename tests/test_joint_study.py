@@ -5,6 +5,7 @@ study-file errors of the joint form."""
 
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -94,7 +95,10 @@ def test_joint_study_runs_each_test_and_fits_them_together(joint):
     stages = {p.stem: json.loads(p.read_text()) for p in (out / "stages").glob("*.json")}
     per_test = {f"{s}.{t}" for t in ("diagonal", "shear")
                 for s in ("measurement", "offline", "held_out", "surrogate", "held_out_validation", "diagnosis")}
-    assert set(stages) == per_test | {"inversion", "region", "rvc"}
+    assert set(stages) == per_test | {"sensitivity", "inversion", "region", "rvc"}
+    sens = stages["sensitivity"]["result"]
+    assert set(sens["readings"]) == {"diagonal", "shear"} and sens["misfit"]["parameters"] == ["kN_bj", "kV_bj", "r_hj"]
+    assert sens["readings"]["diagonal"]["parameters"] == ["kN_bj", "kV_bj"]
     assert stages["offline.diagonal"]["fe_runs"] == 16 and stages["offline.shear"]["fe_runs"] == 24  # its own design
     assert stages["inversion"]["fe_runs"] == 2  # one FE check per test
     for t in ("diagonal", "shear"):
@@ -131,7 +135,8 @@ def test_joint_report_has_each_tests_sections_and_figures(joint):
     source = page.read_text(encoding="utf-8")
     for t, scenario in (("diagonal", "diagonal_compression"), ("shear", "shear_compression")):
         assert f"Test {t} ({scenario})" in source
-        for fig in ("energy.png", "modes.png", "predicted_vs_fe.png", "fit.png", "residuals.png", "deformed.png"):
+        for fig in ("energy.png", "modes.png", "predicted_vs_fe.png", "sensitivity.png", "fit.png", "residuals.png",
+                    "deformed.png"):
             assert f'src="{t}/{fig}"' in source and (page.parent / t / fig).is_file(), (t, fig)
         assert f'href="{t}/diagnosis/index.html"' in source
         assert (page.parent / t / "diagnosis" / "index.html").is_file()
@@ -166,3 +171,19 @@ def test_a_study_without_scenario_or_tests_names_both_forms(tmp_path):
     study = _write(tmp_path, text)
     with pytest.raises(StudyError, match=r"missing key 'scenario'.*\[\[test\]\] tables"):
         load_study(study)
+
+
+def test_sensitivity_settings_are_checked(tmp_path):
+    study = _write(tmp_path, JOINT + "\n[sensitivity]\nn = 1000\n")
+    with pytest.raises(StudyError, match=r"sensitivity\.n: 1000 is out of range; allowed: a power of two"):
+        load_study(study)
+    study = _write(tmp_path, JOINT + "\n[sensitivity]\nenabled = false\n")
+    assert load_study(study).sensitivity.enabled is False
+
+
+def test_the_joint_example_is_valid():
+    examples = Path(__file__).resolve().parents[1] / "examples"
+    study = load_study(examples / "joint_diagonal_shear.toml")
+    assert [t.name for t in study.tests] == ["diagonal", "shear_wall"]
+    assert all(t.space.names == ("E_b", "kN_bj", "kV_bj", "r_hj") for t in study.tests)
+    assert study.tests[1].measurement.file == (examples / "shear_wall_measured.csv").resolve()

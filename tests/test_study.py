@@ -106,7 +106,7 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     assert "identified parameters" in text and "report:" in text and "FE runs" in text
     stages = _stages(out)
     assert set(stages) == {"measurement", "offline", "held_out", "validation_model.shear", "surrogate", "held_out_validation",
-                           "inversion", "region", "rvc", "diagnosis"}
+                           "sensitivity", "inversion", "region", "rvc", "diagnosis"}
     assert stages["offline"]["fe_runs"] == 16 and stages["held_out"]["fe_runs"] == 4
     assert stages["validation_model.shear"]["fe_runs"] == 8 and stages["inversion"]["fe_runs"] == 1
     for m in stages.values():  # every output file is recorded with its hash
@@ -141,7 +141,7 @@ def test_new_measurement_reruns_only_the_online_stages(tiny, tmp_path, fe_counte
     _run(d / "study.toml", d / "out")
     after = _stages(d / "out")
     rerun = {k for k in after if after[k]["finished"] != before[k]["finished"] or after[k]["input_hash"] != before[k]["input_hash"]}
-    assert rerun == {"measurement", "inversion", "region", "rvc", "diagnosis"}  # the check does no FE work
+    assert rerun == {"measurement", "sensitivity", "inversion", "region", "rvc", "diagnosis"}  # the check does no FE work
     # FE work only in the online stages: the check at the new optimum and the diagnosis' refits
     assert 1 <= counter.calls <= after["inversion"]["fe_runs"] + after["diagnosis"]["fe_runs"]
 
@@ -227,8 +227,8 @@ def test_report_structure(tiny):
     internal = [h[1:] for h in page.hrefs if h.startswith("#")]
     assert set(internal) <= set(page.ids) and len(internal) == len(SECTIONS)
     # every figure exists beside the page and is a valid PNG; each stage's figures are shown
-    expected = {"energy.png", "modes.png", "predicted_vs_fe.png", "fit.png", "residuals.png", "ga_history.png",
-                "ga_parameters.png", "region.png", "rvc.png", "deformed.png"}
+    expected = {"energy.png", "modes.png", "predicted_vs_fe.png", "sensitivity.png", "fit.png", "residuals.png",
+                "ga_history.png", "ga_parameters.png", "region.png", "rvc.png", "deformed.png"}
     assert set(page.images) == expected
     for src in page.images:
         _check_png(page_path.parent / src)

@@ -217,6 +217,21 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
     return found
 
 
+def sensitivity_findings(result, *, context="cli"):
+    """Findings of a global sensitivity analysis (the ``sensitivity`` stage's result dict): one per
+    parameter proposed for fixing, because no reading and not the misfit is sensitive to it."""
+    _check_context(context)
+    found = []
+    for name in result["propose_fixing"]:
+        found.append(Finding(
+            "insensitive", "sensitivity",
+            f"no reading and not the misfit is sensitive to {name}: its total Sobol' index stays below "
+            f"{result['threshold']:g} over the search box, so these data cannot inform it.",
+            f"fix {name} from other tests or the literature ({'--fix' if context == 'cli' else '[fixed]'}) before "
+            "the inversion, or add a test or sensors that respond to it."))
+    return found
+
+
 def offline_findings(title, store_result):
     """A finding for FE runs that failed in a snapshot stage (``store_result``: the stage's JSON)."""
     r = store_result
@@ -326,5 +341,5 @@ def diagnosis_findings(d):
 __all__ = [
     "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding",
     "RESIDUAL_CONVENTION", "UNIDENTIFIABLE_SHARE", "at_bound", "chi2_basis", "diagnosis_findings", "fe_check_ok", "held_out_findings", "identifiability_verdict",
-    "inversion_findings", "offline_findings",
+    "inversion_findings", "offline_findings", "sensitivity_findings",
 ]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from podkrig.reports.figures import pyplot
+from podkrig.reports.figures import pyplot, save
 
 
 def plot_sensitivity(result, path, misfit=None):
@@ -40,5 +40,4 @@ def plot_sensitivity(result, path, misfit=None):
     hm.set_title("total index per reading (SENSOR@LOAD)", fontsize=9)
     fig.colorbar(im, ax=hm, label="total Sobol' index (-)")
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save(fig, path, dpi=120)

@@ -24,6 +24,7 @@ SECTIONS = (
     ("offline", "Offline stage: FE snapshots"),
     ("surrogate", "Surrogate: POD + kriging"),
     ("held-out", "Surrogate check on held-out FE runs"),
+    ("sensitivity", "Global sensitivity: which parameters can the data inform?"),
     ("inversion", "Inversion"),
     ("region", "Region of equivalence"),
     ("rvc", "Response variability (RVC)"),
@@ -104,6 +105,8 @@ def write_study_report(path, study, records, warnings):
     for t in tests:
         _test_heading(page, t)
         _held_out(page, res[t.stage("held_out_validation")], t.file(""))
+    section("sensitivity")
+    _sensitivity(page, study, res.get("sensitivity"))
     section("inversion")
     inv = res["inversion"]
     if study.tests:
@@ -357,6 +360,38 @@ def _inversion(page, r, deformed, folder=""):
     if deformed:
         page.figure(f"{folder}deformed.png", "FE model at the best fit, last load level: left the deformed mesh (magnified, with a "
                                     "length and a displacement scale bar), right the displacement magnitude |u| (mm).")
+
+
+def _sensitivity(page, study, r):
+    page.paragraph("Variance-based (Sobol') indices over the search box, on the surrogate: the share of an output's "
+                   "variance a parameter explains alone (first order) and with its interactions (total). A parameter "
+                   "whose total index stays below the threshold for every reading and for the misfit cannot be "
+                   "informed by these data: fix it before the inversion (parameter reduction).")
+    if r is None:
+        page.paragraph("Switched off for this study: set [sensitivity] enabled = true in the study file to run it.")
+        return
+    m = r["misfit"]
+    rows = []
+    for j, name in enumerate(m["parameters"]):
+        best = []
+        for test, one in r["readings"].items():
+            if name in one["parameters"]:
+                k = one["parameters"].index(name)
+                best.append(max((t[k] for t in one["total"] if t[k] is not None and math.isfinite(t[k])), default=0.0))
+        rows.append([name, _num(max(best, default=0.0), 3), _num(m["total"][0][j], 3), _num(m["first"][0][j], 3),
+                     "yes" if name in r["propose_fixing"] else ""])
+    page.table(["parameter", "largest total index over the readings (-)", "total index of the misfit (-)",
+                "first-order index of the misfit (-)", f"propose fixing (< {r['threshold']:g})"], rows)
+    if not r["propose_fixing"]:
+        page.success(f"Every free parameter explains at least {r['threshold']:g} of the variance of some reading and "
+                     "of the misfit.")
+    for t in study.calibration_tests:
+        _test_heading(page, t)
+        page.figure(f"{t.file('')}sensitivity.png",
+                    "Left: per parameter, the largest total and first-order index over the readings"
+                    + ("" if study.tests else " and the misfit's total index")
+                    + ", with bootstrap intervals and the fixing threshold. Right: the total index of every reading and "
+                    "parameter, with its colour scale (-).")
 
 
 def _region(page, r):

@@ -26,6 +26,7 @@ from podkrig.online.findings import (
     inversion_findings,
     measurement_findings,
     offline_findings,
+    sensitivity_findings,
 )
 from podkrig.online.invert import InverseResult
 from podkrig.reports.study import study_summary_html, write_study_report
@@ -127,6 +128,8 @@ def run_study(study, out, *, progress=None, confirm=None):
     for test in tests:
         stages.surrogate(run, test)
         stages.held_out_validation(run, test)
+    if study.sensitivity.enabled:
+        stages.sensitivity(run)
     stages.inversion(run)
     stages.region(run)
     stages.rvc_stage(run)
@@ -161,6 +164,8 @@ def study_findings(run):
         noise_rel, noise_abs = t.measurement.noise_levels()
         found += _named(t, held_out_findings(run.manifest(t.stage("held_out_validation"))["result"],
                                              noise_rel=noise_rel, noise_abs=noise_abs))
+    if study.sensitivity.enabled:
+        found += sensitivity_findings(run.manifest("sensitivity")["result"], context="study")
     result = InverseResult.from_dict(run.manifest("inversion")["result"])
     region = stages.load_region(run)
     found += inversion_findings(result, region, context="study", diagnosis_enabled=study.diagnosis.enabled)

@@ -288,7 +288,8 @@ def load_study(path):
     s = f.sampling
     common = {"path": path.resolve(), "name": path.stem if f.name is None else f.name, "fixed": dict(f.fixed),
               "train": s.train, "held_out": s.held_out, "workers": s.workers, "scheduler": s.scheduler,
-              "surrogate": f.surrogate, "inversion": f.inversion, "diagnosis": f.diagnosis}
+              "surrogate": f.surrogate, "inversion": f.inversion, "diagnosis": f.diagnosis,
+              "sensitivity": f.sensitivity}
     if f.test:
         space, tests = _tests(r, data, f, path.parent)
         return Study(spec=None, space=space, measurement=None, tests=tests,

@@ -38,8 +38,9 @@ from podkrig.parameters import SCALES, ParameterSpace
 
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
-    "CalibrationTest", "Design", "DiagnosisSettings", "InversionSettings", "MeasurementSettings", "Study",
-    "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error", "type_name",
+    "CalibrationTest", "Design", "DiagnosisSettings", "InversionSettings", "MeasurementSettings",
+    "SensitivitySettings", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error",
+    "type_name",
 ]
 
 VARIOGRAMS = ("exponential", "power")
@@ -381,6 +382,24 @@ class InversionSettings:
                               f"{limits.MAX_GA_EVALUATIONS}") from None
 
 
+def _power_of_two(value):
+    if value & (value - 1):
+        raise ValueError("not a power of two")
+    return value
+
+
+@_settings
+class SensitivitySettings:
+    """Global sensitivity before the inversion (:mod:`podkrig.online.sensitivity`): Sobol' indices of
+    every reading and of the misfit on the surrogate(s), ``n`` base samples (``n (d + 2)``
+    evaluations), and the free parameters proposed for fixing because nothing is sensitive to them."""
+
+    enabled: StrictBool = True
+    n: Annotated[StrictInt, AfterValidator(_power_of_two),
+                 _allowed("a power of two in [256, 65536] (base samples)", ge=256, le=65536)] = 2**12
+    seed: Seed = 0
+
+
 @_settings
 class DiagnosisSettings:
     """Model diagnosis on or off, and its seed."""
@@ -479,6 +498,7 @@ class StudyFile:
                           Field(json_schema_extra={"array": "an array of tables ([[validation]])"})] = (
         dataclasses.field(default_factory=list))
     diagnosis: DiagnosisSettings = dataclasses.field(default_factory=DiagnosisSettings)
+    sensitivity: SensitivitySettings = dataclasses.field(default_factory=SensitivitySettings)
 
     def __post_init__(self):
         if self.test:
@@ -541,6 +561,7 @@ class Study:
     inversion : InversionSettings
     validation : tuple of ValidationModel
     diagnosis : DiagnosisSettings
+    sensitivity : SensitivitySettings
     tests : tuple of CalibrationTest
         The tests of a joint calibration (``[[test]]`` tables); empty for a study of one test, whose
         scenario, designs and measurement are :attr:`spec`, :attr:`train`, :attr:`held_out` and
@@ -562,6 +583,7 @@ class Study:
     inversion: InversionSettings
     validation: tuple
     diagnosis: DiagnosisSettings
+    sensitivity: SensitivitySettings = SensitivitySettings()
     tests: tuple = ()
 
     @property

@@ -11,11 +11,16 @@ Stages, in order (the measurement check, FE work, then the online stages)::
                              scenario (FE), one stage per model
     surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
     held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
+    sensitivity              Sobol' indices of readings and misfit    report/sensitivity.png
+                             ([sensitivity] enabled)
     inversion                GA + polish, FE check at the optimum     report/fit.png, residuals.png, ga_*.png,
                                                                       deformed.png (with the FE check)
     region                   region of equivalence, identifiability   region.npz, report/region.png
     rvc                      response variability over the region     report/rvc.png
     diagnosis                model diagnosis ([diagnosis] enabled)    report/diagnosis/ (its own page)
+
+In a joint calibration (``[[test]]`` tables) the per-test stages are named ``STAGE.TEST`` and write
+under ``TEST/`` and ``report/TEST/``; inversion, region, RVC and sensitivity are one stage each.
 
 Each stage function takes the :class:`StudyRun` and records one manifest; the online stages store
 the ``to_dict`` of their result objects and read upstream results back with ``from_dict``.
@@ -42,10 +47,12 @@ from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.online.sensitivity import NEGLIGIBLE_TOTAL_INDEX, misfit_sensitivity, reading_sensitivity
 from podkrig.reports import inverse as inverse_figures
 from podkrig.reports import surrogate as surrogate_figures
 from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
+from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256
 from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -393,6 +400,36 @@ def _online_inputs(run):
             return one
         inputs[t.name] = one
     return {"tests": inputs}
+
+
+def sensitivity(run):
+    """Sobol' indices on the surrogate(s) before the inversion: every reading of each test and the
+    misfit of the calibration, and the free parameters proposed for fixing (total index below
+    :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and the misfit)."""
+    s = run.study.sensitivity
+    inputs = {**_online_inputs(run), "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
+
+    def compute():
+        options = {"n": s.n, "seed": s.seed}
+        problem = calibration_problem(run)
+        misfit = misfit_sensitivity(problem, **options)
+        readings, files = {}, []
+        for test in run.study.calibration_tests:
+            model = SurrogateModel(PODKriging.load(run.out / test.file("surrogate.h5")))
+            one = reading_sensitivity(model, **options)
+            readings[str(test.name or "calibration")] = one
+            plot_sensitivity(one, run.figure(test, "sensitivity.png"),
+                             misfit=misfit if not run.study.tests else None)
+            files.append(f"report/{test.file('sensitivity.png')}")
+        fixable = set(misfit.negligible())
+        for one in readings.values():  # a parameter a test does not have cannot make it sensitive
+            fixable &= set(one.negligible()) | (set(misfit.parameters) - set(one.parameters))
+        result = {"readings": {k: v.to_dict() for k, v in readings.items()}, "misfit": misfit.to_dict(),
+                  "threshold": NEGLIGIBLE_TOTAL_INDEX,
+                  "propose_fixing": [p for p in misfit.parameters if p in fixable]}
+        return result, files, 0
+
+    run.stage("sensitivity", "Global sensitivity (Sobol' indices)", inputs, compute)
 
 
 def inversion(run):
