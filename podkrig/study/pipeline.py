@@ -115,8 +115,10 @@ def run_study(study, out, *, progress=None, confirm=None):
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)
     stages.measurement_check(run)  # before any FE work: a bad file stops here
+    stages.probe(run)  # a few FE runs spanning the box (cached): a unit or sign error stops here,
+    stages.range_check(run, "probe")  # before the training snapshots
     stages.offline(run, "offline", "Training snapshots (FE)", "train.h5", study.train)
-    stages.range_check(run)  # a unit or sign error stops here, before the surrogate
+    stages.range_check(run, "train")  # the whole design seen: before the held-out runs and the surrogate
     stages.offline(run, "held_out", "Held-out snapshots (FE)", "held_out.h5", study.held_out)
     for model in study.validation:
         stages.validation_model(run, model)
