@@ -255,9 +255,9 @@ def test_fuzz_study_files(text):
 
 
 MEASUREMENT_KEYS = ["file", "noise_rel", "noise_abs", "instrument", "load_column", "repeats", "load_tolerance",
-                    "zero", "load_range", "delimiter", "decimal", "sheet", "range_check", "x"]
+                    "zero", "phase_column", "load_range", "delimiter", "decimal", "sheet", "range_check", "x"]
 measurement_values = st.one_of(
-    toml_values, st.sampled_from(['"measured.csv"', '"first"', '"none"', '"lvdt"', '"dic"', '{ D1 = "lvdt" }',
+    toml_values, st.sampled_from(['"measured.csv"', '"first"', '"none"', '"end of precompression"', '"phase"', '"lvdt"', '"dic"', '{ D1 = "lvdt" }',
                                   '{ D1 = 0.001 }', '[10, 40]', '[40, 10]', '";"', '","', '"."', '"average"',
                                   '"keep"', "0.001", "0.01", "true", '"Sheet1"', '"\\t"']))
 

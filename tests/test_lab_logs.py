@@ -18,6 +18,7 @@ from podkrig.online.measurement_csv import ImportSettings, read_measurement, spl
 from podkrig.online.problem import FEModel, InverseProblem
 from podkrig.parameters import ParameterSpace
 from podkrig.study import load_study, stages
+from podkrig.study.schema import StudyError
 from podkrig.study.pipeline import Progress
 from podkrig.study.stages import probe_points
 
@@ -116,6 +117,85 @@ def test_zero_at_first_row_or_a_load(tmp_path):
     assert_allclose(at.values, [[-0.4], [0.4], [2.0]])
     with pytest.raises(ValueError, match=r"never reaches the zero reference load 50 kN"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=50.0))
+
+
+PHASE_LOG = ("time [s],phase,load [kN],D1 [µm],D2 [µm]\n"
+             "0,precompression,0,0,0\n1,precompression,2.5,5.5,-2\n2,Precompression,5,10.5,-4.5\n"
+             "3,shear,7.5,16,-7\n4,shear,10,21,-9\n5,shear,20,42,-18.5\n6,unloading,10,22,-9.5\n")
+
+
+def test_zero_at_the_end_of_a_phase_equals_zeroing_at_its_load_by_hand(tmp_path):
+    """zero = "end of precompression": the last precompression row (row 4, 5 kN; the phase name's
+    case does not matter) is the reference, and it and the rows before it are not used. The same
+    readings as zeroing at the load of that row (the log reaches 5 kN exactly there) and dropping
+    the rows up to it by hand; and as subtracting row 4 from the later rows of the file."""
+    p = _write(tmp_path, PHASE_LOG)
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="End of precompression"))
+    by_load = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=5.0))
+    assert m.reference_load == by_load.reference_load == 5.0
+    assert_allclose(by_load.load_levels[:3], [0, 2.5, 5])  # the load form keeps the earlier rows
+    assert_allclose(m.load_levels, by_load.load_levels[3:])
+    assert_allclose(m.values, by_load.values[3:], rtol=1e-12)
+    assert_allclose(m.values, 1e-3 * (np.array([[16, -7], [21, -9], [42, -18.5], [22, -9.5]]) - [10.5, -4.5]))
+    notes = " | ".join(m.notes)
+    assert "gauges zeroed at the end of phase 'Precompression' (row 4, 5 kN); the 3 row(s) up to it are not used" in notes
+    assert "phases in column 2 (phase): precompression, Precompression, shear, unloading" in notes
+    assert "ignored column(s) that name no sensor: time [s]" in notes and "phase" not in m.ignored_columns
+    # load_range selects among the rows after the reference
+    rng = read_measurement(p, SENSORS, LEVELS, "kN", "affine",
+                           ImportSettings(zero="end of precompression", load_range=(8, 30)))
+    assert_allclose(rng.load_levels, [10, 20, 10])
+
+
+def test_zero_at_a_phase_is_checked_with_file_row_and_column(tmp_path):
+    p = _write(tmp_path, PHASE_LOG)
+    with pytest.raises(ValueError, match=r"log\.csv, column 2 \(phase\): no row of phase 'pre-compression' \(zero = "
+                                         r"'end of pre-compression'\) \(a typo of 'precompression'\?\); the phases in "
+                                         r"this column are 'precompression', 'Precompression', 'shear', 'unloading'"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of pre-compression"))
+    with pytest.raises(ValueError, match=r"log\.csv, row 1: zero = 'end of shear' needs a phase column 'step'; the "
+                                         r"header has \['time \[s\]', 'phase', .*\(name the column holding each row's "
+                                         r"phase with phase_column\)"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="step"))
+    with pytest.raises(ValueError, match=r"row 8, column 2 \(phase\): the phase 'unloading' ends at the last row"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of unloading"))
+    gap = _write(tmp_path, PHASE_LOG.replace("2,Precompression,5,10.5,-4.5", "2,Precompression,5,,-4.5"))
+    with pytest.raises(ValueError, match=r"row 4: the zero reference \(end of phase 'Precompression'\) has no reading "
+                                         r"of D1"):
+        read_measurement(gap, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of precompression"))
+    with pytest.raises(ValueError, match=r'zero must be "first", "end of PHASE" .*; got \'end of \''):
+        ImportSettings(zero="end of ")
+
+
+def test_phase_column_without_zero_is_an_ignored_column(tmp_path):
+    m = read_measurement(_write(tmp_path, PHASE_LOG), SENSORS, LEVELS, "kN", "affine")
+    assert m.ignored_columns == ("time [s]", "phase") and m.reference_load is None
+    assert "ignored column(s) that name no sensor: time [s], phase" in m.notes
+    assert_allclose(m.values[2], [0.0105, -0.0045])
+
+
+def test_phase_labels_from_excel_and_the_study_file_form(tmp_path):
+    """Phase numbers from an Excel sheet (2.0) match "end of 2"; the study file accepts
+    zero = "end of PHASE" with phase_column and refuses other text naming the allowed forms."""
+    book = openpyxl.Workbook()
+    ws = book.active
+    ws.append(["step", "load [kN]", "D1 [mm]"])
+    for row in ([1, 0, 0.0], [2, 5, 0.01], [3, 10, 0.03], [3, 20, 0.05]):
+        ws.append(row)
+    book.save(tmp_path / "log.xlsx")
+    m = read_measurement(tmp_path / "log.xlsx", SENSORS, LEVELS, "kN", "affine",
+                         ImportSettings(zero="end of 2", phase_column="Step"))
+    assert m.reference_load == 5.0
+    assert_allclose(m.values[:, 0], [0.02, 0.04])
+    (tmp_path / "log.csv").write_text(PHASE_LOG)
+    study = STUDY.replace('instrument = "lvdt"', 'instrument = "lvdt"\nzero = "end of precompression"\n'
+                                                 'phase_column = "Phase"')
+    (tmp_path / "study.toml").write_text(study)
+    settings = load_study(tmp_path / "study.toml").measurement.import_settings()
+    assert settings.zero == "end of precompression" and settings.phase_column == "Phase"
+    (tmp_path / "study.toml").write_text(study.replace('"end of precompression"', '"after precompression"'))
+    with pytest.raises(StudyError, match=r'measurement\.zero: .*not a zero reference.*"end of PHASE"'):
+        load_study(tmp_path / "study.toml")
 
 
 def test_loads_outside_what_the_model_can_evaluate_are_refused_with_the_row(tmp_path):

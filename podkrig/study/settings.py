@@ -33,7 +33,7 @@ from pydantic_core import PydanticCustomError
 
 from podkrig import limits
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.online.measurement_csv import REPEATS, ImportSettings
+from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
 from podkrig.parameters import SCALES, ParameterSpace
 
 __all__ = [
@@ -264,8 +264,10 @@ def _zero(value):
         return None if value is None else value if value == "first" else float(value)
     if value == "none":
         return None
+    if zero_phase(value) is not None:
+        return value
     raise study_error(f"{value!r} is not a zero reference", allowed='"first", "none" or a load (number, the '
-                      "scenario's load unit)")
+                      'scenario\'s load unit), or "end of PHASE" (the last row of that phase in the phase_column)')
 
 
 def _load_range(value):
@@ -300,6 +302,8 @@ class MeasurementSettings:
     load_tolerance: Annotated[StrictFloat, AfterValidator(_finite),
                               _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = 0.0
     zero: Annotated[Any, AfterValidator(_zero)] = None
+    phase_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
+                            _allowed("the name of the phase column (read for zero = \"end of PHASE\")")] = "phase"
     load_range: Annotated[Any, AfterValidator(lambda v: None if v is None else _load_range(v))] = None
     delimiter: _choice((",", ";", "\t"), '",", ";" or "\\t" (default: detected)') | None = None
     decimal: _choice((".", ","), '"." or "," (default: detected)') | None = None
@@ -319,7 +323,8 @@ class MeasurementSettings:
     def import_settings(self):
         """The :class:`~podkrig.online.measurement_csv.ImportSettings` of these settings."""
         return ImportSettings(load_column=self.load_column, repeats=self.repeats, load_tolerance=self.load_tolerance,
-                              zero=self.zero, load_range=self.load_range, delimiter=self.delimiter,
+                              zero=self.zero, phase_column=self.phase_column, load_range=self.load_range,
+                              delimiter=self.delimiter,
                               decimal=self.decimal, sheet=self.sheet)
 
     def noise_model(self, sensor_names=None):
