@@ -11,15 +11,16 @@ import pytest
 from numpy.testing import assert_allclose
 from typer.testing import CliRunner
 
-from fe.scenarios import build_scenario
+from fe import FEError
+from fe.scenarios import Scenario, build_scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement, NoiseModel, instrument_noise, level_weights
 from podkrig.online.measurement_csv import ImportSettings, read_measurement, split_header
 from podkrig.online.problem import FEModel, InverseProblem
 from podkrig.parameters import ParameterSpace
 from podkrig.study import load_study, stages
-from podkrig.study.schema import StudyError
 from podkrig.study.pipeline import Progress
+from podkrig.study.schema import StudyError
 from podkrig.study.stages import probe_points
 
 SENSORS = ("D1", "D2", "U1")
@@ -413,6 +414,27 @@ def test_bundled_measurement_passes_the_probe_silently(tmp_path, fe_counter, cap
     again = stages.StudyRun(run.study, run.out, Progress())
     stages.probe(again)
     assert fe.calls == 9 and again.records[0].cached
+
+
+def test_a_failed_probe_run_is_noted_and_left_out(tmp_path, monkeypatch):
+    """An FE run of the probe that fails (here the 2nd, E_b at its lower bound) is named in the
+    stage's notes and left out of the check, which still stops the µm-as-mm file on the others."""
+    run = _demo_run(tmp_path, scale=1000.0, header=" [mm]")
+    original, calls = Scenario.run, []
+
+    def second_fails(scenario, params, *args, **kwargs):
+        calls.append(params)
+        if len(calls) == 2:
+            raise FEError("singular stiffness matrix")
+        return original(scenario, params, *args, **kwargs)
+
+    monkeypatch.setattr(Scenario, "run", second_fails)
+    stages.probe(run)
+    result = run.manifest("probe")["result"]
+    assert result["n_runs"] == 9 and result["n_failed"] == 1 and calls[1]["E_b"] == 5000.0
+    assert result["notes"][0].startswith("probe run 2 at {'E_b': 5000.0, ") and "failed (FEError: singular" in result["notes"][0]
+    with pytest.raises(ValueError, match=r"any of the 8 probe FE run\(s\) .* D1 is about 1000× larger"):
+        stages.range_check(run, "probe")
 
 
 def test_sign_flipped_file_gets_the_sign_wording(tmp_path):

@@ -738,5 +738,5 @@ def write_measurement_csv(path, measurement):
             w.writerow([f"{level:.10g}", *["" if not np.isfinite(v) else f"{v:.10g}" for v in row]])
 
 
-__all__ = ["ImportSettings", "MAX_FILE_BYTES", "REPEATS", "phase_label", "read_measurement", "read_measurement_csv",
+__all__ = ["MAX_FILE_BYTES", "REPEATS", "ImportSettings", "phase_label", "read_measurement", "read_measurement_csv",
            "split_header", "unit_factor", "write_measurement_csv", "zero_phase"]

@@ -287,7 +287,8 @@ class MeasurementSettings:
     δ, combined as σ_i² = σ_res,i² + (δ d_i)²; or ``instrument`` (one name, or one per sensor) with
     the typical σ_res and δ of :data:`~podkrig.online.measurement.INSTRUMENTS`. Reading: see
     :class:`~podkrig.online.measurement_csv.ImportSettings`. ``range_check`` stops a study whose
-    readings lie far outside every training snapshot (a unit or sign error). Validating a table
+    readings lie far outside every FE run of the probe (before the training snapshots) and of the
+    training design (a unit or sign error); false also skips the probe runs. Validating a table
     needs the study file's folder in the context (``{"folder": Path}``); constructing one in
     code takes an existing file.
     """

@@ -226,7 +226,8 @@ def _probe_inputs(run):
 def probe(run):
     """The probe FE runs (:func:`probe_points`) of the calibration scenario into ``probe.npz``
     (``X (n_runs, n_params)`` physical values, ``readings (n_runs, n_levels, n_sensors)`` mm, NaN
-    for a run that failed): the number of runs and of failed ones. Skipped with ``[measurement]
+    where a run failed or stopped early): the number of runs and of those not used (failed, or a
+    nonlinear run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
     range_check = false``; cached by the scenario and the parameter box, so a new measurement file
     reruns no FE."""
     study = run.study
@@ -248,11 +249,10 @@ def probe(run):
             else:
                 Y[i] = response.readings  # a nonlinear run stopped early: NaN past the last level reached
                 if getattr(response, "status", "converged") != "converged":
-                    notes.append(f"probe run {i + 1} at {params} stopped early ({response.status}); its readings "
-                                 "up to there are used")
+                    notes.append(f"probe run {i + 1} at {params} stopped early ({response.status}); not used")
             run.progress.advance(i + 1, len(X))
         np.savez(run.out / "probe.npz", X=X, readings=Y)
-        n_failed = int(np.sum(np.all(np.isnan(Y.reshape(len(X), -1)), axis=1)))
+        n_failed = int(np.sum(~np.all(np.isfinite(Y.reshape(len(X), -1)), axis=1)))
         return {"n_runs": len(X), "n_failed": n_failed, "notes": notes}, ["probe.npz"], len(X)
 
     run.stage("probe", "Probe FE runs (measurement range check)", _probe_inputs(run), compute, total=len(U))
@@ -276,7 +276,7 @@ def range_check(run, source):
     if source == "probe":
         with np.load(run.out / "probe.npz") as f:
             Y = f["readings"]
-        Y = Y[~np.all(np.isnan(Y.reshape(len(Y), -1)), axis=1)]
+        Y = Y[np.all(np.isfinite(Y.reshape(len(Y), -1)), axis=1)]  # complete runs, as only_done of a store
         sensor_names, levels, unit = list(sc.sensor_names), sc.load_levels, sc.load_unit
         what = (f"{len(Y)} probe FE run(s) (the box centre" + ("" if len(Y) == 1 else " and each parameter at its bounds")
                 + ")")
