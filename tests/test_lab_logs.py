@@ -158,6 +158,8 @@ def test_zero_at_a_phase_is_checked_with_file_row_and_column(tmp_path):
                                          r"header has \['time \[s\]', 'phase', .*\(name the column holding each row's "
                                          r"phase with phase_column\)"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="step"))
+    with pytest.raises(ValueError, match=r"row 1, column 4: phase_column 'd1' is a sensor of the model"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="d1"))
     with pytest.raises(ValueError, match=r"row 8, column 2 \(phase\): the phase 'unloading' ends at the last row"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of unloading"))
     gap = _write(tmp_path, PHASE_LOG.replace("2,Precompression,5,10.5,-4.5", "2,Precompression,5,,-4.5"))

@@ -482,9 +482,10 @@ class _Table:
                              "column holding each row's phase with phase_column)")
         if len(cols) > 1:
             raise ValueError(f"{self._where(self.header_row, cols[1] + 1)}: a second phase column {header[cols[1]]!r}")
-        if cols[0] == self.load_col:
-            raise ValueError(f"{self._where(self.header_row, cols[0] + 1)}: phase_column {s.phase_column!r} is the "
-                             "load column; name the column holding each row's phase")
+        if cols[0] == self.load_col or want in {n.casefold() for n in self.sensor_names}:
+            what = "the load column" if cols[0] == self.load_col else "a sensor of the model"
+            raise ValueError(f"{self._where(self.header_row, cols[0] + 1)}: phase_column {s.phase_column!r} is {what}; "
+                             "name the column holding each row's phase")
         return cols[0]
 
     def parse_numbers(self, delimiter):
