@@ -130,6 +130,7 @@ def test_invert_noise_monte_carlo_region(surrogates):
         ([], "give one noise model"),
         (["--instrument", "laser"], "--instrument 'laser': known instruments are lvdt, dial_gauge, dic"),
         (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end': expected first, none or a load"),
+        (["--noise-rel", "0.01", "--zero", "end of shear"], "zero = 'end of shear' needs a phase column 'phase'"),
         (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
         (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),
         (["--noise-rel", "0.01", "--free", "G_f"], "unknown parameter"),

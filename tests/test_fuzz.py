@@ -93,10 +93,12 @@ def test_fuzz_measurement_csv(content):
 LOG_HEADERS = st.one_of(
     st.sampled_from(["load", "load [kN]", "Load (N)", "load [MPa]", "load [mm]", "load []", "load [", "load [kN",
                      "time [s]", "ch", "D1", "D1 [µm]", "D1 (mm)", "D1 [um]", "D1 [kN]", "D1 [bananas]", "d1 [m]",
-                     "D2 [μm]", "D2 [in]", "D3 (mm)", "D3 [1/0]", "D3 [mm**99999]", "D1 [K]", "D2 [degC]", ""]),
+                     "D2 [μm]", "D2 [in]", "D3 (mm)", "D3 [1/0]", "D3 [mm**99999]", "D1 [K]", "D2 [degC]", "",
+                     "phase", "Phase [-]", "step"]),
     st.text(max_size=8))
 LOG_CELLS = st.one_of(cells, st.sampled_from(["10,03", "10.41", "-32,1", "", "NaN", "n/a", " 5 ", "1,5e-3", "1.5E+3",
-                                              "1e308", "-1e308", "12:00:01", "∞", "1,000.5", "0,0"]),
+                                              "1e308", "-1e308", "12:00:01", "∞", "1,000.5", "0,0",
+                                              "precompression", "shear", "2", "2.0", "1e400"]),
                       st.floats(-200, 200).map(lambda v: f"{v:.3f}"))
 
 
@@ -118,7 +120,9 @@ import_settings = st.builds(
     load_column=st.sampled_from(["load", "Load", "time", "F"]),
     repeats=st.sampled_from(["average", "keep"]),
     load_tolerance=st.sampled_from([0.0, 0.05, 1.0, 100.0]),
-    zero=st.one_of(st.none(), st.just("first"), st.floats(-50, 150)),
+    zero=st.one_of(st.none(), st.just("first"), st.floats(-50, 150),
+                   st.sampled_from(["end of precompression", "end of 2", "End of  shear "])),
+    phase_column=st.sampled_from(["phase", "step", "load", "D1"]),
     load_range=st.one_of(st.none(), st.tuples(st.floats(-10, 60), st.floats(0, 200)).map(lambda t: tuple(sorted(t)))),
     delimiter=st.sampled_from([None, None, ";", "\t"]),
     decimal=st.sampled_from([None, None, ".", ","]),
@@ -255,9 +259,9 @@ def test_fuzz_study_files(text):
 
 
 MEASUREMENT_KEYS = ["file", "noise_rel", "noise_abs", "instrument", "load_column", "repeats", "load_tolerance",
-                    "zero", "load_range", "delimiter", "decimal", "sheet", "range_check", "x"]
+                    "zero", "phase_column", "load_range", "delimiter", "decimal", "sheet", "range_check", "x"]
 measurement_values = st.one_of(
-    toml_values, st.sampled_from(['"measured.csv"', '"first"', '"none"', '"lvdt"', '"dic"', '{ D1 = "lvdt" }',
+    toml_values, st.sampled_from(['"measured.csv"', '"first"', '"none"', '"end of precompression"', '"phase"', '"lvdt"', '"dic"', '{ D1 = "lvdt" }',
                                   '{ D1 = 0.001 }', '[10, 40]', '[40, 10]', '";"', '","', '"."', '"average"',
                                   '"keep"', "0.001", "0.01", "true", '"Sheet1"', '"\\t"']))
 

@@ -94,7 +94,7 @@ def test_joint_study_runs_each_test_and_fits_them_together(joint):
     _, out, text = joint
     stages = {p.stem: json.loads(p.read_text()) for p in (out / "stages").glob("*.json")}
     per_test = {f"{s}.{t}" for t in ("diagonal", "shear")
-                for s in ("measurement", "offline", "held_out", "surrogate", "held_out_validation", "diagnosis")}
+                for s in ("measurement", "probe", "offline", "held_out", "surrogate", "held_out_validation", "diagnosis")}
     assert set(stages) == per_test | {"sensitivity", "inversion", "region", "rvc"}
     sens = stages["sensitivity"]["result"]
     assert set(sens["readings"]) == {"diagonal", "shear"} and sens["misfit"]["parameters"] == ["kN_bj", "kV_bj", "r_hj"]

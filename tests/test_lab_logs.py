@@ -3,6 +3,7 @@ columns, missing cells, repeats, zeroing, load ranges; the model evaluated at th
 the checks `podkrig run` makes before any FE work (and right after the training snapshots)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import openpyxl
@@ -10,16 +11,22 @@ import pytest
 from numpy.testing import assert_allclose
 from typer.testing import CliRunner
 
-from fe.scenarios import build_scenario
+from fe import FEError
+from fe.scenarios import Scenario, build_scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement, NoiseModel, instrument_noise, level_weights
-from podkrig.online.measurement_csv import ImportSettings, read_measurement
+from podkrig.online.measurement_csv import ImportSettings, read_measurement, split_header
 from podkrig.online.problem import FEModel, InverseProblem
 from podkrig.parameters import ParameterSpace
+from podkrig.study import load_study, stages
+from podkrig.study.pipeline import Progress
+from podkrig.study.schema import StudyError
+from podkrig.study.stages import probe_points
 
 SENSORS = ("D1", "D2", "U1")
 LEVELS = (10.0, 20.0, 30.0, 40.0)
 runner = CliRunner()
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _write(tmp_path, text, name="log.csv", encoding="utf-8"):
@@ -111,6 +118,87 @@ def test_zero_at_first_row_or_a_load(tmp_path):
     assert_allclose(at.values, [[-0.4], [0.4], [2.0]])
     with pytest.raises(ValueError, match=r"never reaches the zero reference load 50 kN"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=50.0))
+
+
+PHASE_LOG = ("time [s],phase,load [kN],D1 [µm],D2 [µm]\n"
+             "0,precompression,0,0,0\n1,precompression,2.5,5.5,-2\n2,Precompression,5,10.5,-4.5\n"
+             "3,shear,7.5,16,-7\n4,shear,10,21,-9\n5,shear,20,42,-18.5\n6,unloading,10,22,-9.5\n")
+
+
+def test_zero_at_the_end_of_a_phase_equals_zeroing_at_its_load_by_hand(tmp_path):
+    """zero = "end of precompression": the last precompression row (row 4, 5 kN; the phase name's
+    case does not matter) is the reference, and it and the rows before it are not used. The same
+    readings as zeroing at the load of that row (the log reaches 5 kN exactly there) and dropping
+    the rows up to it by hand; and as subtracting row 4 from the later rows of the file."""
+    p = _write(tmp_path, PHASE_LOG)
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="End of precompression"))
+    by_load = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=5.0))
+    assert m.reference_load == by_load.reference_load == 5.0
+    assert_allclose(by_load.load_levels[:3], [0, 2.5, 5])  # the load form keeps the earlier rows
+    assert_allclose(m.load_levels, by_load.load_levels[3:])
+    assert_allclose(m.values, by_load.values[3:], rtol=1e-12)
+    assert_allclose(m.values, 1e-3 * (np.array([[16, -7], [21, -9], [42, -18.5], [22, -9.5]]) - [10.5, -4.5]))
+    notes = " | ".join(m.notes)
+    assert "gauges zeroed at the end of phase 'Precompression' (row 4, 5 kN); the 3 row(s) up to it are not used" in notes
+    assert "phases in column 2 (phase): precompression, Precompression, shear, unloading" in notes
+    assert "ignored column(s) that name no sensor: time [s]" in notes and "phase" not in m.ignored_columns
+    # load_range selects among the rows after the reference
+    rng = read_measurement(p, SENSORS, LEVELS, "kN", "affine",
+                           ImportSettings(zero="end of precompression", load_range=(8, 30)))
+    assert_allclose(rng.load_levels, [10, 20, 10])
+
+
+def test_zero_at_a_phase_is_checked_with_file_row_and_column(tmp_path):
+    p = _write(tmp_path, PHASE_LOG)
+    with pytest.raises(ValueError, match=r"log\.csv, column 2 \(phase\): no row of phase 'pre-compression' \(zero = "
+                                         r"'end of pre-compression'\) \(a typo of 'precompression'\?\); the phases in "
+                                         r"this column are 'precompression', 'Precompression', 'shear', 'unloading'"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of pre-compression"))
+    with pytest.raises(ValueError, match=r"log\.csv, row 1: zero = 'end of shear' needs a phase column 'step'; the "
+                                         r"header has \['time \[s\]', 'phase', .*\(name the column holding each row's "
+                                         r"phase with phase_column\)"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="step"))
+    with pytest.raises(ValueError, match=r"row 1, column 4: phase_column 'd1' is a sensor of the model"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="d1"))
+    with pytest.raises(ValueError, match=r"row 8, column 2 \(phase\): the phase 'unloading' ends at the last row"):
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of unloading"))
+    gap = _write(tmp_path, PHASE_LOG.replace("2,Precompression,5,10.5,-4.5", "2,Precompression,5,,-4.5"))
+    with pytest.raises(ValueError, match=r"row 4: the zero reference \(end of phase 'Precompression'\) has no reading "
+                                         r"of D1"):
+        read_measurement(gap, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of precompression"))
+    with pytest.raises(ValueError, match=r'zero must be "first", "end of PHASE" .*; got \'end of \''):
+        ImportSettings(zero="end of ")
+
+
+def test_phase_column_without_zero_is_an_ignored_column(tmp_path):
+    m = read_measurement(_write(tmp_path, PHASE_LOG), SENSORS, LEVELS, "kN", "affine")
+    assert m.ignored_columns == ("time [s]", "phase") and m.reference_load is None
+    assert "ignored column(s) that name no sensor: time [s], phase" in m.notes
+    assert_allclose(m.values[2], [0.0105, -0.0045])
+
+
+def test_phase_labels_from_excel_and_the_study_file_form(tmp_path):
+    """Phase numbers from an Excel sheet (2.0) match "end of 2"; the study file accepts
+    zero = "end of PHASE" with phase_column and refuses other text naming the allowed forms."""
+    book = openpyxl.Workbook()
+    ws = book.active
+    ws.append(["step", "load [kN]", "D1 [mm]"])
+    for row in ([1, 0, 0.0], [2, 5, 0.01], [3, 10, 0.03], [3, 20, 0.05]):
+        ws.append(row)
+    book.save(tmp_path / "log.xlsx")
+    m = read_measurement(tmp_path / "log.xlsx", SENSORS, LEVELS, "kN", "affine",
+                         ImportSettings(zero="end of 2", phase_column="Step"))
+    assert m.reference_load == 5.0
+    assert_allclose(m.values[:, 0], [0.02, 0.04])
+    (tmp_path / "log.csv").write_text(PHASE_LOG)
+    study = STUDY.replace('instrument = "lvdt"', 'instrument = "lvdt"\nzero = "end of precompression"\n'
+                                                 'phase_column = "Phase"')
+    (tmp_path / "study.toml").write_text(study)
+    settings = load_study(tmp_path / "study.toml").measurement.import_settings()
+    assert settings.zero == "end of precompression" and settings.phase_column == "Phase"
+    (tmp_path / "study.toml").write_text(study.replace('"end of precompression"', '"after precompression"'))
+    with pytest.raises(StudyError, match=r'measurement\.zero: .*not a zero reference.*"end of PHASE"'):
+        load_study(tmp_path / "study.toml")
 
 
 def test_loads_outside_what_the_model_can_evaluate_are_refused_with_the_row(tmp_path):
@@ -255,9 +343,10 @@ def test_run_refuses_a_bad_file_before_any_fe_work(tmp_path, fe_counter):
     assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
 
 
-def test_run_flags_um_read_as_mm_right_after_the_training_snapshots(tmp_path, fe_counter):
-    """The issue's µm-as-mm file (no unit in the header): stopped after the 8 training runs, before
-    the held-out runs, the surrogate and the inversion, naming the sensor and the factor."""
+def test_run_flags_um_read_as_mm_before_the_training_snapshots(tmp_path, fe_counter):
+    """The issue's µm-as-mm file (no unit in the header): stopped by the probe — 7 FE runs (the box
+    centre and each of the 3 parameters at its bounds) — before any training snapshot, naming the
+    sensor and the factor; with the unit stated the study runs, reusing the cached probe."""
     sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
     r = sc.run({"E_b": 11000.0, "kN_bj": 90.0, "kV_bj": 35.0}).readings * 1000.0  # µm, written as mm
     text = "load," + ",".join(sc.sensor_names) + "\n" + "".join(
@@ -266,27 +355,126 @@ def test_run_flags_um_read_as_mm_right_after_the_training_snapshots(tmp_path, fe
     result = _study(tmp_path, text)
     out = " ".join(result.output.split())
     assert result.exit_code == 2, result.output
+    assert "any of the 7 probe FE run(s) (the box centre and each parameter at its bounds)" in out
     assert "D1 is about 1000× larger than every FE run: µm read as mm?" in out
-    assert fe.calls == 8
-    assert not (tmp_path / "out" / "held_out.h5").exists() and not (tmp_path / "out" / "surrogate.h5").exists()
-    # the same readings with their unit stated in the header pass the check
+    assert fe.calls == len(probe_points(3, nonlinear=False)) == 7
+    assert not (tmp_path / "out" / "train.h5").exists() and (tmp_path / "out" / "probe.npz").exists()
+    # the same readings with their unit stated in the header pass both checks; the probe is not run again
     (tmp_path / "log.csv").write_text(text.replace(",".join(sc.sensor_names), ",".join(f"{s} [µm]" for s in sc.sensor_names)))
+    fe = fe_counter()
     ok = runner.invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
     assert ok.exit_code == 0, ok.output
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["stages"]["measurement"]["dof"] == 24 - 3
+    assert summary["stages"]["probe"]["cached"] and summary["stages"]["probe"]["n_runs"] == 7
+    assert fe.calls == 8 + 4 + 1  # training, held-out, the FE check of the inversion
+
+
+def _demo_run(tmp_path, scale=1.0, header="", replace=None):
+    """The bundled default study (4 free parameters, the default 9360-dof mesh) with its measured
+    readings multiplied by ``scale`` and ``header`` ("" or e.g. " [mm]") as every gauge's unit: a
+    :class:`StudyRun` whose measurement check has run (``replace``: an (old, new) edit of the study file)."""
+    text = (EXAMPLES / "diagonal_compression.toml").read_text()
+    if replace is not None:
+        assert replace[0] in text
+        text = text.replace(*replace)
+    (tmp_path / "study.toml").write_text(text)
+    rows = (EXAMPLES / "diagonal_compression_measured.csv").read_text().splitlines()
+    names = [split_header(c)[0] for c in rows[0].split(",")]
+    lines = [",".join(["load [kN]"] + [n + header for n in names[1:]])]
+    lines += [",".join([r.split(",")[0]] + [f"{scale * float(v):.8g}" for v in r.split(",")[1:]]) for r in rows[1:]]
+    (tmp_path / "diagonal_compression_measured.csv").write_text("\n".join(lines) + "\n")
+    run = stages.StudyRun(load_study(tmp_path / "study.toml"), tmp_path / "out", Progress())
+    stages.measurement_check(run, run.study.calibration_tests[0])
+    return run
+
+
+def test_bundled_study_with_um_as_mm_stops_before_any_snapshot(tmp_path, fe_counter):
+    """The demo study with its readings in µm under 'D1 [mm]' headers: `podkrig run` stops after the
+    9 probe runs (2·4 + 1), before the 256 training runs — no store is written."""
+    _demo_run(tmp_path, scale=1000.0, header=" [mm]")
+    fe = fe_counter()
+    result = runner.invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
+    out = " ".join(result.output.split())
+    assert result.exit_code == 2, result.output
+    assert "D1 is about 1000× larger than every FE run: µm read as mm?" in out
+    assert "D2 is about 1000× larger than every FE run: µm read as mm?" in out  # although the probe's D2 spans 100×
+    assert fe.calls == len(probe_points(4, nonlinear=False)) == 9
+    assert not any((tmp_path / "out" / f).exists() for f in ("train.h5", "held_out.h5", "surrogate.h5"))
+
+
+def test_bundled_measurement_passes_the_probe_silently(tmp_path, fe_counter, caplog):
+    """The demo's own file: the probe runs 9 times, finds nothing and warns of nothing; a second
+    run reuses it (no FE)."""
+    run = _demo_run(tmp_path)
+    fe = fe_counter()
+    with caplog.at_level("WARNING"):
+        stages.probe(run, run.study.calibration_tests[0])
+        stages.range_check(run, run.study.calibration_tests[0], "probe")
+    assert fe.calls == 9 and not caplog.records
+    assert run.manifest("probe")["result"]["n_failed"] == 0
+    again = stages.StudyRun(run.study, run.out, Progress())
+    stages.probe(again, again.study.calibration_tests[0])
+    assert fe.calls == 9 and again.records[0].cached
+
+
+def test_a_failed_probe_run_is_noted_and_left_out(tmp_path, monkeypatch):
+    """An FE run of the probe that fails (here the 2nd, E_b at its lower bound) is named in the
+    stage's notes and left out of the check, which still stops the µm-as-mm file on the others."""
+    run = _demo_run(tmp_path, scale=1000.0, header=" [mm]")
+    original, calls = Scenario.run, []
+
+    def second_fails(scenario, params, *args, **kwargs):
+        calls.append(params)
+        if len(calls) == 2:
+            raise FEError("singular stiffness matrix")
+        return original(scenario, params, *args, **kwargs)
+
+    monkeypatch.setattr(Scenario, "run", second_fails)
+    stages.probe(run, run.study.calibration_tests[0])
+    result = run.manifest("probe")["result"]
+    assert result["n_runs"] == 9 and result["n_failed"] == 1 and calls[1]["E_b"] == 5000.0
+    assert result["notes"][0].startswith("probe run 2 at {'E_b': 5000.0, ") and "failed (FEError: singular" in result["notes"][0]
+    with pytest.raises(ValueError, match=r"any of the 8 probe FE run\(s\) .* D1 is about 1000× larger"):
+        stages.range_check(run, run.study.calibration_tests[0], "probe")
+
+
+def test_sign_flipped_file_gets_the_sign_wording(tmp_path):
+    run = _demo_run(tmp_path, scale=-1.0)
+    stages.probe(run, run.study.calibration_tests[0])
+    with pytest.raises(ValueError, match=r"9 probe FE run\(s\) .* — D1 has the opposite sign of every FE run at every "
+                                         r"reading beyond 3σ: a sign error \(a gauge mounted the other way round, or "
+                                         r"another sign convention\)\?") as e:
+        stages.range_check(run, run.study.calibration_tests[0], "probe")
+    assert "D2 has" not in str(e.value)  # the probe run with kN_bj at its lower bound, 10 N/mm³, reads D2 < 0
+
+
+def test_range_check_false_runs_no_probe(tmp_path, fe_counter):
+    """The opt-out: no probe runs (and none in the FE work asked about), no check."""
+    run = _demo_run(tmp_path, scale=1000.0, header=" [mm]",
+                    replace=('instrument = "lvdt"', 'instrument = "lvdt"\nrange_check = false'))
+    assert stages.fe_work(run)[0].startswith("352 FE runs")  # 256 training + 32 held-out + 64 validation, no probe
+    fe = fe_counter()
+    stages.probe(run, run.study.calibration_tests[0])
+    stages.range_check(run, run.study.calibration_tests[0], "probe")
+    assert fe.calls == 0 and not (tmp_path / "out" / "probe.npz").exists()
+
+
+def test_probe_points():
+    """The box centre, then each parameter at its lower and upper bound (the others at the centre);
+    the centre alone for a nonlinear scenario."""
+    assert_allclose(probe_points(2, nonlinear=False), [[0.5, 0.5], [0, 0.5], [1, 0.5], [0.5, 0], [0.5, 1]])
+    assert_allclose(probe_points(3, nonlinear=True), [[0.5, 0.5, 0.5]])
 
 
 def test_range_check_names_units_and_signs_but_not_noise():
     """Unit and sign errors are named with the factor; a gauge that reads only noise is not."""
-    from podkrig.study.stages import measurement_range_problems
-
     levels, names = np.array([10.0, 20.0]), ("A", "B", "C", "N")
     per_kn = np.array([0.01, -0.002, 0.003, 1e-6])  # mm/kN; N barely moves in the model
     runs = np.array([s * np.outer(levels, per_kn) for s in (0.8, 1.0, 1.25)]).reshape(3, -1)
     d = np.outer(levels, per_kn * np.array([1000.0, 1.0, -1.0, 1.0])) + np.array([0, 0, 0, 0.0008])
     m = Measurement(d, names, levels)
-    found = measurement_range_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
+    found = stages.measurement_range_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
     assert found[0] == "A is about 1000× larger than every FE run: µm read as mm?"
     assert found[1].startswith("C has the opposite sign of every FE run")
     assert len(found) == 2  # B matches; N reads noise (0.8 µm with σ = 1 µm), not a unit error

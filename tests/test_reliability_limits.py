@@ -192,7 +192,7 @@ def test_podkrig_run_refuses_a_huge_study_without_yes(tmp_path):
     out = tmp_path / "out"
     result = runner.invoke(app, ["run", str(study), "--out", str(out)])
     text = " ".join(result.output.split())
-    assert result.exit_code != 0 and "this job is 100096 FE runs" in text and "--yes" in text
+    assert result.exit_code != 0 and "this job is 100105 FE runs" in text and "--yes" in text
     assert not out.exists()  # nothing written
 
 
@@ -206,7 +206,7 @@ def test_study_fe_work_counts_only_missing_runs(tmp_path, coarse_diagonal):
     study = load_study(_study(tmp_path, [("nx = 6", "nx = 2"), ("ny = 2", "ny = 1"),
                                          ("train    = { n = 256", "train    = { n = 8")]))
     run = stages.StudyRun(study, tmp_path / "out", Progress())
-    assert stages.fe_work(run)[0].startswith("104 FE runs")  # 8 + 32 held out + 64 validation
+    assert stages.fe_work(run)[0].startswith("113 FE runs")  # 9 probe + 8 + 32 held out + 64 validation
     space = ParameterSpace.from_dict(study.space.to_dict())
     run_snapshots(tmp_path / "out" / "train.h5", study.spec, space, n=8, seed=0, workers=1)
-    assert stages.fe_work(run)[0].startswith("96 FE runs")
+    assert stages.fe_work(run)[0].startswith("105 FE runs")

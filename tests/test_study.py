@@ -105,8 +105,9 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     _, out, text = tiny
     assert "identified parameters" in text and "report:" in text and "FE runs" in text
     stages = _stages(out)
-    assert set(stages) == {"measurement", "offline", "held_out", "validation_model.shear", "surrogate", "held_out_validation",
-                           "sensitivity", "inversion", "region", "rvc", "diagnosis"}
+    assert set(stages) == {"measurement", "probe", "offline", "held_out", "validation_model.shear", "surrogate",
+                           "held_out_validation", "sensitivity", "inversion", "region", "rvc", "diagnosis"}
+    assert stages["probe"]["fe_runs"] == 5  # the centre, and each of the 2 parameters at its bounds
     assert stages["offline"]["fe_runs"] == 16 and stages["held_out"]["fe_runs"] == 4
     assert stages["validation_model.shear"]["fe_runs"] == 8 and stages["inversion"]["fe_runs"] == 1
     for m in stages.values():  # every output file is recorded with its hash

@@ -24,7 +24,7 @@ from podkrig.limits import check_region_samples
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement
+from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.online.nested import nested_analyses
 from podkrig.online.posterior import sample_posterior
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
@@ -78,15 +78,16 @@ def parse_load_range(text):
 
 
 def parse_zero(text):
-    """``--zero``: ``first``, ``none`` or a load."""
+    """``--zero``: ``first``, ``none``, ``"end of PHASE"`` or a load."""
     if text is None or text == "none":
         return None
-    if text == "first":
-        return "first"
+    if text == "first" or zero_phase(text) is not None:
+        return text
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"--zero {text!r}: expected first, none or a load (number, the scenario's load unit)") from None
+        raise ValueError(f"--zero {text!r}: expected first, none or a load (number, the scenario's load unit), or "
+                         "'end of PHASE' (the last row of that phase in the --phase-column)") from None
 
 
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix, import_settings=None,
@@ -189,7 +190,10 @@ def register(app):
         repeats: str = typer.Option("average", "--repeats", help="Several readings at one load step: average or keep."),
         load_tolerance: float = typer.Option(0.0, "--load-tolerance",
                                              help="Rows within this of a step's first load form one step (load unit)."),
-        zero: str = typer.Option(None, "--zero", help="Gauges zeroed at: first (row), a load, or none (default)."),
+        zero: str = typer.Option(None, "--zero", help="Gauges zeroed at: first (row), a load, 'end of PHASE', or none "
+                                                      "(default)."),
+        phase_column: str = typer.Option("phase", "--phase-column",
+                                         help="Column naming each row's phase (for --zero 'end of PHASE')."),
         load_range: str = typer.Option(None, "--load-range", help="LOWER,UPPER: use only these loads (load unit)."),
         delimiter: str = typer.Option(None, "--delimiter", help="CSV delimiter (default: detected)."),
         decimal: str = typer.Option(None, "--decimal", help="Decimal mark . or , (default: detected)."),
@@ -218,7 +222,8 @@ def register(app):
             if repeats not in REPEATS:
                 raise ValueError(f"--repeats must be one of {', '.join(REPEATS)}; got {repeats!r}")
             settings = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
-                                      zero=parse_zero(zero), load_range=parse_load_range(load_range),
+                                      zero=parse_zero(zero), phase_column=phase_column,
+                                      load_range=parse_load_range(load_range),
                                       delimiter={"tab": "\t", "\\t": "\t"}.get(delimiter, delimiter),
                                       decimal=decimal, sheet=sheet)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,

@@ -13,8 +13,11 @@ What the reader does, in order:
 * columns that are neither the load nor a sensor of the model (time, channel numbers …) are
   ignored, and sensors of the model without a column are not used — both listed in the notes;
 * an empty cell (or ``NaN``, ``NA``, ``n/a``) is a missing reading; a row without a load is skipped;
-* rows outside ``load_range`` are dropped; gauges are zeroed at the reference ``zero`` (the
-  first row, a given load, or none) and the model is then compared as ``g(P) − g(P_ref)``;
+* gauges are zeroed at the reference ``zero`` — the first row, a given load, the end of a phase
+  (``"end of PHASE"``: the last row whose ``phase_column`` cell names it; the rows up to it are not
+  used), or none — and the model is then compared as ``g(P) − g(P_ref)``; rows outside
+  ``load_range`` are dropped (the end of a phase is found in the whole log, the first row and a
+  load within the range);
 * several readings at one load step (consecutive rows within ``load_tolerance``) are averaged or
   kept (``repeats``);
 * the measured loads are checked against the model: any load for a linear scenario (its readings
@@ -60,6 +63,25 @@ _MISSING_RE = re.compile(r"^(?:nan|na|n/a)$", re.IGNORECASE | re.MULTILINE)
 _NOT_NUMERIC = re.compile(r"[^0-9eE+\-.\n]")
 _HEADER = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 _UNITS = None
+#: ``zero = "end of PHASE"`` (case-insensitive "end of"): gauges zeroed at the last row of that phase.
+_ZERO_PHASE = re.compile(r"^\s*end of\s+(\S.*?)\s*$", re.IGNORECASE)
+
+
+def zero_phase(zero):
+    """The phase named by ``zero = "end of PHASE"`` (normalised as a phase cell is), else None."""
+    m = _ZERO_PHASE.match(zero) if isinstance(zero, str) else None
+    return phase_label(m.group(1)) if m else None
+
+
+def phase_label(cell):
+    """A phase cell as compared with ``zero = "end of PHASE"``: stripped, and a whole number written
+    plainly (``2.0`` from an Excel sheet reads as ``2``)."""
+    text = cell.strip()
+    if _NUMBER_RE.fullmatch(text):
+        value = float(text)
+        if value.is_integer() and abs(value) < 2**53:
+            return str(int(value))
+    return text
 
 
 @dataclass(frozen=True)
@@ -76,10 +98,14 @@ class ImportSettings:
     load_tolerance : float
         Consecutive rows whose loads lie within this of the step's first load form one step, in
         the scenario's load unit (0: only equal loads).
-    zero : None, "first" or float
+    zero : None, "first", "end of PHASE" or float
         Gauges zeroed at a reference: None (readings are absolute, as the model's), "first" (the
-        first row used), or a load in the scenario's load unit (the readings where the log first
-        reaches it, interpolated between rows).
+        first row used), "end of PHASE" (the last row whose ``phase_column`` cell is PHASE,
+        case-insensitive; that row and every row before it are not used), or a load in the
+        scenario's load unit (the readings where the log first reaches it, interpolated between rows).
+    phase_column : str
+        Name of the column holding each row's phase (case-insensitive), read only for
+        ``zero = "end of PHASE"``; otherwise it is an ignored column like any other.
     load_range : tuple of float or None
         ``(lower, upper)`` loads to use, scenario's load unit, inclusive.
     delimiter : str or None
@@ -94,6 +120,7 @@ class ImportSettings:
     repeats: str = "average"
     load_tolerance: float = 0.0
     zero: object = None
+    phase_column: str = "phase"
     load_range: tuple | None = None
     delimiter: str | None = None
     decimal: str | None = None
@@ -108,9 +135,12 @@ class ImportSettings:
                                                          and 0 <= self.load_tolerance < math.inf):
             raise ValueError(f"load_tolerance must be a number >= 0 (scenario load unit); got {self.load_tolerance!r}")
         z = self.zero
-        if not (z is None or z == "first" or (isinstance(z, int | float) and not isinstance(z, bool)
-                                               and math.isfinite(z))):
-            raise ValueError(f"zero must be \"first\", a load (number, scenario load unit) or none; got {z!r}")
+        if not (z is None or z == "first" or zero_phase(z) is not None
+                or (isinstance(z, int | float) and not isinstance(z, bool) and math.isfinite(z))):
+            raise ValueError(f"zero must be \"first\", \"end of PHASE\" (a phase of the phase column), a load "
+                             f"(number, scenario load unit) or none; got {z!r}")
+        if not isinstance(self.phase_column, str) or not self.phase_column.strip():
+            raise ValueError(f"phase_column must be a non-empty column name; got {self.phase_column!r}")
         if self.load_range is not None:
             r = tuple(self.load_range) if isinstance(self.load_range, list | tuple) else ()
             if (len(r) != 2 or any(isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v)
@@ -377,12 +407,13 @@ class _Table:
             raise ValueError(f"{self._where(self.header_row, load_cols[1] + 1)}: a second load column "
                              f"{header[load_cols[1]]!r}")
         self.load_col = load_cols[0]
+        self.phase_col = self._find_phase_column(names, header)
         exact = {n: n for n in self.sensor_names}
         folded = {n.casefold(): n for n in self.sensor_names}
         self.sensor_cols, self.sensors = [], []
         ignored = []
         for j, n in enumerate(names):
-            if j == self.load_col:
+            if j in (self.load_col, self.phase_col):
                 continue
             sensor = exact.get(n) or folded.get(n.casefold())
             if sensor is None:
@@ -436,6 +467,27 @@ class _Table:
             self.notes.append(f"no unit in the header of {', '.join(bare)}: read as mm")
         self.header = header
 
+    def _find_phase_column(self, names, header):
+        """The column of the phases when ``zero = "end of PHASE"`` (else None): named
+        ``phase_column``, once, and not the load column."""
+        s = self.settings
+        phase = zero_phase(s.zero)
+        if phase is None:
+            return None
+        want = s.phase_column.strip().casefold()
+        cols = [j for j, n in enumerate(names) if n.casefold() == want]
+        if not cols:
+            raise ValueError(f"{self._where(self.header_row)}: zero = {s.zero!r} needs a phase column "
+                             f"{s.phase_column!r}; the header has {[h for h in header if h][:12]} (name the "
+                             "column holding each row's phase with phase_column)")
+        if len(cols) > 1:
+            raise ValueError(f"{self._where(self.header_row, cols[1] + 1)}: a second phase column {header[cols[1]]!r}")
+        if cols[0] == self.load_col or want in {n.casefold() for n in self.sensor_names}:
+            what = "the load column" if cols[0] == self.load_col else "a sensor of the model"
+            raise ValueError(f"{self._where(self.header_row, cols[0] + 1)}: phase_column {s.phase_column!r} is {what}; "
+                             "name the column holding each row's phase")
+        return cols[0]
+
     def parse_numbers(self, delimiter):
         """Numbers of the load and sensor columns: ``loads (n,)``, ``values (n, n_sensors)`` mm.
 
@@ -476,6 +528,8 @@ class _Table:
                              f"{values[i, k]:g} mm is out of range (readings are at most {MAX_ABS_READING_MM:g} mm "
                              "in magnitude)")
         self.loads, self.values, self.row_numbers = loads[~no_load], values[~no_load], row_numbers[~no_load]
+        if self.phase_col is not None:
+            self.phases = np.array([phase_label(c) for c in columns[self.phase_col]], dtype=object)[~no_load]
 
     @staticmethod
     def _detect_decimal(text, delimiter):
@@ -528,6 +582,9 @@ class _Table:
         s = self.settings
         loads, values, rows = self.loads, self.values, self.row_numbers
         unit = f" {self.load_unit}"
+        reference = None
+        if self.phase_col is not None:  # a moment of the test: found in the whole log, before load_range
+            loads, values, rows, reference = self._zero_at_phase_end(loads, values, rows)
         if s.load_range is not None:
             lo, hi = s.load_range
             inside = (loads >= lo) & (loads <= hi)
@@ -540,8 +597,7 @@ class _Table:
             loads, values, rows = loads[inside], values[inside], rows[inside]
         if not len(loads):
             raise ValueError(f"{self.path}: no data rows with a load")
-        reference = None
-        if s.zero is not None:
+        if s.zero is not None and self.phase_col is None:
             ref_values, reference, ref_row = self._zero(loads, values, rows)
             values = values - ref_values
             self.notes.append(f"gauges zeroed at {reference:g}{unit} ({ref_row}); the model is compared as "
@@ -559,6 +615,39 @@ class _Table:
                           f"{self.path} (zero reference {reference:g}{unit})")
         return Measurement(values, tuple(self.sensors), loads, source=str(self.path), reference_load=reference,
                            notes=tuple(self.notes), ignored_columns=tuple(self.ignored))
+
+    def _zero_at_phase_end(self, loads, values, rows):
+        """Readings zeroed at the last row of the phase ``zero = "end of PHASE"`` names: the rows
+        after it ``(loads, values, rows)`` and the reference load."""
+        s = self.settings
+        phase = zero_phase(s.zero)
+        name = self.header[self.phase_col]
+        folded = np.array([p.casefold() for p in self.phases], dtype=object)
+        hit = np.flatnonzero(folded == phase.casefold())
+        found = list(dict.fromkeys(p for p in self.phases if p))
+        if not len(hit):
+            where = self._where(None, self.phase_col + 1, name)
+            if not found:
+                raise ValueError(f"{where}: zero = {s.zero!r}, but the phase column is empty")
+            close = difflib.get_close_matches(phase, found, n=1, cutoff=0.6)
+            hint = f" (a typo of {close[0]!r}?)" if close else ""
+            raise ValueError(f"{where}: no row of phase {phase!r} (zero = {s.zero!r}){hint}; the phases in this "
+                             f"column are {', '.join(repr(f) for f in found[:20])}")
+        i = int(hit[-1])
+        ref, row = values[i], int(rows[i])
+        missing = [self.sensors[k] for k in np.flatnonzero(np.isnan(ref))]
+        if missing:
+            raise ValueError(f"{self._where(row)}: the zero reference (end of phase {self.phases[i]!r}) has no reading "
+                             f"of {', '.join(missing)}")
+        if i + 1 == len(loads):
+            raise ValueError(f"{self._where(row, self.phase_col + 1, name)}: the phase {self.phases[i]!r} ends at the "
+                             "last row; no readings after the zero reference")
+        reference = float(loads[i])
+        self.notes.append(f"gauges zeroed at the end of phase {self.phases[i]!r} (row {row}, {reference:g} "
+                          f"{self.load_unit}); the {i + 1} row(s) up to it are not used; phases in column "
+                          f"{self.phase_col + 1} ({name}): {', '.join(found[:20])}; the model is compared as "
+                          "g(P) − g(P_ref)")
+        return loads[i + 1:], values[i + 1:] - ref, rows[i + 1:], reference
 
     def _zero(self, loads, values, rows):
         """Readings at the zero reference ``(n_sensors,)``, the reference load and where it was read."""
@@ -650,5 +739,5 @@ def write_measurement_csv(path, measurement):
             w.writerow([f"{level:.10g}", *["" if not np.isfinite(v) else f"{v:.10g}" for v in row]])
 
 
-__all__ = ["ImportSettings", "MAX_FILE_BYTES", "REPEATS", "read_measurement", "read_measurement_csv",
-           "split_header", "unit_factor", "write_measurement_csv"]
+__all__ = ["MAX_FILE_BYTES", "REPEATS", "ImportSettings", "phase_label", "read_measurement", "read_measurement_csv",
+           "split_header", "unit_factor", "write_measurement_csv", "zero_phase"]

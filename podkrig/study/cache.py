@@ -128,10 +128,9 @@ class StageCache:
         ``result`` is a JSON-able dict, ``outputs`` the files written (paths relative to the
         output folder). Returns the stage manifest.
         """
-        path = self.out / "stages" / f"{name}.json"
         digest = input_hash(name, inputs)
-        manifest = read_manifest(path)
-        if manifest is not None and manifest.get("input_hash") == digest and self.unchanged(manifest["outputs"]):
+        manifest = self._cached_manifest(name, digest)
+        if manifest is not None:
             record = StageRecord(name, title, True, 0.0, 0, manifest)
         else:
             self.progress.stage_started(name, title, total)
@@ -149,11 +148,22 @@ class StageCache:
                 "result": result, "seconds": seconds, "fe_runs": fe_runs, "finished": now(),
                 "podkrig": __version__,
             }
-            write_json(path, manifest)
+            write_json(self.out / "stages" / f"{name}.json", manifest)
             record = StageRecord(name, title, False, seconds, fe_runs, manifest)
         self.records.append(record)
         self.progress.stage_finished(record)
         return manifest
+
+    def is_cached(self, name, inputs):
+        """Whether :meth:`stage` would reuse stage ``name`` with these inputs (nothing is run)."""
+        return self._cached_manifest(name, input_hash(name, inputs)) is not None
+
+    def _cached_manifest(self, name, digest):
+        """The manifest of stage ``name`` when it has this input hash and its files are unchanged, else None."""
+        manifest = read_manifest(self.out / "stages" / f"{name}.json")
+        if manifest is not None and manifest.get("input_hash") == digest and self.unchanged(manifest["outputs"]):
+            return manifest
+        return None
 
     def unchanged(self, outputs):
         """Whether every output file (relative path → SHA-256) exists with these bytes."""

@@ -119,9 +119,12 @@ def run_study(study, out, *, progress=None, confirm=None):
     tests = study.calibration_tests
     for test in tests:  # before any FE work: a bad file stops here
         stages.measurement_check(run, test)
+    for test in tests:  # a few FE runs spanning each box (cached): a unit or sign error stops here,
+        stages.probe(run, test)  # before the training snapshots
+        stages.range_check(run, test, "probe")
     for test in tests:
         stages.offline(run, test, "offline", "Training snapshots (FE)", "train.h5", test.train)
-        stages.range_check(run, test)  # a unit or sign error stops here, before the surrogate
+        stages.range_check(run, test, "train")  # the whole design seen: before the held-out runs and the surrogate
         stages.offline(run, test, "held_out", "Held-out snapshots (FE)", "held_out.h5", test.held_out)
     for model in study.validation:
         stages.validation_model(run, model)

@@ -42,8 +42,8 @@ File layout (units: N, mm, MPa; interface stiffness N/mm³; loads in the scenari
     [measurement]
     file = "measured.csv"                   # relative to the study file (.csv or .xlsx; units in headers)
     instrument = "lvdt"                     # or noise_abs = 0.001 (mm) and/or noise_rel = 0.01
-    # load_column, repeats, load_tolerance, zero, load_range, delimiter, decimal, sheet,
-    # range_check: see docs/measurements.md
+    # load_column, repeats, load_tolerance, zero, phase_column, load_range, delimiter, decimal,
+    # sheet, range_check: see docs/measurements.md
 
     [inversion]
     seed = 0

@@ -33,7 +33,7 @@ from pydantic_core import PydanticCustomError
 
 from podkrig import limits
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.online.measurement_csv import REPEATS, ImportSettings
+from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
 from podkrig.parameters import SCALES, ParameterSpace
 
 __all__ = [
@@ -265,8 +265,10 @@ def _zero(value):
         return None if value is None else value if value == "first" else float(value)
     if value == "none":
         return None
+    if zero_phase(value) is not None:
+        return value
     raise study_error(f"{value!r} is not a zero reference", allowed='"first", "none" or a load (number, the '
-                      "scenario's load unit)")
+                      'scenario\'s load unit), or "end of PHASE" (the last row of that phase in the phase_column)')
 
 
 def _load_range(value):
@@ -286,7 +288,8 @@ class MeasurementSettings:
     δ, combined as σ_i² = σ_res,i² + (δ d_i)²; or ``instrument`` (one name, or one per sensor) with
     the typical σ_res and δ of :data:`~podkrig.online.measurement.INSTRUMENTS`. Reading: see
     :class:`~podkrig.online.measurement_csv.ImportSettings`. ``range_check`` stops a study whose
-    readings lie far outside every training snapshot (a unit or sign error). Validating a table
+    readings lie far outside every FE run of the probe (before the training snapshots) and of the
+    training design (a unit or sign error); false also skips the probe runs. Validating a table
     needs the study file's folder in the context (``{"folder": Path}``); constructing one in
     code takes an existing file.
     """
@@ -301,6 +304,8 @@ class MeasurementSettings:
     load_tolerance: Annotated[StrictFloat, AfterValidator(_finite),
                               _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = 0.0
     zero: Annotated[Any, AfterValidator(_zero)] = None
+    phase_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
+                            _allowed("the name of the phase column (read for zero = \"end of PHASE\")")] = "phase"
     load_range: Annotated[Any, AfterValidator(lambda v: None if v is None else _load_range(v))] = None
     delimiter: _choice((",", ";", "\t"), '",", ";" or "\\t" (default: detected)') | None = None
     decimal: _choice((".", ","), '"." or "," (default: detected)') | None = None
@@ -320,7 +325,8 @@ class MeasurementSettings:
     def import_settings(self):
         """The :class:`~podkrig.online.measurement_csv.ImportSettings` of these settings."""
         return ImportSettings(load_column=self.load_column, repeats=self.repeats, load_tolerance=self.load_tolerance,
-                              zero=self.zero, load_range=self.load_range, delimiter=self.delimiter,
+                              zero=self.zero, phase_column=self.phase_column, load_range=self.load_range,
+                              delimiter=self.delimiter,
                               decimal=self.decimal, sheet=self.sheet)
 
     def noise_model(self, sensor_names=None):

@@ -5,6 +5,10 @@ Stages, in order (the measurement check, FE work, then the online stages)::
     measurement              the log read and checked against the     (no files)
                              scenario: sensors, loads, dof, noise —
                              before any FE work
+    probe                    a few FE runs spanning the parameter     probe.npz
+                             box ([measurement] range_check): the
+                             readings' range checked against them
+                             before the training snapshots
     offline                  training snapshots (FE)                  train.h5
     held_out                 held-out snapshots (FE)                  held_out.h5
     validation_model.NAME    snapshots and surrogate of a validation  validation_NAME.h5, validation_NAME_surrogate.h5
@@ -91,8 +95,8 @@ class StudyRun(StageCache):
 
 def fe_work(run):
     """The FE work this run of the study would do, in words, and whether it is large enough to ask
-    first (:func:`podkrig.limits.fe_job_estimate`): every design's runs not in its store yet
-    (training, held-out, validation models), each at its scenario's mesh size.
+    first (:func:`podkrig.limits.fe_job_estimate`): the probe runs unless cached, and every design's
+    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size.
 
     Returns
     -------
@@ -104,6 +108,11 @@ def fe_work(run):
             for f, d in (("train.h5", t.train), ("held_out.h5", t.held_out))]
     jobs += [(run.out / f"validation_{m.name}.h5", m.spec, m.design) for m in study.validation]
     work, stored = [], 0
+    for t in study.calibration_tests:
+        if t.measurement.range_check and not run.is_cached(t.stage("probe"), _probe_inputs(t)):
+            sc = run.scenario(t)
+            nonlinear = isinstance(sc, NonlinearScenario)
+            work.append((len(probe_points(t.space.n_params, nonlinear)), sc.n_dofs, nonlinear))
     for path, spec, design in jobs:
         todo = rows_to_run(path, design.n)
         if todo:
@@ -152,10 +161,14 @@ def _store_result(path, summary, notes):
     }
 
 
-#: A sensor whose readings are this many times larger (or smaller) than in every training run is
-#: a probable unit error (µm read as mm is 1000×); a factor 20 leaves room for parameter bounds
-#: that are somewhat off while catching every power-of-ten unit slip from 100× up.
+#: A sensor whose readings are this many times larger (or smaller) than in every FE run (of the
+#: probe, or of the training design) is a probable unit error (µm read as mm is 1000×); a factor 20
+#: leaves room for parameter bounds that are somewhat off, and for the spread of the box beyond the
+#: probe's points, while catching every power-of-ten unit slip from 100× up.
 RANGE_FACTOR = 20.0
+#: A ratio in this range (1000× give or take the parameter box) is named as a µm ↔ mm slip ("µm read
+#: as mm?"); any other ratio beyond :data:`RANGE_FACTOR` as "a unit error?".
+UNIT_SLIP_RATIO = (300.0, 3000.0)
 
 
 def read_study_measurement(test, sensor_names, load_levels, load_unit, load_response):
@@ -199,23 +212,104 @@ def measurement_check(run, test):
     run.stage(test.stage("measurement"), test.title("Measurement check (before FE work)"), inputs, compute)
 
 
-def range_check(run, test):
-    """Stop when a sensor's readings lie far outside every training snapshot (a unit or sign error),
-    as soon as a test's training snapshots exist (``[measurement] range_check``)."""
+def probe_points(n_params, nonlinear):
+    """Unit-cube points of the probe: the FE runs made before the training snapshots to check the
+    measurement's range (:func:`range_check`).
+
+    The box centre; for a linear scenario (an FE run takes milliseconds) also each parameter at
+    its lower and at its upper bound with the others at the centre — the extremes of the response
+    along every parameter, 2d + 1 runs for d free parameters (7 for 3); for a nonlinear scenario (a
+    run takes 30–90 s at the default mesh) the centre alone, and the check after the training
+    snapshots sees the whole design.
+
+    Returns
+    -------
+    ndarray of shape (n_runs, n_params)
+    """
+    U = np.full((1, n_params), 0.5)
+    if nonlinear:
+        return U
+    ends = np.full((2 * n_params, n_params), 0.5)
+    k = np.arange(n_params)
+    ends[2 * k, k], ends[2 * k + 1, k] = 0.0, 1.0
+    return np.vstack([U, ends])
+
+
+def _probe_inputs(test):
+    return {"spec": test.spec.to_dict(), "space": test.space.to_dict()}
+
+
+def probe(run, test):
+    """The probe FE runs (:func:`probe_points`) of a test's scenario into ``probe.npz`` (``X
+    (n_runs, n_params)`` physical values, ``readings (n_runs, n_levels, n_sensors)`` mm, NaN where a
+    run failed or stopped early): the number of runs and of those not used (failed, or a nonlinear
+    run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
+    range_check = false``; cached by the scenario and the parameter box, so a new measurement file
+    reruns no FE."""
     if not test.measurement.range_check:
         return
-    with SnapshotStore.open(run.out / test.file("train.h5")) as store:
-        Y = store.readings(only_done=True)
-        sensor_names, levels, unit = list(store.sensor_names), store.load_levels, store.load_unit
-    if not len(Y):
+    sc = run.scenario(test)
+    U = probe_points(test.space.n_params, isinstance(sc, NonlinearScenario))
+    filename = test.file("probe.npz")
+
+    def compute():
+        X = test.space.from_unit(U)
+        Y = np.full((len(X), len(sc.load_levels), len(sc.sensor_names)), np.nan)
+        notes = []
+        for i, x in enumerate(X):
+            params = test.space.as_params(x)
+            try:
+                response = sc.run(params)
+            except Exception as e:  # noqa: BLE001 - a failed FE run leaves the probe smaller, never a crash
+                notes.append(f"probe run {i + 1} at {params} failed ({type(e).__name__}: {e}); not used")
+            else:
+                Y[i] = response.readings  # a nonlinear run stopped early: NaN past the last level reached
+                if getattr(response, "status", "converged") != "converged":
+                    notes.append(f"probe run {i + 1} at {params} stopped early ({response.status}); not used")
+            run.progress.advance(i + 1, len(X))
+        (run.out / filename).parent.mkdir(parents=True, exist_ok=True)
+        np.savez(run.out / filename, X=X, readings=Y)
+        n_failed = int(np.sum(~np.all(np.isfinite(Y.reshape(len(X), -1)), axis=1)))
+        return {"n_runs": len(X), "n_failed": n_failed, "notes": notes}, [filename], len(X)
+
+    run.stage(test.stage("probe"), test.title("Probe FE runs (measurement range check)"), _probe_inputs(test),
+              compute, total=len(U))
+
+
+def range_check(run, test, source):
+    """Stop when a sensor's readings lie far outside every FE run of a test (a unit or sign error):
+    :func:`measurement_range_problems` against the probe runs (``source = "probe"``, before the
+    training snapshots) or against the training design (``source = "train"``, right after its
+    snapshots: the whole box). Nothing with ``[measurement] range_check = false``.
+
+    Raises
+    ------
+    ValueError
+        Naming the file, the FE runs compared with, each sensor and its factor.
+    """
+    if not test.measurement.range_check:
         return
     sc = run.scenario(test)
+    if source == "probe":
+        with np.load(run.out / test.file("probe.npz")) as f:
+            Y = f["readings"]
+        Y = Y[np.all(np.isfinite(Y.reshape(len(Y), -1)), axis=1)]  # complete runs, as only_done of a store
+        sensor_names, levels, unit = list(sc.sensor_names), sc.load_levels, sc.load_unit
+        what = (f"{len(Y)} probe FE run(s) (the box centre" + ("" if len(Y) == 1 else " and each parameter at its bounds")
+                + ")")
+    else:
+        with SnapshotStore.open(run.out / test.file("train.h5")) as store:
+            Y = store.readings(only_done=True)
+            sensor_names, levels, unit = list(store.sensor_names), store.load_levels, store.load_unit
+        what = f"{len(Y)} training FE runs"
+    if not len(Y):
+        return
     response = getattr(sc, "load_response", "discrete")
     data, noise = read_study_measurement(test, sensor_names, levels, unit, response)
     problems = measurement_range_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1))
     if problems:
         raise ValueError(
-            f"{test.measurement.file}: the readings do not look like any of the {len(Y)} training FE runs — "
+            f"{test.measurement.file}: the readings do not look like any of the {what} — "
             + "; ".join(problems) + ". State the unit in the column header (e.g. 'D1 [µm]'), check the sign "
             "convention, or widen the parameter bounds; [measurement] range_check = false runs anyway")
 
@@ -223,6 +317,12 @@ def range_check(run, test):
 def measurement_range_problems(data, noise, sensor_names, levels, response, Y, factor=RANGE_FACTOR):
     """Sensors whose readings are ``factor``× larger or smaller than in every FE run, or of the
     opposite sign: one sentence each, naming the sensor and the factor.
+
+    A sensor is flagged when its largest reading beyond 3σ exceeds ``factor`` × the largest of any
+    run (or its largest reading plus 3σ is below every run's largest ÷ ``factor``). The factor named
+    is the ratio to the geometric mean of the runs' smallest and largest extremes — the middle of
+    the range the parameter box spans, so a box whose runs differ 10× among themselves still names
+    a µm ↔ mm slip as "about 1000×" (:data:`UNIT_SLIP_RATIO`).
 
     Parameters
     ----------
@@ -236,6 +336,7 @@ def measurement_range_problems(data, noise, sensor_names, levels, response, Y, f
     d = data.data
     sd = noise.std(data)
     col = np.broadcast_to(np.arange(len(data.sensor_names)), data.values.shape)[data.mask]
+    lo, hi = UNIT_SLIP_RATIO
     problems = []
     for j, name in enumerate(data.sensor_names):
         sel = col == j
@@ -243,20 +344,22 @@ def measurement_range_problems(data, noise, sensor_names, levels, response, Y, f
         run_max = np.abs(gj).max(axis=1)  # each run's largest reading of this sensor, mm
         excess = float(np.max(np.abs(dj) - 3 * sj))  # beyond the noise: a noise-level gauge is no unit error
         upper = float(np.max(np.abs(dj) + 3 * sj))
+        moved = run_max[run_max > 0]
+        middle = float(np.sqrt(moved.min() * moved.max())) if len(moved) else 0.0  # mm
         if excess > factor * run_max.max():
-            r = excess / run_max.max() if run_max.max() > 0 else np.inf
+            r = float(np.max(np.abs(dj))) / middle if middle > 0 else np.inf
             problems.append(f"{name} is about {_power_of_ten(r)}× larger than every FE run"
-                            + (": µm read as mm?" if 300 <= r <= 3000 else ": a unit error?"))
+                            + (": µm read as mm?" if lo <= r <= hi else ": a unit error?"))
         elif run_max.min() > factor * upper:
-            r = run_max.min() / upper
+            r = middle / upper
             problems.append(f"{name} is about {_power_of_ten(r)}× smaller than every FE run"
-                            + (": mm read as µm (or m)?" if 300 <= r <= 3000 else ": a unit error?"))
+                            + (": mm read as µm (or m)?" if lo <= r <= hi else ": a unit error?"))
         else:
             signal = np.abs(dj) > 3 * sj
             fe_sign = np.sign(gj[:, signal])
             if fe_sign.size and np.all(fe_sign == -np.sign(dj[signal])[None, :]):
-                problems.append(f"{name} has the opposite sign of every FE run at every reading beyond 3σ: a "
-                                "gauge mounted the other way round, or another sign convention?")
+                problems.append(f"{name} has the opposite sign of every FE run at every reading beyond 3σ: a sign "
+                                "error (a gauge mounted the other way round, or another sign convention)?")
     return problems
 
 
