@@ -213,7 +213,9 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
                 "unidentified", "region",
                 f"{name} is not pinned down by these data: values from {_g(lo)} to {_g(hi)}"
                 f"{_unit(units[name])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
-                f"fix {name} from other tests ({how}), add sensors sensitive to it, or report it as unidentified."))
+                f"fix {name} from other tests ({how})"
+                + ("" if context == "cli" else " or calibrate jointly with a test that informs it ([[test]] tables)")
+                + ", add sensors sensitive to it, or report it as unidentified."))
     return found
 
 
