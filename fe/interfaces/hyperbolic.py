@@ -40,8 +40,9 @@ here; the flow and the softening are switchable only by replacing this law, the 
   leaves the law exactly as it was without a cap.
 
 Return mapping: Euler backward with an active-set search over {F1}, {F2}, {F1, F2} (violated
-surfaces by decreasing relative violation, then the corner, started from the linearised
-(cutting-plane) multipliers, then from those of the single-surface attempts), accepted when every
+surfaces by decreasing relative violation, then the corner, started from the end state of the
+rejected cap return, from the linearised (cutting-plane) multipliers, then from the end state of
+the rejected hyperbola return), accepted when every
 Δλ ≥ 0, the inactive surface holds and the slip keeps its sign. Each set is a safeguarded Newton
 method on the unknowns (σ, τ, Δλ…) (3 or 4) whose Jacobian is formed by central differences
 (h = 1e-7 relative); the algorithmic tangent follows from the implicit function theorem,
@@ -76,6 +77,8 @@ def _cap(p, sig, tau, k3, compressive_only):
     s3, _ = cap_strength(p[FC], p[SI], p[SM], p[SR], p[KP], p[KM], k3)
     if p[SHAPE] == 0.0:
         r = math.sqrt(sig * sig + p[CSS] * tau * tau)
+        if r == 0.0:  # the centre of the ellipse: any direction; the compressive one
+            return -s3, -1.0, 0.0
         return r - s3, sig / r, p[CSS] * tau / r
     r = math.sqrt(p[CSS] * tau * tau + s3 * s3)
     return r - 2.0 * s3 - sig, -1.0, p[CSS] * tau / r
@@ -312,14 +315,17 @@ def _return_once(p, du, t_n, up_n, kap_n, k3_n, t, up, D):
     if math.isfinite(p[FC]) and (sig_tr < 0.0 or f3 > tol):
         cand[nc, 0], cand[nc, 1] = 1, 1
         nc += 1
-    single = np.zeros(2)  # multipliers of the single-surface attempts (corner starting values)
+    # end states (σ, τ, Δλ) of the single-surface attempts that converged but were rejected
+    # (the other surface violated): the corner's best starting points
+    single = np.zeros((2, 3))
+    tried = np.zeros(2, dtype=np.bool_)
     l1 = l3 = m10 = n11 = 0.0
     last = 0
     for c in range(nc):
         has1, has3 = cand[c, 0], cand[c, 1]
         starts = 1
         if has1 and has3:
-            starts = 2
+            starts = 3
             # cutting-plane start: linearised multipliers at the trial state, n_i · D m_j λ_j = f_i
             tphi = p[TANPHI0] + (p[TANPHIR] - p[TANPHI0]) * kap_n
             a = max(p[C] * (1.0 - kap_n) - p[FT] * (1.0 - kap_n) * tphi, 0.0)
@@ -338,19 +344,27 @@ def _return_once(p, du, t_n, up_n, kap_n, k3_n, t, up, D):
             l1, l3 = max(l1, 1e-3 * big), max(l3, 1e-3 * big)
         for attempt in range(starts):
             if has1 and has3:
-                if attempt == 1:
-                    l1 = single[0] if single[0] > 0 else l1
-                    l3 = single[1] if single[1] > 0 else l3
-                x[0] = sig_tr - kn * (l1 * m10 + l3 * n30)
-                x[1] = tau_tr - ks * (l1 * n11 + l3 * n31)
-                x[2], x[3] = l1, l3
+                # starts: the cap's end state, the cutting plane, the hyperbola's end state
+                if attempt == 0 or attempt == 2:
+                    j = 1 if attempt == 0 else 0
+                    if not tried[j]:
+                        continue
+                    x[0], x[1] = single[j, 0], single[j, 1]
+                    x[2] = single[0, 2] if j == 0 else 1e-3 * single[1, 2]
+                    x[3] = single[1, 2] if j == 1 else 1e-3 * single[0, 2]
+                else:
+                    x[0] = sig_tr - kn * (l1 * m10 + l3 * n30)
+                    x[1] = tau_tr - ks * (l1 * n11 + l3 * n31)
+                    x[2], x[3] = l1, l3
             else:
                 x[0], x[1], x[2], x[3] = sig_tr, tau_tr, 0.0, 0.0
             ok, it = _try_set(p, has1, has3, x, sig_tr, tau_tr, kap_n, k3_n, tol, stress, t, up_n, up, D)
-            if not (has1 and has3) and x[2] > 0:
-                single[0 if has1 else 1] = x[2]
             if ok:
                 return 0, it
+            if not (has1 and has3) and it < MAX_ITERATIONS and x[2] > 0:
+                j = 0 if has1 else 1
+                single[j, 0], single[j, 1], single[j, 2] = x[0], x[1], x[2]
+                tried[j] = True
             last = it
     return 2, last
 
