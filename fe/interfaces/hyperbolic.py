@@ -213,6 +213,23 @@ def _yield(p, sig, tau, kap):
 
 
 @numba.njit(cache=True)
+def _linear_multiplier(p, which, sig, tau, kap, k3):
+    """Δλ of one step of the cutting-plane method on F1 (``which`` 0) or the cap (1) from (σ, τ):
+    ⟨F⟩ / (n · D m), at least a tiny positive value."""
+    if which == 0:
+        tphi = p[TANPHI0] + (p[TANPHIR] - p[TANPHI0]) * kap
+        a = max(p[C] * (1.0 - kap) - p[FT] * (1.0 - kap) * tphi, 0.0)
+        rho = math.sqrt(tau * tau + a * a) + 1e-300
+        f = _yield(p, sig, tau, kap)
+        mn = p[TANPSI] + (tphi - p[TANPSI]) * a / rho
+        h = tphi * p[KN] * mn + (tau / rho) * p[KS] * (tau / rho)
+    else:
+        f, n0, n1 = _cap(p, sig, tau, k3, False)
+        h = n0 * p[KN] * n0 + n1 * p[KS] * n1
+    return max(f, 1e-12 * p[C]) / h if h > 0.0 else 1e-12
+
+
+@numba.njit(cache=True)
 def _try_set(p, has1, has3, x, sig_tr, tau_tr, kap_n, k3_n, tol, stress, t, up_n, up, D):
     """Newton on the active set from the start x (n,); returns (accepted, iterations); on
     acceptance t, up = (u_n^p, u_s^p, κ, κ3), D (tangent) and x (the multipliers) are set."""
@@ -350,8 +367,10 @@ def _return_once(p, du, t_n, up_n, kap_n, k3_n, t, up, D):
                     if not tried[j]:
                         continue
                     x[0], x[1] = single[j, 0], single[j, 1]
-                    x[2] = single[0, 2] if j == 0 else 1e-3 * single[1, 2]
-                    x[3] = single[1, 2] if j == 1 else 1e-3 * single[0, 2]
+                    # the other multiplier from that surface's linearised violation there
+                    other = _linear_multiplier(p, 1 - j, x[0], x[1], kap_n, k3_n)
+                    x[2] = single[0, 2] if j == 0 else other
+                    x[3] = single[1, 2] if j == 1 else other
                 else:
                     x[0] = sig_tr - kn * (l1 * m10 + l3 * n30)
                     x[1] = tau_tr - ks * (l1 * n11 + l3 * n31)
