@@ -253,7 +253,7 @@ def test_hyperbolic_cap_under_pure_compression(shape):
     same vertex, so the same curve."""
     law = HyperbolicInterface(hyperbolic_properties(**HYP, **CAP, cap_shape=shape)[None])
     u = -np.union1d(np.linspace(0.0, 4.0, 4001), [10.5 / 3 / 82.0])
-    t, state, its, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
+    t, state, _, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
     assert np.all(status == 0)
     assert np.all(t[:, 1] == 0.0)
     sigma = -t[:, 0]
@@ -308,6 +308,16 @@ def test_hyperbolic_cap_tangent_equals_finite_differences(shape, case):
     pre = {"cap": [0.0, 0.0], "cap_shear": [-0.05, 0.0], "corner": [0.0, 0.0], "corner_softened": [-0.03, 0.09]}[case]
     du = {"cap": [-0.1, 0.0003], "cap_shear": [-0.05, 0.02], "corner": [-0.03, 0.09],
           "corner_softened": [-0.01, 0.03]}[case]
+    state = law.update(np.array([pre]), law.initial_state()).state
+    upd = law.update(np.array([du]), state)
+    assert upd.status[0] == 0 and upd.iterations[0] > 0
+    assert upd.state.kappa[0, 2] > state.kappa[0, 2], "the cap is active"
+    if case.startswith("corner"):
+        assert upd.state.kappa[0, 0] > state.kappa[0, 0], "the hyperbola is active too"
+    D_fd = _fd_tangent(law, state, np.array(du), 1e-7)
+    assert np.allclose(upd.tangent[0], D_fd, rtol=1e-6, atol=1e-6 * np.abs(D_fd).max())
+
+
 def test_hyperbolic_cap_far_away_reproduces_the_law_without_cap():
     """A cap at f_c = 1000 MPa never yields on paths of a few MPa: every traction, plastic
     displacement, κ, work, tangent and iteration count equals the law without cap exactly (the

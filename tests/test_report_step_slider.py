@@ -11,7 +11,12 @@ import pytest
 
 from fe.scenarios import build_scenario
 from podkrig.reports.nonlinear import write_nonlinear_report
-from podkrig.reports.step_slider import MAX_FRAMES, build_step_slider, select_steps, step_slider_html
+from podkrig.reports.step_slider import (
+    MAX_FRAMES,
+    build_step_slider,
+    select_steps,
+    step_slider_html,
+)
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +29,7 @@ def triplet_run():
 
 
 def _data(html):
-    return json.loads(re.search(r'<script type="application/json" id="ss-data">(.*?)</script>', html, re.S).group(1))
+    return json.loads(re.search(r'<script type="application/json" id="ss-data">(.*?)</script>', html, re.DOTALL).group(1))
 
 
 def _decode(text, dtype):
