@@ -17,7 +17,7 @@ stiffness parameters (ranges below, INFERRED from reference §1a/§2.1) on ``--w
 prints how many reached 3 mm, the failure reasons and the wall time.
 
 Usage: python scripts/bench_nonlinear.py [--nx 6 --ny 2] [--top fixed_vertical constant_force]
-       [--snapshots 256 --workers 2]
+       [--snapshots 256 --workers 2 --store j4d.h5]   (--top with no value: snapshots only)
 """
 
 import argparse
@@ -102,7 +102,9 @@ def run_j4d(nx, ny, top):
                 peak=r.peak_load, peak_u=r.peak_displacement, reached=r.reached, status=r.status, message=r.message)
 
 
-def snapshots(n, workers, nx, ny):
+def snapshots(n, workers, nx, ny, store_path=None):
+    """Run ``n`` J4D snapshots into ``store_path`` (a temporary store when None); returns the
+    run summary, the wall time (s) and the failure reasons counted by exception name."""
     from fe.scenarios import build_scenario
     from podkrig.offline.runner import run_snapshots
     from podkrig.offline.store import SnapshotStore
@@ -111,7 +113,7 @@ def snapshots(n, workers, nx, ny):
     sc = build_scenario({"scenario": "shear_compression_nl", "nx": nx, "ny": ny})
     space = ParameterSpace.from_scenario(sc, SNAPSHOT_RANGES)
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "j4d.h5"
+        path = Path(store_path) if store_path else Path(tmp) / "j4d.h5"
         t0 = time.perf_counter()
         summary = run_snapshots(path, sc, space, n=n, seed=0, workers=workers)
         seconds = time.perf_counter() - t0
@@ -124,29 +126,33 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--nx", type=int, default=6)
     ap.add_argument("--ny", type=int, default=2)
-    ap.add_argument("--top", nargs="+", default=["fixed_vertical", "constant_force"])
+    ap.add_argument("--top", nargs="*", default=["fixed_vertical", "constant_force"],
+                    help="top conditions of the single J4D runs (none: only the snapshot study)")
     ap.add_argument("--snapshots", type=int, default=0)
+    ap.add_argument("--store", help="keep the snapshot store in this HDF5 file (default: a temporary one)")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
           f"load average before: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
     with threadpool_limits(1):
-        lin_wall, lin_cpu = linear_solve_ms(args.nx, args.ny)
+        lin_wall, lin_cpu = linear_solve_ms(args.nx, args.ny) if args.top else (0.0, 0.0)
         rows = [run_j4d(args.nx, args.ny, top) for top in args.top]
-    print("\n| top | dofs | wall (s) | CPU (s) | steps | increments | iterations | CPU ms / iteration "
-          "| linear solve CPU (ms) | ratio | peak (kN) | at (mm) | reached (mm) | status |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
+    if rows:
+        print("\n| top | dofs | wall (s) | CPU (s) | steps | increments | iterations | CPU ms / iteration "
+              "| linear solve CPU (ms) | ratio | peak (kN) | at (mm) | reached (mm) | status |")
+        print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|")
     for r in rows:
         print(f"| {r['top']} | {r['dofs']} | {r['seconds']:.1f} | {r['cpu']:.1f} | {r['steps']} | {r['attempted']} "
               f"| {r['iterations']} | {r['per_iteration']:.1f} | {lin_cpu:.1f} | {r['per_iteration'] / lin_cpu:.1f} "
               f"| {r['peak']:.1f} | {r['peak_u']:.2f} | {r['reached']:.2f} | {r['status']} |")
-    print(f"\nlinear solve wall time: {lin_wall:.1f} ms")
+    if rows:
+        print(f"\nlinear solve wall time: {lin_wall:.1f} ms")
     for r in rows:
         print(f"{r['top']} CPU split: {r['split']}")
         if r["message"]:
             print(f"{r['top']}: {r['message']}")
     if args.snapshots:
-        summary, seconds, reasons = snapshots(args.snapshots, args.workers, args.nx, args.ny)
+        summary, seconds, reasons = snapshots(args.snapshots, args.workers, args.nx, args.ny, args.store)
         print(f"\n{args.snapshots} J4D snapshots on {args.workers} workers: {summary.done} reached 3 mm "
               f"({100 * summary.done / args.snapshots:.1f} %), {summary.failed} failed {dict(reasons)}; "
               f"{seconds / 60:.1f} min")

@@ -216,3 +216,137 @@ def test_hyperbolic_tangent_equals_finite_differences(du):
 def test_hyperbolic_admissibility():
     with pytest.raises(ValueError, match="ft=0.6 MPa exceeds c/tanphi"):
         hyperbolic_properties(**dict(HYP, ft=0.6))
+
+
+# --- the hyperbolic law's compressive cap ----------------------------------------------------
+
+CAP = dict(fc=10.5, Cs=9.0, Gfc=5.0, kappa_p=0.09)
+
+
+def _cap_law_closed_form(k, fc=10.5, kp=0.09, km=None, ratios=(1 / 3, 1 / 2, 1 / 7)):
+    """σ̄3(κ3) of the L&R law (reference §1a, OOFEM's first parabola), written out independently."""
+    si, sm, sr = (r * fc for r in ratios)
+    x1 = k / kp
+    x2 = (k - kp) / (km - kp)
+    slope = 2 * (sm - fc) / (km - kp)
+    return np.where(k < kp, si + (fc - si) * (2 * x1 - x1**2),
+                    np.where(k < km, fc + (sm - fc) * x2**2, sr + (sm - sr) * np.exp(slope * (k - km) / (sm - sr))))
+
+
+def _cap_energy_closed_form(k_end, fc=10.5, kp=0.09, km=None, ratios=(1 / 3, 1 / 2, 1 / 7)):
+    """∫_0^κ σ̄3 dκ3 (N/mm) for κ beyond κ_m: the three branches integrated in closed form."""
+    si, sm, sr = (r * fc for r in ratios)
+    slope = 2 * (sm - fc) / (km - kp)
+    length = k_end - km
+    tail = sr * length + (sm - sr) ** 2 / slope * (np.exp(slope * length / (sm - sr)) - 1)
+    return kp * (si + 2 / 3 * (fc - si)) + (km - kp) * (fc + (sm - fc) / 3) + tail
+
+
+@pytest.mark.parametrize("shape", ["ellipse", "hyperbola"])
+def test_hyperbolic_cap_under_pure_compression(shape):
+    """Uniaxial crushing: first yield at f_c/3, peak f_c (sampled every 1 µm of closure: the
+    parabola's error at the peak is below (f_c − σ̄_i)(Δκ/κ_p)² ≈ 1e-3 MPa, checked to 2e-4
+    relative), the curve σ = σ̄3(κ3) of the closed form at every step (1e-9 relative: the local
+    return is solved to 1e-11 of the stress), κ3 = the plastic closure, and the plastic work
+    against the closed-form integral (1e-4 relative: the trapezoid rule's error with 1 µm steps is
+    ~1e-5); the post-peak area above σ̄_r of the closed form is G_fc (1e-9). Both shapes have the
+    same vertex, so the same curve."""
+    law = HyperbolicInterface(hyperbolic_properties(**HYP, **CAP, cap_shape=shape)[None])
+    u = -np.union1d(np.linspace(0.0, 4.0, 4001), [10.5 / 3 / 82.0])
+    t, state, _, status = _drive(law, np.column_stack([u, np.zeros_like(u)]))
+    assert np.all(status == 0)
+    assert np.all(t[:, 1] == 0.0)
+    sigma = -t[:, 0]
+    kappa3 = -u - sigma / 82.0
+    assert state.kappa[0, 2] == pytest.approx(kappa3[-1], rel=1e-12)
+    assert state.kappa[0, 0] == 0.0, "crushing does not soften the hyperbola (uncoupled, as L&R)"
+    first = np.argmax(kappa3 > 1e-12)
+    assert sigma[first - 1] == pytest.approx(10.5 / 3, rel=1e-12)
+    assert sigma.max() == pytest.approx(10.5, rel=2e-4)
+    km = cap_kappa_m(10.5, 5.0, 0.09)
+    plastic = kappa3 > 1e-12
+    assert np.allclose(sigma[plastic], _cap_law_closed_form(kappa3[plastic], km=km), rtol=1e-9)
+    assert state.work[0] == pytest.approx(_cap_energy_closed_form(kappa3[-1], km=km), rel=1e-4)
+    huge = 1e3  # mm: the exponential tail is exhausted
+    pre_peak = 0.09 * (10.5 / 3 + 2 / 3 * (10.5 - 10.5 / 3))
+    area = _cap_energy_closed_form(huge, km=km) - pre_peak - 10.5 / 7 * (huge - 0.09)
+    assert area == pytest.approx(5.0, rel=1e-9)
+
+
+@pytest.mark.parametrize("shape", ["ellipse", "hyperbola"])
+def test_hyperbolic_cap_corner_converges_in_at_most_10_iterations(shape):
+    """A 40 × 40 grid of trial states from the virgin state, σ_tr down to −16 MPa (1.5 f_c) and
+    τ_tr up to 3.6 MPa (10 c, 1 f_c/3): every return is found in one step (no sub-stepping), every
+    one that ends on the hyperbola/cap corner (both κ grow) converges in ≤ 10 local iterations,
+    and both surfaces hold there (closed forms of F1 and F2, 1e-9 MPa: the local tolerance is 1e-11
+    of the trial stress)."""
+    law = HyperbolicInterface(np.repeat(hyperbolic_properties(**HYP, **CAP, cap_shape=shape)[None], 1600, axis=0))
+    a, b = np.meshgrid(np.linspace(-0.2, -0.002, 40), np.linspace(0.001, 0.1, 40))
+    upd = law.update(np.column_stack([a.ravel(), b.ravel()]), law.initial_state())
+    assert np.all(upd.status == 0)
+    kap = upd.state.kappa
+    corner = (kap[:, 0] > 0) & (kap[:, 2] > 0)
+    assert corner.sum() >= 20, "the grid must reach the corner"
+    assert upd.iterations[corner].max() <= 10
+    sig, tau = upd.state.traction[corner].T
+    k, k3 = kap[corner, 0], kap[corner, 2]
+    tphi = 0.75 + (0.6 - 0.75) * k
+    a_ = np.maximum(0.35 * (1 - k) - 0.25 * (1 - k) * tphi, 0.0)
+    assert np.allclose(np.sqrt(tau**2 + a_**2) - (0.35 * (1 - k) - sig * tphi), 0.0, atol=1e-9)
+    s3 = _cap_law_closed_form(k3, km=cap_kappa_m(10.5, 5.0, 0.09))
+    f2 = np.sqrt(sig**2 + 9 * tau**2) - s3 if shape == "ellipse" else np.sqrt(9 * tau**2 + s3**2) - 2 * s3 - sig
+    assert np.allclose(f2, 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", ["ellipse", "hyperbola"])
+@pytest.mark.parametrize("case", ["cap", "cap_shear", "corner", "corner_softened"])
+def test_hyperbolic_cap_tangent_equals_finite_differences(shape, case):
+    """The algorithmic tangent on the cap alone (pure and with shear) and at the hyperbola/cap
+    corner (from the virgin state and from a state already on the corner) equals central
+    differences of the return map to 1e-6 relative (h = 1e-7 mm)."""
+    law = HyperbolicInterface(hyperbolic_properties(**dict(HYP, tanpsi=0.2), **CAP, cap_shape=shape)[None])
+    pre = {"cap": [0.0, 0.0], "cap_shear": [-0.05, 0.0], "corner": [0.0, 0.0], "corner_softened": [-0.03, 0.09]}[case]
+    du = {"cap": [-0.1, 0.0003], "cap_shear": [-0.05, 0.02], "corner": [-0.03, 0.09],
+          "corner_softened": [-0.01, 0.03]}[case]
+    state = law.update(np.array([pre]), law.initial_state()).state
+    upd = law.update(np.array([du]), state)
+    assert upd.status[0] == 0 and upd.iterations[0] > 0
+    assert upd.state.kappa[0, 2] > state.kappa[0, 2], "the cap is active"
+    if case.startswith("corner"):
+        assert upd.state.kappa[0, 0] > state.kappa[0, 0], "the hyperbola is active too"
+    D_fd = _fd_tangent(law, state, np.array(du), 1e-7)
+    assert np.allclose(upd.tangent[0], D_fd, rtol=1e-6, atol=1e-6 * np.abs(D_fd).max())
+
+
+def test_hyperbolic_cap_far_away_reproduces_the_law_without_cap():
+    """A cap at f_c = 1000 MPa never yields on paths of a few MPa: every traction, plastic
+    displacement, κ, work, tangent and iteration count equals the law without cap exactly (the
+    cap only adds a check on the inactive surface)."""
+    rng = np.random.default_rng(3)
+    base = dict(HYP, tanpsi=0.2)
+    without = HyperbolicInterface(np.repeat(hyperbolic_properties(**base)[None], 50, axis=0))
+    far = HyperbolicInterface(np.repeat(hyperbolic_properties(**base, fc=1e3, Gfc=1e5)[None], 50, axis=0))
+    s1, s2 = without.initial_state(), far.initial_state()
+    plastic = 0
+    for step in range(40):
+        du = rng.normal(0.0, 0.004, (50, 2)) + [0.0, 0.001]
+        u1, u2 = without.update(du, s1), far.update(du, s2)
+        s1, s2 = u1.state, u2.state
+        for name in ("traction", "plastic", "kappa", "work"):
+            assert np.array_equal(getattr(s1, name), getattr(s2, name)), name
+        assert np.array_equal(u1.tangent, u2.tangent) and np.array_equal(u1.iterations, u2.iterations)
+        plastic += int((u1.iterations > 0).sum())
+    assert plastic > 200, "the paths must be plastic on the hyperbola"
+
+
+def test_hyperbolic_cap_admissibility():
+    with pytest.raises(ValueError, match="cap_shape must be one of"):
+        hyperbolic_properties(**HYP, **CAP, cap_shape="circle")
+    with pytest.raises(ValueError, match="cap parameter Cs must be finite and > 0"):
+        hyperbolic_properties(**HYP, **dict(CAP, Cs=0.0))
+    with pytest.raises(ValueError, match=r"steepest softening slope of the cap .* local snap-back in compression"):
+        hyperbolic_properties(**HYP, **dict(CAP, Gfc=0.5))
+    with pytest.raises(ValueError, match="cap_ratios"):
+        hyperbolic_properties(**HYP, **CAP, cap_ratios=(0.3, 0.1, 0.2))
+    with pytest.raises(ValueError, match="fc must be > 0"):
+        hyperbolic_properties(**HYP, **dict(CAP, fc=0.0))

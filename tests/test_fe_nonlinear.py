@@ -62,6 +62,24 @@ def test_prism_compression_peak_equals_A_fc():
     assert r.loads[-1] < 0.99 * r.peak_load, "the cap softens after its peak"
 
 
+@pytest.mark.parametrize("cap", ["ellipse", "hyperbola"])
+def test_prism_compression_with_the_hyperbolic_cap_peaks_at_A_fc(cap):
+    """The hyperbolic law with its cap crushes the prism at A f_c within 0.5 % (both shapes share
+    the vertex σ = −σ̄3), then softens; without the cap the same prism stays elastic past it."""
+    levels = [0.2, 0.5, 0.8, 1.2]
+    sc = build_scenario({"scenario": "prism_compression", "load_levels": levels, "law": "hyperbolic",
+                         "hyperbolic_cap": cap})
+    r = sc.run(STIFF_UNITS)
+    assert r.status == CONVERGED
+    assert r.peak_load == pytest.approx(A * 10.5 / 1000, rel=0.005)
+    assert r.loads[-1] < 0.99 * r.peak_load, "the cap softens after its peak"
+    elastic = build_scenario({"scenario": "prism_compression", "load_levels": [0.2, 0.8], "law": "hyperbolic"})
+    r0 = elastic.run(STIFF_UNITS)
+    assert r0.loads[-1] > 1.5 * A * 10.5 / 1000, "no cap: no crushing"
+    with pytest.raises((SpecError, ValueError), match="hyperbolic_cap"):
+        build_scenario({"scenario": "prism_compression", "hyperbolic_cap": "ellipse"})
+
+
 def test_snap_back_passed_by_indirect_control_where_displacement_control_fails():
     """Couplet with soft units (E = 200 MPa): elastic compliance h/E + 1/k_n = 0.63 mm/MPa exceeds
     the softening compliance G_f^I/f_t² = 0.29 mm/MPa at the peak, so the load–displacement curve

@@ -6,7 +6,7 @@ A law holds per-point properties and maps a relative-displacement increment ``du
 
 - :class:`CompositeInterface`: Lourenço–Rots tension cut-off + Coulomb friction + cap.
 - :class:`HyperbolicInterface`: the thesis' hyperbolic Mode I/II surface (eq. 2.4) with work
-  softening (no cap yet).
+  softening and an optional compressive cap (ellipse or hyperbola).
 """
 
 from .composite import CompositeInterface, composite_properties

@@ -67,9 +67,17 @@ def cap_kappa_m(fc, Gfc, kappa_p, ratios=(1 / 3, 1 / 2, 1 / 7)):
 @numba.njit(cache=True)
 def _cap_strength(p, k3):
     """σ̄3(κ3) and its derivative (MPa, MPa/mm)."""
-    fc = p[FC]
-    si, sp, sm, sr = p[SI] * fc, fc, p[SM] * fc, p[SR] * fc
-    kp, km = p[KP], p[KM]
+    return cap_strength(p[FC], p[SI], p[SM], p[SR], p[KP], p[KM], k3)
+
+
+@numba.njit(cache=True)
+def cap_strength(fc, ri, rm, rr, kp, km, k3):
+    """The cap's C¹ hardening/softening law σ̄3(κ3) and its derivative (MPa, MPa/mm).
+
+    ``fc`` peak (MPa), ``(ri, rm, rr)`` = (σ̄_i, σ̄_m, σ̄_r)/f_c, ``kp``, ``km`` (mm): a parabola
+    from σ̄_i to the peak f_c at κ_p, a parabola to (κ_m, σ̄_m), an exponential to σ̄_r (module
+    docstring; shared with :mod:`fe.interfaces.hyperbolic`)."""
+    si, sp, sm, sr = ri * fc, fc, rm * fc, rr * fc
     if k3 < kp:
         x = k3 / kp
         return si + (sp - si) * (2.0 * x - x * x), (sp - si) * (2.0 - 2.0 * x) / kp

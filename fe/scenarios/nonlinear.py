@@ -23,6 +23,7 @@ from ..interfaces import (
     composite_properties,
     hyperbolic_properties,
 )
+from ..interfaces.hyperbolic import CAP_SHAPES
 from ..materials import plane_stress_coefficients
 from ..mesh.mesh import INTERFACE_KINDS
 from ..nonlinear_model import NonlinearModel
@@ -59,7 +60,9 @@ class NonlinearOptions(WallOptions):
     ``load_levels`` are here levels of the control displacement, mm, ascending) plus the
     path-following settings: the initial and largest increment of the control displacement (mm),
     the joint ``law`` (``"composite"``: Lourenço–Rots with cap; ``"hyperbolic"``: the thesis'
-    eq. 2.4 surface without cap, unit mid-planes keep the tension cut-off),
+    eq. 2.4 surface, unit mid-planes keep the tension cut-off), the hyperbolic law's compressive
+    ``hyperbolic_cap`` (``"none"``, the default; ``"ellipse"`` or ``"hyperbola"``: the INFERRED
+    shapes of :mod:`fe.interfaces.hyperbolic`, with ``fc``, ``Cs``, ``Gfc``, ``kappa_p``),
     the budget (``max_steps`` attempted increments, ``max_iterations`` per increment,
     ``max_seconds`` wall time), the relative force ``tolerance``, and the interfaces'
     ``integration`` rule (``"lobatto"``: Newton–Cotes at the node pairs, the default, recommended
@@ -73,6 +76,7 @@ class NonlinearOptions(WallOptions):
     max_seconds: float = 300.0
     tolerance: float = 1e-3
     law: str = "composite"
+    hyperbolic_cap: str = "none"
     integration: str = "lobatto"
 
     def __post_init__(self):
@@ -82,6 +86,11 @@ class NonlinearOptions(WallOptions):
                              f"got {self.integration!r}")
         if self.law not in ("composite", "hyperbolic"):
             raise ValueError(f"law must be 'composite' (Lourenço–Rots) or 'hyperbolic' (thesis eq. 2.4); got {self.law!r}")
+        if self.hyperbolic_cap not in ("none",) + CAP_SHAPES:
+            raise ValueError(f"hyperbolic_cap must be 'none' or one of {CAP_SHAPES}; got {self.hyperbolic_cap!r}")
+        if self.hyperbolic_cap != "none" and self.law != "hyperbolic":
+            raise ValueError(f"hyperbolic_cap={self.hyperbolic_cap!r} needs law='hyperbolic' (the composite law "
+                             "always has its elliptical cap)")
         if list(self.load_levels) != sorted(self.load_levels) or self.load_levels[0] <= 0:
             raise ValueError(f"load_levels (control displacements, mm) must be positive and ascending; "
                              f"got {self.load_levels}")
@@ -180,13 +189,17 @@ class NonlinearScenario(Scenario):
         return self._response(path, phases[-1].name, field)
 
     def _hyperbolic_law(self, values, composite_props):
-        """Joints with the hyperbolic law, unit mid-planes with the composite tension cut-off."""
+        """Joints with the hyperbolic law (and its cap when asked for), unit mid-planes with the
+        composite tension cut-off."""
         v = values
         kinds = np.repeat(self.mesh.interface_kind[self.model.interface_elements], self.model.n_points_per_element)
         joints = np.flatnonzero(kinds != INTERFACE_KINDS.index("brick"))
         cracks = np.flatnonzero(kinds == INTERFACE_KINDS.index("brick"))
         strengths = dict(ft=v["ft_bj"], GfI=v["GfI_bj"], c=v["c_bj"], tanphi0=v["tanphi_bj"],
                          tanphir=v["tanphir_bj"], GfII=v["GfII_bj"], tanpsi=v["tanpsi_bj"])
+        if self.options.hyperbolic_cap != "none":
+            strengths.update(fc=v["fc"], Cs=v["Cs"], Gfc=v["Gfc"], kappa_p=v["kappa_p"],
+                             cap_shape=self.options.hyperbolic_cap)
         try:
             bed = hyperbolic_properties(kn=v["kN_bj"], ks=v["kV_bj"], where="bed joints (hyperbolic)", **strengths)
             head = hyperbolic_properties(kn=v["r_hj"] * v["kN_bj"], ks=v["r_hj"] * v["kV_bj"],

@@ -68,6 +68,11 @@ class Page:
         items = "".join(f'<li><a href="{_e(href)}">{_e(text)}</a></li>' for href, text in entries)
         self._parts.append(f"<ul>{items}</ul>")
 
+    def fragment(self, markup):
+        """Trusted markup built by podkrig's own report code (e.g. an inline SVG with its script,
+        :mod:`podkrig.reports.step_slider`); inserted as is, not escaped."""
+        self._parts.append(markup)
+
     def figure(self, filename, caption):
         """A figure already saved beside the page (``filename`` relative to the page)."""
         self._parts.append(f'<figure><img src="{_e(filename)}" alt="{_e(caption)}"><figcaption>{_e(caption)}</figcaption></figure>')

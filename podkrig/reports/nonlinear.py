@@ -1,5 +1,6 @@
-"""Figures and HTML page of one nonlinear virtual test: load–displacement curve with its peak, and
-the deformed mesh with interface opening and slip drawn on the joints."""
+"""Figures and HTML page of one nonlinear virtual test: load–displacement curve with its peak, the
+deformed mesh with interface opening and slip drawn on the joints, and a step slider through the
+stored steps (:mod:`podkrig.reports.step_slider`)."""
 
 from pathlib import Path
 
@@ -7,6 +8,7 @@ import numpy as np
 
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
+from podkrig.reports.step_slider import build_step_slider, step_slider_html
 
 
 def plot_load_displacement(scenario, response, path):
@@ -88,6 +90,8 @@ def write_nonlinear_report(scenario, response, values, out_dir):
     if response.path.displacements:
         plot_deformed_mesh(scenario, response, out / "deformed.png")
         page.figure("deformed.png", "Deformed specimen at the last converged step, joints coloured by opening.")
+        page.heading("Step by step")
+        page.fragment(step_slider_html(build_step_slider(scenario, response)))
     header = [f"level ({response.load_unit})", f"load ({response.force_unit})"] + [f"{n} (mm)" for n in response.sensor_names]
     rows = [[fmt(lv), fmt(ld)] + [fmt(v) for v in row]
             for lv, ld, row in zip(response.load_levels, response.loads, response.readings)]
