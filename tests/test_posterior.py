@@ -79,3 +79,28 @@ def test_sample_posterior_bookkeeping():
     ls = np.linalg.lstsq(A, data.data, rcond=None)[0]
     sd = post.samples.std(axis=0)
     assert np.all(np.abs(np.array([post.median["a"], post.median["b"]]) - ls) < 4 * sd)
+
+
+def _line_problem(a_true):
+    model = Line()
+    clean = model.predict(np.array([[a_true, 0.1]]))[0].reshape(3, 2)
+    data = Measurement(clean + 0.05 * np.random.default_rng(2).standard_normal((3, 2)), model.sensor_names,
+                       model.load_levels)
+    return InverseProblem(model, data, NoiseModel(sigma=0.05))
+
+
+def test_sample_posterior_is_seeded_and_stays_in_the_box():
+    problem = _line_problem(1.2)
+    one, again, other = (sample_posterior(problem, np.array([1.2, 0.1]), n_walkers=8, n_steps=200, rng=r)
+                         for r in (5, 5, 6))
+    np.testing.assert_array_equal(one.samples, again.samples)
+    assert not np.array_equal(one.samples, other.samples)
+    # data made with a = 2.3, above the box's upper bound 2: the posterior piles up at the bound, never past it
+    edge = sample_posterior(_line_problem(2.3), np.array([1.99, 0.1]), n_walkers=8, n_steps=300, rng=1)
+    assert edge.samples[:, 0].max() <= 2.0 and np.median(edge.samples[:, 0]) > 1.9
+
+
+def test_a_short_chain_is_not_called_converged():
+    # 60 steps (40 kept) cannot be 50 autocorrelation times long, whatever R̂ says
+    post = sample_posterior(_line_problem(1.2), np.array([1.2, 0.1]), n_walkers=8, n_steps=60, rng=0)
+    assert not post.converged
