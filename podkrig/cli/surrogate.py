@@ -143,6 +143,7 @@ def validate(
         f"{summary['n_held_out']} held-out runs, {summary['n_train']} training, {summary['n_modes']} modes: "
         f"relative error median {r['median']:.3e}, p95 {r['p95']:.3e}, max {r['max']:.3e} (POD part median "
         f"{p['median']:.3e}); {100 * summary['coverage_2sigma']:.1f} % of outputs within ±2σ"
+        + (f"; {summary['fit_description']}" if "fit_description" in summary else "")
         + (f"; report {report / 'index.html'}" if report is not None else "")
     )
 
