@@ -148,6 +148,23 @@ def test_coverage_of_a_known_case():
         coverage([1.0, 2.0], [1.0], [1.0, 1.0])
 
 
+def test_sklearn_backend_fits_on_a_subset_and_keeps_the_record(data):
+    """The peers' subset fit: hyperparameters of 24 random samples, the regressor of all 64 at
+    them (an interpolator of all 64: jitter 1e-10 of the normalised outputs); the record and the
+    predictions survive to_arrays/from_arrays."""
+    from podkrig.surrogate.backends import SklearnGPR, make_backend
+
+    X, Y, Xp = data
+    gpr = make_backend("sklearn-gpr", fit_subset=24, n_restarts_optimizer=0).fit(X, Y)
+    assert (gpr.fit_method_.method, gpr.fit_method_.n_samples, gpr.fit_method_.subset_size) == ("subset", 64, 24)
+    assert_allclose(gpr.predict(X), Y, rtol=0, atol=1e-4 * np.abs(Y).max())
+    back = SklearnGPR.from_arrays(*gpr.to_arrays(), gpr.get_params())
+    assert back.fit_method_ == gpr.fit_method_
+    assert_allclose(back.predict(Xp), gpr.predict(Xp), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="fit_subset must be None or an integer >= 3"):
+        make_backend("sklearn-gpr", fit_subset="auto").fit(X, Y)
+
+
 @pytest.mark.parametrize("bad", [2, True, "all", 1.5])
 def test_fit_subset_setting_errors(data, bad):
     X, Y, _ = data

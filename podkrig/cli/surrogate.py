@@ -91,8 +91,8 @@ def build(
         seconds = time.perf_counter() - t0
         sur.provenance_["training_seconds"] = seconds
         sur.save(out)
-    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]" if sur.backend_ == "podkrig"
-              else f"backend {sur.backend_}")
+    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]; "
+              f"{sur.kriging_.fit_method_.describe()}" if sur.backend_ == "podkrig" else f"backend {sur.backend_}")
     typer.echo(
         f"{out}: {len(sur.X_)} snapshots, {sur.n_modes_} POD modes "
         f"(retained energy {sur.pod_.retained_energy_:.10f}), {fitted}, "

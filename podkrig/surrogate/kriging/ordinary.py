@@ -18,9 +18,10 @@ Example
 >>> bool(np.allclose(mean, Y[:3], rtol=0, atol=1e-8)), bool(np.all(std < 1e-4))
 (True, True)
 
-Why one module of ~670 lines (half documentation): it is the estimator — settings, the
+Why one module of ~880 lines (half documentation): it is the estimator — settings, the
 hyperparameter search per output, persistence and prediction — whose state must be read
-together; the kriging system at given hyperparameters is :mod:`.system`, the kernels :mod:`._kernels`.
+together; the kriging system at given hyperparameters (also the lean one of all samples after a
+subset fit) is :mod:`.system`, the kernels :mod:`._kernels`.
 """
 
 import json
@@ -29,7 +30,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import lapack, solve_triangular
+from scipy.linalg import solve_triangular
 from scipy.linalg.blas import dtrmm
 from scipy.optimize import minimize
 from scipy.spatial.distance import pdist
@@ -37,7 +38,14 @@ from scipy.spatial.distance import pdist
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import _kernels
-from podkrig.surrogate.kriging.system import FAIL, RCOND_MIN, Objective, Pairs, SingularSystemError
+from podkrig.surrogate.kriging.system import (
+    FAIL,
+    Objective,
+    Pairs,
+    SingularSystemError,
+    correlation_factor,
+    factor_exponential,
+)
 from podkrig.surrogate.kriging.variogram import (
     BETA_FIT_BOUNDS,
     EXPONENTIAL,
@@ -580,7 +588,7 @@ class OrdinaryKriging:
         ``loo_variance_`` as the exact fit does, and returns the final ranges ``(n_outputs, d)``,
         means and variances ``(n_outputs,)`` and the range scale per output. The exponential
         family never forms the pairwise arrays nor :math:`Q` (``Q_`` is empty,
-        ``(n_outputs, 0, 0)``): see :meth:`_factor_exponential`; where the correlation matrix of
+        ``(n_outputs, 0, 0)``): see :func:`~podkrig.surrogate.kriging.system.factor_exponential`; where the correlation matrix of
         all samples is ill-conditioned the output's ranges are multiplied by
         :data:`RANGE_SHRINK` until it is not. The power model uses the exact fit's system
         (:func:`~podkrig.surrogate.kriging.system.factor`, memory :math:`O(n^2 d)`).
@@ -607,8 +615,9 @@ class OrdinaryKriging:
                 if kind == EXPONENTIAL:
                     for _ in range(RANGE_SHRINK_STEPS):
                         try:
-                            alpha, mu, sigma2, q1, c0, dq, logdet = self._factor_exponential(
-                                X, y, ranges[col] * scale[col], float(betas[col]), self.L_[col])
+                            alpha, mu, sigma2, q1, c0, dq, logdet = factor_exponential(
+                                X, y, ranges[col] * scale[col], float(betas[col]), nugget, self.L_[col],
+                                self.use_numba)
                             break
                         except SingularSystemError:
                             scale[col] *= RANGE_SHRINK
@@ -643,83 +652,6 @@ class OrdinaryKriging:
                 self.criterion_[col] = float(e @ e) / max(float(np.sum((y - y.mean()) ** 2)), np.finfo(float).tiny)
             self.loo_variance_[:, col] = sigma2s[col] / dq
         return ranges, mus, sigma2s, scale
-
-    def _factor_exponential(self, X, y, ranges, beta, out):
-        """One output's system of all samples (exponential family), factorised into ``out``.
-
-        Parameters
-        ----------
-        X : ndarray of shape (n, d)
-        y : ndarray of shape (n,)
-        ranges : ndarray of shape (d,)
-        beta : float
-        out : ndarray of shape (n, n), C order
-            Receives the lower Cholesky factor :math:`L` of :math:`R` (:meth:`_correlation_factor`).
-
-        Returns
-        -------
-        alpha, mu, sigma2, q1, c0, diag_Q, logdet
-            With :math:`r = R^{-1} 1`, :math:`s = 1^T r`: :math:`\\hat\\mu = r^T y / s`,
-            :math:`\\alpha = Q y = R^{-1} y - r \\hat\\mu`, :math:`\\hat\\sigma^2 = y^T \\alpha / n`,
-            :math:`q_1 = r / s`, :math:`c_0 = 1 / s`, and
-            :math:`Q_{ii} = (R^{-1})_{ii} - r_i^2 / s` from the triangular inverse,
-            :math:`(R^{-1})_{ii} = \\sum_k (L^{-1})_{ki}^2` (for the leave-one-out residuals);
-            the same quantities as :func:`~podkrig.surrogate.kriging.system.factor` without
-            forming :math:`R^{-1}` or :math:`Q` (one :math:`n \\times n` temporary).
-        """
-        n = len(y)
-        U = self._correlation_factor(X, ranges, beta, out)
-        W, info = lapack.dpotrs(U, np.column_stack([np.ones(n), y]), lower=0)
-        if info != 0:
-            raise SingularSystemError(f"triangular solve failed (info {info})")
-        r1, Rinv_y = W[:, 0], W[:, 1]
-        s = float(r1.sum())
-        if not s > 0:
-            raise SingularSystemError("1^T R^-1 1 <= 0: correlation matrix numerically singular")
-        mu = float(r1 @ y) / s
-        alpha = Rinv_y - r1 * mu
-        Uinv, info = lapack.dtrtri(U, lower=0)  # U^-1 = (L^-1)^T, a copy
-        if info != 0:
-            raise SingularSystemError(f"correlation factor singular (pivot {info})")
-        diag_Rinv = np.einsum("ik,ik->i", Uinv, Uinv)
-        del Uinv
-        dq = diag_Rinv - r1 * r1 / s
-        logdet = 2.0 * float(np.sum(np.log(np.diagonal(U))))
-        return alpha, mu, max(float(y @ alpha), 0.0) / n, r1 / s, 1.0 / s, dq, logdet
-
-    def _correlation_factor(self, X, ranges, beta, out):
-        """Cholesky factor of the correlation matrix of ``X`` at ``ranges``, ``beta``, in place.
-
-        The matrix :math:`R_{ij} = e^{-s(x_i, x_j)}` comes from the prediction kernel
-        (:func:`~podkrig.surrogate.kriging._kernels.predict_mean_and_covariance`, deterministic
-        whatever the number of threads) with the diagonal of the exact fit,
-        :math:`1 + \\eta + (10 + n)\\varepsilon`; LAPACK ``dpotrf`` factorises it in ``out``
-        (C order, ``(n, n)``), which then holds the lower factor :math:`L` (zero above the
-        diagonal). Returns the upper factor :math:`U = L^T` as a Fortran-order view of ``out``.
-
-        Raises
-        ------
-        SingularSystemError
-            Not positive definite, or reciprocal condition number below ``RCOND_MIN``.
-        """
-        n = X.shape[0]
-        theta = np.asarray(ranges, dtype=float)[None, :] ** (-beta)
-        K = _kernels.predict_mean_and_covariance(X, X, theta, np.array([beta]), EXPONENTIAL, np.zeros((1, n)),
-                                                 np.zeros(1), self.use_numba)[1]
-        out[...] = K[0]
-        del K
-        np.fill_diagonal(out, 1.0 + float(self.nugget) + (10 + n) * np.finfo(float).eps)
-        anorm = float(out.sum(axis=0).max())  # 1-norm: every correlation is >= 0
-        U, info = lapack.dpotrf(out.T, lower=0, overwrite_a=1, clean=1)
-        if not np.shares_memory(U, out):  # scipy copied after all: keep the factor in out
-            out[...] = U.T
-            U = out.T
-        if info != 0:
-            raise SingularSystemError(f"correlation matrix not positive definite (pivot {info})")
-        rcond, info = lapack.dpocon(U, anorm, uplo="U")
-        if info != 0 or not rcond > RCOND_MIN:
-            raise SingularSystemError(f"correlation matrix ill-conditioned (reciprocal condition number {rcond:.2g})")
-        return U
 
     def _singular(self, X, col, params, d, cause):
         dist = pdist(X)
@@ -859,7 +791,7 @@ class OrdinaryKriging:
             with one_blas_thread():  # as at the fit: the same factor, bit for bit
                 for col in range(ok.n_outputs_):
                     try:
-                        ok._correlation_factor(ok.X_, hp.ranges[col], float(hp.beta[col]), ok.L_[col])
+                        correlation_factor(ok.X_, hp.ranges[col], float(hp.beta[col]), hp.nugget, ok.L_[col], ok.use_numba)
                     except SingularSystemError as e:
                         raise ValueError(f"stored hyperparameters of output {col} give a singular system ({e})") from e
         ok._prepare_prediction()
