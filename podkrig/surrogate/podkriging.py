@@ -65,7 +65,11 @@ class PODKriging:
         Template of the POD (copied at ``fit``); default ``POD(energy=1 - 1e-8)``.
     kriging : OrdinaryKriging or another backend, optional
         Template of the regressor of the POD coefficients (copied at ``fit``; its hyperparameters
-        are fitted per mode); default ``OrdinaryKriging()``. Any estimator of
+        are fitted per mode); default ``OrdinaryKriging()``, which above
+        :data:`~podkrig.surrogate.kriging.ordinary.EXACT_FIT_MAX_SAMPLES` snapshots fits the
+        hyperparameters on a random subset and factorises the system of all snapshots once per
+        mode (``fit_subset="auto"``; the choice is kept in the file and shown by the held-out
+        report). Any estimator of
         :mod:`podkrig.surrogate.backends` (SMT's KRG/KPLS, scikit-learn's GPR) may serve instead;
         the surrogate then predicts, validates, saves and inverts the same way.
     space : ParameterSpace, optional
