@@ -213,8 +213,10 @@ def run_case(method, name, n, args, results):
 def table(results):
     rows = [json.loads(ln) for ln in Path(results).read_text().splitlines() if ln.strip()]
     latest = {}
-    for r in rows:  # the last run of each (method, data set, n) counts
-        latest[(r["dataset"], r["n"], r["method"])] = r
+    for r in rows:  # the last run of each (method, subset size, data set, n) counts
+        fit = r.get("fit") or {}
+        m = fit.get("subset_size", 0) if fit.get("method") == "subset" else 0
+        latest[(r["dataset"], r["n"], r["method"], m)] = r
     order = {m: k for k, m in enumerate(METHODS)}
     head = ("| data set | n | method | training s (CPU s) | median | p95 | ±2σ coverage | predictions/s (mean) "
             "| predictions/s (with σ) | load 1 min (before → after) |\n|---|---|---|---|---|---|---|---|---|---|")
@@ -222,7 +224,7 @@ def table(results):
                f"table printed {datetime.datetime.now(datetime.UTC):%Y-%m-%d %H:%M} UTC, load now "
                f"{' / '.join(f'{v:.1f}' for v in os.getloadavg())}")
     lines = [machine, "", head]
-    for key in sorted(latest, key=lambda k: (k[0], k[1], order.get(k[2], 99))):
+    for key in sorted(latest, key=lambda k: (k[0], k[1], order.get(k[2], 99), k[3])):
         r = latest[key]
         load = f"{r['load_before']:.1f} → {r['load_after']:.1f}"
         if "note" in r:

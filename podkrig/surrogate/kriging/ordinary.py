@@ -64,13 +64,15 @@ EXPLICIT_INVERSE_BYTES = 64 * 2**20
 VARIANCE_BLOCK_BYTES = 16 * 2**20
 # why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
 # subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
-# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", issue 19): the
-# exact fit costs O(n^3) per likelihood evaluation, ~100-300 evaluations per output (80 s at n = 512,
-# d = 8, 8 modes; tens of minutes at n = 2048), while the subset fit plus one factorisation trains
-# n = 2048 in ~30 s and n = 8192 in a few minutes with a smaller held-out error than the exact fit
-# on fewer samples; at n <= 512 the exact fit is affordable and its hyperparameters are the better ones.
+# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", issue 19, load
+# 7-12 on 2 cores, CPU seconds): the exact fit costs O(n^3) per likelihood evaluation and ~100-300
+# evaluations per output: 38 s at n = 512 (d = 8, 8 modes), 70 s at n = 1024 (FE, d = 5, 6 modes),
+# tens of minutes at n = 2048. A subset of 512 matched or beat the exact fit on all 1024 FE
+# samples (median 3.99e-4 against 4.46e-4, 14 s) where 256 lost 2.6x (1.17e-3); on the synthetic
+# set at n = 2048, 512 gave 0.70 % against 0.84 % with 256. At n <= 512 the exact fit is
+# affordable, and a subset of 256 was worse there (3.1 % against 2.2 %, synthetic).
 EXACT_FIT_MAX_SAMPLES = 512
-SUBSET_SIZE = 256
+SUBSET_SIZE = 512
 FIT_METHODS = ("exact", "subset")
 # why: ranges fitted on a sparse subset can be too long for the denser full design (the correlation
 # matrix of a smooth response reaches RCOND_MIN); they are shortened by this factor until the
