@@ -50,7 +50,7 @@ def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
     assert sur.backend_ == "podkrig" and sur.kriging_.hyperparameters_.variogram == "exponential"
     sur.save(tmp_path / "v2.h5")  # rewritten in today's schema, same predictions
     with h5py.File(tmp_path / "v2.h5") as f:
-        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 2 and f.attrs["backend"] == "podkrig"
+        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 3 and f.attrs["backend"] == "podkrig"
     again = PODKriging.load(tmp_path / "v2.h5")
     assert_array_equal(again.predict(expected["X"], reshape=True), expected["mean"])
 

@@ -91,8 +91,8 @@ def build(
         seconds = time.perf_counter() - t0
         sur.provenance_["training_seconds"] = seconds
         sur.save(out)
-    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]" if sur.backend_ == "podkrig"
-              else f"backend {sur.backend_}")
+    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]; "
+              f"{sur.kriging_.fit_method_.describe()}" if sur.backend_ == "podkrig" else f"backend {sur.backend_}")
     typer.echo(
         f"{out}: {len(sur.X_)} snapshots, {sur.n_modes_} POD modes "
         f"(retained energy {sur.pod_.retained_energy_:.10f}), {fitted}, "
@@ -143,6 +143,7 @@ def validate(
         f"{summary['n_held_out']} held-out runs, {summary['n_train']} training, {summary['n_modes']} modes: "
         f"relative error median {r['median']:.3e}, p95 {r['p95']:.3e}, max {r['max']:.3e} (POD part median "
         f"{p['median']:.3e}); {100 * summary['coverage_2sigma']:.1f} % of outputs within ±2σ"
+        + (f"; {summary['fit_description']}" if "fit_description" in summary else "")
         + (f"; report {report / 'index.html'}" if report is not None else "")
     )
 

@@ -329,6 +329,8 @@ def _held_out(page, r, folder=""):
     page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
                [[r["n_held_out"], _num(r["rms_abs_error_mm"], 3), _num(r["max_abs_error_mm"], 3),
                  _pct(r["coverage_2sigma"])]])
+    if "fit_description" in r:
+        page.paragraph(f"Kriging: {r['fit_description']}.")
     page.figure(f"{folder}predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
 
 

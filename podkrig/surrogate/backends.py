@@ -30,6 +30,7 @@ References
 """
 
 import importlib.metadata
+import json
 import warnings
 
 import numpy as np
@@ -37,7 +38,7 @@ import numpy as np
 from podkrig import __version__
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
-from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.surrogate.kriging import FitMethod, OrdinaryKriging
 
 DEFAULT_BACKEND = "podkrig"
 _SMT_NUGGET = 100.0 * float(np.finfo(float).eps)  # SMT's own default jitter
@@ -76,6 +77,11 @@ class _PerModeBackend:
     def fit(self, X, Y):
         """Fit one model per output column.
 
+        With ``fit_subset = m`` and more than ``m`` samples, each model's hyperparameters are
+        fitted on ``m`` samples drawn at random without replacement (seed ``random_state``), and
+        the model of all samples is then built at them without optimising (the library's own
+        fixed-hyperparameter path, as at load); ``fit_method_`` records the choice.
+
         Parameters
         ----------
         X : array_like of shape (n_samples, n_dims)
@@ -88,10 +94,22 @@ class _PerModeBackend:
         self
         """
         self._check_settings()
+        fs = self.fit_subset
+        if not (fs is None or (isinstance(fs, (int, np.integer)) and not isinstance(fs, bool) and fs >= 3)):
+            raise ValueError(f"fit_subset must be None or an integer >= 3; got {fs!r}")
         X, Y, self._y_1d = self._check_xy(X, Y)
+        n = len(X)
+        idx = (np.sort(np.random.default_rng(int(self.random_state)).choice(n, int(fs), replace=False))
+               if fs is not None and n > fs else None)
         with one_blas_thread(), warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)  # library deprecation notes, not the user's
-            fitted = [self._fit_one(X, Y[:, j]) for j in range(Y.shape[1])]
+            if idx is None:
+                fitted = [self._fit_one(X, Y[:, j]) for j in range(Y.shape[1])]
+            else:
+                hyper = [self._fit_one(X[idx], Y[idx, j])[1] for j in range(Y.shape[1])]
+                fitted = [(self._rebuild_one(X, Y[:, j], h), h) for j, h in enumerate(hyper)]
+        self.fit_method_ = (FitMethod("exact", n, n) if idx is None
+                            else FitMethod("subset", n, len(idx), int(self.random_state)))
         self._models = [m for m, _ in fitted]
         self.hyper_ = np.array([h for _, h in fitted], dtype=float)
         self.X_, self.Y_ = X, Y
@@ -129,7 +147,8 @@ class _PerModeBackend:
         """
         self._check_fitted()
         return ({"X": self.X_, "Y": self.Y_, "hyper": self.hyper_},
-                {"y_1d": bool(self._y_1d), "library": self.library, "library_version": self.library_version()})
+                {"y_1d": bool(self._y_1d), "library": self.library, "library_version": self.library_version(),
+                 "fit_method": json.dumps(self.fit_method_.to_dict())})
 
     @classmethod
     def from_arrays(cls, arrays, attrs, params):
@@ -154,6 +173,8 @@ class _PerModeBackend:
             warnings.simplefilter("ignore", FutureWarning)
             est._models = [est._rebuild_one(X, Y[:, j], hyper[j]) for j in range(Y.shape[1])]
         est.hyper_, est.X_, est.Y_ = hyper, X, Y
+        est.fit_method_ = (FitMethod.from_dict(json.loads(attrs["fit_method"])) if "fit_method" in attrs
+                           else FitMethod("exact", len(X), len(X)))
         est._y_1d = bool(attrs["y_1d"])
         est.n_features_in_, est.n_outputs_ = X.shape[1], Y.shape[1]
         return est
@@ -180,7 +201,10 @@ class SMTKriging(_PerModeBackend):
     nugget : float, default 2.22e-14
         SMT's jitter on the correlation matrix (its default, ``100 eps``).
     random_state : int, default 41
-        Seed of SMT's multistart (SMT's default).
+        Seed of SMT's multistart (SMT's default) and of the subset draw.
+    fit_subset : int or None, default None
+        Fit the hyperparameters on this many random samples, then build the model of all
+        samples at them (see ``fit``); None: SMT's own fit on all samples.
 
     Attributes
     ----------
@@ -189,11 +213,13 @@ class SMTKriging(_PerModeBackend):
     """
 
     library = "smt"
-    _PARAMS = ("method", "corr", "n_comp", "n_start", "nugget", "random_state")
+    _PARAMS = ("method", "corr", "n_comp", "n_start", "nugget", "random_state", "fit_subset")
 
-    def __init__(self, method="krg", corr="squar_exp", n_comp=2, n_start=5, nugget=_SMT_NUGGET, random_state=41):
+    def __init__(self, method="krg", corr="squar_exp", n_comp=2, n_start=5, nugget=_SMT_NUGGET, random_state=41,
+                 fit_subset=None):
         self.method, self.corr, self.n_comp = method, corr, n_comp
         self.n_start, self.nugget, self.random_state = n_start, nugget, random_state
+        self.fit_subset = fit_subset
 
     @property
     def backend(self):
@@ -268,6 +294,10 @@ class SklearnGPR(_PerModeBackend):
     n_restarts_optimizer : int, default 2
         Extra random starts of the L-BFGS-B fit of the log-hyperparameters.
     random_state : int, default 0
+        Seed of the restarts and of the subset draw.
+    fit_subset : int or None, default None
+        Fit the kernel on this many random samples, then the regressor of all samples at it
+        (see ``fit``); None: scikit-learn's own fit on all samples.
 
     Attributes
     ----------
@@ -277,12 +307,13 @@ class SklearnGPR(_PerModeBackend):
 
     backend = "sklearn-gpr"
     library = "scikit-learn"
-    _PARAMS = ("nu", "alpha", "n_restarts_optimizer", "random_state")
+    _PARAMS = ("nu", "alpha", "n_restarts_optimizer", "random_state", "fit_subset")
     _NU = (0.5, 1.5, 2.5, float("inf"))
 
-    def __init__(self, nu=2.5, alpha=1e-10, n_restarts_optimizer=2, random_state=0):
+    def __init__(self, nu=2.5, alpha=1e-10, n_restarts_optimizer=2, random_state=0, fit_subset=None):
         self.nu, self.alpha = nu, alpha
         self.n_restarts_optimizer, self.random_state = n_restarts_optimizer, random_state
+        self.fit_subset = fit_subset
 
     def _check_settings(self):
         if self.nu not in self._NU:

@@ -47,8 +47,12 @@ from podkrig.surrogate.pod import POD
 logger = logging.getLogger(__name__)
 
 FORMAT = "podkrig.surrogate"
-SCHEMA_VERSION = 2  # 2: the backend is recorded (attrs "backend", "backend_version"); 1 is still read
-READABLE_SCHEMAS = (1, 2)
+# 2: the backend is recorded (attrs "backend", "backend_version"); 3: the kriging group records how
+# its hyperparameters were fitted (attr "fit_method", dataset "subset_index") and, after a subset
+# fit, leaves out the factors "L" and "Q" (rebuilt at load), which schema-2 readers require;
+# 1 and 2 are still read (as exact fits)
+SCHEMA_VERSION = 3
+READABLE_SCHEMAS = (1, 2, 3)
 DEFAULT_ENERGY = 1 - 1e-8
 
 
@@ -65,7 +69,11 @@ class PODKriging:
         Template of the POD (copied at ``fit``); default ``POD(energy=1 - 1e-8)``.
     kriging : OrdinaryKriging or another backend, optional
         Template of the regressor of the POD coefficients (copied at ``fit``; its hyperparameters
-        are fitted per mode); default ``OrdinaryKriging()``. Any estimator of
+        are fitted per mode); default ``OrdinaryKriging()``, which above
+        :data:`~podkrig.surrogate.kriging.ordinary.EXACT_FIT_MAX_SAMPLES` snapshots fits the
+        hyperparameters on a random subset and factorises the system of all snapshots once per
+        mode (``fit_subset="auto"``; the choice is kept in the file and shown by the held-out
+        report). Any estimator of
         :mod:`podkrig.surrogate.backends` (SMT's KRG/KPLS, scikit-learn's GPR) may serve instead;
         the surrogate then predicts, validates, saves and inverts the same way.
     space : ParameterSpace, optional
@@ -388,8 +396,9 @@ class PODKriging:
     def load(cls, path):
         """Read a surrogate written by :meth:`save`; predictions are bitwise identical.
 
-        Reads schema 2 and the files of schema 1 (written before the backend was recorded; always
-        ``"podkrig"``), whose kriging group has the same arrays.
+        Reads schema 3, the files of schema 2 (written before the fit method was recorded: exact
+        fits) and of schema 1 (written before the backend was recorded; always ``"podkrig"``),
+        whose kriging group has the same arrays.
 
         Raises
         ------

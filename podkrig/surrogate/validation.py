@@ -50,6 +50,30 @@ def relative_errors(Y_pred, Y_true):
         return np.where(err == 0, 0.0, err / norm)
 
 
+def coverage(Y_pred, Y_true, Y_std, k=2.0):
+    """Share of outputs whose error lies within ``k`` predictive standard deviations.
+
+    Parameters
+    ----------
+    Y_pred, Y_true, Y_std : array_like, same shape
+        Predictions, true values and predictive standard deviations, output units.
+    k : float, default 2
+        Half-width of the interval in standard deviations; :math:`|\\hat y - y| \\le k \\sigma`
+        counts as covered (the edge included). For a Gaussian predictive error with honest
+        :math:`\\sigma`, ``k = 2`` covers 95.45 %.
+
+    Returns
+    -------
+    float
+        In [0, 1].
+    """
+    Y_pred, Y_true, Y_std = (np.asarray(a, float) for a in (Y_pred, Y_true, Y_std))
+    if not Y_pred.shape == Y_true.shape == Y_std.shape or Y_pred.size == 0:
+        raise ValueError(f"predictions, true values and standard deviations must have one non-empty shape; got "
+                         f"{Y_pred.shape}, {Y_true.shape}, {Y_std.shape}")
+    return float(np.mean(np.abs(Y_pred - Y_true) <= k * Y_std))
+
+
 def summarize(errors):
     """``{"median", "p95", "max", "mean"}`` of per-sample errors (floats)."""
     e = np.asarray(errors, float)
@@ -98,7 +122,9 @@ class HeldOutReport:
 
     def summary(self):
         """JSON-able dict: ``n_train``, ``n_held_out``, ``n_modes``, ``rel_error``, ``pod_error``,
-        ``interp_error``, ``loo_error`` (each ``{median, p95, max, mean}``), ``coverage_2sigma``."""
+        ``interp_error``, ``loo_error`` (each ``{median, p95, max, mean}``), ``coverage_2sigma``, and
+        for podkrig's own kriging ``fit`` (:meth:`~podkrig.surrogate.kriging.FitMethod.to_dict`: exact
+        or subset fit, subset size and seed) with ``fit_description``."""
         out = {
             "n_train": int(self.n_train),
             "n_held_out": int(self.n_held_out),
@@ -167,11 +193,13 @@ def held_out_errors(surrogate, X, Y, *, with_loo=True):
     rel = relative_errors(pred, Yf)
     pod = np.linalg.norm(Yf - proj, axis=1) / norm
     interp = np.linalg.norm(proj - pred, axis=1) / norm
-    coverage = float(np.mean(np.abs(pred - Yf) <= 2.0 * std))
+    covered = coverage(pred, Yf, std)
     loo = loo_errors(surrogate) if with_loo else None
-    logger.info("held-out: %d samples, median relative error %.3g, coverage %.3f", len(X), np.median(rel), coverage)
-    return HeldOutReport(rel, pod, interp, coverage, X, Yf, pred, std, len(surrogate.X_),
-                         surrogate.pod_.n_modes_, loo)
+    logger.info("held-out: %d samples, median relative error %.3g, coverage %.3f", len(X), np.median(rel), covered)
+    fit = getattr(surrogate.kriging_, "fit_method_", None)  # podkrig's own backend: how it was trained
+    extra = {"fit": fit.to_dict(), "fit_description": fit.describe()} if fit is not None else {}
+    return HeldOutReport(rel, pod, interp, covered, X, Yf, pred, std, len(surrogate.X_),
+                         surrogate.pod_.n_modes_, loo, extra)
 
 
 def loo_errors(surrogate):

@@ -6,7 +6,12 @@
   hyperparameters by concentrated likelihood or closed-form leave-one-out error.
 """
 
-from podkrig.surrogate.kriging.ordinary import DEFAULT_BETA, KrigingHyperparameters, OrdinaryKriging
+from podkrig.surrogate.kriging.ordinary import (
+    DEFAULT_BETA,
+    FitMethod,
+    KrigingHyperparameters,
+    OrdinaryKriging,
+)
 from podkrig.surrogate.kriging.variogram import VARIOGRAMS, covariance, semivariogram
 
-__all__ = ["DEFAULT_BETA", "VARIOGRAMS", "KrigingHyperparameters", "OrdinaryKriging", "covariance", "semivariogram"]
+__all__ = ["DEFAULT_BETA", "VARIOGRAMS", "FitMethod", "KrigingHyperparameters", "OrdinaryKriging", "covariance", "semivariogram"]

@@ -18,11 +18,13 @@ Example
 >>> bool(np.allclose(mean, Y[:3], rtol=0, atol=1e-8)), bool(np.all(std < 1e-4))
 (True, True)
 
-Why one module of ~670 lines (half documentation): it is the estimator — settings, the
+Why one module of ~880 lines (half documentation): it is the estimator — settings, the
 hyperparameter search per output, persistence and prediction — whose state must be read
-together; the kriging system at given hyperparameters is :mod:`.system`, the kernels :mod:`._kernels`.
+together; the kriging system at given hyperparameters (also the lean one of all samples after a
+subset fit) is :mod:`.system`, the kernels :mod:`._kernels`.
 """
 
+import json
 import logging
 import warnings
 from dataclasses import dataclass
@@ -36,7 +38,14 @@ from scipy.spatial.distance import pdist
 from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import _kernels
-from podkrig.surrogate.kriging.system import FAIL, Objective, Pairs, SingularSystemError
+from podkrig.surrogate.kriging.system import (
+    FAIL,
+    Objective,
+    Pairs,
+    SingularSystemError,
+    correlation_factor,
+    factor_exponential,
+)
 from podkrig.surrogate.kriging.variogram import (
     BETA_FIT_BOUNDS,
     EXPONENTIAL,
@@ -53,6 +62,79 @@ CRITERIA = ("ml", "loo")
 EXPLICIT_INVERSE_BYTES = 64 * 2**20
 # why: the (n_outputs, block, n) cross-covariances of one variance block stay this small
 VARIANCE_BLOCK_BYTES = 16 * 2**20
+# why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
+# subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
+# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", issue 19, load
+# 7-12 on 2 cores, CPU seconds): the exact fit costs O(n^3) per likelihood evaluation and ~100-300
+# evaluations per output: 38 s at n = 512 (d = 8, 8 modes), 70 s at n = 1024 (FE, d = 5, 6 modes),
+# tens of minutes at n = 2048. A subset of 512 matched or beat the exact fit on all 1024 FE
+# samples (median 3.99e-4 against 4.46e-4, 14 s) where 256 lost 2.6x (1.17e-3); on the synthetic
+# set at n = 2048, 512 gave 0.70 % against 0.84 % with 256. At n <= 512 the exact fit is
+# affordable, and a subset of 256 was worse there (3.1 % against 2.2 %, synthetic).
+EXACT_FIT_MAX_SAMPLES = 512
+SUBSET_SIZE = 512
+FIT_METHODS = ("exact", "subset")
+# why: ranges fitted on a sparse subset can be too long for the denser full design (the correlation
+# matrix of a smooth response reaches RCOND_MIN); they are shortened by this factor until the
+# system of all samples is well conditioned, at most RANGE_SHRINK_STEPS times (0.8^30 = 1e-3)
+RANGE_SHRINK = 0.8
+RANGE_SHRINK_STEPS = 30
+
+
+@dataclass(frozen=True)
+class FitMethod:
+    """How the hyperparameters of an :class:`OrdinaryKriging` were chosen (recorded in the file).
+
+    Attributes
+    ----------
+    method : {"exact", "subset"}
+        ``"exact"``: the criterion of all ``n_samples`` was optimised; ``"subset"``: the criterion
+        of ``subset_size`` samples drawn at random without replacement (seed ``subset_seed``,
+        ``numpy.random.default_rng``) was optimised, then the system of all samples factorised once.
+    n_samples : int
+        Training samples of the final kriging system.
+    subset_size : int
+        Samples of the hyperparameter fit (``n_samples`` for ``"exact"``).
+    subset_seed : int or None
+        Seed of the subset draw (None for ``"exact"``).
+    range_scale : tuple of float
+        Per output, the factor (a power of :data:`RANGE_SHRINK`, 1 mostly) applied to the
+        subset's ranges to keep the system of all samples well conditioned; empty for ``"exact"``.
+    """
+
+    method: str
+    n_samples: int
+    subset_size: int
+    subset_seed: int | None = None
+    range_scale: tuple = ()
+
+    def __post_init__(self):
+        if self.method not in FIT_METHODS:
+            raise ValueError(f"fit method must be one of {FIT_METHODS}; got {self.method!r}")
+        object.__setattr__(self, "range_scale", tuple(float(v) for v in self.range_scale))
+
+    def to_dict(self):
+        """Plain-JSON form."""
+        return {"method": self.method, "n_samples": int(self.n_samples), "subset_size": int(self.subset_size),
+                "subset_seed": None if self.subset_seed is None else int(self.subset_seed),
+                "range_scale": list(self.range_scale)}
+
+    @classmethod
+    def from_dict(cls, d):
+        """Inverse of :meth:`to_dict`."""
+        seed = d.get("subset_seed")
+        return cls(str(d["method"]), int(d["n_samples"]), int(d["subset_size"]), None if seed is None else int(seed),
+                   tuple(d.get("range_scale", ())))
+
+    def describe(self):
+        """One line for reports."""
+        if self.method == "exact":
+            return f"hyperparameters fitted on all {self.n_samples} samples (exact)"
+        shrunk = sum(v < 1.0 for v in self.range_scale)
+        return (f"hyperparameters fitted on a random subset of {self.subset_size} of the {self.n_samples} samples "
+                f"(seed {self.subset_seed}), then one factorisation of all {self.n_samples}"
+                + (f"; ranges of {shrunk} output(s) shortened (down to x{min(self.range_scale):.3g}) for conditioning"
+                   if shrunk else ""))
 
 
 
@@ -172,6 +254,14 @@ class OrdinaryKriging:
         Seed of the random restarts.
     use_numba : bool or None, default None
         Use the numba prediction kernels (None: unless ``PODKRIG_DISABLE_NUMBA=1``).
+    fit_subset : "auto", int or None, default "auto"
+        Training at scale. An integer ``m``: when there are more than ``m`` samples, the
+        hyperparameters are fitted (by ``criterion``) on ``m`` samples drawn at random without
+        replacement (seed ``random_state``), then the kriging system of *all* samples is built and
+        factorised once per output at those hyperparameters (mean, variance, kriging weights and
+        leave-one-out residuals of all samples). ``None``: always the exact fit on all samples.
+        ``"auto"``: :data:`SUBSET_SIZE` above :data:`EXACT_FIT_MAX_SAMPLES` samples (with an
+        optimizer), else exact. The choice is kept in ``fit_method_`` and in the surrogate file.
 
     Attributes
     ----------
@@ -193,7 +283,11 @@ class OrdinaryKriging:
     loo_variance_ : ndarray of shape (n_samples, n_outputs)
         Kriging variances of those leave-one-out predictions, output units².
     criterion_ : ndarray of shape (n_outputs,)
-        Final criterion value per output.
+        Final criterion value per output (of all samples, at the final hyperparameters).
+    fit_method_ : FitMethod
+        Exact or subset fit, with the subset size and seed.
+    subset_index_ : ndarray of shape (subset_size,)
+        Rows of ``X_`` the hyperparameters were fitted on (all rows for the exact fit).
 
     Notes
     -----
@@ -215,7 +309,10 @@ class OrdinaryKriging:
     :math:`\\hat\\sigma^2 = \\frac{1}{n} \\sum_i e_i^2 Q_{ii}`.
 
     Cost: ``fit`` forms and factorises one ``n × n`` matrix per objective evaluation
-    (:math:`O(n^3)`); ``predict`` of the mean is :math:`O(n_{pred} \\, n \\, d)` per output without
+    (:math:`O(n^3)`; with a subset of ``m`` samples, :math:`O(m^3)` per evaluation plus one
+    :math:`O(n^3)` factorisation and triangular inverse per output; the exponential family then keeps
+    only the Cholesky factors, ``n²`` doubles per output, and the surrogate file stores the
+    hyperparameters and weights, the factors being rebuilt at load); ``predict`` of the mean is :math:`O(n_{pred} \\, n \\, d)` per output without
     forming the cross-covariance matrix (one exponential per output and training point, plus one
     logarithm per training point and dimension for exponents other than 1, 1.5 and 2; numba
     threads split the prediction points, with results independent of their number);
@@ -232,7 +329,7 @@ class OrdinaryKriging:
 
     def __init__(self, variogram="exponential", beta=DEFAULT_BETA, ranges=0.5, nugget=0.0, criterion="ml",
                  optimizer="l-bfgs-b", n_restarts=1, range_bounds=(1e-2, 1e2), random_state=0,
-                 use_numba=None):
+                 use_numba=None, fit_subset="auto"):
         self.variogram = variogram
         self.beta = beta
         self.ranges = ranges
@@ -243,13 +340,14 @@ class OrdinaryKriging:
         self.range_bounds = range_bounds
         self.random_state = random_state
         self.use_numba = use_numba
+        self.fit_subset = fit_subset
 
     # ------------------------------------------------------------------ parameters
     def get_params(self, deep=True):
         """Hyperparameters as a dict (scikit-learn convention)."""
         return {k: getattr(self, k) for k in (
             "variogram", "beta", "ranges", "nugget", "criterion", "optimizer", "n_restarts",
-            "range_bounds", "random_state", "use_numba")}
+            "range_bounds", "random_state", "use_numba", "fit_subset")}
 
     def set_params(self, **params):
         """Set hyperparameters; unknown names are an error."""
@@ -280,6 +378,11 @@ class OrdinaryKriging:
         if isinstance(self.n_restarts, bool) or not isinstance(self.n_restarts, (int, np.integer)) \
                 or self.n_restarts < 0:
             raise ValueError(f"n_restarts must be an integer >= 0; got {self.n_restarts!r}")
+        fs = self.fit_subset
+        if not (fs is None or fs == "auto" or (isinstance(fs, (int, np.integer)) and not isinstance(fs, bool)
+                                               and fs >= 3)):
+            raise ValueError(f"fit_subset must be 'auto', None or an integer >= 3 (samples of the "
+                             f"hyperparameter fit); got {fs!r}")
         r = np.asarray(self.ranges, dtype=float)
         if r.ndim == 0:
             r = np.full((n_out, d), float(r))
@@ -339,6 +442,9 @@ class OrdinaryKriging:
         kind, beta, ranges0, (lo, hi) = self._check_settings(d, Y.shape[1])
         if self.nugget == 0:
             _check_duplicates(X)
+        m = self._subset_size(n)
+        if m is not None:
+            return self._fit_subset(X, Y, m, kind)
         i, j = np.triu_indices(n, 1)
         A = np.abs(X[i] - X[j])
         logA = None
@@ -436,10 +542,118 @@ class OrdinaryKriging:
         self.n_features_in_ = d
         self.n_outputs_ = n_out
         self.kind_ = kind
+        self.fit_method_ = FitMethod("exact", n, n)
+        self.subset_index_ = np.arange(n)
         self._prepare_prediction()
         logger.info("kriging fitted: %d samples, %d dims, %d outputs, %d criterion evaluations",
                     n, d, n_out, int(self.n_evaluations_.sum()))
         return self
+
+    def _subset_size(self, n):
+        """Samples of the hyperparameter fit when it runs on a subset, else None (exact fit)."""
+        fs = self.fit_subset
+        if fs is None:
+            return None
+        if fs == "auto":
+            return SUBSET_SIZE if n > EXACT_FIT_MAX_SAMPLES and self.optimizer is not None else None
+        return int(fs) if n > int(fs) else None
+
+    def _fit_subset(self, X, Y, m, kind):
+        """Hyperparameters on ``m`` random samples, then the system of all samples at them.
+
+        The subset fit is the exact fit of a copy of this estimator (same settings) on the rows
+        ``subset_index_``; the final system is :meth:`_factor_all` of all rows.
+        """
+        n, d = X.shape
+        idx = np.sort(np.random.default_rng(self.random_state).choice(n, m, replace=False))
+        sub = type(self)(**{**self.get_params(), "fit_subset": None})._fit(X[idx], Y[idx])
+        hp = sub.hyperparameters_
+        self.n_evaluations_ = sub.n_evaluations_.copy()
+        self.X_, self.kind_ = X, kind
+        self.n_features_in_, self.n_outputs_ = d, Y.shape[1]
+        self.fit_method_ = FitMethod("subset", n, m, int(self.random_state))
+        self.subset_index_ = idx
+        ranges, mus, sigma2s, scale = self._factor_all(X, Y, hp.ranges, hp.beta)
+        self.fit_method_ = FitMethod("subset", n, m, int(self.random_state), tuple(scale))
+        self.hyperparameters_ = KrigingHyperparameters(self.variogram, float(self.nugget), ranges, hp.beta,
+                                                       mus, sigma2s)
+        self._prepare_prediction()
+        logger.info("kriging fitted: hyperparameters on %d of %d samples (%d criterion evaluations), one "
+                    "factorisation of all %d per output; %d dims, %d outputs", m, n,
+                    int(self.n_evaluations_.sum()), n, d, self.n_outputs_)
+        return self
+
+    def _factor_all(self, X, Y, ranges, betas):
+        """The kriging system of all samples at fixed hyperparameters, output by output.
+
+        Sets ``alpha_``, ``L_``, ``Q_``, ``q1_``, ``c0_``, ``criterion_``, ``loo_residuals_`` and
+        ``loo_variance_`` as the exact fit does, and returns the final ranges ``(n_outputs, d)``,
+        means and variances ``(n_outputs,)`` and the range scale per output. The exponential
+        family never forms the pairwise arrays nor :math:`Q` (``Q_`` is empty,
+        ``(n_outputs, 0, 0)``): see :func:`~podkrig.surrogate.kriging.system.factor_exponential`; where the correlation matrix of
+        all samples is ill-conditioned the output's ranges are multiplied by
+        :data:`RANGE_SHRINK` until it is not. The power model uses the exact fit's system
+        (:func:`~podkrig.surrogate.kriging.system.factor`, memory :math:`O(n^2 d)`).
+        """
+        n, n_out = Y.shape
+        kind, nugget = self.kind_, float(self.nugget)
+        ranges = np.array(ranges, dtype=float)
+        scale = np.ones(n_out)
+        mus, sigma2s = np.empty(n_out), np.empty(n_out)
+        self.alpha_, self.q1_ = np.empty((n_out, n)), np.empty((n_out, n))
+        self.c0_, self.criterion_ = np.empty(n_out), np.empty(n_out)
+        self.loo_residuals_, self.loo_variance_ = np.empty((n, n_out)), np.empty((n, n_out))
+        if kind == EXPONENTIAL:
+            self.L_, self.Q_ = np.empty((n_out, n, n)), np.empty((n_out, 0, 0))
+            m_dof = n
+        else:
+            i, j = np.triu_indices(n, 1)
+            pairs = Pairs(n, (i, j), np.abs(X[i] - X[j]), None, {})
+            self.L_, self.Q_ = np.empty((n_out, n - 1, n - 1)), np.empty((n_out, n, n))
+            m_dof = n - 1
+        for col in range(n_out):
+            y = Y[:, col]
+            try:
+                if kind == EXPONENTIAL:
+                    for _ in range(RANGE_SHRINK_STEPS):
+                        try:
+                            alpha, mu, sigma2, q1, c0, dq, logdet = factor_exponential(
+                                X, y, ranges[col] * scale[col], float(betas[col]), nugget, self.L_[col],
+                                self.use_numba)
+                            break
+                        except SingularSystemError:
+                            scale[col] *= RANGE_SHRINK
+                    else:
+                        raise SingularSystemError(f"still singular with the ranges shortened x{scale[col]:.2g}")
+                    ranges[col] *= scale[col]
+                    if scale[col] < 1.0:
+                        logger.info("output %d: ranges shortened x%.3g for a well-conditioned system of %d samples",
+                                    col, scale[col], n)
+                else:
+                    st = Objective(pairs, y, kind, nugget, self.criterion, float(betas[col])).state(np.log(ranges[col]))[0]
+                    alpha, mu, sigma2, q1, c0, dq, logdet = st.alpha, st.mu, st.sigma2, st.q1, st.c0, np.diag(st.Q), st.logdet
+                    self.L_[col], self.Q_[col] = st.L, st.Q
+            except SingularSystemError as e:
+                raise ValueError(
+                    f"the kriging system of all {n} samples is singular for output {col} at the hyperparameters "
+                    f"fitted on {self.fit_method_.subset_size} of them ({e}); set a small nugget (e.g. "
+                    "nugget=1e-8) or fit on all samples (fit_subset=None)") from e
+            e = alpha / dq
+            self.alpha_[col], self.q1_[col], self.c0_[col] = alpha, q1, c0
+            self.loo_residuals_[:, col] = e
+            mus[col] = mu
+            if np.ptp(y) <= 1e-14 * max(1.0, float(np.max(np.abs(y)))):  # constant output
+                sigma2s[col] = 0.0
+            elif self.criterion == "loo":
+                sigma2s[col] = float(np.mean(e * e * dq))
+            else:
+                sigma2s[col] = sigma2
+            if self.criterion == "ml":
+                self.criterion_[col] = m_dof * np.log(max(sigma2, 1e-300)) + logdet
+            else:
+                self.criterion_[col] = float(e @ e) / max(float(np.sum((y - y.mean()) ** 2)), np.finfo(float).tiny)
+            self.loo_variance_[:, col] = sigma2s[col] / dq
+        return ranges, mus, sigma2s, scale
 
     def _singular(self, X, col, params, d, cause):
         dist = pdist(X)
@@ -515,17 +729,26 @@ class OrdinaryKriging:
         arrays : dict of str to ndarray
             ``X``, ``ranges``, ``beta``, ``mu``, ``sigma2``, ``alpha``, ``L``, ``Q``, ``q1``, ``c0``,
             ``criterion``, ``loo_residuals``, ``loo_variance``, ``n_evaluations`` (the names of
-            surrogate files of schema 1).
+            surrogate files of schema 1), and ``subset_index``. A subset fit of the exponential
+            family leaves out ``L`` and ``Q`` (``n²`` doubles per output: 4 GB for 8 modes of 8 192
+            samples): :meth:`from_arrays` rebuilds the factors, bitwise as at the fit.
         attrs : dict of str to int, float, bool or str
-            ``kind`` (kernel code), ``y_1d``, ``variogram``, ``nugget``.
+            ``kind`` (kernel code), ``y_1d``, ``variogram``, ``nugget``, ``fit_method`` (JSON of
+            :meth:`FitMethod.to_dict`).
         """
         self._check_fitted()
         hp = self.hyperparameters_
         arrays = {name.rstrip("_"): getattr(self, name) for name in self._ARRAYS}
-        arrays.update(ranges=hp.ranges, beta=hp.beta, mu=hp.mu, sigma2=hp.sigma2)
+        arrays.update(ranges=hp.ranges, beta=hp.beta, mu=hp.mu, sigma2=hp.sigma2, subset_index=self.subset_index_)
+        if self._factors_rebuilt():
+            del arrays["L"], arrays["Q"]
         attrs = {"kind": int(self.kind_), "y_1d": bool(self._y_1d), "variogram": hp.variogram,
-                 "nugget": hp.nugget}
+                 "nugget": hp.nugget, "fit_method": json.dumps(self.fit_method_.to_dict())}
         return arrays, attrs
+
+    def _factors_rebuilt(self):
+        """Whether persistence leaves the factors out (subset fit, exponential family)."""
+        return self.fit_method_.method == "subset" and self.kind_ == EXPONENTIAL
 
     @classmethod
     def from_arrays(cls, arrays, attrs, params):
@@ -548,9 +771,10 @@ class OrdinaryKriging:
         """
         ok = cls(**params)
         for name in cls._ARRAYS:
-            setattr(ok, name, np.asarray(arrays[name.rstrip("_")][...]))
+            if name.rstrip("_") in arrays:  # L and Q are absent after a subset fit
+                setattr(ok, name, np.asarray(arrays[name.rstrip("_")][...]))
         variogram = str(attrs.get("variogram", ok.variogram))
-        ok.hyperparameters_ = KrigingHyperparameters(
+        hp = ok.hyperparameters_ = KrigingHyperparameters(
             variogram, float(attrs.get("nugget", ok.nugget)),
             *(np.asarray(arrays[k][...], dtype=float) for k in ("ranges", "beta", "mu", "sigma2")))
         ok.kind_ = int(attrs["kind"])
@@ -558,7 +782,20 @@ class OrdinaryKriging:
             raise ValueError(f"kernel code {ok.kind_} does not match the variogram {variogram!r}")
         ok._y_1d = bool(attrs["y_1d"])
         ok.n_outputs_ = ok.alpha_.shape[0]
+        n = ok.X_.shape[0]
         ok.n_features_in_ = ok.X_.shape[1]
+        # files written before issue 19 have no record: their fit was exact
+        ok.fit_method_ = (FitMethod.from_dict(json.loads(attrs["fit_method"])) if "fit_method" in attrs
+                          else FitMethod("exact", n, n))
+        ok.subset_index_ = (np.asarray(arrays["subset_index"][...]) if "subset_index" in arrays else np.arange(n))
+        if ok._factors_rebuilt():
+            ok.L_, ok.Q_ = np.empty((ok.n_outputs_, n, n)), np.empty((ok.n_outputs_, 0, 0))
+            with one_blas_thread():  # as at the fit: the same factor, bit for bit
+                for col in range(ok.n_outputs_):
+                    try:
+                        correlation_factor(ok.X_, hp.ranges[col], float(hp.beta[col]), hp.nugget, ok.L_[col], ok.use_numba)
+                    except SingularSystemError as e:
+                        raise ValueError(f"stored hyperparameters of output {col} give a singular system ({e})") from e
         ok._prepare_prediction()
         return ok
 

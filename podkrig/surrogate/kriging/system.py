@@ -1,7 +1,8 @@
 """The kriging system at given hyperparameters: pairwise data of the training points, the
 factorisation of the correlation (or projected variogram) matrix, and the objectives that choose
 the hyperparameters — the concentrated log-likelihood and the closed-form leave-one-out error —
-with their analytic gradients. :class:`~podkrig.surrogate.kriging.ordinary.OrdinaryKriging`
+with their analytic gradients; and the lean system of all samples after a subset fit
+(:func:`factor_exponential`: no pairwise arrays, no :math:`R^{-1}`, the factor in place). :class:`~podkrig.surrogate.kriging.ordinary.OrdinaryKriging`
 drives them; nothing here holds fitted state.
 """
 
@@ -196,3 +197,86 @@ class Objective:
         # dS/dbeta = sum_k theta_k P_k (log|dx_k| - psi_k)
         g_beta = -float(H @ ((P * (self.pairs.logA - psi)) @ theta))
         return f, np.append(g_psi, g_beta)
+
+
+def factor_exponential(X, y, ranges, beta, nugget, out, use_numba=None):
+    """One output's system of all samples (exponential family), factorised into ``out``.
+
+    Parameters
+    ----------
+    X : ndarray of shape (n, d)
+        Training inputs, unit cube.
+    y : ndarray of shape (n,)
+    ranges : ndarray of shape (d,)
+    beta : float
+    nugget : float
+        Relative to the sill.
+    use_numba : bool or None
+        As in :class:`~podkrig.surrogate.kriging.OrdinaryKriging`.
+    out : ndarray of shape (n, n), C order
+        Receives the lower Cholesky factor :math:`L` of :math:`R` (:func:`correlation_factor`).
+
+    Returns
+    -------
+    alpha, mu, sigma2, q1, c0, diag_Q, logdet
+        With :math:`r = R^{-1} 1`, :math:`s = 1^T r`: :math:`\\hat\\mu = r^T y / s`,
+        :math:`\\alpha = Q y = R^{-1} y - r \\hat\\mu`, :math:`\\hat\\sigma^2 = y^T \\alpha / n`,
+        :math:`q_1 = r / s`, :math:`c_0 = 1 / s`, and
+        :math:`Q_{ii} = (R^{-1})_{ii} - r_i^2 / s` from the triangular inverse,
+        :math:`(R^{-1})_{ii} = \\sum_k (L^{-1})_{ki}^2` (for the leave-one-out residuals);
+        the same quantities as :func:`factor` without
+        forming :math:`R^{-1}` or :math:`Q` (one :math:`n \\times n` temporary).
+    """
+    n = len(y)
+    U = correlation_factor(X, ranges, beta, nugget, out, use_numba)
+    W, info = lapack.dpotrs(U, np.column_stack([np.ones(n), y]), lower=0)
+    if info != 0:
+        raise SingularSystemError(f"triangular solve failed (info {info})")
+    r1, Rinv_y = W[:, 0], W[:, 1]
+    s = float(r1.sum())
+    if not s > 0:
+        raise SingularSystemError("1^T R^-1 1 <= 0: correlation matrix numerically singular")
+    mu = float(r1 @ y) / s
+    alpha = Rinv_y - r1 * mu
+    Uinv, info = lapack.dtrtri(U, lower=0)  # U^-1 = (L^-1)^T, a copy
+    if info != 0:
+        raise SingularSystemError(f"correlation factor singular (pivot {info})")
+    diag_Rinv = np.einsum("ik,ik->i", Uinv, Uinv)
+    del Uinv
+    dq = diag_Rinv - r1 * r1 / s
+    logdet = 2.0 * float(np.sum(np.log(np.diagonal(U))))
+    return alpha, mu, max(float(y @ alpha), 0.0) / n, r1 / s, 1.0 / s, dq, logdet
+
+def correlation_factor(X, ranges, beta, nugget, out, use_numba=None):
+    """Cholesky factor of the correlation matrix of ``X`` at ``ranges``, ``beta``, in place.
+
+    The matrix :math:`R_{ij} = e^{-s(x_i, x_j)}` comes from the prediction kernel
+    (:func:`~podkrig.surrogate.kriging._kernels.predict_mean_and_covariance`, deterministic
+    whatever the number of threads) with the diagonal of the exact fit,
+    :math:`1 + \\eta + (10 + n)\\varepsilon`; LAPACK ``dpotrf`` factorises it in ``out``
+    (C order, ``(n, n)``), which then holds the lower factor :math:`L` (zero above the
+    diagonal). Returns the upper factor :math:`U = L^T` as a Fortran-order view of ``out``.
+
+    Raises
+    ------
+    SingularSystemError
+        Not positive definite, or reciprocal condition number below ``RCOND_MIN``.
+    """
+    n = X.shape[0]
+    theta = np.asarray(ranges, dtype=float)[None, :] ** (-beta)
+    K = _kernels.predict_mean_and_covariance(X, X, theta, np.array([beta]), EXPONENTIAL, np.zeros((1, n)),
+                                             np.zeros(1), use_numba)[1]
+    out[...] = K[0]
+    del K
+    np.fill_diagonal(out, 1.0 + float(nugget) + (10 + n) * np.finfo(float).eps)
+    anorm = float(out.sum(axis=0).max())  # 1-norm: every correlation is >= 0
+    U, info = lapack.dpotrf(out.T, lower=0, overwrite_a=1, clean=1)
+    if not np.shares_memory(U, out):  # scipy copied after all: keep the factor in out
+        out[...] = U.T
+        U = out.T
+    if info != 0:
+        raise SingularSystemError(f"correlation matrix not positive definite (pivot {info})")
+    rcond, info = lapack.dpocon(U, anorm, uplo="U")
+    if info != 0 or not rcond > RCOND_MIN:
+        raise SingularSystemError(f"correlation matrix ill-conditioned (reciprocal condition number {rcond:.2g})")
+    return U
