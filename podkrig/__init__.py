@@ -9,8 +9,9 @@ The public API, by stage (each name also lives in its stage's module)::
     from podkrig import SnapshotStore, run_snapshots, sample            # offline
     from podkrig import PODKriging, fit_from_store, make_backend        # surrogate
     from podkrig import (Measurement, NoiseModel, read_measurement_csv,  # online
-                         InverseProblem, SurrogateModel, FEModel, invert, fe_check,
-                         likelihood_ratio_region, rvc, nested_analyses, sample_posterior)
+                         InverseProblem, JointProblem, SurrogateModel, FEModel, invert, fe_check,
+                         likelihood_ratio_region, rvc, nested_analyses, sample_posterior,
+                         reading_sensitivity, misfit_sensitivity)
     from podkrig import diagnose, place_sensors                         # diagnosis, test design
     from podkrig import load_study, run_study                           # studies
     from podkrig import minimize, GeneticAlgorithm, GAOptions           # the GA
@@ -48,6 +49,7 @@ _PUBLIC = {
     "ImportSettings": "podkrig.online.measurement_csv",
     "instrument_noise": "podkrig.online.measurement",
     "InverseProblem": "podkrig.online.problem",
+    "JointProblem": "podkrig.online.joint",
     "SurrogateModel": "podkrig.online.problem",
     "FEModel": "podkrig.online.problem",
     "fix_from_scenario": "podkrig.online.problem",
@@ -58,6 +60,8 @@ _PUBLIC = {
     "rvc": "podkrig.online.propagation",
     "nested_analyses": "podkrig.online.nested",
     "sample_posterior": "podkrig.online.posterior",
+    "reading_sensitivity": "podkrig.online.sensitivity",
+    "misfit_sensitivity": "podkrig.online.sensitivity",
     "diagnose": "podkrig.diagnosis",
     "place_sensors": "podkrig.sensors.placement",
     "load_study": "podkrig.study",
