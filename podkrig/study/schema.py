@@ -310,11 +310,11 @@ def _tests(r, data, f, folder):
     for k, t in enumerate(f.test):
         where = ("test", k, "scenario")
         # the study's fixed values apply to the tests whose scenario has them; the test's own override
-        spec = _scenario(r, t.scenario, where, folder, t.fixed, ("test", k, "fixed"))
+        own = {n: ("test", k, "fixed") for n in t.fixed}
+        spec = _scenario(r, t.scenario, where, folder, t.fixed, own)  # which scenario, so which [fixed] apply
         info = {p.name for p in SCENARIOS[spec.scenario].PARAMETERS}
         shared_fixed = {n: v for n, v in f.fixed.items() if n in info and n not in t.fixed}
-        _scenario(r, t.scenario, where, folder, shared_fixed)  # the study's [fixed] values in this scenario's ranges
-        spec = _scenario(r, t.scenario, where, folder, {**shared_fixed, **t.fixed}, ("test", k, "fixed"))
+        spec = _scenario(r, t.scenario, where, folder, {**shared_fixed, **t.fixed}, own)
         specs.append(spec)
         known.update({p.name: p for p in SCENARIOS[spec.scenario].PARAMETERS})
     for n in f.fixed:
@@ -347,10 +347,10 @@ def _tests(r, data, f, folder):
     return shared, tuple(tests)
 
 
-def _scenario(r, value, path, folder, fixed, fixed_path=("fixed",)):
+def _scenario(r, value, path, folder, fixed, fixed_paths=None):
     """The scenario spec of ``value`` (a name, a spec file or an inline table), normalised (every
-    option explicit), with ``fixed`` among its parameters (a mistake in them is reported under
-    ``fixed_path``)."""
+    option explicit), with ``fixed`` among its parameters (a mistake in one is reported under its
+    table in ``fixed_paths``, name → key path; default the top-level ``[fixed]``)."""
     names = ", ".join(sorted(SCENARIOS))
     allowed = f"a scenario name ({names}), a spec file (.toml or .json) or an inline table"
     source = None
@@ -379,7 +379,7 @@ def _scenario(r, value, path, folder, fixed, fixed_path=("fixed",)):
     params = value.get("parameters", {})
     merged = {}
     for k, v in {**params, **fixed}.items():
-        where = (*fixed_path, k) if k in fixed else (*path, "parameters", k)
+        where = (*(fixed_paths or {}).get(k, ("fixed",)), k) if k in fixed else (*path, "parameters", k)
         if k not in info:
             r.fail(where, f"unknown parameter of {name}", ", ".join(info))
         if k in fixed and k in params and float(params[k]) != fixed[k]:

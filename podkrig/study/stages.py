@@ -51,7 +51,11 @@ from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
-from podkrig.online.sensitivity import NEGLIGIBLE_TOTAL_INDEX, misfit_sensitivity, reading_sensitivity
+from podkrig.online.sensitivity import (
+    NEGLIGIBLE_TOTAL_INDEX,
+    misfit_sensitivity,
+    reading_sensitivity,
+)
 from podkrig.reports import inverse as inverse_figures
 from podkrig.reports import surrogate as surrogate_figures
 from podkrig.reports.diagnosis import write_diagnosis_report
@@ -104,19 +108,21 @@ def fe_work(run):
     large : bool
     """
     study = run.study
-    jobs = [(run.out / t.file(f), t.spec, d) for t in study.calibration_tests
+    # scenarios built only for the jobs with runs left; the tests' through the run's cache
+    jobs = [(run.out / t.file(f), lambda t=t: run.scenario(t), d) for t in study.calibration_tests
             for f, d in (("train.h5", t.train), ("held_out.h5", t.held_out))]
-    jobs += [(run.out / f"validation_{m.name}.h5", m.spec, m.design) for m in study.validation]
+    jobs += [(run.out / f"validation_{m.name}.h5", lambda m=m: build_scenario(m.spec), m.design)
+             for m in study.validation]
     work, stored = [], 0
     for t in study.calibration_tests:
         if t.measurement.range_check and not run.is_cached(t.stage("probe"), _probe_inputs(t)):
             sc = run.scenario(t)
             nonlinear = isinstance(sc, NonlinearScenario)
             work.append((len(probe_points(t.space.n_params, nonlinear)), sc.n_dofs, nonlinear))
-    for path, spec, design in jobs:
+    for path, scenario, design in jobs:
         todo = rows_to_run(path, design.n)
         if todo:
-            sc = build_scenario(spec)
+            sc = scenario()
             work.append((todo, sc.n_dofs, isinstance(sc, NonlinearScenario)))
             stored += STUDY_BYTES_PER_ROW * design.n
     return fe_job_estimate(work, stored)
@@ -491,6 +497,11 @@ def calibration_problem(run):
     return JointProblem({t.name: _problem(run, t)[0] for t in tests})
 
 
+def _test_problems(problem):
+    """The calibration problem's problem of each test, ``{test name or None: InverseProblem}``."""
+    return getattr(problem, "problems", {None: problem})
+
+
 def _online_inputs(run):
     """Inputs shared by the online stages: each test's surrogate, measurement file and noise."""
     inputs = {}
@@ -517,9 +528,9 @@ def sensitivity(run):
         problem = calibration_problem(run)
         misfit = misfit_sensitivity(problem, **options)
         readings, files = {}, []
+        per_test = _test_problems(problem)
         for test in run.study.calibration_tests:
-            model = SurrogateModel(PODKriging.load(run.out / test.file("surrogate.h5")))
-            one = reading_sensitivity(model, **options)
+            one = reading_sensitivity(per_test[test.name].model, **options)
             readings[str(test.name or "calibration")] = one
             plot_sensitivity(one, run.figure(test, "sensitivity.png"),
                              misfit=misfit if not run.study.tests else None)
