@@ -36,7 +36,7 @@ import time
 import numpy as np
 from scipy import linalg, optimize, stats
 
-from podkrig.diagnosis.candidates import CANDIDATES, FEContext
+from podkrig.diagnosis.candidates import CANDIDATES, DEFAULT_CANDIDATES, FEContext
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE, Alternative, CandidateScore, Diagnosis, Fit
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
@@ -146,7 +146,9 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         :func:`build_base_surrogate` or a store; built here when not given:
         ``n_train`` Sobol' FE runs, about a second for the default test).
     candidates : sequence of str, optional
-        Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default: all).
+        Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default:
+        :data:`~podkrig.diagnosis.candidates.DEFAULT_CANDIDATES`, all but ``nonlinearity_onset``,
+        whose strength scan costs 10–20 nonlinear runs).
     alpha : float
         Significance level of the (multiplicity-corrected) candidate tests; the χ² test runs at
         ``alpha * CHI2_ALPHA_SHARE``.
@@ -171,7 +173,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
                          "missing cells, no zero reference); invert such a log with 'podkrig invert' instead")
     t_start = time.perf_counter()
     say = progress or (lambda *a: None)
-    names = list(candidates or CANDIDATES)
+    names = list(candidates or DEFAULT_CANDIDATES)
     unknown = [n for n in names if n not in CANDIDATES]
     if unknown:
         raise ValueError(f"unknown candidate cause(s) {unknown}; known: {list(CANDIDATES)}")
@@ -194,6 +196,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     inv = invert(problem, rng=rng)
     say("calibration", 2, 3)
     base = fitter.fit(space.to_unit(inv.x[None])[0])
+    ctx.base_values = dict(base.values)  # the reference of candidates that precompute (nonlinearity_onset)
     say("calibration", 3, 3)
     dof = base.dof
     p_chi2 = float(stats.chi2.sf(base.chi2, dof))
