@@ -17,12 +17,23 @@ gauge_fault            gain g (0) or offset o, mm (0)          one sensor only: 
 load_eccentricity      offset e of the load line, mm (0),      antisymmetric about the intended load line;
                        or its rotation φ, degrees (0)          ∝ load
 unit_stiffness         E_b, MPa (base)                         gauges on units, diagonals; ∝ load
+gauge_slip             step c of one sensor from level k, mm   one sensor only: unchanged below level k,
+                       (0)                                     the same offset from k on
+jack_efficiency        Km of all jacks or one jack (fixed)     that jack's response scaled by one factor
+slot_contact           length ℓ without jack contact at a      near that slot end, against the jack
+                       slot end or both, mm (0)                pressure; ∝ pressure
+nonlinearity_onset     joint tensile strength ft_bj, MPa,      nothing below the onset level k, then a
+                       per onset level k (just above k's       departure growing faster than the load
+                       range: no departure)                    (cracking/sliding joints)
 =====================  =====================================  ===========================================
 
 ``head_joint_stiffness`` and ``unit_stiffness`` are candidates only when the base model keeps
 ``r_hj`` / ``E_b`` fixed; ``support_compliance`` and ``load_eccentricity`` only for scenarios
 with supports / a load line (:class:`fe.Scenario`'s ``supported_nodes``,
-``load_perturbations``).
+``load_perturbations``); ``jack_efficiency`` and ``slot_contact`` only for the flat-jack scenario
+(``jack_efficiency`` when ``Km`` is fixed); ``nonlinearity_onset`` only for scenarios with a
+nonlinear twin (:mod:`podkrig.diagnosis.nonlinear_runs`), and only when named (it is
+``expensive``: not in :data:`DEFAULT_CANDIDATES`).
 """
 
 import abc
@@ -580,7 +591,8 @@ class NonlinearityOnset(Candidate):
        **departure** ``D(s) = R_nl(s) − R_el`` of the readings at the linear scenario's force
        levels (interpolated on the force–readings path: the twins are displacement controlled).
     2. A level *departs visibly* when some reading there moves by more than ``visible`` × the
-       largest elastic reading (INFERRED option, 0.2 %: a fifth of the 1 % noise of the trials).
+       largest elastic reading (INFERRED option, 1 %: the noise of the trials, about the spread
+       of two sound discretisations).
        The **location** is the first departing level ``k`` (the onset level): the scan strengths
        whose first departing level is ``k`` form its range, disjoint from the other levels'. Its
        label names the load level and the joints where the elastic tractions first reach the
@@ -615,7 +627,7 @@ class NonlinearityOnset(Candidate):
     #: bisections of the strength between the last scan strength whose panel carries the top force
     #: and the first that does not (the departure grows fastest just before failure)
     failure_bisections = 3
-    visible = 0.002
+    visible = 0.01
 
     def not_applicable(self, ctx):
         return counterpart_reason(ctx.scenario)

@@ -56,11 +56,16 @@ def _mark_cause(ax, diagnosis):
     d = best.location.detail
     if best.name == "weak_joint":
         ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weak joint (f = {best.fit.effect:.3g})")
-    elif best.name == "gauge_fault":
+    elif best.name in ("gauge_fault", "gauge_slip"):
         geom = _channel_geometry(diagnosis.scenario).get(d["sensor"])
         if geom is not None:
             xy = 0.5 * (geom[1] + geom[2]) if geom[0] == "gauge" else geom[1]
-            ax.plot(*xy, "o", ms=16, mfc="none", mec="red", mew=2, zorder=6, label=f"faulty sensor {d['sensor']}")
+            what = "faulty" if best.name == "gauge_fault" else "slipped"
+            ax.plot(*xy, "o", ms=16, mfc="none", mec="red", mew=2, zorder=6, label=f"{what} sensor {d['sensor']}")
+    elif best.name == "nonlinearity_onset":
+        xy = np.array([[j["x"], j["y"]] for j in d["joints"]])
+        ax.plot(xy[:, 0], xy[:, 1], "x", color="red", ms=12, mew=3, zorder=6,
+                label=f"first cracking/sliding joints (from {d['load']:g} {d['unit']})")
     elif best.name == "support_compliance":
         sup = diagnosis.scenario.mesh.nodes[np.asarray(diagnosis.scenario.supported_nodes, dtype=int)]
         ax.plot(sup[:, 0], sup[:, 1], "s", color="red", ms=5, zorder=6, label="compliant supports")
