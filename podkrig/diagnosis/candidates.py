@@ -630,7 +630,13 @@ class NonlinearityOnset(Candidate):
     visible = 0.01
 
     def not_applicable(self, ctx):
-        return counterpart_reason(ctx.scenario)
+        reason = counterpart_reason(ctx.scenario)
+        if reason is None and not self.locations(ctx):
+            top = ctx.scenario.load_levels[-1]
+            reason = (f"no joint strength makes the readings depart by {100 * self.visible:g} % of the largest "
+                      f"reading before the panel fails below the top load {top:g} {ctx.scenario.load_unit} "
+                      "(the scan at the base model's values)")
+        return reason
 
     def _scan(self, ctx):
         """The strength scan at the reference values (cached in the context)."""
