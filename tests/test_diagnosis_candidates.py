@@ -11,13 +11,19 @@ the candidate's.
 
 import numpy as np
 import pytest
+from diagnosis_trials import make_trial
 from numpy.testing import assert_allclose, assert_array_equal
 
-from diagnosis_trials import make_trial
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from fe.scenarios.flat_jack import homogeneous_slot_spec
-from podkrig.diagnosis import CANDIDATES, DEFAULT_CANDIDATES, FEContext, build_base_surrogate, diagnose
+from podkrig.diagnosis import (
+    CANDIDATES,
+    DEFAULT_CANDIDATES,
+    FEContext,
+    build_base_surrogate,
+    diagnose,
+)
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
 

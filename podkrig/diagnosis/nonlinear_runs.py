@@ -33,7 +33,6 @@ import numpy as np
 
 from fe import build_scenario
 from fe.mesh.mesh import INTERFACE_KINDS
-from fe.solvers.nonlinear import PathSettings
 
 logger = logging.getLogger(__name__)
 
@@ -196,7 +195,7 @@ class NonlinearTwin:
         reached or the path ends before its target (the panel's peak is below the top force)."""
         target = TARGET_FACTOR * self.control_per_kN(values) * self.forces[-1]
         for attempt in range(3):
-            nl, r = self._run(target, values, s, record_states)
+            _, r = self._run(target, values, s, record_states)
             phase = r.path.phase[-1] if len(r.path.phase) else ""
             R, reached, F = readings_at_forces(r.path, phase, self.forces)
             if reached.all() or r.status != "converged" or attempt == 2 or F[-1] < F.max():
