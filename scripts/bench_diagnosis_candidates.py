@@ -19,12 +19,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from diagnosis_trials import make_trial  # noqa: E402  (the trial generator lives with the tests)
+from diagnosis_trials import make_trial  # the trial generator lives with the tests
 
-from fe import build_scenario  # noqa: E402
-from fe.scenarios.diagonal_compression import DEFAULT_SENSORS  # noqa: E402
-from podkrig.diagnosis import build_base_surrogate, diagnose  # noqa: E402
-from podkrig.parameters import ParameterSpace  # noqa: E402
+from fe import build_scenario
+from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
+from podkrig.diagnosis import build_base_surrogate, diagnose
+from podkrig.parameters import ParameterSpace
 
 WALL_BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
 JACK_BOUNDS = {"E_b": (2000.0, 30000.0, "log"), "kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
