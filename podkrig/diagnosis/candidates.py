@@ -175,9 +175,15 @@ class FEContext:
         """Readings of unit load patterns ``(n_patterns, n_sensors)`` mm (no load coefficients):
         the model's own patterns, or the full nodal force vectors ``patterns`` ``(n_dofs, m)`` N."""
         sc = self.scenario
+        key = tuple(sorted(values.items()))
+        if patterns is None and self._cache.get("last_pattern_key") == key:
+            return self._cache["last_pattern_readings"].copy()
         rhs = None if patterns is None else sc.model.reduce_loads(patterns)
         self.n_runs += 1
-        return sc.model.readings(sc.model.solve(sc.theta(values), rhs=rhs))
+        r = sc.model.readings(sc.model.solve(sc.theta(values), rhs=rhs))
+        if patterns is None:  # the last plain run is remembered, as in :meth:`readings`
+            self._cache["last_pattern_key"], self._cache["last_pattern_readings"] = key, r.copy()
+        return r
 
     def spring_model(self):
         if "springs" not in self._cache:
