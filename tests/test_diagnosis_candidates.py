@@ -24,6 +24,7 @@ from podkrig.diagnosis import (
     build_base_surrogate,
     diagnose,
 )
+from podkrig.diagnosis.nonlinear_runs import ELASTIC_SCALE, NonlinearTwin, readings_at_forces
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
 
@@ -260,3 +261,39 @@ def test_data_cracked_at_the_top_load_are_diagnosed_as_nonlinearity_onset(wall):
         par = cand.parameter(ctx, loc)
         assert_array_equal(cand.readings(ctx, truth, loc, par.off), ctx.readings(truth))
         assert np.any(cand.readings(ctx, truth, loc, par.lower) != ctx.readings(truth))
+
+
+@pytest.mark.parametrize("name", ["diagonal_compression", "shear_compression"])
+def test_nonlinear_twin_at_elastic_strength_reproduces_the_linear_scenario(name):
+    """The twin (same mesh, sensors, elastic values; displacement controlled) read at the linear
+    scenario's force levels by interpolation on its path equals the linear run to round-off when no
+    joint yields (strengths × 10³): the spec mapping, the force measure (kN) and the interpolation
+    are right. The shear wall's linear readings include the pre-compression, as the twin's do."""
+    sc = build_scenario({"scenario": name, "nx": 2, "ny": 1})
+    values = sc.resolve({"kN_bj": 70.0, "kV_bj": 30.0})
+    twin = NonlinearTwin(sc)
+    assert twin.dropped_options == []
+    run = twin.run(values, ELASTIC_SCALE)
+    expected = sc.run(values).readings
+    assert run.reached.all() and run.peak >= sc.load_levels[-1]
+    assert_allclose(run.readings, expected, rtol=1e-8, atol=1e-9 * np.abs(expected).max())
+
+
+def test_readings_at_forces_interpolates_at_the_first_crossing():
+    """A path that rises, falls back and rises again (a snap-through): each force is read where the
+    path first reaches it, linearly between the bracketing steps; forces never reached take the last
+    state and are flagged."""
+
+    class Path:
+        phase = ("pre", "load", "load", "load", "load")
+        load = np.array([0.0, 10.0, 20.0, 15.0, 30.0])
+        readings = np.array([[1.0], [2.0], [4.0], [3.0], [9.0]])
+
+        def of_phase(self, name):
+            return np.array([p == name for p in self.phase])
+
+    R, reached, F = readings_at_forces(Path(), "load", [5.0, 18.0, 25.0, 40.0])
+    # zero load is the state before the phase (reading 1), then 10 → 2, 20 → 4, 15 → 3, 30 → 9
+    assert_allclose(R[:, 0], [1.5, 2.0 + 0.8 * 2.0, 3.0 + (10 / 15) * 6.0, 9.0])
+    assert_array_equal(reached, [True, True, True, False])
+    assert_array_equal(F, [0.0, 10.0, 20.0, 15.0, 30.0])

@@ -711,6 +711,7 @@ class NonlinearityOnset(Candidate):
                 f"joints crack or slide from load level {levels[k]:g} {unit} on (linear up to {below} {unit}); "
                 f"first at {where}",
                 {"level": k, "load": float(levels[k]), "unit": unit, "joints": joints,
+                 "twin": scan["twin"].reference.name, "twin_ignores": list(scan["twin"].dropped_options),
                  "nodes": [int(i) for i in nodes], "neutral_node": int(upper)}))
         return out
 

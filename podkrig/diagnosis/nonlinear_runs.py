@@ -31,7 +31,7 @@ import logging
 
 import numpy as np
 
-from fe import build_scenario
+from fe import SCENARIOS, build_scenario
 from fe.mesh.mesh import INTERFACE_KINDS
 
 logger = logging.getLogger(__name__)
@@ -66,14 +66,19 @@ def counterpart_reason(scenario):
 
 
 def counterpart_spec(scenario, target):
-    """Spec of the nonlinear twin of ``scenario`` with control target ``target`` (mm)."""
+    """Spec of the nonlinear twin of ``scenario`` with control target ``target`` (mm), and the
+    linear spec's options the twin does not have (dropped: the twin then differs from the linear
+    model there, which the departure ``R_nl − R_el`` of the twin's own runs does not see)."""
     spec = dict(scenario.spec.to_dict())
     spec["scenario"] = NONLINEAR_COUNTERPARTS[spec["scenario"]]
     spec.pop("parameters", None)  # values are passed to every run explicitly
+    known = {f.name for f in dataclasses.fields(SCENARIOS[spec["scenario"]].Options)}
+    dropped = sorted(k for k in spec if k != "scenario" and k not in known)
+    spec = {k: v for k, v in spec.items() if k not in dropped}
     spec["load_levels"] = [float(target)]
     if spec["scenario"] == "shear_compression_nl":
         spec["top"] = "constant_force"  # the linear wall's tied top beam carries a constant N
-    return spec
+    return spec, dropped
 
 
 def scaled_strengths(nl_scenario, s):
@@ -149,13 +154,16 @@ class NonlinearTwin:
         self.forces = np.asarray(scenario.load_levels, float)
         self.runs, self.seconds = 0, 0.0
         self._twins, self._probes = {}, {}
+        #: options of the linear spec the twin does not have (see :func:`counterpart_spec`)
+        self.dropped_options = []
         #: the twin with target 1 mm: mesh, model and parameters shared by every target
         self.reference = self._twin(1.0)
 
     def _twin(self, target):
         key = round(float(target), 9)
         if key not in self._twins:
-            self._twins[key] = build_scenario(counterpart_spec(self.linear, key))
+            spec, self.dropped_options = counterpart_spec(self.linear, key)
+            self._twins[key] = build_scenario(spec)
         return self._twins[key]
 
     def elastic_values(self, values):
