@@ -58,8 +58,10 @@ def wall():
 @pytest.fixture(scope="module")
 def jack():
     """The chisari flat-jack set-up (H, V1, V2) with its 18 gauges, the release and phases 1–2
-    (20 steps); Km fixed, so that jack efficiency is a candidate."""
-    return Setup({"scenario": "flat_jack", "phases": ["0b", "1", "2"], "layout": "L18"}, JACK_BOUNDS)
+    (20 steps) on a smaller panel (6 units × 18 courses, 1560 × 1170 mm: every gauge and slot
+    inside, fewer joint segments to screen); Km fixed, so that jack efficiency is a candidate."""
+    return Setup({"scenario": "flat_jack", "phases": ["0b", "1", "2"], "layout": "L18", "n_courses": 18,
+                  "units_per_course": 6.0}, JACK_BOUNDS)
 
 
 def _context(setup, values=None):
