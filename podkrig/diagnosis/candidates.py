@@ -593,8 +593,8 @@ class NonlinearityOnset(Candidate):
        elastic twin run gives ``S`` at the top force, ``S_n``; a **strength scan** runs the twin at
        ``s_j = S_n ρ^j`` (``ρ = scan_ratio``) downwards until every load level departs visibly, or
        the panel no longer carries the top force (then ``failure_bisections`` bisections in
-       ``log s`` towards that strength, where the departure grows fastest), or ``max_scan`` runs. Each run gives the
-       **departure** ``D(s) = R_nl(s) − R_el`` of the readings at the linear scenario's force
+       ``log s`` towards that strength, where the departure grows fastest), or ``max_scan`` runs.
+       Each run gives the **departure** ``D(s) = R_nl(s) − R_el`` of the readings at the linear scenario's force
        levels (interpolated on the force–readings path: the twins are displacement controlled).
     2. A level *departs visibly* when some reading there moves by more than ``visible`` × the
        largest elastic reading (INFERRED option, 1 %: the noise of the trials, about the spread
@@ -605,8 +605,8 @@ class NonlinearityOnset(Candidate):
        criterion at that level.
     3. The **parameter** is the joints' tensile strength ``ft_bj = s ft₀`` (MPa; ``c``, ``f_c`` and
        the fracture energies follow the strength scale), over the location's range and up to the
-       next scan strength above it, which is the neutral value (no departure there, by
-       definition of the candidate). ``D`` is interpolated linearly in ``log s`` between scan
+       next scan strength above it, which is the neutral value (the effect is off there by
+       definition: readings bit-identical to the linear model's). ``D`` is interpolated linearly in ``log s`` between scan
        strengths and blended to zero at the neutral end (the blend is an approximation for
        ``k`` below the top level, where the next strength already departs at higher levels).
     4. Readings are ``R_lin(values) + D(s)``: the base parameters move the linear model while the
