@@ -132,7 +132,7 @@ def main():
     diag = Setup(diagonal_spec(dic=not args.gauges_only))
     shear = Setup({"scenario": "shear_compression", "nx": 2, "ny": 1})
     causes = {"head_joint_stiffness": diag, "weak_joint": diag, "gauge_fault": diag, "load_eccentricity": diag,
-              "unit_stiffness": diag, "support_compliance": shear}
+              "unit_stiffness": diag, "support_compliance": shear, "gauge_slip": diag}
     # most joint segments are far from every sensor: a second series draws the weak joint among
     # the segments whose opening (f = 0.001) moves some reading by ≥ 3σ at the default parameters
     seen = visible_joints(diag)
@@ -205,7 +205,7 @@ def main():
           f"({100 * correct_strong / max(total_strong, 1):.0f} %)")
     print(f"correct cause where the effect moves some reading by ≥ 3σ (before refitting the base model): "
           f"{raw_strong['correct']}/{raw_strong['total']}")
-    for label in ("weak_joint", "weak_joint (visible segment)", "gauge_fault"):
+    for label in ("weak_joint", "weak_joint (visible segment)", "gauge_fault", "gauge_slip"):
         print(f"{label}: right location in {places[(label, True)]} of {places[(label, True)] + places[(label, False)]} correct namings")
     if pairs:
         print("\n## Two hidden effects (both named, in either order; 'strong': each ≥ 3σ left after refitting "

@@ -71,10 +71,18 @@ def draw_strength(cause, location, parameter, rng):
         return float(np.clip(p.neutral * (factor if rng.random() < 0.5 else 1.0 / factor), p.lower, p.upper))
     if cause == "support_compliance":
         return float(np.exp(rng.uniform(np.log(1e-3), np.log(p.upper))))  # mm³/N
+    if cause == "slot_contact":  # 20–100 % of the largest contact loss
+        return float(rng.uniform(0.2, 1.0) * p.upper)
+    if cause == "nonlinearity_onset":  # joint strength anywhere in the onset level's range
+        return float(np.exp(rng.uniform(np.log(p.lower), np.log(p.upper))))
     sign = rng.choice([-1.0, 1.0])
     if cause == "gauge_fault":  # gain 2–30 %; offset 1–15 % of the largest reading (1–15 σ)
         lo, hi = (0.02, 0.3) if location.detail["fault"] == "gain" else (0.01 * p.upper, 0.15 * p.upper)
         return float(sign * rng.uniform(lo, hi))
+    if cause == "gauge_slip":  # a step of 1–15 % of the largest reading (1–15 σ)
+        return float(sign * rng.uniform(0.01, 0.15) * p.upper)
+    if cause == "jack_efficiency":  # Km 10–35 % off the assumed value, inside the fit range
+        return float(np.clip(p.neutral * (1.0 + sign * rng.uniform(0.1, 0.35)), p.lower, p.upper))
     # load-line offset and rotation: 10–100 % of the admissible range
     return float(sign * rng.uniform(0.1, 1.0) * p.upper)
 

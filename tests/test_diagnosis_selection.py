@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose
 
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
-from podkrig.diagnosis import CANDIDATES, Diagnosis, FEContext, diagnose
+from podkrig.diagnosis import CANDIDATES, Diagnosis, FEContext, build_base_surrogate, diagnose
 from podkrig.diagnosis.model_error import discretisation_error, tolerance_error
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
@@ -152,3 +152,27 @@ def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
     full = json.loads(json.dumps(d.to_dict(state=True)))
     back = Diagnosis.from_dict(full, scenario=wall)
     assert back.to_dict(state=True) == full
+
+
+@pytest.mark.slow
+def test_clean_data_from_an_independent_discretisation_raise_at_most_one_alarm_in_20(wall):
+    """The independent-code situation inside the project: data from Q4 elements on a mesh four times
+    finer than the model's (Q8 2 × 1 per unit), six gauges and a 9 × 9 grid, clean (no effect), 20
+    noise realisations. With the model-form error estimated (the default) and the rigid-body
+    motion of the grid removed (the default for DIC), at most one false alarm (the issue's target:
+    ≤ 1 in 20)."""
+    data_model = build_scenario({**_spec(8, 4), "element": "Q4"})
+    space = ParameterSpace.from_scenario(wall, BOUNDS)
+    surrogate = build_base_surrogate(wall, space, wall.resolve(), 64, 0)
+    rng = np.random.default_rng(1818)
+    alarms = []
+    for k in range(20):
+        truth = {"kN_bj": float(np.exp(rng.uniform(np.log(30), np.log(300)))),
+                 "kV_bj": float(np.exp(rng.uniform(np.log(12), np.log(120))))}
+        R = data_model.run(truth).readings
+        sigma = max(0.01 * float(np.max(np.abs(R))), 1e-3)
+        m = Measurement(R + sigma * rng.standard_normal(R.shape), wall.sensor_names, wall.load_levels, "Q4 data")
+        d = diagnose(wall, m, NoiseModel(sigma=sigma), space, surrogate=surrogate, rng=k)
+        if d.verdict != "adequate":
+            alarms.append((k, [c.name for c in d.causes], round(d.base.chi2_dof, 2)))
+    assert len(alarms) <= 1, alarms

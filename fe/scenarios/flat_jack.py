@@ -561,6 +561,19 @@ class FlatJack(Scenario):
         """Unit jack pressure (1 MPa) pushing the faces apart over the jack length, N."""
         return self._face_loads(slot, self._normal(slot), slot.jack_interval)
 
+    def jack_pattern(self, slot, interval=None):
+        """Nodal forces (N) of a unit jack pressure (1 MPa) in slot ``slot`` (name) pushing the faces
+        apart over ``interval`` along the slot (mm; default the jack length ``Ka × slot length``):
+        the scenario's own jack pattern, or a part of it (e.g. where the jack has lost contact)."""
+        s = next((sl for sl in self.slots if sl.name == slot), None)
+        if s is None:
+            raise KeyError(f"{self.name}: no slot {slot!r}; slots are {[sl.name for sl in self.slots]}")
+        lo, hi = s.jack_interval if interval is None else (float(interval[0]), float(interval[1]))
+        if not s.start - 1e-9 <= lo <= hi <= s.end + 1e-9:
+            raise ValueError(f"{self.name}: interval ({lo:g}, {hi:g}) mm must lie within slot {slot!r} "
+                             f"[{s.start:g}, {s.end:g}] mm")
+        return self._face_loads(s, self._normal(s), (lo, hi))
+
     def _release_pattern(self):
         """Release of the nominal in-situ stress (σx, σy, τ) = (0, −1, 0) MPa on every slot's
         faces: face B receives σ·n (and face A −σ·n), the traction the removed joint carried, N."""

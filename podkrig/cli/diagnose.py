@@ -23,7 +23,7 @@ def register(app):
         noise_abs: list[str] = _NOISE_ABS,
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
-        candidates: str = typer.Option(None, "--candidates", help="Comma-separated candidate causes (default: all)."),
+        candidates: str = typer.Option(None, "--candidates", help="Comma-separated candidate causes (default: all but nonlinearity_onset, which costs 10-20 nonlinear runs)."),
         alpha: float = typer.Option(0.01, "--alpha", help="Significance level of the tests (multiplicity-corrected)."),
         model_tolerance: float = typer.Option(
             None, "--model-tolerance", help="A fixed relative model-form tolerance added to the noise (0.01 = 1 % of "

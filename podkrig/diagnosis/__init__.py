@@ -1,11 +1,19 @@
 """Model diagnosis: find what a calibrated FE model gets wrong, name the cause among candidate
 physical effects, fit the extended model and measure the gain (see :mod:`.engine`)."""
 
-from podkrig.diagnosis.candidates import CANDIDATES, Candidate, EffectParameter, FEContext, Location
+from podkrig.diagnosis.candidates import (
+    CANDIDATES,
+    DEFAULT_CANDIDATES,
+    Candidate,
+    EffectParameter,
+    FEContext,
+    Location,
+)
 from podkrig.diagnosis.engine import Diagnosis, build_base_surrogate, diagnose
 
 __all__ = [
            "CANDIDATES",
+           "DEFAULT_CANDIDATES",
            "Candidate",
            "Diagnosis",
            "EffectParameter",

@@ -17,6 +17,14 @@ gauge_fault            gain g (0) or offset o, mm (0)          one sensor only: 
 load_eccentricity      offset e of the load line, mm (0),      antisymmetric about the intended load line;
                        or its rotation φ, degrees (0)          ∝ load
 unit_stiffness         E_b, MPa (base)                         gauges on units, diagonals; ∝ load
+gauge_slip             step c of one sensor from level k, mm   one sensor only: unchanged below level k,
+                       (0)                                     the same offset from k on
+jack_efficiency        Km of all jacks or one jack (fixed)     that jack's response scaled by one factor
+slot_contact           length ℓ without jack contact at a      near that slot end, against the jack
+                       slot end or both, mm (0)                pressure; ∝ pressure
+nonlinearity_onset     joint tensile strength ft_bj, MPa,      nothing below the onset level k, then a
+                       per onset level k (just above k's       departure growing faster than the load
+                       range: no departure)                    (cracking/sliding joints)
 =====================  =====================================  ===========================================
 
 Candidates say *what they change* (:meth:`Candidate.effect` returns an :class:`Effect`: parameter
@@ -27,7 +35,10 @@ factorisation per evaluation).
 ``head_joint_stiffness`` and ``unit_stiffness`` are candidates only when the base model keeps
 ``r_hj`` / ``E_b`` fixed; ``support_compliance`` and ``load_eccentricity`` only for scenarios
 with supports / a load line (:class:`fe.Scenario`'s ``supported_nodes``,
-``load_perturbations``).
+``load_perturbations``); ``jack_efficiency`` and ``slot_contact`` only for the flat-jack scenario
+(``jack_efficiency`` when ``Km`` is fixed); ``nonlinearity_onset`` only for scenarios with a
+nonlinear twin (:mod:`podkrig.diagnosis.nonlinear_runs`), and only when named (it is
+``expensive``: not in :data:`DEFAULT_CANDIDATES`).
 """
 
 import abc
@@ -37,6 +48,13 @@ import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
 from fe.supports import spring_supported_model, support_areas
+from podkrig.diagnosis.nonlinear_runs import (
+    ELASTIC_SCALE,
+    NonlinearTwin,
+    counterpart_reason,
+    critical_joints,
+    onset_strength,
+)
 
 
 @dataclass(frozen=True)
@@ -112,9 +130,10 @@ class Effect:
         (:func:`fe.supports.spring_supported_model`); None keeps them rigid.
     load_scale : float
         Factor on the readings of the scenario's own load patterns (a rotated load line: cos φ).
-    extra_loads : tuple of (str, callable, float)
+    extra_loads : tuple of (hashable, callable, float)
         ``(key, patterns, weight)``: readings of extra nodal load patterns ``patterns()``
-        ``(n_dofs, n_patterns)`` added with ``weight``, under the same load coefficients.
+        ``(n_dofs, n_patterns)`` (as many as the scenario's own) added with ``weight``, under the
+        same load coefficients; their reduced form is cached by ``key`` (None: not cached).
     corrections : tuple of callable
         ``R -> R`` on the readings ``(n_loads, n_sensors)`` after the solve (sensor faults), in order.
     """
@@ -147,7 +166,15 @@ class FEContext:
         self.values = dict(values)
         self.offset_scale = float(offset_scale)
         self.n_runs = 0
+        #: the calibrated base model's values once known (the diagnosis sets them after its base
+        #: fit): candidates too expensive to recompute at every trial value precompute there
+        self.base_values = None
         self._cache = {}
+
+    @property
+    def reference_values(self):
+        """:attr:`base_values` when set, else :attr:`values`."""
+        return dict(self.base_values) if self.base_values is not None else dict(self.values)
 
     @property
     def sensor_names(self):
@@ -220,6 +247,9 @@ class FEContext:
         return self._cache[cache_key]
 
     def _reduced_loads(self, model, key, patterns):
+        """``Tᵀ f`` of ``patterns()`` on ``model``, cached by ``key`` (None: not cached)."""
+        if key is None:
+            return model.reduce_loads(patterns())
         cache_key = (id(model), "loads", key)
         if cache_key not in self._cache:
             self._cache[cache_key] = model.reduce_loads(patterns())
@@ -281,9 +311,9 @@ class Candidate(abc.ABC):
     name = ""
     description = ""
     signature = ""
-    #: whether the effect combines with other causes through an :class:`Effect`; a candidate that
-    #: runs another model (e.g. the nonlinear solver) overrides :meth:`readings` and sets False
-    composable = True
+    #: True for candidates that need many FE runs of another kind (nonlinear): left out of a
+    #: diagnosis unless named (see :data:`DEFAULT_CANDIDATES`)
+    expensive = False
 
     def not_applicable(self, ctx):
         """Why the candidate does not apply to this base model (str), or None."""
@@ -471,6 +501,327 @@ class LoadEccentricity(Candidate):
         return Effect(load_scale=np.cos(phi), extra_loads=((p.name, p.patterns, np.sin(phi)),))
 
 
+class GaugeSlip(Candidate):
+    name = "gauge_slip"
+    description = ("A sensor that slipped (an anchor or clamp moved, a transducer knocked) between two "
+                   "consecutive load levels: from level k on its reading is offset by c.")
+    signature = ("One sensor only: unchanged up to level k−1, then the same offset c at level k and "
+                 "every higher level; every other sensor fits.")
+
+    def locations(self, ctx):
+        sc = ctx.scenario
+        levels = sc.load_levels
+        return [Location(f"{s} from {levels[k]:g}",
+                         f"sensor {s} slipped between {levels[k - 1]:g} and {levels[k]:g} {sc.load_unit}",
+                         {"sensor": s, "level": int(k), "load": float(levels[k]), "unit": sc.load_unit})
+                for s in ctx.sensor_names for k in range(1, len(levels))]
+
+    def parameter(self, ctx, location):
+        scale = ctx.offset_scale
+        return EffectParameter("c", "mm", 0.0, -scale, scale, 0.1 * scale)
+
+    def effect(self, ctx, values, location, c):
+        column, level = ctx.sensor_names.index(location.detail["sensor"]), location.detail["level"]
+        return Effect(corrections=(lambda R: apply_gauge_slip(R, column, level, c),))
+
+
+def apply_gauge_slip(R, column, level, value):
+    """Readings ``R`` ``(n_loads, n_sensors)`` with ``value`` (mm) added to one column from row
+    ``level`` on (a slip between load levels ``level − 1`` and ``level``)."""
+    R = np.array(R, dtype=float)
+    R[level:, column] += value
+    return R
+
+
+def _flat_jack_reason(ctx):
+    sc = ctx.scenario
+    if sc.name != "flat_jack":
+        return f"the {sc.name} scenario has no flat jacks"
+    if sc.options.release != "nominal":
+        return "a flat jack with release = 'exact' has no fixed load patterns to act on"
+    return None
+
+
+def _jack_locations(ctx):
+    """'all jacks' and, with several jacks, each one (jack indices in ``detail['jacks']``)."""
+    slots = ctx.scenario.slots
+    out = [Location("all jacks", "every jack (one efficiency for all)", {"jacks": list(range(len(slots)))})]
+    if len(slots) > 1:
+        out += [Location(f"jack {s.name}", f"jack {s.name} ({s.orientation} slot at {s.at:g} mm)", {"jacks": [i]})
+                for i, s in enumerate(slots)]
+    return out
+
+
+class JackEfficiency(Candidate):
+    name = "jack_efficiency"
+    description = ("A flat jack whose efficiency Km (effective / gauge pressure) differs from the value "
+                   "the base model fixes (calibration off, a worn or deformed jack): the jack's load "
+                   "scales by Km / Km₀.")
+    signature = ("Every reading's response to that jack's pressure steps scales by one factor: "
+                 "largest where that jack's pressure changes, none from the in-situ release.")
+
+    def not_applicable(self, ctx):
+        reason = _flat_jack_reason(ctx)
+        if reason is not None:
+            return reason
+        if "Km" in ctx.free:
+            return "Km is a free parameter of the base model"
+        return None
+
+    def locations(self, ctx):
+        return _jack_locations(ctx)
+
+    def parameter(self, ctx, location):
+        k0 = ctx.values["Km"]
+        # Km of a sound jack is 0.7–0.95 (reference flat-jack §1.5); 0.4–1.2 covers a bad one
+        return EffectParameter("Km", "-", k0, min(0.4, k0), max(1.2, k0), 0.8 * k0)
+
+    def effect(self, ctx, values, location, c):
+        jacks = location.detail["jacks"]
+        if len(jacks) == len(ctx.scenario.slots):  # every jack: the model's own Km
+            return Effect(values={"Km": c})
+        # one jack: its own load pattern (column 1 + j) once more, weighted by c / Km − 1
+        columns = [1 + j for j in jacks]
+        patterns = ctx.scenario.model.load_patterns
+
+        def jack_patterns():
+            out = np.zeros_like(patterns)
+            out[:, columns] = patterns[:, columns]
+            return out
+
+        return Effect(extra_loads=((("jack", location.key), jack_patterns, c / values["Km"] - 1.0),))
+
+
+class SlotContact(Candidate):
+    """Jack pressure lost over part of the slot.
+
+    INFERRED choices (named options): the lost contact sits at an end of the jack's loaded length
+    ``Ka × slot length`` (``"start"``: the end at the slot's smaller coordinate, ``"end"``: the
+    other, ``"both"``: the same length ℓ at both ends, i.e. a jack shorter than the slot or a slot
+    not cut to full depth at its ends); the pressure there is zero (no partial contact) and the
+    rest of the jack carries the gauge pressure × Km unchanged, so the jack's resultant drops by
+    ``Km p ℓ t`` per lost end (t the wall thickness). The parameter is ℓ in mm, up to 90 % of the
+    jack length.
+    """
+
+    name = "slot_contact"
+    description = ("A flat jack that does not bear on the whole slot: no contact over a length ℓ at one "
+                   "end or both (a jack shorter than the slot, a slot cut short or uneven, a crumbled end), "
+                   "so its resultant is Km p (L − ℓ) t instead of Km p L t.")
+    signature = ("Near the slot end that lost contact the slot closes as if unloaded; the readings there "
+                 "move against the jack's pressure, in proportion to it; far sensors barely change.")
+
+    #: the largest contact loss, share of the jack length (a choice)
+    max_share = 0.9
+
+    def not_applicable(self, ctx):
+        return _flat_jack_reason(ctx)
+
+    def locations(self, ctx):
+        out = []
+        for i, s in enumerate(ctx.scenario.slots):
+            axis = "x" if s.axis == 0 else "y"
+            lo, hi = s.jack_interval
+            for side, where in (("start", f"its {axis} = {lo:g} mm end"), ("end", f"its {axis} = {hi:g} mm end"),
+                                ("both", "both ends")):
+                out.append(Location(f"{s.name} {side}", f"jack {s.name}: no contact at {where}",
+                                    {"jack": i, "slot": s.name, "side": side, "axis": axis, "interval": [lo, hi]}))
+        return out
+
+    def parameter(self, ctx, location):
+        lo, hi = location.detail["interval"]
+        upper = self.max_share * (hi - lo) / (2.0 if location.detail["side"] == "both" else 1.0)
+        return EffectParameter("l", "mm", 0.0, 0.0, upper, 0.3 * upper, one_sided=True)
+
+    def lost_pattern(self, scenario, location, loss):
+        """Nodal forces (N) of a unit jack pressure over the part(s) of the jack that lost contact."""
+        lo, hi = location.detail["interval"]
+        slot, side = location.detail["slot"], location.detail["side"]
+        f = np.zeros(scenario.mesh.n_dofs)
+        if side in ("start", "both"):
+            f += scenario.jack_pattern(slot, (lo, lo + loss))
+        if side in ("end", "both"):
+            f += scenario.jack_pattern(slot, (hi - loss, hi))
+        return f
+
+    def effect(self, ctx, values, location, c):
+        if c <= 0.0:
+            return Effect()
+        sc = ctx.scenario
+        n_dofs, n_patterns = sc.model.load_patterns.shape
+
+        def lost_patterns():  # the lost pressure under the jack's load coefficient (column 1 + jack)
+            out = np.zeros((n_dofs, n_patterns))
+            out[:, 1 + location.detail["jack"]] = self.lost_pattern(sc, location, c)
+            return out
+
+        return Effect(extra_loads=((None, lost_patterns, -1.0),))  # None: not cached (ℓ varies in the fit)
+
+
+class NonlinearityOnset(Candidate):
+    """Joints that began to crack or slide: the linear model fails from some load level on.
+
+    How it is computed (see :mod:`podkrig.diagnosis.nonlinear_runs` for the nonlinear twin, the
+    strength scale ``s`` and the elastic onset strength ``S(F)``):
+
+    1. At the reference values (the calibrated base model's, :attr:`FEContext.base_values`) an
+       elastic twin run gives ``S`` at the top force, ``S_n``; a **strength scan** runs the twin at
+       ``s_j = S_n ρ^j`` (``ρ = scan_ratio``) downwards until every load level departs visibly, or
+       the panel no longer carries the top force (then ``failure_bisections`` bisections in
+       ``log s`` towards that strength, where the departure grows fastest), or ``max_scan`` runs.
+       Each run gives the **departure** ``D(s) = R_nl(s) − R_el`` of the readings at the linear scenario's force
+       levels (interpolated on the force–readings path: the twins are displacement controlled).
+    2. A level *departs visibly* when some reading there moves by more than ``visible`` × the
+       largest elastic reading (INFERRED option, 1 %: the noise of the trials, about the spread
+       of two sound discretisations).
+       The **location** is the first departing level ``k`` (the onset level): the scan strengths
+       whose first departing level is ``k`` form its range, disjoint from the other levels'. Its
+       label names the load level and the joints where the elastic tractions first reach the
+       criterion at that level.
+    3. The **parameter** is the joints' tensile strength ``ft_bj = s ft₀`` (MPa; ``c``, ``f_c`` and
+       the fracture energies follow the strength scale), over the location's range and up to the
+       next scan strength above it, which is the neutral value (the effect is off there by
+       definition: readings bit-identical to the linear model's). ``D`` is interpolated linearly in ``log s`` between scan
+       strengths and blended to zero at the neutral end (the blend is an approximation for
+       ``k`` below the top level, where the next strength already departs at higher levels).
+    4. Readings are ``R_lin(values) + D(s)``: the base parameters move the linear model while the
+       departure stays that of the reference values (the cheaper fit parametrisation: a 1-D scan
+       of the strength with the base parameters held at the linear fit), so the ~60 evaluations
+       per refit cost no nonlinear run.
+
+    Cost: 1 elastic probe + 1 elastic reference + up to ``max_scan`` nonlinear runs once per
+    diagnosis (per set of reference values).
+    """
+
+    name = "nonlinearity_onset"
+    description = ("Joints that began to crack or slide under the higher loads: the data from some load "
+                   "level on depart from the calibrated linear model as the nonlinear joint model "
+                   "(Lourenço–Rots: tension cut-off, Coulomb friction, cap) with reduced strengths predicts.")
+    signature = ("Nothing below the onset level; from it on a departure growing faster than the load, "
+                 "largest at sensors across the joints that crack or slide first (the tensile diagonal, "
+                 "joints near the loaded corners).")
+
+    expensive = True
+    #: ratio of consecutive scan strengths, largest number of scan runs, visibility threshold
+    scan_ratio = 0.9
+    max_scan = 24
+    #: bisections of the strength between the last scan strength whose panel carries the top force
+    #: and the first that does not (the departure grows fastest just before failure)
+    failure_bisections = 3
+    visible = 0.01
+
+    def not_applicable(self, ctx):
+        reason = counterpart_reason(ctx.scenario)
+        if reason is None and not self.locations(ctx):
+            top = ctx.scenario.load_levels[-1]
+            reason = (f"no joint strength makes the readings depart by {100 * self.visible:g} % of the largest "
+                      f"reading before the panel fails below the top load {top:g} {ctx.scenario.load_unit} "
+                      "(the scan at the base model's values)")
+        return reason
+
+    def _scan(self, ctx):
+        """The strength scan at the reference values (cached in the context)."""
+        ref = ctx.reference_values
+        key = ("onset scan", tuple(sorted(ref.items())))
+        if key in ctx._cache:
+            return ctx._cache[key]
+        if "onset twin" not in ctx._cache:
+            ctx._cache["onset twin"] = NonlinearTwin(ctx.scenario)
+        twin = ctx._cache["onset twin"]
+        runs_before = twin.runs
+        elastic = twin.run(ref, ELASTIC_SCALE, record_states=True)
+        S_steps, ratios = onset_strength(twin, ref, elastic)
+        S_env = np.maximum.accumulate(S_steps)
+        forces = twin.forces
+        S_levels = np.interp(forces, elastic.loads, S_env)
+        level_steps = [int(np.argmin(np.abs(elastic.loads - f))) for f in forces]
+        tol = self.visible * float(np.max(np.abs(elastic.readings)))
+        strengths, departures, first = [], [], []
+        n = len(forces)
+        s, failed, bisections = float(S_levels[-1]), None, 0
+        while len(strengths) + bisections < self.max_scan:
+            run = twin.run(ref, s)
+            if run.reached.all():
+                D = run.readings - elastic.readings
+                visible = np.flatnonzero(np.max(np.abs(D), axis=1) > tol)
+                k = int(visible[0]) if len(visible) else n
+                k = min(k, first[-1]) if first else k  # weaker joints never depart later
+                strengths.append(s)
+                departures.append(D)
+                first.append(k)
+                if k == 0:
+                    break
+            else:  # the panel no longer carries the top force: refine towards that strength
+                failed = s
+            bisections += failed is not None
+            if failed is None:
+                s *= self.scan_ratio
+            elif bisections > self.failure_bisections or not strengths:  # the failing run counts too
+                break
+            else:
+                s = float(np.sqrt(strengths[-1] * failed))
+        ft0 = twin.reference.resolve()["ft_bj"]
+        scan = {"strengths": np.array(strengths), "departures": np.array(departures), "first": np.array(first),
+                "ratios": ratios, "level_steps": level_steps, "ft0": ft0, "twin": twin,
+                "S_levels": S_levels}
+        ctx._cache[key] = scan
+        ctx.n_runs += twin.runs - runs_before
+        return scan
+
+    def locations(self, ctx):
+        scan = self._scan(ctx)
+        sc = ctx.scenario
+        levels, unit = sc.load_levels, sc.load_unit
+        out = []
+        for k in sorted(set(scan["first"].tolist()) - {len(levels)}):
+            nodes = np.flatnonzero(scan["first"] == k)
+            upper = nodes[0] - 1  # the next stronger scan strength (neutral end)
+            if upper < 0:
+                continue
+            joints = critical_joints(scan["twin"], scan["ratios"], scan["level_steps"][k])
+            where = "; ".join(f"{j['kind']} joint at ({j['x']:g}, {j['y']:g}) mm" for j in joints)
+            below = f"{levels[k - 1]:g}" if k > 0 else "0"
+            out.append(Location(
+                f"from {levels[k]:g} {unit}",
+                f"joints crack or slide from load level {levels[k]:g} {unit} on (linear up to {below} {unit}); "
+                f"first at {where}",
+                {"level": k, "load": float(levels[k]), "unit": unit, "joints": joints,
+                 "twin": scan["twin"].reference.name, "twin_ignores": list(scan["twin"].dropped_options),
+                 "nodes": [int(i) for i in nodes], "neutral_node": int(upper)}))
+        return out
+
+    def parameter(self, ctx, location):
+        scan = self._scan(ctx)
+        s, ft0 = scan["strengths"], scan["ft0"]
+        nodes = location.detail["nodes"]
+        upper, lower = ft0 * s[location.detail["neutral_node"]], ft0 * s[nodes[-1]]
+        return EffectParameter("ft_bj", "MPa", upper, lower, upper, float(np.sqrt(lower * upper)),
+                               scale="log", one_sided=True)
+
+    def departure(self, ctx, location, ft):
+        """Departure of the readings from the linear model ``(n_loads, n_sensors)`` mm at the joints'
+        tensile strength ``ft`` (MPa), interpolated in the scan (zero at the neutral end)."""
+        scan = self._scan(ctx)
+        nodes = location.detail["nodes"]
+        x = np.log(scan["strengths"][[location.detail["neutral_node"]] + nodes])[::-1]  # ascending
+        D = np.concatenate([np.zeros_like(scan["departures"][:1]), scan["departures"][nodes]])[::-1]
+        t = float(np.clip(np.log(ft / scan["ft0"]), x[0], x[-1]))
+        i = int(np.clip(np.searchsorted(x, t) - 1, 0, len(x) - 2))
+        a = (t - x[i]) / (x[i + 1] - x[i])
+        return (1.0 - a) * D[i] + a * D[i + 1]
+
+    def effect(self, ctx, values, location, c):
+        """The departure from the linear model, added to the readings (computed at the reference
+        values and superposed on whatever other causes the model holds: a first-order combination)."""
+        if c >= self.parameter(ctx, location).neutral * (1.0 - 1e-12):  # off (to the fit coordinate's round-off)
+            return Effect()
+        departure = self.departure(ctx, location, c)
+        return Effect(corrections=(lambda R: R + departure,))
+
+
 #: every candidate cause, by name
 CANDIDATES = {c.name: c for c in (HeadJointStiffness(), WeakJoint(), SupportCompliance(), GaugeFault(),
-                                  LoadEccentricity(), UnitStiffness())}
+                                  LoadEccentricity(), UnitStiffness(), GaugeSlip(), JackEfficiency(),
+                                  SlotContact(), NonlinearityOnset())}
+#: the candidates a diagnosis tries unless told otherwise: all but the expensive ones
+DEFAULT_CANDIDATES = tuple(name for name, c in CANDIDATES.items() if not c.expensive)

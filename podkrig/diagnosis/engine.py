@@ -44,7 +44,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import linalg, optimize, stats
 
-from podkrig.diagnosis.candidates import CANDIDATES, FEContext
+from podkrig.diagnosis.candidates import CANDIDATES, DEFAULT_CANDIDATES, FEContext
 from podkrig.diagnosis.model_error import (
     DEFAULT_RATE,
     FALLBACK_TOLERANCE,
@@ -175,7 +175,9 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         :func:`build_base_surrogate` or a store; built here when not given:
         ``n_train`` Sobol' FE runs, about a second for the default test).
     candidates : sequence of str, optional
-        Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default: all).
+        Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default:
+        :data:`~podkrig.diagnosis.candidates.DEFAULT_CANDIDATES`, all but ``nonlinearity_onset``,
+        whose strength scan costs 10–20 nonlinear runs).
     alpha : float
         Significance level of the (multiplicity-corrected) candidate tests; the χ² test runs at
         ``alpha * CHI2_ALPHA_SHARE``.
@@ -207,7 +209,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
                          "missing cells, no zero reference); invert such a log with 'podkrig invert' instead")
     t_start = time.perf_counter()
     say = progress or (lambda *a: None)
-    names = list(candidates or CANDIDATES)
+    names = list(candidates or DEFAULT_CANDIDATES)
     unknown = [n for n in names if n not in CANDIDATES]
     if unknown:
         raise ValueError(f"unknown candidate cause(s) {unknown}; known: {list(CANDIDATES)}")
@@ -244,6 +246,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), error_std)
     noise_std = np.sqrt(np.diag(data_covariance(measurement, noise, error_std)))
     base = fitter.fit(space.to_unit(inv.x[None])[0])
+    ctx.base_values = dict(base.values)  # the reference of candidates that precompute (nonlinearity_onset)
     say("calibration", 4, 4)
     p_chi2 = float(stats.chi2.sf(base.chi2, base.dof))
     structure = residual_structure(fitter.whiten(base.readings), measurement, noise_std)
@@ -339,8 +342,6 @@ def _score_round(names, ctx, fitter, current, terms, space, n_applicable, alpha,
     for k, name in enumerate(names):
         cand = CANDIDATES[name]
         reason = cand.not_applicable(ctx)
-        if reason is None and terms and not cand.composable:
-            reason = "runs its own model, so it cannot be combined with the causes found before it"
         locations = [] if reason else [loc for loc in cand.locations(ctx) if (name, loc.key) not in found_keys]
         if reason is None and not locations:
             reason = "already in the model"

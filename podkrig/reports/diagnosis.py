@@ -58,11 +58,16 @@ def _mark_cause(ax, diagnosis, cause):
     d = cause.location.detail
     if cause.name == "weak_joint":
         ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weak joint (f = {cause.value:.3g})")
-    elif cause.name == "gauge_fault":
+    elif cause.name in ("gauge_fault", "gauge_slip"):
         geom = _channel_geometry(diagnosis.scenario).get(d["sensor"])
         if geom is not None:
             xy = 0.5 * (geom[1] + geom[2]) if geom[0] == "gauge" else geom[1]
-            ax.plot(*xy, "o", ms=16, mfc="none", mec="red", mew=2, zorder=6, label=f"faulty sensor {d['sensor']}")
+            what = "faulty" if cause.name == "gauge_fault" else "slipped"
+            ax.plot(*xy, "o", ms=16, mfc="none", mec="red", mew=2, zorder=6, label=f"{what} sensor {d['sensor']}")
+    elif cause.name == "nonlinearity_onset":
+        xy = np.array([[j["x"], j["y"]] for j in d["joints"]])
+        ax.plot(xy[:, 0], xy[:, 1], "x", color="red", ms=12, mew=3, zorder=6,
+                label=f"first cracking/sliding joints (from {d['load']:g} {d['unit']})")
     elif cause.name == "support_compliance":
         sup = diagnosis.scenario.mesh.nodes[np.asarray(diagnosis.scenario.supported_nodes, dtype=int)]
         ax.plot(sup[:, 0], sup[:, 1], "s", color="red", ms=5, zorder=6, label="compliant supports")
