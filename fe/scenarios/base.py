@@ -188,6 +188,11 @@ class Scenario(abc.ABC):
         (``"bed"``, ``"head"``, ``"brick"``) for the wall tests."""
         return np.flatnonzero(self.mesh.interfaces_of_kind(kind))
 
+    def derived(self):
+        """Values derived from the options that differ from what they asked for (e.g. a rigid
+        support's length snapped to element edges), ``dict``; none by default."""
+        return {}
+
     def load_perturbations(self):
         """Ways the applied load can depart from its intended position: a dict of name to
         :class:`fe.loads.LoadPerturbation`; empty by default."""
