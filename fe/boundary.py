@@ -9,14 +9,11 @@ length of a shoe is honoured exactly at any mesh, and loads and springs converge
 refinement instead of jumping with the node positions.
 """
 
-import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from .exceptions import MeshError
-
-logger = logging.getLogger(__name__)
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(3)
 
@@ -162,18 +159,6 @@ def contact_nodes(mesh, patches):
         inside = (np.minimum(sa, sb) >= a - tol) & (np.maximum(sa, sb) <= b + tol)
         nodes.append(edges[inside].ravel())
     return np.unique(np.concatenate(nodes)) if nodes else np.zeros(0, np.intp)
-
-
-def patch_nodal_weights(mesh, patch, thickness, profile=None):
-    """Consistent nodal weights ∫ N_i φ(s) t ds over the patch, ``(n_nodes,)`` (mm² for φ = 1).
-
-    ``profile``: a function of the coordinate s (mm) along the patch axis (default 1)."""
-    qd = patch_quadrature(mesh, patch)
-    phi = np.ones_like(qd.s) if profile is None else profile(qd.s)
-    nodal = np.einsum("eg,egi->ei", qd.w * phi * thickness, qd.N)
-    out = np.zeros(mesh.n_nodes)
-    np.add.at(out, qd.edges, nodal)
-    return out
 
 
 def patch_spring_matrices(mesh, patch, thickness):

@@ -50,7 +50,7 @@ def test_rigid_support_holds_only_the_edges_inside_its_length():
     touching = np.isin(mesh.quads, held).any(axis=1)
     lo = mesh.nodes[mesh.quads[touching]].min(axis=1)
     assert np.all(lo[:, 1] < 260.0 - 1e-6) and np.all(lo[:, 0] < 260.0 - 1e-6)
-    at = lambda x, y: np.flatnonzero(np.hypot(*(mesh.nodes - (x, y)).T) < 1e-6)  # noqa: E731
+    at = lambda x, y: np.flatnonzero(np.hypot(*(mesh.nodes - (x, y)).T) < 1e-6)
     for point in ((0.0, 260.0), (260.0, 0.0)):
         pair = at(*point)
         assert len(pair) >= 2 and np.isin(pair, held).sum() == 1  # one of the duplicates
@@ -80,16 +80,21 @@ def test_rigid_length_off_the_edges_is_snapped_and_reported(caplog):
     assert sp.support_length_used == {"bottom": 97.5, "left": 97.5} and not caplog.records
 
 
-@pytest.mark.parametrize("length", [130.0, 97.5, 111.1])
-def test_springs_cover_exactly_the_support_length(length):
+@pytest.mark.parametrize("length, element", [(130.0, "Q8"), (97.5, "Q8"), (111.1, "Q8"), (111.1, "Q4")])
+def test_springs_cover_exactly_the_support_length(length, element):
     """Σ of the unit spring matrices' x-block entries = ∫ (Σ N_i)(Σ N_j) t ds = length × thickness
     on each face (partition of unity), to round-off — partial edges included."""
-    sc = diagonal(nx=2, ny=1, support="springs", support_length=length)
+    sc = diagonal(nx=2, ny=1, support="springs", support_length=length, element=element)
     part = sc.model.parts[-1]
     assert part.name == "support_springs" and len(sc.supported_nodes) == 0
     x_entries = part.matrices[:, 0::2, 0::2].sum()
     assert_allclose(x_entries, 2 * length * THICKNESS, rtol=1e-12)
     assert_allclose(part.matrices[:, 0::2, 1::2], 0.0, atol=0.0)  # no x–y coupling
+    # where the springs act: u_x = x (zero on the left face) gives Σ f_x = t ∫₀ᴸ x dx = t L²/2
+    u = np.zeros(sc.mesh.n_dofs)
+    u[0::2] = sc.mesh.nodes[:, 0]
+    assert_allclose(np.einsum("eij,ej->", part.matrices[:, 0::2], u[part.dofs]), THICKNESS * length**2 / 2,
+                    rtol=1e-12)
 
 
 @pytest.mark.parametrize("support", ["rigid", "springs"])
@@ -118,10 +123,11 @@ def test_reactions_balance_the_applied_load(support):
     assert np.abs(residual).max() < 1e-8
 
 
-def test_shoe_off_the_element_edges_has_the_exact_resultant_and_centre():
-    """A 100 mm shoe on a mesh with 130 mm / 32.5 mm elements: resultant F/√2 per shoe and its
+@pytest.mark.parametrize("element", ["Q8", "Q4"])
+def test_shoe_off_the_element_edges_has_the_exact_resultant_and_centre(element):
+    """A 100 mm shoe on a mesh with 130 mm / 65 mm elements: resultant F/√2 per shoe and its
     centre 50 mm from the corner, exactly; the offset pattern's moment F/√2 per mm of offset."""
-    sc = diagonal(nx=2, ny=1, shoe_length=100.0)
+    sc = diagonal(nx=2, ny=1, shoe_length=100.0, element=element)
     x, y = sc.mesh.nodes.T
     f = sc.model.load_patterns[:, 0]
     fx, fy = f[0::2], f[1::2]
