@@ -99,7 +99,8 @@ def shoe_supports(mesh, patches, thickness, kind="rigid", anchors=None, owner="s
     for p, u in zip(patches, used):
         if u != p:
             logger.warning("%s: the rigid support on face %r ends off the element edges: its length %.6g mm is "
-                           "snapped to %.6g mm (use support = \"springs\" for the exact length, or choose nx, ny)",
+                           "snapped to %.6g mm (choose nx, ny so that an element edge ends there, or springs, where the "
+                           "scenario offers support = \"springs\", for the exact length)",
                            owner, p.face, p.length, u.length)
     return SupportModel(kind, used, {u.face: u.length for u in used}, contact_nodes(mesh, used), None)
 
