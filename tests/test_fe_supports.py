@@ -214,6 +214,8 @@ def test_absolute_displacements_converge_under_refinement(support, bound):
     assert monotone and np.all(corner > bound) and dic > bound, (corner, dic)
 
 
+@pytest.mark.slow
 def test_the_old_pinned_supports_fail_the_convergence_bound():
+    """The peer: the convergence test above rejects the pre-issue-18 supports (~6 s, so slow)."""
     corner, dic, _ = _rates([_pinned(n) for n in (1, 2, 4)])
     assert np.any(corner < 0.3) or dic < 0.3
