@@ -17,7 +17,7 @@ the bottom and on the left face (:mod:`fe.supports`):
   the face edges lying inside the length — only nodes of the units touching the face, never the
   duplicated node of the next course across a bed joint. A length off the element edges is
   snapped to the nearest edge end, with a warning, ``scenario.support_length_used`` (face → mm)
-  and ``derived`` in ``podkrig scenarios``.
+  and ``derived`` of :func:`~fe.scenarios.catalogue.describe_scenario` for the spec.
 - ``support = "springs"``: distributed springs of ``support_stiffness`` (N/mm³, default 1000, a
   stiff bedding; normal and tangential, like an interface to a rigid base) over exactly the
   length, partial edges included.
