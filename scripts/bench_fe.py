@@ -5,7 +5,8 @@ Prints a Markdown table: DOFs, then milliseconds for mesh generation and one-tim
 the numerical factorisation, the solve + readings, and the total ``Scenario.run``, for the default
 mesh and one refinement, with each available solver backend. BLAS/MKL are limited to one thread
 (threadpoolctl) so that the figures are per core. With ``--convergence`` it also prints D1, D2
-at 100 kN against mesh refinement with the Richardson-extrapolated limit.
+at 100 kN against mesh refinement with the Richardson-extrapolated limit
+(``scripts/bench_support_convergence.py`` does the same for absolute displacements per support model).
 
 For scale (issue 2): OpenSeesPy needs about 30 ms per parameter vector for a 4-node-quad mesh of
 the same panel with 2.5k equations (≈ 2.5 % from convergence) and about 550 ms for a mesh

@@ -130,9 +130,11 @@ def test_every_candidate_is_off_at_its_neutral_value(wall, shear_wall):
             for loc in cand.locations(ctx)[:3]:
                 par = cand.parameter(ctx, loc)
                 # exact at the neutral value; support compliance 1e-5 mm³/N (the bottom of its fit
-                # range, 10⁴ × stiffer than a joint) is rigid to 1e-4 of the largest reading
+                # range, 10⁴ × stiffer than a joint) is rigid to first order in 1/k: 2.4e-4 of the
+                # largest reading with springs over the whole rigid contact (issue 18; 2.3e-5 at 1e-6)
+                tol = 5e-4 if cand.name == "support_compliance" else 1e-4
                 assert_allclose(cand.readings(ctx, values, loc, par.off), base, rtol=0,
-                                atol=1e-4 * np.abs(base).max(), err_msg=f"{cand.name} at {loc.key}")
+                                atol=tol * np.abs(base).max(), err_msg=f"{cand.name} at {loc.key}")
 
 
 def test_flat_jack_context_scales_the_loads_with_km_and_sigma0():

@@ -6,6 +6,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fe.constraints import constraint_transform
+from fe.boundary import Patch, contact_nodes
 from fe.loads import edge_traction
 from fe.mesh import BrickWallLayout, brick_wall
 from fe.model import LinearModel
@@ -78,9 +79,7 @@ def test_point_symmetry_of_the_panel():
     as_set = lambda a: set(map(tuple, np.round(a, 6)))  # noqa: E731
     assert as_set(rotated) == as_set(mesh.nodes)
     # the rotated set-up: supports near (W, W), shoes on the bottom and left faces near (0, 0)
-    x, y = mesh.nodes.T
-    tol = 1e-6
-    sup = np.flatnonzero(((abs(y - W) < tol) & (x >= W - 130 - tol)) | ((abs(x - W) < tol) & (y >= W - 130 - tol)))
+    sup = contact_nodes(mesh, (Patch("top", 0, (W - 130.0, W)), Patch("right", 1, (W - 130.0, W))))
     pr = (1 / np.sqrt(2)) / (130 * 120.0)
     f = edge_traction(mesh, mesh.edge_sets["bottom"], (0.0, pr), 120.0, (0.0, 130.0), axis=0)
     f += edge_traction(mesh, mesh.edge_sets["left"], (pr, 0.0), 120.0, (0.0, 130.0), axis=1)

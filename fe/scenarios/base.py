@@ -65,7 +65,8 @@ class Scenario(abc.ABC):
     ``PARAMETERS`` (tuple of :class:`ParameterInfo`), ``load_unit`` and ``_build()`` which sets
     ``self.mesh``, ``self.sensors``, ``self.model`` (a :class:`fe.model.LinearModel`) and
     ``self.load_coefficients`` ``(n_loads, n_patterns)``, ``self.supported_nodes`` (nodes held
-    fixed in x and y) and ``self.tie_groups`` (dof groups moving together), plus ``theta(values)``.
+    fixed in x and y; a scenario with shoe supports also sets ``support_model``, a
+    :class:`fe.supports.SupportModel`, whose springs hold no node) and ``self.tie_groups`` (dof groups moving together), plus ``theta(values)``.
     A scenario whose load can be off its intended position says how in
     ``load_perturbations()`` (:class:`fe.loads.LoadPerturbation`).
 
@@ -187,6 +188,11 @@ class Scenario(abc.ABC):
         ``f"{kind}_normal"`` and ``f"{kind}_shear"``, in part order: every interface of that kind
         (``"bed"``, ``"head"``, ``"brick"``) for the wall tests."""
         return np.flatnonzero(self.mesh.interfaces_of_kind(kind))
+
+    def derived(self):
+        """Values derived from the options that differ from what they asked for (e.g. a rigid
+        support's length snapped to element edges), ``dict``; none by default."""
+        return {}
 
     def load_perturbations(self):
         """Ways the applied load can depart from its intended position: a dict of name to

@@ -87,6 +87,9 @@ class ScenarioDescription:
         Default sensor name → definition dict (mm).
     n_dofs : int
         Degrees of freedom of the default mesh.
+    derived : dict
+        Values the scenario derived from its options that differ from what was asked, e.g.
+        ``support_length_used`` (face → mm) when a rigid support is snapped to element edges.
     """
 
     name: str
@@ -97,6 +100,7 @@ class ScenarioDescription:
     options: dict
     sensors: dict
     n_dofs: int
+    derived: dict = dataclasses.field(default_factory=dict)
 
     def to_dict(self):
         return {
@@ -105,7 +109,7 @@ class ScenarioDescription:
             "parameters": [{**dataclasses.asdict(p), "typical": list(TYPICAL_RANGES[p.name])
                             if p.name in TYPICAL_RANGES else None} for p in self.parameters],
             "options": {k: list(v) if isinstance(v, tuple) else v for k, v in self.options.items()},
-            "sensors": self.sensors, "n_dofs": self.n_dofs,
+            "sensors": self.sensors, "n_dofs": self.n_dofs, "derived": self.derived,
             "sensor_kinds": {k: {"reads": r, "toml": f} for k, (r, f) in SENSOR_KINDS.items()},
         }
 
@@ -114,7 +118,7 @@ class ScenarioDescription:
         return cls(d["name"], d["summary"], d["load_unit"], tuple(d["load_levels"]),
                    tuple(ParameterInfo(**{k: v for k, v in p.items() if k != "typical"}) for p in d["parameters"]),
                    {k: tuple(v) if isinstance(v, list) else v for k, v in d["options"].items()},
-                   dict(d["sensors"]), int(d["n_dofs"]))
+                   dict(d["sensors"]), int(d["n_dofs"]), dict(d.get("derived", {})))
 
 
 def describe_scenario(spec):
@@ -135,7 +139,7 @@ def describe_scenario(spec):
         name=scenario.name, summary=summary, load_unit=scenario.load_unit,
         load_levels=tuple(float(v) for v in scenario.load_levels),
         parameters=tuple(scenario.parameters.values()), options=options,
-        sensors=scenario.sensor_definitions(), n_dofs=int(scenario.n_dofs),
+        sensors=scenario.sensor_definitions(), n_dofs=int(scenario.n_dofs), derived=scenario.derived(),
     )
 
 

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..constraints import constraint_transform
-from ..exceptions import SpecError
 from ..sensors import sensor_from_dict
 from . import diagonal_compression as dc
 from . import shear_compression as sc
@@ -124,19 +123,15 @@ class DiagonalCompressionNonlinear(NonlinearScenario):
         o = self.options
         self.mesh = mesh = wall_mesh(o)
         W, H = mesh.width, mesh.height
-        for name in ("shoe_length", "support_length"):
-            if not 0 < getattr(o, name) <= min(W, H):
-                raise SpecError(f"{self.name}: {name} must be in (0, {min(W, H):g}] mm; got {getattr(o, name)}")
-        x, y = mesh.nodes[:, 0], mesh.nodes[:, 1]
-        tol = 1e-9 * W
-        supported = np.flatnonzero(((np.abs(y) < tol) & (x <= o.support_length + tol))
-                                   | ((np.abs(x) < tol) & (y <= o.support_length + tol)))
-        fixed = np.concatenate([2 * supported, 2 * supported + 1])
-        self.supported_nodes, self.tie_groups = supported, []
+        support = dc.corner_supports(self, "rigid")
+        fixed = support.fixed_dofs
+        self.supported_nodes, self.tie_groups = support.fixed_nodes, []
         T = constraint_transform(mesh.n_dofs, fixed)
         self.sensors = dc.DEFAULT_SENSORS if o.sensors is None else tuple(
             sensor_from_dict(k, v) for k, v in o.sensors.items())
         self.model = self._nonlinear_model(T)
+        x, y = mesh.nodes[:, 0], mesh.nodes[:, 1]
+        tol = 1e-9 * W
         top_shoe = np.flatnonzero((np.abs(y - H) < tol) & (x >= W - o.shoe_length - tol))
         right_shoe = np.flatnonzero((np.abs(x - W) < tol) & (y >= H - o.shoe_length - tol))
         c_full = np.zeros(mesh.n_dofs)

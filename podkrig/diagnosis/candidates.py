@@ -417,6 +417,8 @@ class SupportCompliance(Candidate):
 
     def not_applicable(self, ctx):
         sc = ctx.scenario
+        if getattr(sc.options, "support", None) == "springs":
+            return "the scenario's supports are springs already (support = 'springs'): their stiffness is an option"
         nodes = getattr(sc, "supported_nodes", ())
         if len(nodes) == 0:
             return "the scenario has no supports"
