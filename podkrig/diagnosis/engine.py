@@ -36,11 +36,13 @@ import time
 import numpy as np
 from scipy import linalg, optimize, stats
 
+from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, FEContext
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE, Alternative, CandidateScore, Diagnosis, Fit
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
 from podkrig.online.problem import InverseProblem, SurrogateModel
+from podkrig.online.rigid_body import project_out, rigid_body_modes
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.podkriging import PODKriging
 
@@ -70,9 +72,15 @@ def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
 
 
 class _Fitter:
-    """Least-squares fits of base and extended FE models to a subset of the observed entries."""
+    """Least-squares fits of base and extended FE models to a subset of the observed entries.
 
-    def __init__(self, ctx, space, measurement, noise, rows, model_tolerance=0.0):
+    ``rigid_body`` (:class:`~podkrig.online.rigid_body.RigidBodyModes` of all observed entries, or
+    None): rigid-body motions removed from data and model alike — the whitened residual with the
+    whitened rigid modes projected out, ``(I − Q Qᵀ) L⁻¹ (g − d)``, whose χ² has
+    ``n_removed`` fewer degrees of freedom.
+    """
+
+    def __init__(self, ctx, space, measurement, noise, rows, model_tolerance=0.0, rigid_body=None):
         self.ctx, self.space = ctx, space
         sc = ctx.scenario
         idx = measurement.output_indices(sc.sensor_names, sc.load_levels)
@@ -81,10 +89,18 @@ class _Fitter:
         self.idx = idx[self.rows]
         self.d = measurement.data[self.rows]
         self.L = np.linalg.cholesky(C[np.ix_(self.rows, self.rows)])
+        self.rigid = None if rigid_body is None else rigid_body.subset(self.rows)
+        self.n_removed = 0 if self.rigid is None else self.rigid.n_removed
+        self._Q = self.rigid.whitened_basis(self.L) if self.n_removed else None
 
     def whiten(self, R):
-        """``L⁻¹ (g − d)`` of full readings ``R`` at the fitted entries."""
-        return linalg.solve_triangular(self.L, R.ravel()[self.idx] - self.d, lower=True)
+        """``L⁻¹ (g − d)`` of full readings ``R`` at the fitted entries (rigid motion projected out)."""
+        return project_out(self._Q, linalg.solve_triangular(self.L, R.ravel()[self.idx] - self.d, lower=True))
+
+    def observed(self, R):
+        """Full readings ``R`` at the fitted entries, rigid motion removed, mm."""
+        v = R.ravel()[self.idx]
+        return v if self.rigid is None else self.rigid.remove(v)
 
     def values(self, u):
         return {**self.ctx.values, **self.space.as_params(self.space.from_unit(np.clip(u, 0, 1)[None])[0])}
@@ -113,7 +129,7 @@ class _Fitter:
             values=values, free={n: values[n] for n in self.space.names},
             effect=None if candidate is None else par.from_fit(float(z[p])),
             chi2=float(sol.fun @ sol.fun), n_obs=len(self.rows), n_params=len(z),
-            readings=readings(z), jacobian=sol.jac,
+            readings=readings(z), jacobian=sol.jac, n_removed=self.n_removed,
         )
 
 
@@ -127,7 +143,8 @@ def data_covariance(measurement, noise, model_tolerance=0.0):
 
 
 def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None, candidates=None, alpha=0.01,
-             model_tolerance=0.01, rng=0, n_train=64, refit_locations=3, progress=None):
+             model_tolerance=0.01, rng=0, n_train=64, refit_locations=3, progress=None, rigid_body="auto",
+             rigid_groups=None):
     """Diagnose a calibrated FE model against measured data.
 
     Parameters
@@ -161,6 +178,12 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         Locations per candidate refitted with the FE model after screening.
     progress : callable, optional
         ``progress(stage, done, total)``.
+    rigid_body : {"auto", "remove", "keep"}
+        Rigid-body motions removed from data and model (:mod:`podkrig.online.rigid_body`): "auto"
+        of each DIC grid (and of ``rigid_groups``), "remove" also of the other point displacement
+        sensors together, "keep" none. χ² dof lose 3 per group and load level.
+    rigid_groups : dict of str to sequence of str, optional
+        Group name → point displacement sensors whose rigid motion is fitted together.
 
     Returns
     -------
@@ -181,7 +204,8 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)))
     if not 0 <= model_tolerance < 0.5:
         raise ValueError(f"model_tolerance must be in [0, 0.5) (a relative tolerance); got {model_tolerance}")
-    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), model_tolerance)
+    rigid = rigid_body_modes(measurement, absolute_displacements(scenario.sensors), rigid_body, rigid_groups)
+    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), model_tolerance, rigid)
     noise_std = np.sqrt(np.diag(data_covariance(measurement, noise, model_tolerance)))
 
     # 1. base calibration: surrogate first, FE last
@@ -190,7 +214,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         surrogate = build_base_surrogate(scenario, space, values0, n_train=n_train, seed=rng)
         ctx.n_runs += n_train
     say("calibration", 1, 3)
-    problem = InverseProblem(SurrogateModel(surrogate), measurement, noise)
+    problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
     inv = invert(problem, rng=rng)
     say("calibration", 2, 3)
     base = fitter.fit(space.to_unit(inv.x[None])[0])
@@ -238,7 +262,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     held_out = None
     if extended is not None and len(measurement.load_levels) >= 3:
         say("held-out check", 0, 1)
-        held_out = _held_out(ctx, space, measurement, noise, base, best, model_tolerance)
+        held_out = _held_out(ctx, space, measurement, noise, base, best, model_tolerance, rigid)
     seconds = time.perf_counter() - t_start
     logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, cause, seconds, ctx.n_runs)
     return Diagnosis(
@@ -312,7 +336,7 @@ def _score_candidate(cand, ctx, fitter, screen, base, u_base, n_applicable, alph
     score.p_corrected = float(np.exp(log_p_corrected))
     score.log10_p_corrected = log_p_corrected / np.log(10.0)
     off = cand.readings(ctx, fit.values, loc, par.off)
-    score.effect_size = float(np.max(np.abs((fit.readings - off).ravel()[fitter.idx]) / noise_std))
+    score.effect_size = float(np.max(np.abs(fitter.observed(fit.readings - off)) / noise_std))
     return score
 
 
@@ -334,7 +358,7 @@ def _refit(fitter, cand, loc, par, u_base, base):
     return best
 
 
-def _held_out(ctx, space, measurement, noise, base, best, model_tolerance):
+def _held_out(ctx, space, measurement, noise, base, best, model_tolerance, rigid_body=None):
     """Fit base and extended models without the highest load level; error there (whitened RMS and mm)."""
     sc = ctx.scenario
     n_s = len(measurement.sensor_names)
@@ -342,8 +366,8 @@ def _held_out(ctx, space, measurement, noise, base, best, model_tolerance):
     rows_all = np.arange(measurement.n_obs).reshape(-1, n_s)
     train = np.delete(rows_all, top, axis=0).ravel()
     test = rows_all[top]
-    fit_train = _Fitter(ctx, space, measurement, noise, train, model_tolerance)
-    test_fitter = _Fitter(ctx, space, measurement, noise, test, model_tolerance)
+    fit_train = _Fitter(ctx, space, measurement, noise, train, model_tolerance, rigid_body)
+    test_fitter = _Fitter(ctx, space, measurement, noise, test, model_tolerance, rigid_body)
     u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
     b = fit_train.fit(u_base)
     t0 = best.parameter.to_fit(best.fit.effect)

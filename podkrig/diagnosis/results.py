@@ -47,6 +47,9 @@ class Fit:
         FE readings at the optimum (every sensor and load level of the scenario), mm.
     jacobian : ndarray of shape (n_obs, n_params)
         Whitened Jacobian w.r.t. the fit coordinates (unit cube) at the optimum.
+    n_removed : int
+        Degrees of freedom taken by the rigid-body motions removed from the fitted entries
+        (:mod:`podkrig.online.rigid_body`: 3 per DIC grid and load level); ``dof = n_obs − n_removed − n_params``.
     """
 
     values: dict
@@ -57,10 +60,11 @@ class Fit:
     n_params: int
     readings: np.ndarray
     jacobian: np.ndarray
+    n_removed: int = 0
 
     @property
     def dof(self):
-        return max(self.n_obs - self.n_params, 1)
+        return max(self.n_obs - self.n_removed - self.n_params, 1)
 
     @property
     def chi2_dof(self):
@@ -73,8 +77,8 @@ class Fit:
 
     @property
     def bic(self):
-        """χ² + k ln n (Schwarz)."""
-        return self.chi2 + self.n_params * np.log(self.n_obs)
+        """χ² + k ln n (Schwarz; n the entries left after removing rigid-body motions)."""
+        return self.chi2 + self.n_params * np.log(self.n_obs - self.n_removed)
 
     def to_dict(self):
         """Every field, arrays as nested lists (JSON-able; :meth:`from_dict` reads it back)."""
@@ -82,13 +86,13 @@ class Fit:
                 "free": {k: float(v) for k, v in self.free.items()},
                 "effect": None if self.effect is None else float(self.effect), "chi2": float(self.chi2),
                 "n_obs": int(self.n_obs), "n_params": int(self.n_params), "readings": self.readings.tolist(),
-                "jacobian": self.jacobian.tolist()}
+                "jacobian": self.jacobian.tolist(), "n_removed": int(self.n_removed)}
 
     @classmethod
     def from_dict(cls, d):
         return cls(dict(d["values"]), dict(d["free"]), d["effect"], float(d["chi2"]), int(d["n_obs"]),
                    int(d["n_params"]), np.asarray(d["readings"], dtype=float),
-                   np.asarray(d["jacobian"], dtype=float).reshape(int(d["n_obs"]), -1))
+                   np.asarray(d["jacobian"], dtype=float).reshape(int(d["n_obs"]), -1), int(d.get("n_removed", 0)))
 
     def summary(self):
         return {
