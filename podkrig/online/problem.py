@@ -337,10 +337,11 @@ def _model_sensors(model, option):
     return sensors
 
 
-def check_dof(n_obs, free, source="measurement"):
-    """Refuse a calibration without degrees of freedom: ``n_obs − n_free ≤ 0`` fits the data exactly
-    whatever the model (χ²/dof is then undefined, issue 14). A prior-regularised problem built in
-    code may have fewer; the study pipeline and the command line call this.
+def check_dof(n_obs, free, source="measurement", removed=0):
+    """Refuse a calibration without degrees of freedom: ``n_obs − n_removed − n_free ≤ 0`` fits
+    the data exactly whatever the model (χ²/dof is then undefined, issue 14; ``removed``: the dof
+    taken by removed rigid-body motions, :mod:`podkrig.online.rigid_body`). A prior-regularised
+    problem built in code may have fewer; the study pipeline and the command line call this.
 
     Raises
     ------
@@ -348,12 +349,13 @@ def check_dof(n_obs, free, source="measurement"):
         With both counts and what to do.
     """
     free = tuple(free)
-    dof = int(n_obs) - len(free)
+    dof = int(n_obs) - int(removed) - len(free)
     if dof <= 0:
+        rigid = f" − {removed} (rigid-body motions removed)" if removed else ""
         raise ValueError(
             f"{source}: {n_obs} reading(s) cannot identify {len(free)} free parameter(s) ({', '.join(free)}): "
-            f"degrees of freedom n_obs − n_free = {n_obs} − {len(free)} = {dof} ≤ 0. Add readings (more sensors "
-            "or load levels) or fix parameters")
+            f"degrees of freedom n_obs{' − n_removed' if removed else ''} − n_free = {n_obs}{rigid} − {len(free)} = "
+            f"{dof} ≤ 0. Add readings (more sensors or load levels) or fix parameters")
     return dof
 
 
