@@ -272,7 +272,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs, extended_p_value=extended_p,
         surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)},
                        "basis": inv.chi2_basis + " (the diagnosis's own starting surrogate)"},
-        model_tolerance=float(model_tolerance),
+        model_tolerance=float(model_tolerance), rigid_body=rigid_body, rigid_groups=rigid_groups,
     )
 
 

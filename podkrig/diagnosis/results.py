@@ -8,9 +8,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fe.scenarios import build_scenario
+from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import EffectParameter, Location
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.online.measurement import Measurement
+from podkrig.online.rigid_body import rigid_body_modes
 
 #: the omnibus χ² test runs at this share of α: it guards against gross misfit, while the targeted
 #: candidate tests carry the detection (with hundreds of readings, χ² alone flags the last per
@@ -196,6 +198,8 @@ class Diagnosis:
     surrogate_fit: dict
     extended_p_value: float | None = None
     model_tolerance: float = 0.0
+    rigid_body: str = "keep"
+    rigid_groups: dict | None = None
 
     @property
     def fully_explained(self):
@@ -206,10 +210,16 @@ class Diagnosis:
         return self.extended_p_value >= self.alpha * CHI2_ALPHA_SHARE
 
     def residuals(self, fit):
-        """Standardised residuals ``(d − g)/σ`` of a fit, ``(n_loads_obs, n_sensors_obs)``."""
+        """Standardised residuals ``(d − g)/σ`` of a fit, ``(n_loads_obs, n_sensors_obs)``; with
+        rigid-body removal (:attr:`rigid_body`) ``P (d − g)/σ``, the rigid motion of each DIC grid
+        (and point group) and load level fitted and removed (:mod:`podkrig.online.rigid_body`)."""
         idx = self.measurement.output_indices(self.scenario.sensor_names, self.scenario.load_levels)
-        r = (self.measurement.data - fit.readings.ravel()[idx]) / self.noise_std
-        return r.reshape(self.measurement.values.shape)
+        r = self.measurement.data - fit.readings.ravel()[idx]
+        modes = rigid_body_modes(self.measurement, absolute_displacements(self.scenario.sensors), self.rigid_body,
+                                 self.rigid_groups)
+        if modes is not None:
+            r = modes.remove(r)
+        return (r / self.noise_std).reshape(self.measurement.values.shape)
 
     def detail(self):
         if self.best is None or self.cause is None:
@@ -258,6 +268,8 @@ class Diagnosis:
                                   "delta_chi2": float(a.delta_chi2)} for a in self.alternatives],
                 "structure": self.structure, "held_out": self.held_out, "surrogate_fit": self.surrogate_fit,
                 "model_tolerance": float(self.model_tolerance),
+                "rigid_body": self.rigid_body,
+                "rigid_groups": None if self.rigid_groups is None else {k: list(v) for k, v in self.rigid_groups.items()},
             }
         return d
 
@@ -286,7 +298,8 @@ class Diagnosis:
             alternatives=[Alternative(a["name"], Location(**a["location"]), a["delta_chi2"]) for a in s["alternatives"]],
             candidates=candidates, structure=s["structure"], held_out=s["held_out"], seconds=d["seconds"],
             n_fe_runs=d["n_fe_runs"], surrogate_fit=s["surrogate_fit"], extended_p_value=s["extended_p_value"],
-            model_tolerance=float(s.get("model_tolerance", 0.0)),
+            model_tolerance=float(s.get("model_tolerance", 0.0)), rigid_body=s.get("rigid_body", "keep"),
+            rigid_groups=s.get("rigid_groups"),
         )
 
     def _report_dict(self):
@@ -306,6 +319,7 @@ class Diagnosis:
                 "p_value": float(self.chi2_p_value), "alpha": self.alpha * CHI2_ALPHA_SHARE,
                 "model_tolerance": float(self.model_tolerance),
                 "basis": chi2_basis("diagnosis", self.model_tolerance),
+                "rigid_body": self.rigid_body, "dof_removed": int(self.base.n_removed),
             },
             "residual_convention": RESIDUAL_CONVENTION,
             "residual_structure": self.structure,
