@@ -107,7 +107,8 @@ def test_chi2_is_the_pseudo_inverse_of_the_projected_covariance():
     r = rng.normal(size=meas.n_obs)
     sd = rng.uniform(0.5, 2.0, size=meas.n_obs)
     P = modes.projector()
-    for C in (np.diag(sd**2), (lambda A: A @ A.T + np.eye(meas.n_obs))(rng.normal(size=(meas.n_obs,) * 2) * 0.2)):
+    A = rng.normal(size=(meas.n_obs,) * 2) * 0.2
+    for C in (np.diag(sd**2), A @ A.T + np.eye(meas.n_obs)):
         reference = (P @ r) @ np.linalg.pinv(modes.covariance(C), rcond=1e-10, hermitian=True) @ (P @ r)
         L = np.linalg.cholesky(C)
         w = project_out(modes.whitened_basis(L), np.linalg.solve(L, r))

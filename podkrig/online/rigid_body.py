@@ -134,6 +134,13 @@ class RigidBodyModes:
         object.__setattr__(self, "rank", rank)
         object.__setattr__(self, "_indicator", indicator)
         object.__setattr__(self, "_pad", np.arange(3)[None, :] >= rank[:, None])  # (n_blocks, 3) absent columns
+        # reading i → its block's 9 entries of U_i U_iᵀ and 3 of U_i (whiten_diagonal)
+        idx = np.flatnonzero(touched)
+        for name, width, values in (("_outer", 9, (basis[idx, :, None] * basis[idx, None, :]).reshape(-1, 9)),
+                                    ("_rows", 3, basis[idx])):
+            cols = block[idx, None] * width + np.arange(width)[None, :]
+            object.__setattr__(self, name, sp.csr_matrix(
+                (values.ravel(), (np.repeat(idx, width), cols.ravel())), shape=(len(block), n_blocks * width)))
 
     @property
     def n_obs(self):
@@ -215,13 +222,13 @@ class RigidBodyModes:
             ``(P r)ᵀ (P C Pᵀ)⁺ (P r)`` (module docstring).
         """
         u = np.atleast_2d(u)
-        sd = np.broadcast_to(sd, u.shape) if np.ndim(sd) == 2 else np.asarray(sd)[None]
-        V = self.basis[None] / sd[..., None]  # (n|1, n_obs, 3) whitened modes
-        VV = np.moveaxis(V[..., :, None] * V[..., None, :], 1, 0)  # (n_obs, n|1, 3, 3)
-        A = np.moveaxis(self._sum_blocks(VV), 0, 1) + np.eye(3) * self._pad[None, :, None, :]
-        c = np.moveaxis(self._sum_blocks(np.moveaxis(V * u[..., None], 1, 0)), 0, 1)  # (n, n_blocks, 3)
-        beta = np.linalg.solve(A, c[..., None])[..., 0]
-        return u - np.sum(V * beta[:, np.maximum(self.block, 0)], axis=-1)
+        inv_sd = 1.0 / np.atleast_2d(sd)  # (n|1, n_obs)
+        nb = self.n_blocks
+        # per block Σ_i U_i U_iᵀ / σ_i² and Σ_i U_i u_i / σ_i, as sparse products (9 and 3 entries per reading)
+        A = (self._outer.T @ (inv_sd**2).T).T.reshape(-1, nb, 3, 3) + np.eye(3) * self._pad[None, :, None, :]
+        c = (self._rows.T @ (u * inv_sd).T).T.reshape(-1, nb, 3)
+        beta = np.linalg.solve(A, c[..., None])[..., 0]  # (n, n_blocks, 3)
+        return u - inv_sd * np.einsum("ij,sij->si", self.basis, beta[:, np.maximum(self.block, 0)])
 
     def whitened_basis(self, L):
         """Orthonormal basis ``Q`` of ``L⁻¹ R`` for a full covariance ``C = L Lᵀ`` (``L`` lower
