@@ -4,7 +4,10 @@ and benchmarking the diagnosis (the code under test never sees the cause, locati
 Noise is the realistic level of the diagnosis issue: σ = 1 % of the largest reading, at least
 1 µm, independent on every reading. The *identifiable* size of an effect is the largest
 |residual| / σ left when the base model (free parameters only) is fitted to the noise-free data
-with the effect: what the base parameters can absorb is not evidence of anything.
+with the effect, σ from the covariance the diagnosis uses (noise plus its model-form error):
+what the base parameters can absorb is not evidence of anything. With two hidden effects
+(:func:`make_two_cause_trial`), each one's identifiable size is what is left of it after
+refitting the base parameters *and the other effect*.
 """
 
 from dataclasses import dataclass
@@ -13,7 +16,8 @@ import numpy as np
 
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.diagnosis.candidates import CANDIDATES, FEContext
-from podkrig.diagnosis.engine import _Fitter
+from podkrig.diagnosis.engine import Term, _Fitter
+from podkrig.diagnosis.model_error import discretisation_error, tolerance_error
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,7 +40,8 @@ class Trial:
     raw_effect : float
         Largest change of a reading caused by the effect, in σ.
     identifiable_effect : float
-        Largest |residual| / σ of the base model refitted to the noise-free data.
+        Largest |residual| / σ of the base model refitted to the noise-free data (σ from the noise
+        and the model-form error the diagnosis uses).
     """
 
     cause: str | None
@@ -74,11 +79,20 @@ def draw_strength(cause, location, parameter, rng):
     return float(sign * rng.uniform(0.1, 1.0) * p.upper)
 
 
-def make_trial(scenario, space, truth, cause=None, location=None, value=None, *, rng):
+def model_error(scenario, values, measurement, model_tolerance=None):
+    """The model-form error the diagnosis will use on ``measurement`` (estimated when
+    ``model_tolerance`` is None, as :func:`podkrig.diagnosis.diagnose` does)."""
+    if model_tolerance is None:
+        return discretisation_error(scenario, values, measurement).std
+    return tolerance_error(measurement, model_tolerance).std
+
+
+def make_trial(scenario, space, truth, cause=None, location=None, value=None, *, rng, model_tolerance=None):
     """Pseudo-data from ``truth`` with an optional effect, plus noise; see :class:`Trial`.
 
     ``location`` is a :class:`Location` of ``cause`` (drawn at random when None) and ``value`` its
-    parameter (drawn by :func:`draw_strength` when None).
+    parameter (drawn by :func:`draw_strength` when None). ``model_tolerance`` as the diagnosis
+    will be given it (None: estimated), for the identifiable size.
     """
     values = scenario.resolve(truth)
     ctx = FEContext(scenario, space.names, values)
@@ -98,10 +112,60 @@ def make_trial(scenario, space, truth, cause=None, location=None, value=None, *,
     sigma = noise_sigma(effect)
     noise = NoiseModel(sigma=sigma)
     exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
-    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs))
+    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
+                     model_error(scenario, values, exact, model_tolerance) if cause else None)
     u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
     identifiable = float(np.max(np.abs(fitter.whiten(fitter.fit(u).readings)))) if cause else 0.0
     data = effect + sigma * rng.standard_normal(effect.shape)
     measurement = Measurement(data, scenario.sensor_names, scenario.load_levels, f"pseudo-data ({cause or 'no effect'})")
     raw = float(np.max(np.abs(effect - clean)) / sigma)
     return Trial(cause, location, value, dict(truth), measurement, noise, sigma, raw, identifiable)
+
+
+@dataclass(frozen=True, eq=False)
+class TwoCauseTrial:
+    """A pseudo-experiment with two hidden effects: ``causes`` are ``(name, location, value)``, and
+    ``identifiable`` the size (σ) left of each after refitting the base parameters and the other."""
+
+    causes: tuple
+    truth: dict
+    measurement: Measurement
+    noise: NoiseModel
+    sigma: float
+    identifiable: tuple
+
+
+def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, model_tolerance=None):
+    """Pseudo-data from ``truth`` with two effects ``causes`` = ``(name, location or None, value or
+    None)`` each (drawn as in :func:`make_trial` when None), plus noise σ (default
+    :func:`noise_sigma`)."""
+    values = scenario.resolve(truth)
+    ctx = FEContext(scenario, space.names, values)
+    clean = ctx.readings(values)
+    ctx.offset_scale = float(np.max(np.abs(clean)))
+    drawn = []
+    for name, location, value in causes:
+        cand = CANDIDATES[name]
+        if location is None:
+            locations = cand.locations(ctx)
+            location = locations[int(rng.integers(len(locations)))]
+        par = cand.parameter(ctx, location)
+        if value is None:
+            value = draw_strength(name, location, par, rng)
+        drawn.append((cand, location, par, float(value)))
+    effect = ctx.readings_with(values, [(c, loc, v) for c, loc, _, v in drawn])
+    sigma = noise_sigma(effect) if sigma is None else float(sigma)
+    noise = NoiseModel(sigma=sigma)
+    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
+    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs), model_error(scenario, values, exact, model_tolerance))
+    u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+    identifiable = []
+    for k in range(2):  # refit the base parameters and the other effect, from the truth
+        cand, loc, par, v = drawn[1 - k]
+        fit = fitter.fit(u, [Term(cand, loc, par, 0.0)], [par.to_fit(v)])
+        identifiable.append(float(np.max(np.abs(fitter.whiten(fit.readings)))))
+    data = effect + sigma * rng.standard_normal(effect.shape)
+    names = " + ".join(c.name for c, *_ in drawn)
+    measurement = Measurement(data, scenario.sensor_names, scenario.load_levels, f"pseudo-data ({names})")
+    return TwoCauseTrial(tuple((c.name, loc, v) for c, loc, _, v in drawn), dict(truth), measurement, noise, sigma,
+                         tuple(identifiable))

@@ -243,6 +243,7 @@ def test_cli_diagnose_json_and_report(tmp_path, wall):
     result = CliRunner().invoke(app, [
         "diagnose", "--scenario", "diagonal_compression", "--spec", str(spec_file), "--data", str(data),
         "--noise-abs", repr(trial.sigma), "--param", "kN_bj=10:1000:log", "--param", "kV_bj=4:400:log",
+        "--model-tolerance", "0",  # the data come from this very mesh: no model-form error (the user's override)
         "--report", str(tmp_path / "report"), "--format", "json"])
     assert result.exit_code == 0, result.output
     out = json.loads(result.stdout)
@@ -250,6 +251,7 @@ def test_cli_diagnose_json_and_report(tmp_path, wall):
         assert key in out
     assert out["verdict"] == "inadequate" and out["cause"] == "gauge_fault"
     assert out["detail"]["sensor"] == trial.location.detail["sensor"]
+    assert out["adequacy"]["model_error"]["method"] == "tolerance" and out["adequacy"]["model_error"]["tolerance"] == 0
     page = (tmp_path / "report" / "index.html").read_text()
     checker = _Checker()
     checker.feed(page)

@@ -242,7 +242,7 @@ def test_diagnosis_fit_is_blind_to_a_rigid_rotation_with_removal(dic_wall):
     for name, meas, option in (("plain", plain, "auto"), ("rotated", rotated, "auto"), ("kept", rotated, "keep")):
         ctx = FEContext(sc, space.names, values, offset_scale=np.max(np.abs(meas.values)))
         modes = rigid_body_modes(meas, absolute_displacements(sc.sensors), option)
-        fitter = _Fitter(ctx, space, meas, noise, np.arange(meas.n_obs), 0.0, modes)
+        fitter = _Fitter(ctx, space, meas, noise, np.arange(meas.n_obs), None, modes)
         fits[name] = fitter.fit(np.full(2, 0.5))
     assert_allclose(fits["rotated"].chi2, fits["plain"].chi2, rtol=1e-6)
     assert_allclose([fits["rotated"].free[n] for n in space.names], [fits["plain"].free[n] for n in space.names],

@@ -33,8 +33,10 @@ def register(app):
         noise_cov: Path = _NOISE_COV,
         candidates: str = typer.Option(None, "--candidates", help="Comma-separated candidate causes (default: all)."),
         alpha: float = typer.Option(0.01, "--alpha", help="Significance level of the tests (multiplicity-corrected)."),
-        model_tolerance: float = typer.Option(0.01, "--model-tolerance",
-                                              help="Relative model-form tolerance added to the noise (0.01 = 1 % of each reading)."),
+        model_tolerance: float = typer.Option(
+            None, "--model-tolerance", help="A fixed relative model-form tolerance added to the noise (0.01 = 1 % of "
+            "each reading), instead of the default: each reading's discretisation error estimated from a mesh refined twice."),
+        max_causes: int = typer.Option(3, "--max-causes", min=1, help="Most causes named in turn (forward selection)."),
         rigid_body: RigidBody = typer.Option(RigidBody.auto, "--rigid-body", help=RIGID_BODY_HELP),
         rigid_group: list[str] = typer.Option([], "--rigid-group", help=RIGID_GROUP_HELP),
         seed: int = typer.Option(0, "--seed", help="Seed of the surrogate design and the GA."),
@@ -44,7 +46,8 @@ def register(app):
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Calibrate the base model, test whether it explains the data within the noise, name the
-        missing physical effect among the candidate causes, fit the extended model and measure the gain."""
+        missing physical effects among the candidate causes (in turn, each refitted with the ones
+        before), fit the extended model and measure the gain."""
         configure_logging(verbose)
         with user_errors():
             from fe.scenarios import build_scenario
@@ -66,8 +69,9 @@ def register(app):
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
             with _progress() as progress:
                 result = run_diagnosis(sc, measurement, noise, space, fixed=fixed, candidates=names, alpha=alpha,
-                                       model_tolerance=model_tolerance, rng=seed, n_train=n_train, progress=progress,
-                                       rigid_body=str(rigid_body), rigid_groups=parse_rigid_groups(rigid_group))
+                                       model_tolerance=model_tolerance, max_causes=max_causes, rng=seed,
+                                       n_train=n_train, progress=progress, rigid_body=str(rigid_body),
+                                       rigid_groups=parse_rigid_groups(rigid_group))
             out = result.to_dict()
             if report is not None:
                 from podkrig.reports.diagnosis import write_diagnosis_report
@@ -110,17 +114,20 @@ def _print_text(out):
     typer.echo(f"  χ² includes: {a['basis']}; residuals {out['residual_convention']}")
     typer.echo("base fit: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["base"]["parameters"].items()))
     if out["cause"] is not None:
-        d = out["detail"]
-        unit = "" if d["unit"] == "-" else f" {d['unit']}"
-        typer.echo(f"cause: {out['cause']} at {d['location']}: {d['parameter']} = {d['value']:.4g}{unit} "
-                   f"(neutral {d['neutral']:g}{unit})")
-        for alt in d["alternatives"]:
-            typer.echo(f"  equally supported: {alt['cause']} at {alt['location']}")
+        for k, c in enumerate(out["causes"], 1):
+            unit = "" if c["unit"] == "-" else f" {c['unit']}"
+            typer.echo(f"cause {k}: {c['cause']} at {c['location']}: {c['parameter']} = {c['value']:.4g}{unit} "
+                       f"(neutral {c['neutral']:g}{unit})")
+        for alt in out["detail"]["alternatives"]:
+            typer.echo(f"  equally supported as cause 1: {alt['cause']} at {alt['location']}")
+        g = out["gain"]
+        for k, st in enumerate(g["steps"], 1):
+            dropped = f"; {st['dropped']} dropped (no longer significant)" if st["dropped"] else ""
+            typer.echo(f"  step {k}: + {st['cause']}: χ² {st['chi2_before']:.1f} -> {st['chi2_after']:.1f} "
+                       f"(corrected p {st['p_corrected']:.3g}, {st['effect_left']:.1f}σ left after refitting){dropped}")
         if not out["extended"]["fully_explained"]:
             typer.echo(f"warning: the extended model still does not explain the data (χ²/dof = "
-                       f"{out['extended']['chi2_dof']:.2f}): more than one effect may be missing. The named cause is the "
-                       "best single explanation; fix it (or free its parameter) and diagnose again.")
-        g = out["gain"]
+                       f"{out['extended']['chi2_dof']:.2f}): an effect outside the candidate library may be missing.")
         typer.echo(f"gain: χ²/dof {g['chi2_dof_before']:.2f} -> {g['chi2_dof_after']:.2f}, AIC −{g['aic_drop']:.1f}, "
                    f"BIC −{g['bic_drop']:.1f}")
         if "held_out" in g:

@@ -19,6 +19,11 @@ load_eccentricity      offset e of the load line, mm (0),      antisymmetric abo
 unit_stiffness         E_b, MPa (base)                         gauges on units, diagonals; ∝ load
 =====================  =====================================  ===========================================
 
+Candidates say *what they change* (:meth:`Candidate.effect` returns an :class:`Effect`: parameter
+values, stiffness increments, support springs, extra load patterns, reading corrections), so that
+several causes found in turn combine into one FE model (:meth:`FEContext.readings_with`, one
+factorisation per evaluation).
+
 ``head_joint_stiffness`` and ``unit_stiffness`` are candidates only when the base model keeps
 ``r_hj`` / ``E_b`` fixed; ``support_compliance`` and ``load_eccentricity`` only for scenarios
 with supports / a load line (:class:`fe.Scenario`'s ``supported_nodes``,
@@ -90,6 +95,38 @@ class EffectParameter:
         return float(self.lower + t * (self.upper - self.lower))
 
 
+@dataclass(frozen=True)
+class Effect:
+    """What a candidate cause changes in the FE model, so that several causes combine.
+
+    Attributes
+    ----------
+    values : dict of str to float
+        Parameter values that replace the model's (e.g. ``{"r_hj": 0.4}``).
+    increments : tuple of (float, tuple)
+        Stiffness increments ``(coefficient, key)``: ``key = ("joint", segment, "normal" | "shear")``
+        is a joint segment's part of the bed/head-joint stiffness, resolved on whichever model
+        (rigid or spring supports) the combination solves.
+    compliance : float or None
+        Support compliance ``1/k_s``, mm³/N: the model with its supports on springs
+        (:func:`fe.supports.spring_supported_model`); None keeps them rigid.
+    load_scale : float
+        Factor on the readings of the scenario's own load patterns (a rotated load line: cos φ).
+    extra_loads : tuple of (str, callable, float)
+        ``(key, patterns, weight)``: readings of extra nodal load patterns ``patterns()``
+        ``(n_dofs, n_patterns)`` added with ``weight``, under the same load coefficients.
+    corrections : tuple of callable
+        ``R -> R`` on the readings ``(n_loads, n_sensors)`` after the solve (sensor faults), in order.
+    """
+
+    values: dict = field(default_factory=dict)
+    increments: tuple = ()
+    compliance: float | None = None
+    load_scale: float = 1.0
+    extra_loads: tuple = ()
+    corrections: tuple = ()
+
+
 class FEContext:
     """The base model's FE scenario with the pieces the candidates share, built lazily and cached.
 
@@ -130,20 +167,63 @@ class FEContext:
             self._cache["last_key"], self._cache["last_readings"] = key, R.copy()
         return R
 
-    def readings_with_extra_loads(self, values, extra_patterns_key, extra_patterns):
-        """Readings of the model's load patterns and of extra ones (one factorisation), each
-        ``(n_loads, n_sensors)`` mm: ``(base, extra)`` where ``extra`` uses the same load coefficients
-        (those of ``values``: the flat jack's scale with Km and σ0)."""
+    def readings_with(self, values, terms):
+        """FE readings ``(n_loads, n_sensors)`` mm of the model with several causes switched on.
+
+        ``terms`` is a sequence of ``(candidate, location, c)``; their :class:`Effect` objects are
+        combined: parameter values first (so that, e.g., a weak head-joint segment scales with a
+        head-joint ratio found before it), then stiffness increments, support springs, extra load
+        patterns and reading corrections. One factorisation. Without terms: :meth:`readings`.
+        """
+        if not terms:
+            return self.readings(values)
+        values = dict(values)
+        for cand, loc, c in terms:  # parameter values first: later effects see them
+            values.update(cand.effect(self, values, loc, c).values)
+        effects = [cand.effect(self, values, loc, c) for cand, loc, c in terms]
         sc = self.scenario
-        if extra_patterns_key not in self._cache:
-            self._cache[extra_patterns_key] = sc.model.reduce_loads(extra_patterns())
-        rhs_extra = self._cache[extra_patterns_key]
+        if not any(e.increments or e.compliance is not None or e.extra_loads for e in effects):
+            R = np.prod([e.load_scale for e in effects]) * self.readings(values)  # the cached plain run
+            for e in effects:
+                for correct in e.corrections:
+                    R = correct(R)
+            return R
+        compliances = [e.compliance for e in effects if e.compliance is not None]
+        if len(compliances) > 1:
+            raise ValueError("two support-compliance effects cannot be combined")
+        model, theta = sc.model, sc.theta(values)
+        if compliances:
+            model, theta = self.spring_model(), np.append(theta, 1.0 / compliances[0])
+        increments = [(coef, self._increment(model, key)) for e in effects for coef, key in e.increments]
+        extra = [(key, patterns, w) for e in effects for key, patterns, w in e.extra_loads]
+        rhs = np.hstack([model.rhs] + [self._reduced_loads(model, key, patterns) for key, patterns, _ in extra])
         self.n_runs += 1
-        q = sc.model.solve(sc.theta(values), rhs=np.hstack([sc.model.rhs, rhs_extra]))
-        r = sc.model.readings(q)
+        r = model.readings(model.solve(theta, increments, rhs))
         n_pat = sc.model.rhs.shape[1]
         C = sc.load_coefficients_at(values)
-        return C @ r[:n_pat], C @ r[n_pat:]
+        R = np.prod([e.load_scale for e in effects]) * (C @ r[:n_pat])
+        for k, (_, _, w) in enumerate(extra):
+            R = R + w * (C @ r[n_pat * (k + 1):n_pat * (k + 2)])
+        for e in effects:
+            for correct in e.corrections:
+                R = correct(R)
+        return R
+
+    def _increment(self, model, key):
+        """The :class:`~fe.assembly.StiffnessIncrement` of ``key`` (see :class:`Effect`) on ``model``."""
+        cache_key = (id(model),) + tuple(key)
+        if cache_key not in self._cache:
+            _, segment, which = key
+            kind, elements, _ = self.joint_segments()[segment]
+            within = np.searchsorted(self.scenario.joint_part_elements(kind), elements)  # within the part
+            self._cache[cache_key] = model.part_increment(f"{kind}_{which}", within)
+        return self._cache[cache_key]
+
+    def _reduced_loads(self, model, key, patterns):
+        cache_key = (id(model), "loads", key)
+        if cache_key not in self._cache:
+            self._cache[cache_key] = model.reduce_loads(patterns())
+        return self._cache[cache_key]
 
     def spring_model(self):
         if "springs" not in self._cache:
@@ -158,13 +238,7 @@ class FEContext:
 
     def joint_increments(self, index):
         """Normal and shear stiffness increments of joint segment ``index`` (unit coefficients)."""
-        key = ("joint", index)
-        if key not in self._cache:
-            kind, elements, _ = self.joint_segments()[index]
-            m = self.scenario.model
-            elements = np.searchsorted(self.scenario.joint_part_elements(kind), elements)  # within the part
-            self._cache[key] = (m.part_increment(f"{kind}_normal", elements), m.part_increment(f"{kind}_shear", elements))
-        return self._cache[key]
+        return tuple(self._increment(self.scenario.model, ("joint", index, which)) for which in ("normal", "shear"))
 
 
 def span(axis, bounds, unit="mm"):
@@ -202,11 +276,14 @@ def _joint_segments(scenario):
 class Candidate(abc.ABC):
     """A candidate cause. Subclasses set ``name``, ``description`` (physical meaning) and
     ``signature`` (the residual pattern it produces) and implement :meth:`locations`,
-    :meth:`parameter` and :meth:`readings`."""
+    :meth:`parameter` and :meth:`effect`."""
 
     name = ""
     description = ""
     signature = ""
+    #: whether the effect combines with other causes through an :class:`Effect`; a candidate that
+    #: runs another model (e.g. the nonlinear solver) overrides :meth:`readings` and sets False
+    composable = True
 
     def not_applicable(self, ctx):
         """Why the candidate does not apply to this base model (str), or None."""
@@ -221,9 +298,14 @@ class Candidate(abc.ABC):
         """The :class:`EffectParameter` at ``location``."""
 
     @abc.abstractmethod
-    def readings(self, ctx, values, location, c):
-        """FE readings ``(n_loads, n_sensors)`` mm with base parameters ``values`` (full dict)
-        and the effect at ``location`` with parameter value ``c``."""
+    def effect(self, ctx, values, location, c):
+        """The :class:`Effect` at ``location`` with parameter value ``c``, base parameters ``values``."""
+
+    def readings(self, ctx, values, location, c, found=()):
+        """FE readings ``(n_loads, n_sensors)`` mm with base parameters ``values`` (full dict), the
+        causes ``found`` before (``(candidate, location, value)``) and this one at ``location``
+        with parameter value ``c``."""
+        return ctx.readings_with(values, [*found, (self, location, c)])
 
 
 class HeadJointStiffness(Candidate):
@@ -246,8 +328,8 @@ class HeadJointStiffness(Candidate):
         r0 = ctx.values["r_hj"]
         return EffectParameter("r_hj", "-", r0, min(0.02, r0), max(5.0, r0), 0.5 * r0, scale="log")
 
-    def readings(self, ctx, values, location, c):
-        return ctx.readings({**values, "r_hj": c})
+    def effect(self, ctx, values, location, c):
+        return Effect(values={"r_hj": c})
 
 
 class UnitStiffness(Candidate):
@@ -267,8 +349,8 @@ class UnitStiffness(Candidate):
         e0 = ctx.values["E_b"]
         return EffectParameter("E_b", "MPa", e0, e0 / 4.0, 4.0 * e0, 0.7 * e0, scale="log")
 
-    def readings(self, ctx, values, location, c):
-        return ctx.readings({**values, "E_b": c})
+    def effect(self, ctx, values, location, c):
+        return Effect(values={"E_b": c})
 
 
 class WeakJoint(Candidate):
@@ -289,11 +371,11 @@ class WeakJoint(Candidate):
         # the screening signature of a nearly open joint also measures the candidate's visibility
         return EffectParameter("f", "-", 1.0, 1e-3, 1.0, 0.01, scale="log", one_sided=True)
 
-    def readings(self, ctx, values, location, c):
+    def effect(self, ctx, values, location, c):
         i = location.detail["segment"]
-        inc_n, inc_v = ctx.joint_increments(i)
         r = values.get("r_hj", 1.0) if location.detail["kind"] == "head" else 1.0
-        return ctx.readings(values, [((c - 1.0) * r * values["kN_bj"], inc_n), ((c - 1.0) * r * values["kV_bj"], inc_v)])
+        return Effect(increments=(((c - 1.0) * r * values["kN_bj"], ("joint", i, "normal")),
+                                  ((c - 1.0) * r * values["kV_bj"], ("joint", i, "shear"))))
 
 
 class SupportCompliance(Candidate):
@@ -320,13 +402,8 @@ class SupportCompliance(Candidate):
         # (fitted in log scale from 1e-5 mm³/N, a support 10⁴ times stiffer than a mortar joint)
         return EffectParameter("c_s", "mm³/N", 0.0, 1e-5, 1.0, 0.02, scale="log", one_sided=True)
 
-    def readings(self, ctx, values, location, c):
-        if c <= 0.0:
-            return ctx.readings(values)
-        m, sc = ctx.spring_model(), ctx.scenario
-        ctx.n_runs += 1
-        q = m.solve(np.append(sc.theta(values), 1.0 / c))
-        return sc.load_coefficients_at(values) @ m.readings(q)
+    def effect(self, ctx, values, location, c):
+        return Effect(compliance=c if c > 0.0 else None)
 
 
 class GaugeFault(Candidate):
@@ -346,9 +423,9 @@ class GaugeFault(Candidate):
         scale = ctx.offset_scale
         return EffectParameter("o", "mm", 0.0, -scale, scale, 0.1 * scale)
 
-    def readings(self, ctx, values, location, c):
-        R = ctx.readings(values)
-        return apply_gauge_fault(R, ctx.sensor_names.index(location.detail["sensor"]), location.detail["fault"], c)
+    def effect(self, ctx, values, location, c):
+        column, fault = ctx.sensor_names.index(location.detail["sensor"]), location.detail["fault"]
+        return Effect(corrections=(lambda R: apply_gauge_fault(R, column, fault, c),))
 
 
 def apply_gauge_fault(R, column, fault, value):
@@ -386,13 +463,12 @@ class LoadEccentricity(Candidate):
             return EffectParameter("e", p.unit, 0.0, -p.limit, p.limit, 0.5 * p.limit)
         return EffectParameter("phi", "degree", 0.0, -self.max_rotation, self.max_rotation, 5.0)
 
-    def readings(self, ctx, values, location, c):
+    def effect(self, ctx, values, location, c):
         p = ctx.scenario.load_perturbations()[location.detail["kind"]]
-        R0, R1 = ctx.readings_with_extra_loads(values, p.name, p.patterns)
         if p.kind == "shift":
-            return R0 + c * R1
+            return Effect(extra_loads=((p.name, p.patterns, c),))
         phi = np.radians(c)
-        return np.cos(phi) * R0 + np.sin(phi) * R1
+        return Effect(load_scale=np.cos(phi), extra_loads=((p.name, p.patterns, np.sin(phi)),))
 
 
 #: every candidate cause, by name

@@ -5,26 +5,33 @@
 1. **Calibrate the base model** surrogate first: a POD-kriging surrogate over the free parameters
    (built here from a Sobol' design unless one is given), GA inversion with least-squares polish
    (:func:`podkrig.online.invert.invert`), then a least-squares polish with the FE model itself so that
-   the adequacy test is not blurred by surrogate error.
-2. **Adequacy**: χ² of the whitened residuals ``r = L⁻¹(d − g(m*))`` (``C_d = L Lᵀ``) against
+   the adequacy test is not blurred by surrogate error. The data covariance is
+   ``C_D = C_d + C_T`` (thesis eq. 2.10), with the model-form part ``C_T`` *estimated* per
+   reading from the scenario on a mesh refined twice (:mod:`podkrig.diagnosis.model_error`), or a
+   fixed relative tolerance the user gives.
+2. **Adequacy**: χ² of the whitened residuals ``r = L⁻¹(d − g(m*))`` (``C_D = L Lᵀ``) against
    χ²(n_obs − n_free), and the residual structure across sensors and load levels.
 3. **Score every candidate cause** (:mod:`podkrig.diagnosis.candidates`) at every location:
    screening by the share of the residual its signature ``s`` (whitened effect of a moderate
-   strength) explains beyond the span of the base Jacobian ``J``,
+   strength) explains beyond the span of the current model's Jacobian ``J``,
    ``Δχ²_lin = (sᵀ P r)² / (sᵀ P s)``, ``P = I − J J⁺``; then a nonlinear FE refit, with the base
-   parameters and the candidate's parameter free, of the best-screened locations. The
-   likelihood-ratio statistic ``Δχ² = χ²_base − χ²_ext`` is χ²(1) under the null (a ½χ²(0) +
-   ½χ²(1) mixture when the neutral value is a bound), and its p-value is multiplied by the number
-   of candidates times the candidate's number of locations (Bonferroni), so that trying 200 joint
-   segments does not manufacture a finding.
-4. **Verdict and cause**: *inadequate* when the χ² test is significant at ``alpha / 10`` or the
-   best corrected candidate test at ``alpha`` (the latter only for an effect that moves some
-   reading by at least ``MIN_EFFECT`` σ); the cause is the candidate with the smallest corrected p-value if it
-   is below ``alpha``, else none ("no candidate explains the residual"). Candidates whose
-   extended fit is within a likelihood ratio of 20 of the best are reported as alternatives the
-   data cannot tell apart.
-5. **Gain**: χ²/dof and misfit before and after, AIC/BIC, and the error on the highest load level
-   predicted by both models fitted without it.
+   parameters, the causes already found and the candidate's parameter free, of the best-screened
+   locations. The likelihood-ratio statistic ``Δχ² = χ²_current − χ²_ext`` is χ²(1) under the
+   null (a ½χ²(0) + ½χ²(1) mixture when the neutral value is a bound), and its p-value is
+   multiplied by the number of candidates times the candidate's number of locations (Bonferroni),
+   so that trying 200 joint segments does not manufacture a finding. A cause is named only when
+   the effect *left after refitting* (``max |P L⁻¹ Δg|``, the part of its change of the readings
+   the current parameters cannot absorb) is at least ``MIN_EFFECT`` σ.
+4. **Several causes in turn** (forward selection): the best significant candidate joins the model,
+   and the scoring runs again against the extended model, until no candidate is significant or
+   ``max_causes`` are in. After each addition a backward check refits without each earlier cause
+   and drops one that is no longer significant (it stood in for the later ones). Candidates
+   rank by evidence: effects that survive refitting first, then by corrected p-value, then Δχ².
+   *Inadequate* when the χ² test of the base model is significant at ``alpha / 10`` or some
+   cause is named. Candidates whose fit as the first cause is within a likelihood ratio of 20 of
+   the best are reported as alternatives the data cannot tell apart.
+5. **Gain**: χ²/dof and misfit before and after (per step and overall), AIC/BIC, and the error on
+   the highest load level predicted by both models fitted without it.
 
 All FE work reuses the scenario's factorisation pattern; a diagnosis of the default diagonal test
 is a few hundred FE solves.
@@ -32,13 +39,28 @@ is a few hundred FE solves.
 
 import logging
 import time
+from typing import NamedTuple
 
 import numpy as np
 from scipy import linalg, optimize, stats
 
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, FEContext
-from podkrig.diagnosis.results import CHI2_ALPHA_SHARE, Alternative, CandidateScore, Diagnosis, Fit
+from podkrig.diagnosis.model_error import (
+    DEFAULT_RATE,
+    FALLBACK_TOLERANCE,
+    discretisation_error,
+    tolerance_error,
+)
+from podkrig.diagnosis.results import (
+    CHI2_ALPHA_SHARE,
+    Alternative,
+    CandidateScore,
+    Cause,
+    Diagnosis,
+    Fit,
+    Step,
+)
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
 from podkrig.online.problem import InverseProblem, SurrogateModel
@@ -80,11 +102,11 @@ class _Fitter:
     ``n_removed`` fewer degrees of freedom.
     """
 
-    def __init__(self, ctx, space, measurement, noise, rows, model_tolerance=0.0, rigid_body=None):
+    def __init__(self, ctx, space, measurement, noise, rows, model_error=None, rigid_body=None):
         self.ctx, self.space = ctx, space
         sc = ctx.scenario
         idx = measurement.output_indices(sc.sensor_names, sc.load_levels)
-        C = data_covariance(measurement, noise, model_tolerance)
+        C = data_covariance(measurement, noise, model_error)
         self.rows = np.asarray(rows)
         self.idx = idx[self.rows]
         self.d = measurement.data[self.rows]
@@ -105,47 +127,53 @@ class _Fitter:
     def values(self, u):
         return {**self.ctx.values, **self.space.as_params(self.space.from_unit(np.clip(u, 0, 1)[None])[0])}
 
-    def fit(self, u0, candidate=None, location=None, t0=None, max_nfev=60):
-        """Fit from unit coordinates ``u0`` (and candidate fit coordinate ``t0``); returns a :class:`Fit`."""
-        p = len(u0)
-        par = None if candidate is None else candidate.parameter(self.ctx, location)
+    def fit(self, u0, terms=(), t0=(), max_nfev=60):
+        """Least-squares fit from unit coordinates ``u0`` of the base parameters, with the causes
+        ``terms`` (:class:`Term`, in the order found) switched on from
+        fit coordinates ``t0``; returns a :class:`Fit` whose ``effects`` follow ``terms``."""
+        p, terms = len(u0), list(terms)
+
+        def effect_values(z):
+            return [term.parameter.from_fit(float(np.clip(t, 0, 1))) for term, t in zip(terms, z[p:])]
 
         def readings(z):
             values = self.values(z[:p])
-            if candidate is None:
+            if not terms:
                 return self.ctx.readings(values)
-            return candidate.readings(self.ctx, values, location, par.from_fit(float(np.clip(z[p], 0, 1))))
+            cs = effect_values(z)
+            found = [(term.candidate, term.location, c) for term, c in zip(terms[:-1], cs[:-1])]
+            return terms[-1].candidate.readings(self.ctx, values, terms[-1].location, cs[-1], found=found)
 
         def residual(z):
             return self.whiten(readings(z))
 
-        z0 = np.asarray(u0, dtype=float) if candidate is None else np.append(u0, t0)
-        z0 = np.clip(z0, 0.0, 1.0)
+        z0 = np.clip(np.append(np.asarray(u0, dtype=float), np.asarray(t0, dtype=float)), 0.0, 1.0)
         sol = optimize.least_squares(residual, z0, bounds=(0.0, 1.0), method="trf", jac="2-point",
                                      diff_step=1e-6, x_scale=1.0, max_nfev=max_nfev)
         z = sol.x
         values = self.values(z[:p])
         return Fit(
-            values=values, free={n: values[n] for n in self.space.names},
-            effect=None if candidate is None else par.from_fit(float(z[p])),
+            values=values, free={n: values[n] for n in self.space.names}, effects=tuple(effect_values(z)),
             chi2=float(sol.fun @ sol.fun), n_obs=len(self.rows), n_params=len(z),
             readings=readings(z), jacobian=sol.jac, n_removed=self.n_removed,
         )
 
 
-def data_covariance(measurement, noise, model_tolerance=0.0):
-    """``C_D = C_d + C_T`` (thesis eq. 2.10) with the modelling part ``C_T = diag((ε d_i)²)``: a
-    relative model-form tolerance ε on every reading (discretisation, idealised geometry), mm²."""
+def data_covariance(measurement, noise, model_error=None):
+    """``C_D = C_d + C_T`` (thesis eq. 2.10), mm², with the model-form part
+    ``C_T = diag(e_i²)``: ``model_error`` ``(n_obs,)`` mm is the standard deviation of each
+    reading's model-form error (estimated discretisation error, or a fixed tolerance ``ε |d_i|``:
+    :func:`podkrig.diagnosis.model_error.tolerance_error`)."""
     C = noise.covariance_matrix(measurement)
-    if model_tolerance:
-        C = C + np.diag((model_tolerance * measurement.data) ** 2)
+    if model_error is not None:
+        C = C + np.diag(np.asarray(model_error, dtype=float) ** 2)
     return C
 
 
 def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None, candidates=None, alpha=0.01,
-             model_tolerance=0.01, rng=0, n_train=64, refit_locations=3, progress=None, rigid_body="auto",
-             rigid_groups=None):
-    """Diagnose a calibrated FE model against measured data.
+             model_tolerance=None, model_error_rate=DEFAULT_RATE, max_causes=3, rng=0, n_train=64,
+             refit_locations=3, progress=None, rigid_body="auto", rigid_groups=None):
+    """Diagnose a calibrated FE model against measured data, naming missing causes in turn.
 
     Parameters
     ----------
@@ -167,11 +195,18 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     alpha : float
         Significance level of the (multiplicity-corrected) candidate tests; the χ² test runs at
         ``alpha * CHI2_ALPHA_SHARE``.
-    model_tolerance : float
-        Relative model-form tolerance ε added to the noise, ``C_D = C_d + diag((ε d)²)``
-        (thesis eq. 2.10): two sound FE discretisations of the same test differ by about 0.5 %,
-        which many readings (a DIC grid) would otherwise flag as a missing effect. A cause is
-        named only when its fitted effect moves some reading by at least ``MIN_EFFECT`` (2) σ.
+    model_tolerance : float, optional
+        A fixed relative model-form tolerance ε, ``C_T = diag((ε d)²)`` (thesis eq. 2.10): the
+        user's override. By default (None) the model-form error of each reading is *estimated*: the
+        scenario is run again on a mesh refined twice in each direction at the calibrated values,
+        and the difference, scaled by Richardson's factor, is the standard deviation of that
+        reading's discretisation error (:func:`podkrig.diagnosis.model_error.discretisation_error`).
+    model_error_rate : float
+        Convergence rate p assumed by that Richardson factor ``2^p / (2^p − 1)``.
+    max_causes : int
+        Most causes named in turn (forward selection: each round refits the base parameters with
+        the causes already found and adds the most significant candidate, until nothing is
+        significant or the model is adequate).
     rng : int
         Seed of the surrogate design and the GA.
     refit_locations : int
@@ -200,165 +235,268 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         raise ValueError(f"unknown candidate cause(s) {unknown}; known: {list(CANDIDATES)}")
     if not 0 < alpha < 0.5:
         raise ValueError(f"alpha must be in (0, 0.5); got {alpha}")
+    if model_tolerance is not None and not 0 <= model_tolerance < 0.5:
+        raise ValueError(f"model_tolerance must be in [0, 0.5) (a relative tolerance); got {model_tolerance}")
+    if int(max_causes) < 1:
+        raise ValueError(f"max_causes must be at least 1; got {max_causes}")
     values0 = scenario.resolve(fixed)
     ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)))
-    if not 0 <= model_tolerance < 0.5:
-        raise ValueError(f"model_tolerance must be in [0, 0.5) (a relative tolerance); got {model_tolerance}")
     rigid = rigid_body_modes(measurement, absolute_displacements(scenario.sensors), rigid_body, rigid_groups)
-    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), model_tolerance, rigid)
-    noise_std = np.sqrt(np.diag(data_covariance(measurement, noise, model_tolerance)))
 
-    # 1. base calibration: surrogate first, FE last
-    say("calibration", 0, 3)
+    # 1. base calibration: surrogate first, FE last (with the model-form error at the surrogate's optimum)
+    say("calibration", 0, 4)
     if surrogate is None:
         surrogate = build_base_surrogate(scenario, space, values0, n_train=n_train, seed=rng)
         ctx.n_runs += n_train
-    say("calibration", 1, 3)
+    say("calibration", 1, 4)
     problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
     inv = invert(problem, rng=rng)
-    say("calibration", 2, 3)
+    say("calibration", 2, 4)
+    if model_tolerance is None:
+        try:
+            model_error = discretisation_error(scenario, {**values0, **dict(zip(space.names, map(float, inv.x)))},
+                                               measurement, rate=model_error_rate)
+            ctx.n_runs += 2
+        except ValueError as e:
+            logger.warning("%s; using a model-form tolerance of %g %%", e, 100 * FALLBACK_TOLERANCE)
+            model_error = tolerance_error(measurement, FALLBACK_TOLERANCE, note=str(e))
+    else:
+        model_error = tolerance_error(measurement, model_tolerance)
+    error_std = model_error.std
+    say("calibration", 3, 4)
+    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), error_std, rigid)
+    noise_std = np.sqrt(np.diag(data_covariance(measurement, noise, error_std)))
     base = fitter.fit(space.to_unit(inv.x[None])[0])
-    say("calibration", 3, 3)
-    dof = base.dof
-    p_chi2 = float(stats.chi2.sf(base.chi2, dof))
+    say("calibration", 4, 4)
+    p_chi2 = float(stats.chi2.sf(base.chi2, base.dof))
     structure = residual_structure(fitter.whiten(base.readings), measurement, noise_std)
 
-    # 2. screening and refits of every candidate
-    u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
-    screen = _Screen(fitter, base)
+    # 2. forward selection: score every candidate against the current model, add the best, repeat
     n_applicable = max(sum(CANDIDATES[n].not_applicable(ctx) is None for n in names), 1)
-    scores = []
-    for k, name in enumerate(names):
-        cand = CANDIDATES[name]
-        reason = cand.not_applicable(ctx)
-        if reason is not None:
-            scores.append(CandidateScore(name, cand.description, cand.signature, 0, False, reason))
-            continue
-        say(f"screening {name}", k, len(names))
-        scores.append(_score_candidate(cand, ctx, fitter, screen, base, u_base, n_applicable, alpha,
-                                       refit_locations, noise_std))
-
-    ranked = sorted([s for s in scores if s.applicable],
-                    key=lambda s: (s.effect_size < MIN_EFFECT, s.log10_p_corrected, -s.delta_chi2))
-    inapplicable = [s for s in scores if not s.applicable]
-    best = ranked[0] if ranked else None
-    candidate_hit = best is not None and best.p_corrected < alpha and best.effect_size >= MIN_EFFECT
-    verdict = "inadequate" if (p_chi2 < alpha * CHI2_ALPHA_SHARE or candidate_hit) else "adequate"
-    cause = best.name if (verdict == "inadequate" and candidate_hit) else None
-    alternatives = []
-    if cause is not None:
-        limit = 2.0 * np.log(EQUIVALENCE_RATIO)
-        for s in ranked[1:]:
-            for loc, par, _, fit, delta in s.refitted:
-                if fit.chi2 - best.fit.chi2 < limit and s.p_corrected < alpha:
-                    alternatives.append(Alternative(s.name, loc, delta))
-                    break
-        for loc, par, _, fit, delta in best.refitted:
-            if loc is not best.location and fit.chi2 - best.fit.chi2 < limit:
-                alternatives.append(Alternative(best.name, loc, delta))
-
-    extended = best.fit if cause is not None else None
+    terms, steps, current, first_round = [], [], base, None
+    while len(terms) < max_causes:
+        scores = _score_round(names, ctx, fitter, current, terms, space, n_applicable, alpha, refit_locations,
+                              noise_std, say, len(steps))
+        first_round = first_round if first_round is not None else scores
+        ranked = [s for s in scores if s.applicable]
+        best = ranked[0] if ranked else None
+        if best is None or not (best.p_corrected < alpha and best.effect_left >= MIN_EFFECT):
+            break
+        before = current
+        terms = terms + [Term(CANDIDATES[best.name], best.location, best.parameter, best.log_correction)]
+        current = best.fit
+        dropped = None
+        if len(terms) > 1:
+            terms, current, dropped = _drop_redundant(fitter, space, terms, current, alpha)
+        steps.append(Step(score=best, chi2_before=before.chi2, chi2_after=current.chi2,
+                          p_value_after=float(stats.chi2.sf(current.chi2, current.dof)), dropped=dropped))
+    ranked = first_round or []
+    inapplicable = []
+    cause_found = bool(terms)
+    verdict = "inadequate" if (p_chi2 < alpha * CHI2_ALPHA_SHARE or cause_found) else "adequate"
+    best = steps[0].score if steps else None
+    alternatives = _alternatives(best, first_round, alpha) if steps else []
+    extended = current if cause_found else None
     extended_p = None if extended is None else float(stats.chi2.sf(extended.chi2, extended.dof))
     held_out = None
     if extended is not None and len(measurement.load_levels) >= 3:
         say("held-out check", 0, 1)
-        held_out = _held_out(ctx, space, measurement, noise, base, best, model_tolerance, rigid)
+        held_out = _held_out(ctx, space, measurement, noise, base, extended, terms, error_std, rigid)
     seconds = time.perf_counter() - t_start
-    logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, cause, seconds, ctx.n_runs)
+    causes = [t[0].name for t in terms]
+    logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, causes, seconds, ctx.n_runs)
     return Diagnosis(
         scenario=scenario, measurement=measurement, noise_std=noise_std, alpha=alpha, base=base,
-        extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=cause, best=best if cause else None,
-        alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,
+        extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=causes[0] if causes else None,
+        best=best, alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,
         held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs, extended_p_value=extended_p,
         surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)},
                        "basis": inv.chi2_basis + " (the diagnosis's own starting surrogate)"},
-        model_tolerance=float(model_tolerance), rigid_body=rigid_body, rigid_groups=rigid_groups,
+        model_error=model_error, steps=steps, rigid_body=rigid_body, rigid_groups=rigid_groups,
+        causes=[Cause(t[0].name, t[1], t[2], float(v)) for t, v in zip(terms, current.effects)] if cause_found else [],
     )
 
 
-class _Screen:
-    """Whitened residual of the base fit and the projector off the span of its Jacobian."""
+class Term(NamedTuple):
+    """A cause in the model: candidate, location, its :class:`EffectParameter`, and the log of its
+    multiplicity correction (candidates × locations) used when it was found."""
 
-    def __init__(self, fitter, base):
+    candidate: object
+    location: object
+    parameter: object
+    log_correction: float
+
+
+class _Screen:
+    """Whitened residual of the current fit and the projector off the span of its Jacobian."""
+
+    def __init__(self, fitter, current):
         self.fitter = fitter
-        self.r = -fitter.whiten(base.readings)  # data − model, whitened
-        self._Q, _ = np.linalg.qr(base.jacobian)
+        self.r = -fitter.whiten(current.readings)  # data − model, whitened
+        self._Q, _ = np.linalg.qr(current.jacobian)
         self.Pr = self.project(self.r)
 
     def project(self, v):
-        """``P v = v − Q Qᵀ v``: the part of ``v`` the base parameters cannot absorb."""
+        """``P v = v − Q Qᵀ v``: the part of ``v`` the current model's parameters cannot absorb."""
         return v - self._Q @ (self._Q.T @ v)
 
     def signature(self, readings):
-        """Projected whitened change of the readings from the base fit, ``P s``."""
+        """Projected whitened change of the readings from the current fit, ``P s``."""
         return self.project(self.fitter.whiten(readings) + self.r)
 
 
-def _score_candidate(cand, ctx, fitter, screen, base, u_base, n_applicable, alpha, refit_locations, noise_std):
-    """Screen every location of a candidate, refit the best few, and return its :class:`CandidateScore`."""
-    locations = cand.locations(ctx)
+def _found_at(terms, fit):
+    """``(candidate, location, value)`` of the causes in ``terms`` at their values in ``fit``."""
+    return [(t.candidate, t.location, c) for t, c in zip(terms, fit.effects)]
+
+
+def _score_round(names, ctx, fitter, current, terms, space, n_applicable, alpha, refit_locations, noise_std, say,
+                 round_index):
+    """Score every candidate against the current model (base plus ``terms``), ranked by evidence:
+    effects that survive refitting first, then by corrected p-value, then by Δχ²."""
+    screen = _Screen(fitter, current)
+    u_cur = space.to_unit(np.array([[current.free[n] for n in space.names]]))[0]
+    t_cur = [t.parameter.to_fit(c) for t, c in zip(terms, current.effects)]
+    found_keys = {(t.candidate.name, t.location.key) for t in terms}
+    scores = []
+    for k, name in enumerate(names):
+        cand = CANDIDATES[name]
+        reason = cand.not_applicable(ctx)
+        if reason is None and terms and not cand.composable:
+            reason = "runs its own model, so it cannot be combined with the causes found before it"
+        locations = [] if reason else [loc for loc in cand.locations(ctx) if (name, loc.key) not in found_keys]
+        if reason is None and not locations:
+            reason = "already in the model"
+        if reason is not None:
+            scores.append(CandidateScore(name, cand.description, cand.signature, 0, False, reason))
+            continue
+        say(f"screening {name}" + (f" (cause {round_index + 1})" if round_index else ""), k, len(names))
+        scores.append(_score_candidate(cand, locations, ctx, fitter, screen, current, terms, u_cur, t_cur,
+                                       np.log(n_applicable * len(cand.locations(ctx))), alpha, refit_locations,
+                                       noise_std, n_applicable))
+    ranked = sorted([s for s in scores if s.applicable],
+                    key=lambda s: (s.effect_left < MIN_EFFECT, s.log10_p_corrected, -s.delta_chi2))
+    return ranked + [s for s in scores if not s.applicable]
+
+
+def _score_candidate(cand, locations, ctx, fitter, screen, current, terms, u_cur, t_cur, log_correction, alpha,
+                     refit_locations, noise_std, n_applicable):
+    """Screen every location of a candidate against the current model, refit the best few with the
+    base parameters and the causes already found free, and return its :class:`CandidateScore`."""
+    found = _found_at(terms, current)
     score = CandidateScore(cand.name, cand.description, cand.signature, len(locations), True)
+    score.log_correction = float(log_correction)
     screened = []
     max_effect = 0.0
     for loc in locations:
         par = cand.parameter(ctx, loc)
-        Ps = screen.signature(cand.readings(ctx, base.values, loc, par.reference))
+        Ps = screen.signature(cand.readings(ctx, current.values, loc, par.reference, found=found))
         ss = float(Ps @ Ps)
         sr = float(Ps @ screen.Pr)
         delta = sr * sr / ss if (ss > 0 and (sr > 0 or not par.one_sided)) else 0.0
         screened.append((delta, loc, par))
-        # visibility: the largest χ² change the effect can make beyond the base parameters' span
+        # visibility: the largest χ² change the effect can make beyond the current parameters' span
         # (for candidates with many locations the reference strength is near the extreme)
         max_effect = max(max_effect, ss)
         if len(locations) <= _EXACT_VISIBILITY:
             for extreme in (par.lower, par.upper):
                 if extreme != par.neutral:
-                    Pe = screen.signature(cand.readings(ctx, base.values, loc, extreme))
+                    Pe = screen.signature(cand.readings(ctx, current.values, loc, extreme, found=found))
                     max_effect = max(max_effect, float(Pe @ Pe))
     screened.sort(key=lambda t: -t[0])
     score.max_delta_chi2 = max_effect
-    score.visible = max_effect >= stats.chi2.isf(alpha / (n_applicable * len(locations)), 1)
+    score.visible = max_effect >= stats.chi2.isf(alpha * np.exp(-log_correction), 1)
     best = None
     for delta_lin, loc, par in screened[:refit_locations]:
-        fit = _refit(fitter, cand, loc, par, u_base, base)
-        entry = (loc, par, delta_lin, fit, max(base.chi2 - fit.chi2, 0.0))
+        fit = _refit(fitter, terms, Term(cand, loc, par, log_correction), u_cur, t_cur)
+        entry = (loc, par, delta_lin, fit, max(current.chi2 - fit.chi2, 0.0))
         score.refitted.append(entry)
         if best is None or fit.chi2 < best[3].chi2:
             best = entry
     loc, par, delta_lin, fit, delta = best
     score.location, score.parameter, score.screening_delta_chi2, score.fit, score.delta_chi2 = best
-    # in logs: strong effects underflow the p-values, and the ranking must still tell them apart
-    log_p = float(stats.chi2.logsf(delta, 1)) if delta > 0 else 0.0
-    if par.one_sided and delta > 0:  # ½χ²(0) + ½χ²(1) under the null
-        log_p += np.log(0.5)
-    log_p_corrected = min(0.0, log_p + np.log(n_applicable * len(locations)))
-    score.p_value = float(np.exp(log_p))
-    score.p_corrected = float(np.exp(log_p_corrected))
-    score.log10_p_corrected = log_p_corrected / np.log(10.0)
-    off = cand.readings(ctx, fit.values, loc, par.off)
-    score.effect_size = float(np.max(np.abs(fitter.observed(fit.readings - off)) / noise_std))
+    score.log10_p_corrected, score.p_value, score.p_corrected = _log10_p(delta, par, log_correction)
+    # the effect's size: in full (the fitted cause against the same fit with the cause off), and
+    # what is left of it beyond what the current model's parameters absorb (the guard)
+    off = cand.readings(ctx, fit.values, loc, par.off, found=_found_at(terms, fit))
+    diff = fitter.observed(fit.readings - off)
+    score.effect_size = float(np.max(np.abs(diff) / noise_std))
+    score.effect_left = float(np.max(np.abs(screen.project(fitter.whiten(fit.readings) - fitter.whiten(off)))))
     return score
 
 
-def _refit(fitter, cand, loc, par, u_base, base):
-    """Extended FE fit at one location: least squares over base and effect parameters together,
-    from the base optimum and the best of a few effect strengths. When the base optimum sits on a
-    face of the box (the base model strained by a missing effect), also from the box centre."""
-    starts = [np.asarray(u_base, dtype=float)]
-    if np.any(np.minimum(u_base, 1.0 - u_base) < 1e-3):
-        starts.append(np.full(len(u_base), 0.5))
+def _log10_p(delta, par, log_correction):
+    """(log10 corrected p, p, corrected p) of a likelihood-ratio statistic ``delta`` (χ²(1), or the
+    ½χ²(0) + ½χ²(1) mixture when the neutral value is a bound), Bonferroni-corrected by
+    ``exp(log_correction)``. In logs: strong effects underflow the p-values, and the ranking must
+    still tell them apart."""
+    log_p = float(stats.chi2.logsf(delta, 1)) if delta > 0 else 0.0
+    if par.one_sided and delta > 0:
+        log_p += np.log(0.5)
+    log_p_corrected = min(0.0, log_p + log_correction)
+    return log_p_corrected / np.log(10.0), float(np.exp(log_p)), float(np.exp(log_p_corrected))
+
+
+def _refit(fitter, terms, term, u_cur, t_cur):
+    """Extended FE fit: least squares over the base parameters, the causes already found and the new
+    one together, from the current optimum and the best of a few strengths of the new effect. When
+    the current optimum sits on a face of the box (the model strained by a missing effect), also
+    from the box centre."""
+    starts = [np.asarray(u_cur, dtype=float)]
+    if np.any(np.minimum(u_cur, 1.0 - u_cur) < 1e-3):
+        starts.append(np.full(len(u_cur), 0.5))
+    found = [(t.candidate, t.location, t.parameter.from_fit(v)) for t, v in zip(terms, t_cur)]
     best = None
     for u0 in starts:
         values = fitter.values(u0)
         grid = np.linspace(0.0, 1.0, 9)
-        chi2 = [float(np.sum(fitter.whiten(cand.readings(fitter.ctx, values, loc, par.from_fit(t))) ** 2)) for t in grid]
-        fit = fitter.fit(u0, cand, loc, grid[int(np.argmin(chi2))])
+        chi2 = [float(np.sum(fitter.whiten(term.candidate.readings(fitter.ctx, values, term.location,
+                                                                   term.parameter.from_fit(t), found=found)) ** 2))
+                for t in grid]
+        fit = fitter.fit(u0, [*terms, term], [*t_cur, grid[int(np.argmin(chi2))]])
         if best is None or fit.chi2 < best.chi2:
             best = fit
     return best
 
 
-def _held_out(ctx, space, measurement, noise, base, best, model_tolerance, rigid_body=None):
+def _drop_redundant(fitter, space, terms, current, alpha):
+    """Backward check after a cause is added: refit without each earlier cause; the least
+    significant one whose likelihood-ratio test (corrected as when it was found) is no longer
+    significant at ``alpha`` is dropped (a first cause that only stood in for the later ones).
+    Returns ``(terms, fit, dropped name or None)``."""
+    u = space.to_unit(np.array([[current.free[n] for n in space.names]]))[0]
+    t = [term.parameter.to_fit(c) for term, c in zip(terms, current.effects)]
+    weakest = None
+    for j in range(len(terms) - 1):
+        keep = [k for k in range(len(terms)) if k != j]
+        fit = fitter.fit(u, [terms[k] for k in keep], [t[k] for k in keep])
+        log10_p, _, p_corr = _log10_p(max(fit.chi2 - current.chi2, 0.0), terms[j].parameter, terms[j].log_correction)
+        if p_corr >= alpha and (weakest is None or log10_p > weakest[0]):
+            weakest = (log10_p, j, keep, fit)
+    if weakest is None:
+        return terms, current, None
+    _, j, keep, fit = weakest
+    return [terms[k] for k in keep], fit, terms[j].candidate.name
+
+
+def _alternatives(best, scores, alpha):
+    """Explanations of the first cause within a likelihood ratio of ``EQUIVALENCE_RATIO``."""
+    limit = 2.0 * np.log(EQUIVALENCE_RATIO)
+    out = []
+    for s in scores:
+        if s is best or not s.applicable:
+            continue
+        for loc, par, _, fit, delta in s.refitted:
+            if fit.chi2 - best.fit.chi2 < limit and s.p_corrected < alpha:
+                out.append(Alternative(s.name, loc, delta))
+                break
+    for loc, par, _, fit, delta in best.refitted:
+        if loc is not best.location and fit.chi2 - best.fit.chi2 < limit:
+            out.append(Alternative(best.name, loc, delta))
+    return out
+
+
+def _held_out(ctx, space, measurement, noise, base, extended, terms, error_std, rigid_body=None):
     """Fit base and extended models without the highest load level; error there (whitened RMS and mm)."""
     sc = ctx.scenario
     n_s = len(measurement.sensor_names)
@@ -366,13 +504,12 @@ def _held_out(ctx, space, measurement, noise, base, best, model_tolerance, rigid
     rows_all = np.arange(measurement.n_obs).reshape(-1, n_s)
     train = np.delete(rows_all, top, axis=0).ravel()
     test = rows_all[top]
-    fit_train = _Fitter(ctx, space, measurement, noise, train, model_tolerance, rigid_body)
-    test_fitter = _Fitter(ctx, space, measurement, noise, test, model_tolerance, rigid_body)
+    fit_train = _Fitter(ctx, space, measurement, noise, train, error_std, rigid_body)
+    test_fitter = _Fitter(ctx, space, measurement, noise, test, error_std, rigid_body)
     u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
     b = fit_train.fit(u_base)
-    t0 = best.parameter.to_fit(best.fit.effect)
-    u_ext = space.to_unit(np.array([[best.fit.free[n] for n in space.names]]))[0]
-    e = fit_train.fit(u_ext, CANDIDATES[best.name], best.location, t0)
+    u_ext = space.to_unit(np.array([[extended.free[n] for n in space.names]]))[0]
+    e = fit_train.fit(u_ext, terms, [t.parameter.to_fit(c) for t, c in zip(terms, extended.effects)])
     wb, we = test_fitter.whiten(b.readings), test_fitter.whiten(e.readings)
     idx = measurement.output_indices(sc.sensor_names, sc.load_levels)[test]
     d = measurement.data[test]

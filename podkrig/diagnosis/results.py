@@ -10,6 +10,7 @@ import numpy as np
 from fe.scenarios import build_scenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import EffectParameter, Location
+from podkrig.diagnosis.model_error import ModelError
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.online.measurement import Measurement
 from podkrig.online.rigid_body import rigid_body_modes
@@ -40,8 +41,9 @@ class Fit:
         Every parameter of the scenario at the optimum.
     free : dict of str to float
         The base model's free parameters at the optimum.
-    effect : float or None
-        The candidate's parameter at the optimum (extended fits).
+    effects : tuple of float
+        The causes' parameters at the optimum, in the order the causes were found (empty for the
+        base model).
     chi2 : float
         ``‖L⁻¹(d − g)‖²`` over the fitted entries.
     n_obs, n_params : int
@@ -56,13 +58,18 @@ class Fit:
 
     values: dict
     free: dict
-    effect: float | None
+    effects: tuple
     chi2: float
     n_obs: int
     n_params: int
     readings: np.ndarray
     jacobian: np.ndarray
     n_removed: int = 0
+
+    @property
+    def effect(self):
+        """The parameter of the cause found last, or None for the base model."""
+        return self.effects[-1] if self.effects else None
 
     @property
     def dof(self):
@@ -86,13 +93,14 @@ class Fit:
         """Every field, arrays as nested lists (JSON-able; :meth:`from_dict` reads it back)."""
         return {"values": {k: float(v) for k, v in self.values.items()},
                 "free": {k: float(v) for k, v in self.free.items()},
-                "effect": None if self.effect is None else float(self.effect), "chi2": float(self.chi2),
+                "effects": [float(c) for c in self.effects], "chi2": float(self.chi2),
                 "n_obs": int(self.n_obs), "n_params": int(self.n_params), "readings": self.readings.tolist(),
                 "jacobian": self.jacobian.tolist(), "n_removed": int(self.n_removed)}
 
     @classmethod
     def from_dict(cls, d):
-        return cls(dict(d["values"]), dict(d["free"]), d["effect"], float(d["chi2"]), int(d["n_obs"]),
+        effects = d["effects"] if "effects" in d else ([] if d.get("effect") is None else [d["effect"]])
+        return cls(dict(d["values"]), dict(d["free"]), tuple(float(c) for c in effects), float(d["chi2"]), int(d["n_obs"]),
                    int(d["n_params"]), np.asarray(d["readings"], dtype=float),
                    np.asarray(d["jacobian"], dtype=float).reshape(int(d["n_obs"]), -1), int(d.get("n_removed", 0)))
 
@@ -124,6 +132,10 @@ class CandidateScore:
     visible: bool = True
     max_delta_chi2: float = 0.0
     effect_size: float = 0.0
+    #: the largest change of a reading (σ) left after refitting the current model's parameters
+    effect_left: float = 0.0
+    #: log of the Bonferroni factor (candidates × locations) of its test
+    log_correction: float = 0.0
     fit: Fit | None = None
     #: (location, parameter, screening Δχ², extended fit, Δχ²) of each location refitted with the FE model
     refitted: list = field(default_factory=list)
@@ -171,8 +183,72 @@ class CandidateScore:
             "visible": bool(self.visible),
             "max_delta_chi2": float(self.max_delta_chi2),
             "effect_size": float(self.effect_size),
+            "effect_left": float(self.effect_left),
         })
         return d
+
+
+@dataclass(frozen=True)
+class Cause:
+    """A cause in the final extended model: candidate name, location, parameter and fitted value."""
+
+    name: str
+    location: Location
+    parameter: EffectParameter
+    value: float
+
+    def to_dict(self):
+        return {"cause": self.name, "location": self.location.label, "detail": self.location.detail,
+                "key": self.location.key, "parameter": self.parameter.name, "unit": self.parameter.unit,
+                "value": float(self.value), "neutral": self.parameter.neutral}
+
+    def state(self):
+        return {"name": self.name, "location": dataclasses.asdict(self.location),
+                "parameter": dataclasses.asdict(self.parameter), "value": float(self.value)}
+
+    @classmethod
+    def from_state(cls, d):
+        return cls(d["name"], Location(**d["location"]), EffectParameter(**d["parameter"]), float(d["value"]))
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """One round of the forward selection: the cause added, and the model's χ² before and after
+    (with the base parameters and every cause refitted).
+
+    Attributes
+    ----------
+    score : CandidateScore
+        The added candidate's score in its round (location, corrected p, effect left).
+    chi2_before, chi2_after : float
+    p_value_after : float
+        χ² test of the model after this step.
+    dropped : str or None
+        An earlier cause dropped by the backward check in this step (no longer significant).
+    """
+
+    score: CandidateScore
+    chi2_before: float
+    chi2_after: float
+    p_value_after: float
+    dropped: str | None = None
+
+    def to_dict(self):
+        s = self.score
+        return {"cause": s.name, "location": s.location.label, "parameter": s.parameter.name,
+                "unit": s.parameter.unit, "value": s.fit.effect, "p_corrected": float(s.p_corrected),
+                "effect_left": float(s.effect_left), "chi2_before": float(self.chi2_before),
+                "chi2_after": float(self.chi2_after), "chi2_drop": float(self.chi2_before - self.chi2_after),
+                "p_value_after": float(self.p_value_after), "dropped": self.dropped}
+
+    def state(self):
+        return {"score": self.score.state(), "chi2_before": self.chi2_before, "chi2_after": self.chi2_after,
+                "p_value_after": self.p_value_after, "dropped": self.dropped}
+
+    @classmethod
+    def from_state(cls, d):
+        return cls(CandidateScore.from_state(d["score"]), float(d["chi2_before"]), float(d["chi2_after"]),
+                   float(d["p_value_after"]), d["dropped"])
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,14 +273,19 @@ class Diagnosis:
     n_fe_runs: int
     surrogate_fit: dict
     extended_p_value: float | None = None
-    model_tolerance: float = 0.0
+    model_error: ModelError | None = None
+    #: the forward selection's rounds, in order (:class:`Step`)
+    steps: list = field(default_factory=list)
+    #: the causes of the final extended model, in the order found (:class:`Cause`)
+    causes: list = field(default_factory=list)
+    #: rigid-body motions removed (:mod:`podkrig.online.rigid_body`): the option and the point groups
     rigid_body: str = "keep"
     rigid_groups: dict | None = None
 
     @property
     def fully_explained(self):
         """Whether the extended model passes the χ² test (None without a named cause). When it does
-        not, more than one effect may be missing: the named one is the best single explanation."""
+        not, an effect outside the library (or beyond ``max_causes``) may be missing."""
         if self.extended_p_value is None:
             return None
         return self.extended_p_value >= self.alpha * CHI2_ALPHA_SHARE
@@ -240,6 +321,7 @@ class Diagnosis:
             "chi2_dof_before": float(b.chi2_dof), "chi2_dof_after": float(e.chi2_dof),
             "misfit_drop": float(0.5 * (b.chi2 - e.chi2)),
             "aic_drop": float(b.aic - e.aic), "bic_drop": float(b.bic - e.bic),
+            "steps": [st.to_dict() for st in self.steps],
         }
         if self.held_out is not None:
             g["held_out"] = self.held_out
@@ -267,7 +349,8 @@ class Diagnosis:
                 "alternatives": [{"name": a.name, "location": dataclasses.asdict(a.location),
                                   "delta_chi2": float(a.delta_chi2)} for a in self.alternatives],
                 "structure": self.structure, "held_out": self.held_out, "surrogate_fit": self.surrogate_fit,
-                "model_tolerance": float(self.model_tolerance),
+                "model_error": None if self.model_error is None else self.model_error.to_dict(),
+                "steps": [st.state() for st in self.steps], "causes": [c.state() for c in self.causes],
                 "rigid_body": self.rigid_body,
                 "rigid_groups": None if self.rigid_groups is None else {k: list(v) for k, v in self.rigid_groups.items()},
             }
@@ -298,27 +381,31 @@ class Diagnosis:
             alternatives=[Alternative(a["name"], Location(**a["location"]), a["delta_chi2"]) for a in s["alternatives"]],
             candidates=candidates, structure=s["structure"], held_out=s["held_out"], seconds=d["seconds"],
             n_fe_runs=d["n_fe_runs"], surrogate_fit=s["surrogate_fit"], extended_p_value=s["extended_p_value"],
-            model_tolerance=float(s.get("model_tolerance", 0.0)), rigid_body=s.get("rigid_body", "keep"),
-            rigid_groups=s.get("rigid_groups"),
+            model_error=None if s.get("model_error") is None else ModelError.from_dict(s["model_error"]),
+            steps=[Step.from_state(st) for st in s.get("steps", [])],
+            causes=[Cause.from_state(c) for c in s.get("causes", [])],
+            rigid_body=s.get("rigid_body", "keep"), rigid_groups=s.get("rigid_groups"),
         )
 
     def _report_dict(self):
         return {
             "verdict": self.verdict,
             "cause": self.cause,
+            "causes": [c.to_dict() for c in self.causes],
             "alpha": float(self.alpha),
             "detail": self.detail(),
             "candidates": [c.to_dict() for c in self.candidates],
             "base": self.base.summary(),
             "extended": None if self.extended is None else {
                 **self.extended.summary(), "effect": self.best.fit.effect,
+                "effects": {c.name: float(c.value) for c in self.causes},
                 "p_value": self.extended_p_value, "fully_explained": self.fully_explained},
             "gain": self.gain(),
             "adequacy": {
                 "chi2": float(self.base.chi2), "dof": int(self.base.dof), "chi2_dof": float(self.base.chi2_dof),
                 "p_value": float(self.chi2_p_value), "alpha": self.alpha * CHI2_ALPHA_SHARE,
-                "model_tolerance": float(self.model_tolerance),
-                "basis": chi2_basis("diagnosis", self.model_tolerance),
+                "model_error": None if self.model_error is None else self.model_error.to_dict(self.measurement),
+                "basis": chi2_basis("diagnosis", None if self.model_error is None else self.model_error.describe()),
                 "rigid_body": self.rigid_body, "dof_removed": int(self.base.n_removed),
             },
             "residual_convention": RESIDUAL_CONVENTION,
@@ -332,4 +419,4 @@ class Diagnosis:
         }
 
 
-__all__ = ["CHI2_ALPHA_SHARE", "Alternative", "CandidateScore", "Diagnosis", "Fit"]
+__all__ = ["CHI2_ALPHA_SHARE", "Alternative", "CandidateScore", "Cause", "Diagnosis", "Fit", "Step"]

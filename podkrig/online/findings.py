@@ -59,16 +59,17 @@ CHI2_BASIS = {
     "surrogate": "surrogate at its best fit; C_D = data noise C_d + surrogate variance C_T",
     "surrogate-noise": "surrogate at its best fit; C_D = data noise C_d only",
     "fe_check": "FE model at the surrogate's best fit; C_D = data noise C_d only",
-    "diagnosis": "FE model refitted by the diagnosis; C_D = data noise C_d + model-form tolerance (ε·d)²",
+    "diagnosis": "FE model refitted by the diagnosis; C_D = data noise C_d + model-form error C_T",
 }
 
 
-def chi2_basis(kind, model_tolerance=None):
-    """The sentence of :data:`CHI2_BASIS` for ``kind``; for ``"diagnosis"`` with the model-form
-    tolerance ε (relative, -) filled in."""
+def chi2_basis(kind, model_error=None):
+    """The sentence of :data:`CHI2_BASIS` for ``kind``; for ``"diagnosis"`` with how the model-form
+    error C_T was obtained (``model_error``: its description, e.g. "e², e estimated per reading
+    from two meshes ...")."""
     text = CHI2_BASIS[kind]
-    if kind == "diagnosis" and model_tolerance is not None:
-        text = text.replace("(ε·d)²", f"(ε·d)², ε = {100 * model_tolerance:g} % of each reading")
+    if kind == "diagnosis" and model_error is not None:
+        text += f" = {model_error}"
     return text
 
 
@@ -330,12 +331,14 @@ def diagnosis_findings(d):
             "candidate cause in the library explains the residual.",
             "check the noise level and the measurement file; read the residual pattern in the diagnosis report "
             "for an effect outside the library (nonlinearity, another test set-up).")]
-    where = f" at {d['detail']['location']}" if d["detail"] else ""
-    gain = (f" (χ²/dof {d['gain']['chi2_dof_before']:.2f} → {d['gain']['chi2_dof_after']:.2f} with it)"
-            if d["gain"] else "")
+    causes = d.get("causes") or [{"cause": d["cause"], "location": d["detail"]["location"] if d["detail"] else None}]
+    named = " and then ".join(c["cause"] + (f" at {c['location']}" if c["location"] else "") for c in causes)
+    gain = (f" (χ²/dof {d['gain']['chi2_dof_before']:.2f} → {d['gain']['chi2_dof_after']:.2f} with "
+            f"{'it' if len(causes) == 1 else 'them'})" if d["gain"] else "")
+    effect = "a physical effect" if len(causes) == 1 else f"{len(causes)} physical effects"
     return [Finding(
         "diagnosis-cause", "diagnosis",
-        f"the calibrated model leaves out a physical effect: the diagnosis names {d['cause']}{where}{gain}.",
+        f"the calibrated model leaves out {effect}: the diagnosis names {named}{gain}.",
         "read the diagnosis report; add the effect to the model (or repair the named sensor or set-up) "
         "and calibrate again: the parameters identified without it are biased.")]
 

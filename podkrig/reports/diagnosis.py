@@ -49,19 +49,21 @@ def _draw_wall(ax, scenario):
     ax.set_ylabel("y (mm)")
 
 
-def _mark_cause(ax, diagnosis):
-    best = diagnosis.best
-    if best is None:
-        return
-    d = best.location.detail
-    if best.name == "weak_joint":
-        ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weak joint (f = {best.fit.effect:.3g})")
-    elif best.name == "gauge_fault":
+def _mark_causes(ax, diagnosis):
+    for cause in diagnosis.causes:
+        _mark_cause(ax, diagnosis, cause)
+
+
+def _mark_cause(ax, diagnosis, cause):
+    d = cause.location.detail
+    if cause.name == "weak_joint":
+        ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weak joint (f = {cause.value:.3g})")
+    elif cause.name == "gauge_fault":
         geom = _channel_geometry(diagnosis.scenario).get(d["sensor"])
         if geom is not None:
             xy = 0.5 * (geom[1] + geom[2]) if geom[0] == "gauge" else geom[1]
             ax.plot(*xy, "o", ms=16, mfc="none", mec="red", mew=2, zorder=6, label=f"faulty sensor {d['sensor']}")
-    elif best.name == "support_compliance":
+    elif cause.name == "support_compliance":
         sup = diagnosis.scenario.mesh.nodes[np.asarray(diagnosis.scenario.supported_nodes, dtype=int)]
         ax.plot(sup[:, 0], sup[:, 1], "s", color="red", ms=5, zorder=6, label="compliant supports")
 
@@ -73,7 +75,7 @@ def plot_residuals_on_specimen(diagnosis, path):
     plt = pyplot()
     fits = [("base model", diagnosis.base)]
     if diagnosis.extended is not None:
-        fits.append((f"extended: {diagnosis.cause}", diagnosis.extended))
+        fits.append((f"extended: {' + '.join(c.name for c in diagnosis.causes)}", diagnosis.extended))
     fig, axes = plt.subplots(1, len(fits), figsize=(6.2 * len(fits), 6.0), squeeze=False)
     geometry = _channel_geometry(diagnosis.scenario)
     m = diagnosis.measurement
@@ -116,7 +118,7 @@ def plot_residuals_on_specimen(diagnosis, path):
             ax.text(0.98, 0.02, "short gauges (σ):\n" + "\n".join(short), transform=ax.transAxes, fontsize=7,
                     ha="right", va="bottom", bbox={"fc": "white", "ec": "#999"}, zorder=8)
         if title != "base model":
-            _mark_cause(ax, diagnosis)
+            _mark_causes(ax, diagnosis)
         chi = np.sum(res**2)
         ax.set_title(f"{title}\nresiduals at {m.load_levels[top]:g} {diagnosis.scenario.load_unit} (Σr² = {chi:.1f})", fontsize=10, pad=16)
         handles, _ = ax.get_legend_handles_labels()
@@ -223,16 +225,18 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
             "(nonlinearity, a different test set-up), and extend the model accordingly.")
     else:
         det = d["detail"]
+        named = "; ".join(f"{c['cause']} at {c['location']} ({c['parameter']} = {fmt(c['value'])} {c['unit']}, "
+                          f"neutral {fmt(c['neutral'])})" for c in d["causes"])
         page.warning(
-            f"The base model does not explain the data. Cause: {d['cause']} at {det['location']} "
-            f"({det['parameter']} = {fmt(det['value'])} {det['unit']}, neutral {fmt(det['neutral'])}).",
-            "check the named effect on the specimen or the set-up; if confirmed, calibrate with the extended model "
-            "(its parameters are below) or repair the cause and test again.")
+            f"The base model does not explain the data. {'Cause' if len(d['causes']) == 1 else 'Causes, in the order found'}: "
+            f"{named}.",
+            "check the named effects on the specimen or the set-up; if confirmed, calibrate with the extended model "
+            "(its parameters are below) or repair the causes and test again.")
         if not d["extended"]["fully_explained"]:
             page.warning(
                 f"The extended model still does not explain the data (χ²/dof = {d['extended']['chi2_dof']:.2f}): "
-                "more than one effect may be missing, and the named cause is only the best single explanation.",
-                "add the named effect to the model (or free its parameter), diagnose again, and look at what remains.")
+                "an effect outside the candidate library (or more causes than the search allows) may be missing.",
+                "look at the residual pattern of the extended model below for what remains.")
         if det["alternatives"]:
             page.warning(
                 "The data cannot tell this cause apart from: " + "; ".join(f"{a['cause']} at {a['location']}" for a in det["alternatives"]) + ".",
@@ -278,12 +282,24 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
         if c["applicable"]:
             page.paragraph(f"{c['name']}: {c['description']} Signature: {c['signature']}")
 
+    if d["gain"] is not None and d["gain"]["steps"]:
+        page.heading("Causes found in turn")
+        page.table(["step", "cause added", "location", "fitted parameter", "χ² before → after (-)", "corrected p (-)",
+                    "effect left after refitting (σ)", "dropped"],
+                   [[k, st["cause"], st["location"], f"{st['parameter']} = {fmt(st['value'])} {st['unit']}",
+                     f"{fmt(st['chi2_before'])} → {fmt(st['chi2_after'])}", f"{st['p_corrected']:.2g}",
+                     fmt(st["effect_left"]), st["dropped"] or ""] for k, st in enumerate(d["gain"]["steps"], 1)],
+                   caption="Forward selection: each step refits the base parameters with every cause found so far and "
+                           "adds the most significant candidate; a cause no longer significant once later ones are in "
+                           "is dropped.")
+
     page.heading("Base and extended fits")
     rows = [["base", ", ".join(f"{k} = {fmt(v)}" for k, v in d["base"]["parameters"].items()), fmt(d["base"]["chi2"]),
              fmt(d["base"]["chi2_dof"]), fmt(d["base"]["aic"]), fmt(d["base"]["bic"])]]
     if d["extended"] is not None:
         e = d["extended"]
-        rows.append(["extended", ", ".join(f"{k} = {fmt(v)}" for k, v in e["parameters"].items()) + f"; effect {fmt(e['effect'])}",
+        effects = ", ".join(f"{k} {fmt(v)}" for k, v in e["effects"].items())
+        rows.append(["extended", ", ".join(f"{k} = {fmt(v)}" for k, v in e["parameters"].items()) + f"; effects: {effects}",
                      fmt(e["chi2"]), fmt(e["chi2_dof"]), fmt(e["aic"]), fmt(e["bic"])])
     page.table(["model", "parameters (N/mm³, MPa, -)", "χ² (-)", "χ²/dof (-)", "AIC (-)", "BIC (-)"], rows,
                caption=f"FE fits of the diagnosis; χ² includes: {d['adequacy']['basis']}")

@@ -432,10 +432,15 @@ class SensitivitySettings:
 
 @_settings
 class DiagnosisSettings:
-    """Model diagnosis on or off, and its seed."""
+    """Model diagnosis on or off, its seed, the most causes it names in turn, and an optional fixed
+    relative model-form tolerance (by default each reading's discretisation error is estimated
+    from the scenario on a mesh refined twice: :mod:`podkrig.diagnosis.model_error`)."""
 
     enabled: StrictBool = False
     seed: Seed = 0
+    max_causes: Annotated[StrictInt, _allowed("an integer in [1, 10]", ge=1, le=10)] = 3
+    model_tolerance: Annotated[StrictFloat | StrictInt | None,
+                               _allowed("a number in [0, 0.5), e.g. 0.01 for 1 % of each reading", ge=0, lt=0.5)] = None
 
 
 # ---------------------------------------------------------------------------------------------

@@ -654,14 +654,16 @@ def rvc_stage(run):
 def diagnosis(run, test):
     """The model diagnosis of a test on its FE model (its own report page): :meth:`Diagnosis.to_dict`."""
     study = run.study
-    inputs = {**_online_inputs(run), "seed": study.diagnosis.seed}
+    inputs = {**_online_inputs(run), "seed": study.diagnosis.seed, "max_causes": study.diagnosis.max_causes,
+              "model_tolerance": study.diagnosis.model_tolerance}
 
     def compute():
         problem, model = _problem(run, test)
         folder = run.figures / test.file("diagnosis")
         shutil.rmtree(folder, ignore_errors=True)  # figures of an earlier diagnosis
         result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, fixed=test.fixed,
-                          surrogate=model.surrogate, rng=study.diagnosis.seed,
+                          surrogate=model.surrogate, rng=study.diagnosis.seed, max_causes=study.diagnosis.max_causes,
+                          model_tolerance=study.diagnosis.model_tolerance,
                           rigid_body=test.measurement.rigid_body, rigid_groups=test.measurement.rigid_groups,
                           progress=lambda stage, done, total: run.progress.advance(done, total))
         write_diagnosis_report(result, folder, noise_text=test.measurement.noise_text())
