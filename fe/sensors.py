@@ -247,6 +247,36 @@ def sensor_from_dict(name, d):
     return kinds[kind](name, **d)
 
 
+def absolute_displacements(sensors):
+    """The readings that are absolute displacements of a point, and where that point is.
+
+    Gauges and slip gauges read relative displacements (immune to a rigid-body motion of the
+    specimen) and are left out; a :class:`PointDisplacement` reads one component of its point; a
+    :class:`DICGrid` reads both at each grid point (a subset mean equals the value at the subset
+    centre for a field linear in x and y, as a rigid motion is).
+
+    Parameters
+    ----------
+    sensors : sequence of sensors
+
+    Returns
+    -------
+    dict of str to tuple
+        Channel name → ``(x, y, component, grid)``: the point (mm), the component (0 = x, 1 = y)
+        and the DIC grid's name (None for a point displacement sensor).
+    """
+    out = {}
+    for s in sensors:
+        if isinstance(s, DICGrid):
+            names = s.channel_names
+            for k, (x, y) in enumerate(s.points):
+                for c in (0, 1):
+                    out[names[2 * k + c]] = (float(x), float(y), c, s.name)
+        elif isinstance(s, PointDisplacement):
+            out[s.name] = (s.point[0], s.point[1], "xy".index(s.component), None)
+    return out
+
+
 def locate_points(mesh, points, owner="point"):
     """Element and reference coordinates of each point.
 

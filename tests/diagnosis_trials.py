@@ -14,10 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fe.sensors import absolute_displacements
+
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.diagnosis.candidates import CANDIDATES, FEContext
 from podkrig.diagnosis.engine import Term, _Fitter
 from podkrig.diagnosis.model_error import discretisation_error, tolerance_error
+from podkrig.online.rigid_body import rigid_body_modes
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,20 +90,23 @@ def draw_strength(cause, location, parameter, rng):
     return float(sign * rng.uniform(0.1, 1.0) * p.upper)
 
 
-def model_error(scenario, values, measurement, model_tolerance=None):
+def model_error(scenario, values, measurement, model_tolerance=None, rigid=None):
     """The model-form error the diagnosis will use on ``measurement`` (estimated when
-    ``model_tolerance`` is None, as :func:`podkrig.diagnosis.diagnose` does)."""
+    ``model_tolerance`` is None, as :func:`podkrig.diagnosis.diagnose` does, with the rigid-body
+    modes ``rigid`` removed from the two meshes' difference)."""
     if model_tolerance is None:
-        return discretisation_error(scenario, values, measurement).std
+        return discretisation_error(scenario, values, measurement, rigid_body=rigid).std
     return tolerance_error(measurement, model_tolerance).std
 
 
-def make_trial(scenario, space, truth, cause=None, location=None, value=None, *, rng, model_tolerance=None):
+def make_trial(scenario, space, truth, cause=None, location=None, value=None, *, rng, model_tolerance=None,
+               rigid_body="auto"):
     """Pseudo-data from ``truth`` with an optional effect, plus noise; see :class:`Trial`.
 
     ``location`` is a :class:`Location` of ``cause`` (drawn at random when None) and ``value`` its
-    parameter (drawn by :func:`draw_strength` when None). ``model_tolerance`` as the diagnosis
-    will be given it (None: estimated), for the identifiable size.
+    parameter (drawn by :func:`draw_strength` when None). ``model_tolerance`` and ``rigid_body``
+    as the diagnosis will be given them (None: estimated; "auto": the rigid-body motion of a DIC
+    grid removed), for the identifiable size.
     """
     values = scenario.resolve(truth)
     ctx = FEContext(scenario, space.names, values)
@@ -120,8 +126,9 @@ def make_trial(scenario, space, truth, cause=None, location=None, value=None, *,
     sigma = noise_sigma(effect)
     noise = NoiseModel(sigma=sigma)
     exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
+    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
     fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
-                     model_error(scenario, values, exact, model_tolerance) if cause else None)
+                     model_error(scenario, values, exact, model_tolerance, rigid) if cause else None, rigid)
     u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
     identifiable = float(np.max(np.abs(fitter.whiten(fitter.fit(u).readings)))) if cause else 0.0
     data = effect + sigma * rng.standard_normal(effect.shape)
@@ -143,10 +150,10 @@ class TwoCauseTrial:
     identifiable: tuple
 
 
-def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, model_tolerance=None):
+def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, model_tolerance=None, rigid_body="auto"):
     """Pseudo-data from ``truth`` with two effects ``causes`` = ``(name, location or None, value or
     None)`` each (drawn as in :func:`make_trial` when None), plus noise σ (default
-    :func:`noise_sigma`)."""
+    :func:`noise_sigma`); ``rigid_body`` as the diagnosis will be given it."""
     values = scenario.resolve(truth)
     ctx = FEContext(scenario, space.names, values)
     clean = ctx.readings(values)
@@ -165,7 +172,9 @@ def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, mod
     sigma = noise_sigma(effect) if sigma is None else float(sigma)
     noise = NoiseModel(sigma=sigma)
     exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
-    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs), model_error(scenario, values, exact, model_tolerance))
+    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
+    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
+                     model_error(scenario, values, exact, model_tolerance, rigid), rigid)
     u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
     identifiable = []
     for k in range(2):  # refit the base parameters and the other effect, from the truth

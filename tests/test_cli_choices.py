@@ -10,11 +10,13 @@ from podkrig.cli import app
 from podkrig.cli._common import (
     KrigingCriterion,
     RegionMethod,
+    RigidBody,
     SamplingMethod,
     SensitivitySource,
     SurrogateBackend,
     Variogram,
 )
+from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.sensors.placement import SENSITIVITY_SOURCES
 from podkrig.study.settings import BACKENDS, CRITERIA, REGION_METHODS, SAMPLING_METHODS, VARIOGRAMS
 
@@ -24,7 +26,7 @@ runner = CliRunner()
 @pytest.mark.parametrize(
     "choices, words",
     [(SamplingMethod, SAMPLING_METHODS), (Variogram, VARIOGRAMS), (KrigingCriterion, CRITERIA),
-     (RegionMethod, REGION_METHODS), (SurrogateBackend, BACKENDS)],
+     (RegionMethod, REGION_METHODS), (SurrogateBackend, BACKENDS), (RigidBody, RIGID_BODY_CHOICES)],
 )
 def test_cli_choices_are_the_study_file_words(choices, words):
     assert tuple(c.value for c in choices) == words
@@ -45,6 +47,10 @@ def test_sensitivity_sources_are_the_library_words():
          ["exponential", "power"]),
         (["invert", "x.h5", "--data", "d.csv", "--noise-rel", "0.01", "--region-method", "mcmc"],
          "--region-method", ["likelihood-ratio", "noise-mc"]),
+        (["invert", "x.h5", "--data", "d.csv", "--noise-rel", "0.01", "--rigid-body", "off"],
+         "--rigid-body", ["auto", "remove", "keep"]),
+        (["diagnose", "--scenario", "diagonal_compression", "--data", "d.csv", "--rigid-body", "yes"],
+         "--rigid-body", ["auto", "remove", "keep"]),
     ],
 )
 def test_a_wrong_choice_is_refused_with_the_allowed_values(args, option, allowed):

@@ -130,13 +130,16 @@ def test_discretisation_error_is_richardson_on_two_meshes():
 def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
     """Pseudo-data at the demo's hidden values (E_b and r_hj off the base model's fixed values),
     six gauges and a 9 × 9 grid, σ = 2 µm; each effect survives refitting with the other by more
-    than 3σ. The model and the data share the mesh, hence no model-form error (tolerance 0)."""
+    than 3σ. The model and the data share the mesh, hence no model-form error (tolerance 0) and no
+    rigid-body discrepancy to remove (rigid_body = "keep": with the default "auto" the grid's rigid
+    motion, which carries most of E_b's signature here, is removed — on exact data the χ² that
+    E_b = 12 000 leaves after refitting drops from 668 to 103 — and only r_hj is named)."""
     space = ParameterSpace.from_scenario(wall, BOUNDS)
     R = wall.run(DEMO_TRUTH).readings
     rng = np.random.default_rng(18)
     sigma = 0.002
     m = Measurement(R + sigma * rng.standard_normal(R.shape), wall.sensor_names, wall.load_levels, "two effects")
-    d = diagnose(wall, m, NoiseModel(sigma=sigma), space, model_tolerance=0.0, rng=1)
+    d = diagnose(wall, m, NoiseModel(sigma=sigma), space, model_tolerance=0.0, rng=1, rigid_body="keep")
     assert d.verdict == "inadequate"
     named = {c.name: c.value for c in d.causes}
     assert set(named) == {"unit_stiffness", "head_joint_stiffness"}, [s.to_dict() for s in d.steps]
@@ -156,12 +159,12 @@ def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
 
 @pytest.mark.slow
 def test_clean_data_from_an_independent_discretisation_raise_at_most_one_alarm_in_20(wall):
-    """The independent-code situation inside the project: data from Q4 elements on a mesh four times
+    """The independent-code situation inside the project: data from Q4 elements on a mesh eight times
     finer than the model's (Q8 2 × 1 per unit), six gauges and a 9 × 9 grid, clean (no effect), 20
     noise realisations. With the model-form error estimated (the default) and the rigid-body
     motion of the grid removed (the default for DIC), at most one false alarm (the issue's target:
     ≤ 1 in 20)."""
-    data_model = build_scenario({**_spec(8, 4), "element": "Q4"})
+    data_model = build_scenario({**_spec(16, 8), "element": "Q4"})
     space = ParameterSpace.from_scenario(wall, BOUNDS)
     surrogate = build_base_surrogate(wall, space, wall.resolve(), 64, 0)
     rng = np.random.default_rng(1818)

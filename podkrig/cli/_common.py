@@ -24,6 +24,7 @@ __all__ = [
     "LinearSolver",
     "RegionMethod",
     "ResponseFormat",
+    "RigidBody",
     "SamplingMethod",
     "SensitivitySource",
     "SurrogateBackend",
@@ -35,6 +36,7 @@ __all__ = [
     "error_message",
     "number",
     "os_error_message",
+    "parse_rigid_groups",
     "print_findings",
     "user_errors",
 ]
@@ -98,6 +100,37 @@ class LinearSolver(StrEnum):
     auto = "auto"
     pardiso = "pardiso"
     superlu = "superlu"
+
+
+class RigidBody(StrEnum):
+    """Removal of the rigid-body motion of absolute displacement readings (``--rigid-body``; the
+    study file's ``[measurement] rigid_body``, :data:`podkrig.online.rigid_body.RIGID_BODY_CHOICES`)."""
+
+    auto = "auto"
+    remove = "remove"
+    keep = "keep"
+
+
+#: help of ``--rigid-body`` and ``--rigid-group`` (invert, diagnose)
+RIGID_BODY_HELP = ("Rigid-body motion (translation and rotation, least squares per load level) removed from data and "
+                   "model: auto = of each DIC grid (and each --rigid-group), remove = also of all other point "
+                   "displacement sensors together, keep = none.")
+RIGID_GROUP_HELP = ("NAME=S1,S2,...: point displacement sensors whose rigid-body motion is fitted and removed together "
+                    "(repeatable).")
+
+
+def parse_rigid_groups(items):
+    """``["top=P1,P2", ...]`` (``--rigid-group``) → ``{"top": ("P1", "P2")}``; None for none."""
+    groups = {}
+    for text in items:
+        name, sep, members = text.partition("=")
+        names = tuple(n.strip() for n in members.split(",") if n.strip())
+        if not sep or not name.strip() or not names:
+            raise ValueError(f"--rigid-group {text!r}: expected NAME=SENSOR,SENSOR,..., e.g. --rigid-group top=P1,P2")
+        if name.strip() in groups:
+            raise ValueError(f"--rigid-group: group {name.strip()!r} given twice; list its sensors once")
+        groups[name.strip()] = names
+    return groups or None
 
 
 class TableFormat(StrEnum):

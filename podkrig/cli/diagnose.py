@@ -7,7 +7,15 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import TextFormat, configure_logging, user_errors
+from podkrig.cli._common import (
+    RIGID_BODY_HELP,
+    RIGID_GROUP_HELP,
+    RigidBody,
+    TextFormat,
+    configure_logging,
+    parse_rigid_groups,
+    user_errors,
+)
 from podkrig.cli.invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
 from podkrig.cli.simulate import load_spec, parse_assignment
 
@@ -29,6 +37,8 @@ def register(app):
             None, "--model-tolerance", help="A fixed relative model-form tolerance added to the noise (0.01 = 1 % of "
             "each reading), instead of the default: each reading's discretisation error estimated from a mesh refined twice."),
         max_causes: int = typer.Option(3, "--max-causes", min=1, help="Most causes named in turn (forward selection)."),
+        rigid_body: RigidBody = typer.Option(RigidBody.auto, "--rigid-body", help=RIGID_BODY_HELP),
+        rigid_group: list[str] = typer.Option([], "--rigid-group", help=RIGID_GROUP_HELP),
         seed: int = typer.Option(0, "--seed", help="Seed of the surrogate design and the GA."),
         n_train: int = typer.Option(64, "--n-train", help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
@@ -60,7 +70,8 @@ def register(app):
             with _progress() as progress:
                 result = run_diagnosis(sc, measurement, noise, space, fixed=fixed, candidates=names, alpha=alpha,
                                        model_tolerance=model_tolerance, max_causes=max_causes, rng=seed,
-                                       n_train=n_train, progress=progress)
+                                       n_train=n_train, progress=progress, rigid_body=str(rigid_body),
+                                       rigid_groups=parse_rigid_groups(rigid_group))
             out = result.to_dict()
             if report is not None:
                 from podkrig.reports.diagnosis import write_diagnosis_report

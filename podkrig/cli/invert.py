@@ -12,9 +12,13 @@ from rich.markup import escape
 from rich.table import Table
 
 from podkrig.cli._common import (
+    RIGID_BODY_HELP,
+    RIGID_GROUP_HELP,
     RegionMethod,
+    RigidBody,
     TableFormat,
     configure_logging,
+    parse_rigid_groups,
     number,
     print_findings,
     user_errors,
@@ -91,10 +95,11 @@ def parse_zero(text):
 
 
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix, import_settings=None,
-                  instrument=None, check=True):
+                  instrument=None, check=True, rigid_body="auto", rigid_groups=None):
     """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text).
 
-    ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`)."""
+    ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``,
+    ``rigid_groups``: see :class:`~podkrig.online.problem.InverseProblem`."""
     model = SurrogateModel(PODKriging.load(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
                                    model.load_response, import_settings)
@@ -103,9 +108,10 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
     if free:
         free_names = tuple(n.strip() for item in free for n in item.split(",") if n.strip())
     free_names, fixed = fix_from_scenario(model, free_names, dict(parse_assignment(t, "--fix") for t in fix))
-    problem = InverseProblem(model, measurement, noise, free=free_names, fixed=fixed)
+    problem = InverseProblem(model, measurement, noise, free=free_names, fixed=fixed, rigid_body=str(rigid_body),
+                             rigid_groups=rigid_groups)
     if check:
-        check_dof(measurement.n_obs, problem.free, str(data))
+        check_dof(measurement.n_obs, problem.free, str(data), problem.n_removed)
     return problem, model, noise_text
 
 
@@ -200,6 +206,8 @@ def register(app):
         sheet: str = typer.Option(None, "--sheet", help="Worksheet of an .xlsx file (default: the first)."),
         free: list[str] = typer.Option([], "--free", help="Free parameters (comma-separated or repeated); default all."),
         fix: list[str] = typer.Option([], "--fix", help="Fixed parameter NAME=VALUE (repeatable)."),
+        rigid_body: RigidBody = typer.Option(RigidBody.auto, "--rigid-body", help=RIGID_BODY_HELP),
+        rigid_group: list[str] = typer.Option([], "--rigid-group", help=RIGID_GROUP_HELP),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
         seed: int = typer.Option(0, "--seed", help="Seed of the GA and of the region sampling."),
@@ -227,7 +235,8 @@ def register(app):
                                       delimiter={"tab": "\t", "\\t": "\t"}.get(delimiter, delimiter),
                                       decimal=decimal, sheet=sheet)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
-                                                       settings, instrument)
+                                                       settings, instrument, rigid_body=rigid_body,
+                                                       rigid_groups=parse_rigid_groups(rigid_group))
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
                                 fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)
             if report is not None:

@@ -44,6 +44,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy import linalg, optimize, stats
 
+from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, DEFAULT_CANDIDATES, FEContext
 from podkrig.diagnosis.model_error import (
     DEFAULT_RATE,
@@ -63,6 +64,7 @@ from podkrig.diagnosis.results import (
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
 from podkrig.online.problem import InverseProblem, SurrogateModel
+from podkrig.online.rigid_body import project_out, rigid_body_modes
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.podkriging import PODKriging
 
@@ -92,9 +94,15 @@ def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
 
 
 class _Fitter:
-    """Least-squares fits of base and extended FE models to a subset of the observed entries."""
+    """Least-squares fits of base and extended FE models to a subset of the observed entries.
 
-    def __init__(self, ctx, space, measurement, noise, rows, model_error=None):
+    ``rigid_body`` (:class:`~podkrig.online.rigid_body.RigidBodyModes` of all observed entries, or
+    None): rigid-body motions removed from data and model alike — the whitened residual with the
+    whitened rigid modes projected out, ``(I − Q Qᵀ) L⁻¹ (g − d)``, whose χ² has
+    ``n_removed`` fewer degrees of freedom.
+    """
+
+    def __init__(self, ctx, space, measurement, noise, rows, model_error=None, rigid_body=None):
         self.ctx, self.space = ctx, space
         sc = ctx.scenario
         idx = measurement.output_indices(sc.sensor_names, sc.load_levels)
@@ -103,10 +111,18 @@ class _Fitter:
         self.idx = idx[self.rows]
         self.d = measurement.data[self.rows]
         self.L = np.linalg.cholesky(C[np.ix_(self.rows, self.rows)])
+        self.rigid = None if rigid_body is None else rigid_body.subset(self.rows)
+        self.n_removed = 0 if self.rigid is None else self.rigid.n_removed
+        self._Q = self.rigid.whitened_basis(self.L) if self.n_removed else None
 
     def whiten(self, R):
-        """``L⁻¹ (g − d)`` of full readings ``R`` at the fitted entries."""
-        return linalg.solve_triangular(self.L, R.ravel()[self.idx] - self.d, lower=True)
+        """``L⁻¹ (g − d)`` of full readings ``R`` at the fitted entries (rigid motion projected out)."""
+        return project_out(self._Q, linalg.solve_triangular(self.L, R.ravel()[self.idx] - self.d, lower=True))
+
+    def observed(self, R):
+        """Full readings ``R`` at the fitted entries, rigid motion removed, mm."""
+        v = R.ravel()[self.idx]
+        return v if self.rigid is None else self.rigid.remove(v)
 
     def values(self, u):
         return {**self.ctx.values, **self.space.as_params(self.space.from_unit(np.clip(u, 0, 1)[None])[0])}
@@ -139,7 +155,7 @@ class _Fitter:
         return Fit(
             values=values, free={n: values[n] for n in self.space.names}, effects=tuple(effect_values(z)),
             chi2=float(sol.fun @ sol.fun), n_obs=len(self.rows), n_params=len(z),
-            readings=readings(z), jacobian=sol.jac,
+            readings=readings(z), jacobian=sol.jac, n_removed=self.n_removed,
         )
 
 
@@ -156,7 +172,7 @@ def data_covariance(measurement, noise, model_error=None):
 
 def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None, candidates=None, alpha=0.01,
              model_tolerance=None, model_error_rate=DEFAULT_RATE, max_causes=3, rng=0, n_train=64,
-             refit_locations=3, progress=None):
+             refit_locations=3, progress=None, rigid_body="auto", rigid_groups=None):
     """Diagnose a calibrated FE model against measured data, naming missing causes in turn.
 
     Parameters
@@ -199,6 +215,12 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         Locations per candidate refitted with the FE model after screening.
     progress : callable, optional
         ``progress(stage, done, total)``.
+    rigid_body : {"auto", "remove", "keep"}
+        Rigid-body motions removed from data and model (:mod:`podkrig.online.rigid_body`): "auto"
+        of each DIC grid (and of ``rigid_groups``), "remove" also of the other point displacement
+        sensors together, "keep" none. χ² dof lose 3 per group and load level.
+    rigid_groups : dict of str to sequence of str, optional
+        Group name → point displacement sensors whose rigid motion is fitted together.
 
     Returns
     -------
@@ -221,6 +243,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         raise ValueError(f"max_causes must be at least 1; got {max_causes}")
     values0 = scenario.resolve(fixed)
     ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)))
+    rigid = rigid_body_modes(measurement, absolute_displacements(scenario.sensors), rigid_body, rigid_groups)
 
     # 1. base calibration: surrogate first, FE last (with the model-form error at the surrogate's optimum)
     say("calibration", 0, 4)
@@ -228,13 +251,13 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         surrogate = build_base_surrogate(scenario, space, values0, n_train=n_train, seed=rng)
         ctx.n_runs += n_train
     say("calibration", 1, 4)
-    problem = InverseProblem(SurrogateModel(surrogate), measurement, noise)
+    problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
     inv = invert(problem, rng=rng)
     say("calibration", 2, 4)
     if model_tolerance is None:
         try:
             model_error = discretisation_error(scenario, {**values0, **dict(zip(space.names, map(float, inv.x)))},
-                                               measurement, rate=model_error_rate)
+                                               measurement, rate=model_error_rate, rigid_body=rigid)
             ctx.n_runs += 2
         except ValueError as e:
             logger.warning("%s; using a model-form tolerance of %g %%", e, 100 * FALLBACK_TOLERANCE)
@@ -243,7 +266,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         model_error = tolerance_error(measurement, model_tolerance)
     error_std = model_error.std
     say("calibration", 3, 4)
-    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), error_std)
+    fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), error_std, rigid)
     noise_std = np.sqrt(np.diag(data_covariance(measurement, noise, error_std)))
     base = fitter.fit(space.to_unit(inv.x[None])[0])
     ctx.base_values = dict(base.values)  # the reference of candidates that precompute (nonlinearity_onset)
@@ -281,7 +304,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     held_out = None
     if extended is not None and len(measurement.load_levels) >= 3:
         say("held-out check", 0, 1)
-        held_out = _held_out(ctx, space, measurement, noise, base, extended, terms, error_std)
+        held_out = _held_out(ctx, space, measurement, noise, base, extended, terms, error_std, rigid)
     seconds = time.perf_counter() - t_start
     causes = [t[0].name for t in terms]
     logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, causes, seconds, ctx.n_runs)
@@ -292,7 +315,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         held_out=held_out, seconds=seconds, n_fe_runs=ctx.n_runs, extended_p_value=extended_p,
         surrogate_fit={"chi2_dof": float(inv.chi2_dof), "parameters": {k: float(v) for k, v in zip(space.names, inv.x)},
                        "basis": inv.chi2_basis + " (the diagnosis's own starting surrogate)"},
-        model_error=model_error, steps=steps,
+        model_error=model_error, steps=steps, rigid_body=rigid_body, rigid_groups=rigid_groups,
         causes=[Cause(t[0].name, t[1], t[2], float(v)) for t, v in zip(terms, current.effects)] if cause_found else [],
     )
 
@@ -397,7 +420,7 @@ def _score_candidate(cand, locations, ctx, fitter, screen, current, terms, u_cur
     # the effect's size: in full (the fitted cause against the same fit with the cause off), and
     # what is left of it beyond what the current model's parameters absorb (the guard)
     off = cand.readings(ctx, fit.values, loc, par.off, found=_found_at(terms, fit))
-    diff = (fit.readings - off).ravel()[fitter.idx]
+    diff = fitter.observed(fit.readings - off)
     score.effect_size = float(np.max(np.abs(diff) / noise_std))
     score.effect_left = float(np.max(np.abs(screen.project(fitter.whiten(fit.readings) - fitter.whiten(off)))))
     return score
@@ -474,7 +497,7 @@ def _alternatives(best, scores, alpha):
     return out
 
 
-def _held_out(ctx, space, measurement, noise, base, extended, terms, error_std):
+def _held_out(ctx, space, measurement, noise, base, extended, terms, error_std, rigid_body=None):
     """Fit base and extended models without the highest load level; error there (whitened RMS and mm)."""
     sc = ctx.scenario
     n_s = len(measurement.sensor_names)
@@ -482,8 +505,8 @@ def _held_out(ctx, space, measurement, noise, base, extended, terms, error_std):
     rows_all = np.arange(measurement.n_obs).reshape(-1, n_s)
     train = np.delete(rows_all, top, axis=0).ravel()
     test = rows_all[top]
-    fit_train = _Fitter(ctx, space, measurement, noise, train, error_std)
-    test_fitter = _Fitter(ctx, space, measurement, noise, test, error_std)
+    fit_train = _Fitter(ctx, space, measurement, noise, train, error_std, rigid_body)
+    test_fitter = _Fitter(ctx, space, measurement, noise, test, error_std, rigid_body)
     u_base = space.to_unit(np.array([[base.free[n] for n in space.names]]))[0]
     b = fit_train.fit(u_base)
     u_ext = space.to_unit(np.array([[extended.free[n] for n in space.names]]))[0]

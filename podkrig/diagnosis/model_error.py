@@ -96,7 +96,7 @@ def tolerance_error(measurement, tolerance, note=None):
     return ModelError(np.abs(tolerance * measurement.data), "tolerance", tolerance=float(tolerance), note=note)
 
 
-def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAULT_RATE):
+def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAULT_RATE, rigid_body=None):
     """Estimate the discretisation error of each observed reading of ``scenario`` at ``values``.
 
     Parameters
@@ -111,6 +111,10 @@ def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAU
         r: the second mesh has ``r·nx × r·ny`` divisions per unit.
     rate : float
         p > 0, the convergence rate of the readings.
+    rigid_body : RigidBodyModes, optional
+        The rigid-body modes removed from data and model (:mod:`podkrig.online.rigid_body`): the
+        difference of the two meshes is taken with its rigid motion removed as well, since the
+        readings compared with the data are.
 
     Returns
     -------
@@ -131,7 +135,10 @@ def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAU
     idx = measurement.output_indices(scenario.sensor_names, scenario.load_levels)
     coarse_r = scenario.run(values).readings.ravel()[idx]
     fine_r = fine.run(values).readings.ravel()[idx]
+    difference = coarse_r - fine_r
+    if rigid_body is not None:
+        difference = rigid_body.remove(difference)
     factor = refinement**rate / (refinement**rate - 1.0)
     element = options.get("element", "Q8")
-    return ModelError(np.abs(coarse_r - fine_r) * factor, "two meshes", refinement=int(refinement), rate=float(rate),
+    return ModelError(np.abs(difference) * factor, "two meshes", refinement=int(refinement), rate=float(rate),
                       mesh=f"{element} {nx}×{ny} and {refinement * nx}×{refinement * ny} per unit")

@@ -8,10 +8,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fe.scenarios import build_scenario
+from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import EffectParameter, Location
 from podkrig.diagnosis.model_error import ModelError
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.online.measurement import Measurement
+from podkrig.online.rigid_body import rigid_body_modes
 
 #: the omnibus χ² test runs at this share of α: it guards against gross misfit, while the targeted
 #: candidate tests carry the detection (with hundreds of readings, χ² alone flags the last per
@@ -49,6 +51,9 @@ class Fit:
         FE readings at the optimum (every sensor and load level of the scenario), mm.
     jacobian : ndarray of shape (n_obs, n_params)
         Whitened Jacobian w.r.t. the fit coordinates (unit cube) at the optimum.
+    n_removed : int
+        Degrees of freedom taken by the rigid-body motions removed from the fitted entries
+        (:mod:`podkrig.online.rigid_body`: 3 per DIC grid and load level); ``dof = n_obs − n_removed − n_params``.
     """
 
     values: dict
@@ -59,6 +64,7 @@ class Fit:
     n_params: int
     readings: np.ndarray
     jacobian: np.ndarray
+    n_removed: int = 0
 
     @property
     def effect(self):
@@ -67,7 +73,7 @@ class Fit:
 
     @property
     def dof(self):
-        return max(self.n_obs - self.n_params, 1)
+        return max(self.n_obs - self.n_removed - self.n_params, 1)
 
     @property
     def chi2_dof(self):
@@ -80,8 +86,8 @@ class Fit:
 
     @property
     def bic(self):
-        """χ² + k ln n (Schwarz)."""
-        return self.chi2 + self.n_params * np.log(self.n_obs)
+        """χ² + k ln n (Schwarz; n the entries left after removing rigid-body motions)."""
+        return self.chi2 + self.n_params * np.log(self.n_obs - self.n_removed)
 
     def to_dict(self):
         """Every field, arrays as nested lists (JSON-able; :meth:`from_dict` reads it back)."""
@@ -89,14 +95,14 @@ class Fit:
                 "free": {k: float(v) for k, v in self.free.items()},
                 "effects": [float(c) for c in self.effects], "chi2": float(self.chi2),
                 "n_obs": int(self.n_obs), "n_params": int(self.n_params), "readings": self.readings.tolist(),
-                "jacobian": self.jacobian.tolist()}
+                "jacobian": self.jacobian.tolist(), "n_removed": int(self.n_removed)}
 
     @classmethod
     def from_dict(cls, d):
         effects = d["effects"] if "effects" in d else ([] if d.get("effect") is None else [d["effect"]])
         return cls(dict(d["values"]), dict(d["free"]), tuple(float(c) for c in effects), float(d["chi2"]), int(d["n_obs"]),
                    int(d["n_params"]), np.asarray(d["readings"], dtype=float),
-                   np.asarray(d["jacobian"], dtype=float).reshape(int(d["n_obs"]), -1))
+                   np.asarray(d["jacobian"], dtype=float).reshape(int(d["n_obs"]), -1), int(d.get("n_removed", 0)))
 
     def summary(self):
         return {
@@ -272,6 +278,9 @@ class Diagnosis:
     steps: list = field(default_factory=list)
     #: the causes of the final extended model, in the order found (:class:`Cause`)
     causes: list = field(default_factory=list)
+    #: rigid-body motions removed (:mod:`podkrig.online.rigid_body`): the option and the point groups
+    rigid_body: str = "keep"
+    rigid_groups: dict | None = None
 
     @property
     def fully_explained(self):
@@ -282,10 +291,16 @@ class Diagnosis:
         return self.extended_p_value >= self.alpha * CHI2_ALPHA_SHARE
 
     def residuals(self, fit):
-        """Standardised residuals ``(d − g)/σ`` of a fit, ``(n_loads_obs, n_sensors_obs)``."""
+        """Standardised residuals ``(d − g)/σ`` of a fit, ``(n_loads_obs, n_sensors_obs)``; with
+        rigid-body removal (:attr:`rigid_body`) ``P (d − g)/σ``, the rigid motion of each DIC grid
+        (and point group) and load level fitted and removed (:mod:`podkrig.online.rigid_body`)."""
         idx = self.measurement.output_indices(self.scenario.sensor_names, self.scenario.load_levels)
-        r = (self.measurement.data - fit.readings.ravel()[idx]) / self.noise_std
-        return r.reshape(self.measurement.values.shape)
+        r = self.measurement.data - fit.readings.ravel()[idx]
+        modes = rigid_body_modes(self.measurement, absolute_displacements(self.scenario.sensors), self.rigid_body,
+                                 self.rigid_groups)
+        if modes is not None:
+            r = modes.remove(r)
+        return (r / self.noise_std).reshape(self.measurement.values.shape)
 
     def detail(self):
         if self.best is None or self.cause is None:
@@ -336,6 +351,8 @@ class Diagnosis:
                 "structure": self.structure, "held_out": self.held_out, "surrogate_fit": self.surrogate_fit,
                 "model_error": None if self.model_error is None else self.model_error.to_dict(),
                 "steps": [st.state() for st in self.steps], "causes": [c.state() for c in self.causes],
+                "rigid_body": self.rigid_body,
+                "rigid_groups": None if self.rigid_groups is None else {k: list(v) for k, v in self.rigid_groups.items()},
             }
         return d
 
@@ -367,6 +384,7 @@ class Diagnosis:
             model_error=None if s.get("model_error") is None else ModelError.from_dict(s["model_error"]),
             steps=[Step.from_state(st) for st in s.get("steps", [])],
             causes=[Cause.from_state(c) for c in s.get("causes", [])],
+            rigid_body=s.get("rigid_body", "keep"), rigid_groups=s.get("rigid_groups"),
         )
 
     def _report_dict(self):
@@ -388,6 +406,7 @@ class Diagnosis:
                 "p_value": float(self.chi2_p_value), "alpha": self.alpha * CHI2_ALPHA_SHARE,
                 "model_error": None if self.model_error is None else self.model_error.to_dict(self.measurement),
                 "basis": chi2_basis("diagnosis", None if self.model_error is None else self.model_error.describe()),
+                "rigid_body": self.rigid_body, "dof_removed": int(self.base.n_removed),
             },
             "residual_convention": RESIDUAL_CONVENTION,
             "residual_structure": self.structure,

@@ -80,7 +80,7 @@ class InverseResult:
     chi2 : float
         Data term (g − d)ᵀ C_D⁻¹ (g − d) at m*.
     dof : int
-        n_obs − n_free.
+        n_obs − n_removed − n_free (n_removed: rigid-body dof removed, 3 per DIC grid and load level).
     n_evaluations : int
         Model evaluations (GA and polish).
     seconds : float
@@ -216,7 +216,7 @@ class InverseResult:
         space = problem.free_space
         tests = {name: cls.at(part, x_part) for name, (part, x_part) in problem.parts(x).items()}
         return cls(x, problem.parameters_at(x), float(problem.omega(x[None])[0]), float(problem.chi2(x[None])[0]),
-                   problem.n_obs - problem.n_free, n_evaluations, seconds, tuple(problem.free), tuple(space.units),
+                   problem.n_obs - problem.n_removed - problem.n_free, n_evaluations, seconds, tuple(problem.free), tuple(space.units),
                    tuple(at_bound(space.names, space.to_unit(x[None])[0])), problem.measurement_summary(), problem,
                    ga, tests=tests)
 
@@ -330,7 +330,7 @@ def fe_check(result, scenario, response=None):
     mean, _ = problem.misfit.predict(result.x[None])
     diff = fe_obs - mean[0]
     sd = problem.misfit.noise_std
-    resid = (fe_obs - problem.measurement.data) / sd
+    resid = problem.misfit.whiten(fe_obs - problem.measurement.data)[0]  # noise only, rigid motion removed
     over_noise = float(np.max(np.abs(diff) / sd))
     return FECheck(
         max_abs_diff=float(np.max(np.abs(diff))),

@@ -82,6 +82,11 @@ class JointProblem(UnitCubeLeastSquares):
         return sum(p.n_obs for p in self.problems.values())
 
     @property
+    def n_removed(self):
+        """Degrees of freedom taken by removed rigid-body motions, all tests together."""
+        return sum(p.n_removed for p in self.problems.values())
+
+    @property
     def model_error(self):
         """Whether any test adds its model's predictive variance C_T to C_D (thesis eq. 2.10)."""
         return any(p.model_error for p in self.problems.values())

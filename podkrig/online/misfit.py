@@ -12,6 +12,12 @@ surrogate error widens the fit instead of biasing it. The prior term is optional
 alternative, ``kind="relative"`` gives the relative least-squares discrepancy of the group's
 papers, ½ Σ ((g_i − d_i) / d_i)².
 
+With ``rigid_body`` (:class:`~podkrig.online.rigid_body.RigidBodyModes`) the rigid-body motion of
+each group of absolute displacement readings (a DIC grid) is removed from the residual, data and
+model alike: ``χ² = (P r)ᵀ (P C_D Pᵀ)⁺ (P r)`` with ``P = I − R (RᵀR)⁻¹ Rᵀ`` per group and load level,
+computed as the whitened residual with the whitened rigid modes projected out; the χ² then has
+``n_obs − n_removed`` degrees of freedom before the free parameters (:attr:`Misfit.n_removed`).
+
 One :class:`Misfit` serves the GA (a population ``(n, d)`` at a time), a local least-squares
 polish (:meth:`Misfit.whitened_residuals`) and MCMC (``-ω`` is the log-posterior up to a constant).
 """
@@ -21,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig.online.measurement import ObservationOperator
+from podkrig.online.rigid_body import project_out
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +50,8 @@ class Misfit:
     kind : {"gaussian", "relative"}
     model_error : bool
         Add the model's predictive variance ``C_T`` to ``C_d``.
+    rigid_body : RigidBodyModes, optional
+        Rigid-body motions removed from the residual (module docstring); None: none.
     """
 
     model: object
@@ -53,6 +62,7 @@ class Misfit:
     prior_cov: np.ndarray | None = None
     kind: str = "gaussian"
     model_error: bool = True
+    rigid_body: object = None
 
     def __post_init__(self):
         if self.kind not in ("gaussian", "relative"):
@@ -70,12 +80,19 @@ class Misfit:
             raise ValueError(f"the observation gives {op.n_obs} entries; the measurement has {len(self._d)}")
         object.__setattr__(self, "_identity_indices",
                             op.exact and bool(np.array_equal(op.indices, np.arange(op.n_obs))))
+        if self.rigid_body is not None and self.rigid_body.n_obs != len(self._d):
+            raise ValueError(f"the rigid-body modes are for {self.rigid_body.n_obs} entries; the measurement has {len(self._d)}")
         if self.prior_cov is not None:
             object.__setattr__(self, "_prior_chol", np.linalg.cholesky(np.asarray(self.prior_cov, float)))
 
     @property
     def n_obs(self):
         return len(self._d)
+
+    @property
+    def n_removed(self):
+        """Degrees of freedom taken by the removed rigid-body motions (3 per group and load level)."""
+        return 0 if self.rigid_body is None else self.rigid_body.n_removed
 
     @property
     def noise_std(self):
@@ -100,24 +117,34 @@ class Misfit:
     def whitened_residuals(self, X):
         """``L_D⁻¹ (g(m) − d)`` with ``C_D = L_D L_Dᵀ``, ``(n, n_obs)`` (dimensionless).
 
-        For ``kind="relative"``: ``(g − d)/|d|``.
+        For ``kind="relative"``: ``(g − d)/|d|``. With rigid-body removal, the whitened residual
+        with the whitened rigid modes projected out (its squares sum to ``(P r)ᵀ (P C_D Pᵀ)⁺ (P r)``;
+        a relative residual is ``P (g − d)/|d|``).
         """
         mean, std = self.predict(X)
-        r = mean - self._d
+        return self.whiten(mean - self._d, std)
+
+    def whiten(self, r, std=None):
+        """Whitened residuals of raw residuals ``r`` ``(n, n_obs)`` mm, with the model's predictive
+        std ``std`` (``(n, n_obs)`` mm, None: noise only) in ``C_D``; see :meth:`whitened_residuals`."""
+        r = np.array(np.atleast_2d(r), dtype=float)
+        rigid = self.rigid_body
         if self.kind == "relative":
+            r = r if rigid is None else rigid.remove(r)
             return r / np.maximum(np.abs(self._d), 1e-12)
         if self.noise.is_diagonal:
             if std is not None and std.ndim == 2 and std.strides[0] == 0:
                 std = std[0]  # the same std for every row (frozen C_T): weights computed once
-            var = self._sd**2 if std is None else self._sd**2 + std**2
-            r *= 1.0 / np.sqrt(var)
-            return r
+            sd = self._sd if std is None else np.sqrt(self._sd**2 + std**2)
+            r *= 1.0 / sd
+            return r if rigid is None else rigid.whiten_diagonal(r, sd)
         C = np.broadcast_to(self._Cd, (len(r),) + self._Cd.shape).copy()
         if std is not None:
             idx = np.arange(self.n_obs)
             C[:, idx, idx] += std**2
         L = np.linalg.cholesky(C)
-        return np.linalg.solve(L, r[..., None])[..., 0]
+        w = np.linalg.solve(L, r[..., None])[..., 0]
+        return w if rigid is None else project_out(rigid.whitened_basis(L), w)
 
     def chi2(self, X):
         """Data term ``(g − d)ᵀ C_D⁻¹ (g − d)``, ``(n,)``."""

@@ -14,13 +14,16 @@ model was trained on.
 """
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import optimize
 
 from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
+from fe.sensors import absolute_displacements
 from podkrig.online.misfit import Misfit
+from podkrig.online.rigid_body import RigidBodyModes, may_remove, rigid_body_modes
 from podkrig.parameters import ParameterSpace
 
 
@@ -41,6 +44,7 @@ class FEModel:
         self.load_levels = np.asarray(scenario.load_levels, dtype=float)
         self.load_unit = scenario.load_unit
         self.load_response = getattr(scenario, "load_response", "discrete")
+        self.sensors = tuple(scenario.sensors)
         self.n_runs = 0
 
     def predict(self, X, return_std=False):
@@ -78,6 +82,12 @@ class SurrogateModel:
 
     def predict(self, X, return_std=False):
         return self.surrogate.predict(X, return_std=return_std)
+
+    @functools.cached_property
+    def sensors(self):
+        """The sensors of the scenario the surrogate was trained on (rebuilt from its spec, about
+        0.5 s for the default diagonal test: only asked for when rigid-body motions may be removed)."""
+        return tuple(self.scenario().sensors)
 
     def predict_unit(self, U, return_std=False):
         """``predict`` at unit-cube coordinates of ``space`` (no round trip through physical units)."""
@@ -146,6 +156,13 @@ class InverseProblem(UnitCubeLeastSquares):
         Misfit kind (see :class:`~podkrig.online.misfit.Misfit`).
     model_error : bool
         Include the model's predictive variance in ``C_D`` (thesis eq. 2.10).
+    rigid_body : {"auto", "remove", "keep"} or RigidBodyModes
+        Removal of the rigid-body motion of absolute displacement readings from data and model
+        (:mod:`podkrig.online.rigid_body`): "auto" for each DIC grid (and ``rigid_groups``),
+        "remove" also for the other point displacement sensors together, "keep" none; or modes
+        built already (None: none). The χ² then loses :attr:`n_removed` degrees of freedom.
+    rigid_groups : dict of str to sequence of str, optional
+        Group name → point displacement sensors whose rigid motion is fitted together.
     """
 
     model: object
@@ -158,6 +175,8 @@ class InverseProblem(UnitCubeLeastSquares):
     kind: str = "gaussian"
     model_error: bool = True
     frozen_model_std: np.ndarray | None = None
+    rigid_body: object = "auto"
+    rigid_groups: dict | None = None
 
     def __post_init__(self):
         space = self.model.space
@@ -192,9 +211,14 @@ class InverseProblem(UnitCubeLeastSquares):
         observation = self.measurement.observation(self.model.sensor_names, self.model.load_levels,
                                                    getattr(self.model, "load_response", "discrete"),
                                                    getattr(self.model, "load_unit", ""))
+        rigid = self.rigid_body
+        if not (rigid is None or isinstance(rigid, RigidBodyModes)):
+            rigid = (rigid_body_modes(self.measurement, absolute_displacements(_model_sensors(self.model, rigid)),
+                                      rigid, self.rigid_groups)
+                     if may_remove(self.measurement.sensor_names, rigid, self.rigid_groups) else None)
         misfit = Misfit(
             self._predict, self.measurement, self.noise, observation, self.prior_mean, self.prior_cov,
-            kind=self.kind, model_error=self.model_error,
+            kind=self.kind, model_error=self.model_error, rigid_body=rigid,
         )
         object.__setattr__(self, "misfit", misfit)
         # unit-cube path (GA, polish, region, posterior): the free space is made of the model's own
@@ -214,6 +238,11 @@ class InverseProblem(UnitCubeLeastSquares):
     @property
     def n_obs(self):
         return self.misfit.n_obs
+
+    @property
+    def n_removed(self):
+        """Degrees of freedom taken by removed rigid-body motions (3 per DIC grid and load level)."""
+        return self.misfit.n_removed
 
     def full(self, X):
         """Free parameter vectors ``(n, n_free)`` → full model inputs ``(n, n_params)``."""
@@ -278,9 +307,10 @@ class InverseProblem(UnitCubeLeastSquares):
     def measurement_summary(self):
         """``file``, ``sensors``, ``load_levels``, ``load_unit`` and ``n_obs`` of the data (JSON-able)."""
         meas = self.measurement
+        rigid = self.misfit.rigid_body
         return {"file": str(meas.source), "sensors": list(meas.sensor_names),
                 "load_levels": meas.load_levels.tolist(), "load_unit": getattr(self.model, "load_unit", "kN"),
-                "n_obs": self.n_obs}
+                "n_obs": self.n_obs, **({} if rigid is None else {"rigid_body": rigid.to_dict()})}
 
     def with_noisy_data(self, x, rng):
         """The same problem with data g(x) + e, e ~ N(0, C_d) (a noise Monte Carlo copy; ``x`` free, physical)."""
@@ -298,10 +328,20 @@ class InverseProblem(UnitCubeLeastSquares):
         X = self.free_space.from_unit(U)
         return np.hstack([self.misfit.whitened_residuals(X), self.misfit.prior_residuals(X)])
 
-def check_dof(n_obs, free, source="measurement"):
-    """Refuse a calibration without degrees of freedom: ``n_obs − n_free ≤ 0`` fits the data exactly
-    whatever the model (χ²/dof is then undefined, issue 14). A prior-regularised problem built in
-    code may have fewer; the study pipeline and the command line call this.
+def _model_sensors(model, option):
+    """The sensors of ``model`` (their positions say which readings are absolute displacements)."""
+    sensors = getattr(model, "sensors", None)
+    if sensors is None:
+        raise ValueError(f"rigid_body = {option!r} needs the positions of the model's sensors, and this model "
+                         f"({type(model).__name__}) has no 'sensors'; give rigid_body = 'keep' or RigidBodyModes")
+    return sensors
+
+
+def check_dof(n_obs, free, source="measurement", removed=0):
+    """Refuse a calibration without degrees of freedom: ``n_obs − n_removed − n_free ≤ 0`` fits
+    the data exactly whatever the model (χ²/dof is then undefined, issue 14; ``removed``: the dof
+    taken by removed rigid-body motions, :mod:`podkrig.online.rigid_body`). A prior-regularised
+    problem built in code may have fewer; the study pipeline and the command line call this.
 
     Raises
     ------
@@ -309,12 +349,13 @@ def check_dof(n_obs, free, source="measurement"):
         With both counts and what to do.
     """
     free = tuple(free)
-    dof = int(n_obs) - len(free)
+    dof = int(n_obs) - int(removed) - len(free)
     if dof <= 0:
+        rigid = f" − {removed} (rigid-body motions removed)" if removed else ""
         raise ValueError(
             f"{source}: {n_obs} reading(s) cannot identify {len(free)} free parameter(s) ({', '.join(free)}): "
-            f"degrees of freedom n_obs − n_free = {n_obs} − {len(free)} = {dof} ≤ 0. Add readings (more sensors "
-            "or load levels) or fix parameters")
+            f"degrees of freedom n_obs{' − n_removed' if removed else ''} − n_free = {n_obs}{rigid} − {len(free)} = "
+            f"{dof} ≤ 0. Add readings (more sensors or load levels) or fix parameters")
     return dof
 
 

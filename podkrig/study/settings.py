@@ -34,6 +34,7 @@ from pydantic_core import PydanticCustomError
 from podkrig import limits
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
+from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.parameters import SCALES, ParameterSpace
 
 __all__ = [
@@ -271,6 +272,22 @@ def _zero(value):
                       'scenario\'s load unit), or "end of PHASE" (the last row of that phase in the phase_column)')
 
 
+_RIGID_GROUPS_ALLOWED = ('a table group = ["sensor", ...] of point displacement sensors (kind = "point") whose '
+                         'rigid-body motion is fitted and removed together, e.g. rigid_groups = { top = ["P1", "P2"] }')
+_RIGID_BODY_ALLOWED = ('"auto" (remove the rigid-body motion of each DIC grid and of the rigid_groups), "remove" (also '
+                       'of all other point displacement sensors, together) or "keep" (remove nothing)')
+
+
+def _rigid_groups(value):
+    if not isinstance(value, dict) or not value:
+        raise study_error(f"must be a non-empty table; got {type_name(value)} {value!r}", allowed=_RIGID_GROUPS_ALLOWED)
+    for group, names in value.items():
+        if not (isinstance(names, list) and names and all(isinstance(n, str) for n in names)):
+            raise study_error(f"must be a non-empty array of sensor names; got {type_name(names)} {names!r}", group,
+                              _RIGID_GROUPS_ALLOWED)
+    return {k: tuple(v) for k, v in value.items()}
+
+
 def _load_range(value):
     if (isinstance(value, list) and len(value) == 2
             and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value)
@@ -289,7 +306,9 @@ class MeasurementSettings:
     the typical σ_res and δ of :data:`~podkrig.online.measurement.INSTRUMENTS`. Reading: see
     :class:`~podkrig.online.measurement_csv.ImportSettings`. ``range_check`` stops a study whose
     readings lie far outside every FE run of the probe (before the training snapshots) and of the
-    training design (a unit or sign error); false also skips the probe runs. Validating a table
+    training design (a unit or sign error); false also skips the probe runs. ``rigid_body``:
+    removal of the rigid-body motion of absolute displacement readings from data and model
+    (:mod:`podkrig.online.rigid_body`; "auto": each DIC grid and the ``rigid_groups``). Validating a table
     needs the study file's folder in the context (``{"folder": Path}``); constructing one in
     code takes an existing file.
     """
@@ -311,8 +330,13 @@ class MeasurementSettings:
     decimal: _choice((".", ","), '"." or "," (default: detected)') | None = None
     sheet: Annotated[StrictStr, _allowed("a worksheet name of the .xlsx file")] | None = None
     range_check: StrictBool = True
+    rigid_body: _choice(RIGID_BODY_CHOICES, _RIGID_BODY_ALLOWED) = "auto"
+    rigid_groups: Annotated[Any, AfterValidator(lambda v: None if v is None else _rigid_groups(v))] = None
 
     def __post_init__(self):
+        if self.rigid_body == "keep" and self.rigid_groups:
+            raise study_error("rigid_groups name sensors whose rigid-body motion is removed, and rigid_body = \"keep\" "
+                              "removes none; drop one of them", "rigid_groups", _RIGID_BODY_ALLOWED)
         if self.instrument is not None:
             other = [k for k in ("noise_abs", "noise_rel") if getattr(self, k) is not None]
             if other:

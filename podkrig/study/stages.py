@@ -39,6 +39,7 @@ import numpy as np
 
 from fe.scenarios import build_scenario
 from fe.scenarios.nonlinear import NonlinearScenario
+from fe.sensors import absolute_displacements
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.limits import fe_job_estimate
@@ -50,6 +51,7 @@ from podkrig.online.joint import JointProblem
 from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
+from podkrig.online.rigid_body import rigid_body_modes
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.online.sensitivity import (
     NEGLIGIBLE_TOTAL_INDEX,
@@ -197,7 +199,8 @@ def measurement_check(run, test):
         sc = run.scenario(test)
         response = getattr(sc, "load_response", "discrete")
         data, noise = read_study_measurement(test, sc.sensor_names, sc.load_levels, sc.load_unit, response)
-        check_dof(data.n_obs, test.space.names, str(m.file))
+        rigid = rigid_body_modes(data, absolute_displacements(sc.sensors), m.rigid_body, m.rigid_groups)
+        check_dof(data.n_obs, test.space.names, str(m.file), 0 if rigid is None else rigid.n_removed)
         if study.diagnosis.enabled:
             exact = np.all(np.any(np.isclose(data.load_levels[:, None], sc.load_levels[None, :], rtol=1e-9,
                                              atol=1e-12), axis=1))
@@ -485,7 +488,9 @@ def _problem(run, test):
     data, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
                                          model.load_response)
     free, fixed = fix_from_scenario(model)
-    return InverseProblem(model, data, noise, free=free, fixed=fixed), model
+    m = test.measurement
+    return InverseProblem(model, data, noise, free=free, fixed=fixed, rigid_body=m.rigid_body,
+                          rigid_groups=m.rigid_groups), model
 
 
 def calibration_problem(run):
@@ -509,7 +514,8 @@ def _online_inputs(run):
         m = t.measurement
         one = {"surrogate": run.outputs(t.stage("surrogate")), "measurement": file_sha256(m.file),
                "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
-               "import": dataclasses.asdict(m.import_settings())}
+               "import": dataclasses.asdict(m.import_settings()),
+               "rigid_body": {"option": m.rigid_body, "groups": m.rigid_groups}}
         if t.name is None:
             return one
         inputs[t.name] = one
@@ -658,6 +664,7 @@ def diagnosis(run, test):
         result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, fixed=test.fixed,
                           surrogate=model.surrogate, rng=study.diagnosis.seed, max_causes=study.diagnosis.max_causes,
                           model_tolerance=study.diagnosis.model_tolerance,
+                          rigid_body=test.measurement.rigid_body, rigid_groups=test.measurement.rigid_groups,
                           progress=lambda stage, done, total: run.progress.advance(done, total))
         write_diagnosis_report(result, folder, noise_text=test.measurement.noise_text())
         files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())

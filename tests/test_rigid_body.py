@@ -1,0 +1,251 @@
+"""Rigid-body removal from displacement readings (issue 18, deliverable 2): the projector, the
+χ² with its lost degrees of freedom, and an inversion and a diagnosis fit that a rigid rotation of
+the data no longer biases."""
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from fe import build_scenario
+from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
+from fe.sensors import DICGrid, Gauge, PointDisplacement, SlipGauge, absolute_displacements
+from podkrig.diagnosis.candidates import FEContext
+from podkrig.diagnosis.engine import _Fitter
+from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.online.misfit import Misfit
+from podkrig.online.problem import FEModel, InverseProblem
+from podkrig.online.rigid_body import POINT_GROUP, RigidBodyModes, project_out, rigid_body_modes
+from podkrig.parameters import ParameterSpace
+
+SENSORS = (Gauge("D1", (0.0, 0.0), (100.0, 100.0)), SlipGauge("S1", (10.0, 10.0), (10.0, 50.0)),
+           DICGrid("G", 10.0, 20.0, 300.0, 400.0, 3, 4),
+           PointDisplacement("P1", (5.0, 5.0), "x"), PointDisplacement("P2", (500.0, 5.0), "y"),
+           PointDisplacement("P3", (250.0, 600.0), "x"), PointDisplacement("P4", (250.0, 600.0), "y"))
+NAMES = tuple(n for s in SENSORS for n in s.channel_names)
+DISPLACEMENTS = absolute_displacements(SENSORS)
+GAUGES = np.array([n in ("D1", "S1") for n in NAMES])
+
+
+def _measurement(n_loads=3, missing=True, seed=0):
+    values = np.random.default_rng(seed).normal(size=(n_loads, len(NAMES)))
+    if missing:
+        values[1, 5] = np.nan  # a DIC reading missing at one level: that block has one entry less
+    return Measurement(values, NAMES, np.arange(1.0, n_loads + 1))
+
+
+def _rigid(meas, t, omega, centre=(0.0, 0.0)):
+    """Readings of the rigid motion ``t`` ``(n_loads, 2)`` mm, ``omega`` ``(n_loads,)`` rad about
+    ``centre`` at every absolute displacement channel (zero at gauges), ``(n_loads, n_sensors)``."""
+    out = np.zeros(meas.values.shape)
+    for j, name in enumerate(meas.sensor_names):
+        if name in DISPLACEMENTS:
+            x, y, c, _ = DISPLACEMENTS[name]
+            out[:, j] = t[:, 0] - omega * (y - centre[1]) if c == 0 else t[:, 1] + omega * (x - centre[0])
+    return out
+
+
+def test_absolute_displacements_name_points_and_components_and_leave_gauges_out():
+    assert "D1" not in DISPLACEMENTS and "S1" not in DISPLACEMENTS
+    assert DISPLACEMENTS["P2"] == (500.0, 5.0, 1, None)
+    assert DISPLACEMENTS["G[2,3].ux"] == (300.0, 400.0, 0, "G") and DISPLACEMENTS["G[0,1].uy"][2:] == (1, "G")
+    assert len(DISPLACEMENTS) == 2 * 12 + 4
+
+
+@pytest.mark.parametrize("option, groups", [("auto", None), ("remove", None), ("auto", {"pair": ["P3", "P4"]})])
+def test_a_pure_rigid_motion_is_removed_exactly_at_every_load_level(option, groups):
+    """Any (t_x, t_y, ω), different at each level, about any centre: P r = 0 to 1e-12 of |r|,
+    and the fit returns the motion (translation at the block's centroid, ω itself)."""
+    meas = _measurement()
+    modes = rigid_body_modes(meas, DISPLACEMENTS, option, groups)
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        t, omega = rng.normal(scale=0.1, size=(3, 2)), rng.normal(scale=1e-3, size=3)
+        rigid = meas.with_data(_rigid(meas, t, omega, centre=rng.normal(scale=500, size=2))[meas.mask]).data
+        grid_rows = np.array([n.startswith("G[") for n in meas.sensor_names])
+        grid = np.broadcast_to(grid_rows, meas.values.shape)[meas.mask]
+        removed = modes.remove(rigid)
+        assert np.max(np.abs(removed[grid])) <= 1e-12 * np.max(np.abs(rigid))
+        fitted = modes.fit(rigid)
+        for b, (g, level) in enumerate(modes.labels):
+            if g == "G":
+                assert_allclose(fitted[b, 2], omega[level], rtol=1e-10)
+    assert modes.groups == {"auto": ("G",), "remove": ("G", POINT_GROUP)}.get(option if groups is None else "",
+                                                                             ("G", "pair"))
+
+
+def test_projector_is_symmetric_idempotent_of_rank_n_minus_3_per_block_and_leaves_gauges_alone():
+    meas = _measurement()
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "remove")
+    P = modes.projector()
+    assert_allclose(P, P.T, atol=1e-15)
+    assert_allclose(P @ P, P, atol=1e-14)
+    # grid: 3 per level; the four point sensors (x, y, x, y at three points): 3 per level too
+    assert modes.n_removed == 3 * 2 * 3 and np.linalg.matrix_rank(P) == meas.n_obs - modes.n_removed
+    gauges = np.broadcast_to(GAUGES, meas.values.shape)[meas.mask]
+    assert_allclose(P[gauges], np.eye(meas.n_obs)[gauges], atol=0)  # gauges: identity rows and columns
+    v = meas.data
+    assert_allclose(modes.remove(v), P @ v, atol=1e-14)
+    assert_allclose(modes.remove(v)[gauges], v[gauges], atol=0)
+    J = np.random.default_rng(2).normal(size=(meas.n_obs, 4))  # a Jacobian goes in transposed
+    assert_allclose(modes.remove(J.T).T, P @ J, atol=1e-13)
+
+
+def test_blocks_that_cannot_see_all_motions_remove_fewer_dof():
+    """Two x components at different heights see t_x and ω, not t_y: rank 2; one point: rank 2
+    (translations only); a lone x reading: rank 1."""
+    meas = Measurement(np.ones((1, 4)), ("P1", "P3", "P2", "P4"), [1.0])
+    assert rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["P1", "P3"]}).rank.tolist() == [2]
+    assert rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["P3", "P4"]}).rank.tolist() == [2]
+    assert rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["P1"]}).rank.tolist() == [1]
+
+
+def test_chi2_is_the_pseudo_inverse_of_the_projected_covariance():
+    """χ² of the projected whitening = (P r)ᵀ (P C Pᵀ)⁺ (P r), for a diagonal and a full C."""
+    meas = _measurement()
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "remove")
+    rng = np.random.default_rng(3)
+    r = rng.normal(size=meas.n_obs)
+    sd = rng.uniform(0.5, 2.0, size=meas.n_obs)
+    P = modes.projector()
+    A = rng.normal(size=(meas.n_obs,) * 2) * 0.2
+    for C in (np.diag(sd**2), A @ A.T + np.eye(meas.n_obs)):
+        reference = (P @ r) @ np.linalg.pinv(modes.covariance(C), rcond=1e-10, hermitian=True) @ (P @ r)
+        L = np.linalg.cholesky(C)
+        w = project_out(modes.whitened_basis(L), np.linalg.solve(L, r))
+        assert_allclose(w @ w, reference, rtol=1e-9)
+        assert np.linalg.matrix_rank(modes.covariance(C), tol=1e-10) == meas.n_obs - modes.n_removed
+    w = modes.whiten_diagonal((r / sd)[None], sd)[0]
+    assert_allclose(w @ w, (P @ r) @ np.linalg.pinv(modes.covariance(np.diag(sd**2)), rcond=1e-10) @ (P @ r), rtol=1e-9)
+    gauges = np.broadcast_to(GAUGES, meas.values.shape)[meas.mask]
+    assert_allclose(w[gauges], (r / sd)[gauges], rtol=1e-14)  # gauges keep their whitened residual
+
+
+@pytest.mark.parametrize("covariance", [False, True])
+def test_chi2_of_noise_has_n_minus_removed_minus_p_degrees_of_freedom(covariance):
+    """Mean χ² over 200 noise realisations after a linear least-squares fit of p = 2 parameters:
+    n − k − p (k = 3 per grid or point group and load level). Tolerance 4 standard errors of the
+    mean, √(2 (n − k − p) / 200) each; the error of forgetting k (= 18 here) is 5 of them."""
+    meas = _measurement(missing=False)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "remove")
+    n, k, p = meas.n_obs, modes.n_removed, 2
+    rng = np.random.default_rng(4)
+    sd = np.where(np.broadcast_to(GAUGES, meas.values.shape).ravel(), 1e-3, 2.5e-3)
+    near = 0.4 * sd[:-1] * sd[1:]  # neighbouring readings correlated (ρ = 0.4)
+    noise = (NoiseModel(covariance=np.diag(sd**2) + np.diag(near, 1) + np.diag(near, -1)) if covariance
+             else NoiseModel(sigma=dict(zip(NAMES, np.where(GAUGES, 1e-3, 2.5e-3)))))
+    C = noise.covariance_matrix(meas)
+    A = rng.normal(scale=0.01, size=(n, p))  # a linear model g(m) = A m, mm
+    misfit = Misfit(lambda X: (X @ A.T, None), meas, noise, np.arange(n), model_error=False, rigid_body=modes)
+    chi2 = []
+    L = np.linalg.cholesky(C)
+    for _ in range(200):
+        data = meas.with_data(L @ rng.standard_normal(n)  # noise plus a rigid motion (removed)
+                              + _rigid(meas, rng.normal(size=(3, 2)), rng.normal(size=3) * 1e-4).ravel())
+        fit = Misfit(misfit.model, data, noise, np.arange(n), model_error=False, rigid_body=modes)
+        w0 = fit.whiten(-data.data)[0]
+        J = fit.whiten(A.T)  # whitening is linear for a fixed C: rows = whitened columns of A
+        m = np.linalg.lstsq(J.T, -w0, rcond=None)[0]
+        w = w0 + J.T @ m
+        chi2.append(w @ w)
+        assert_allclose(fit.chi2(m[None])[0], w @ w, rtol=1e-8)
+    dof = n - k - p
+    assert abs(np.mean(chi2) - dof) < 4 * np.sqrt(2 * dof / 200), (np.mean(chi2), dof, n)
+
+
+def test_group_and_option_errors_name_the_key_and_the_allowed_values():
+    meas = _measurement()
+    with pytest.raises(ValueError, match=r"rigid_body must be one of \['auto', 'remove', 'keep'\]; got 'off'"):
+        rigid_body_modes(meas, DISPLACEMENTS, "off")
+    with pytest.raises(ValueError, match=r"rigid_groups: 'D1' in group 'a' is not a point displacement sensor"):
+        rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["D1", "P1"]})
+    with pytest.raises(ValueError, match=r"'G\[0,0\].ux' in group 'a' is a DIC grid channel"):
+        rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["G[0,0].ux"]})
+    with pytest.raises(ValueError, match="sensor 'P1' is in groups 'a' and 'b'"):
+        rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["P1"], "b": ["P1", "P2"]})
+    assert rigid_body_modes(meas, DISPLACEMENTS, "keep") is None
+    gauges_only = Measurement(np.ones((2, 2)), ("D1", "S1"), [1.0, 2.0])
+    assert rigid_body_modes(gauges_only, DISPLACEMENTS, "remove") is None
+
+
+def test_subset_keeps_whole_blocks():
+    meas = _measurement(missing=False)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto")
+    rows = np.arange(meas.n_obs).reshape(3, -1)[[0, 2]].ravel()
+    sub = modes.subset(rows)
+    assert isinstance(sub, RigidBodyModes) and sub.labels == (("G", 0), ("G", 2)) and sub.n_removed == 6
+    assert_allclose(sub.projector(), modes.projector()[np.ix_(rows, rows)], atol=1e-14)
+
+
+# ---------------------------------------------------------------------------- inversion and diagnosis
+
+OMEGA = 1.8e-5  # rad: the rigid rotation between two FE codes of the diagonal test (issue 18)
+
+
+@pytest.fixture(scope="module")
+def dic_wall():
+    """The diagonal test on a coarse mesh with the six gauges and a 5 × 6 DIC grid; kN_bj, kV_bj
+    free; data at a hidden truth with DIC noise 2.5 µm and gauge noise 1 µm."""
+    sensors = {g.name: g.to_dict() for g in DEFAULT_SENSORS}
+    sensors["DIC"] = {"kind": "dic", "x0": 65.0, "y0": 32.5, "x1": 1105.0, "y1": 1072.5, "nx": 5, "ny": 6}
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "sensors": sensors})
+    space = ParameterSpace.from_scenario(sc, {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")})
+    clean = sc.run({"kN_bj": 60.0, "kV_bj": 25.0}).readings
+    names = sc.sensor_names
+    is_dic = np.array([n.startswith("DIC[") for n in names])
+    sigma = dict(zip(names, np.where(is_dic, 2.5e-3, 1e-3)))
+    noise = NoiseModel(sigma=sigma)
+    rng = np.random.default_rng(5)
+    e = rng.standard_normal(clean.shape) * np.array([sigma[n] for n in names])
+    disp = absolute_displacements(sc.sensors)
+    rotation = np.zeros(clean.shape)  # ω about the bottom-left corner, growing with the load
+    for j, n in enumerate(names):
+        if n in disp:
+            x, y, c, _ = disp[n]
+            rotation[:, j] = (-OMEGA * y if c == 0 else OMEGA * x) * sc.load_levels / sc.load_levels[-1]
+    plain = Measurement(clean + e, names, sc.load_levels, "plain")
+    rotated = Measurement(clean + e + rotation, names, sc.load_levels, "rotated")
+    return sc, space, noise, plain, rotated
+
+
+def _polish(sc, space, meas, noise, rigid_body):
+    problem = InverseProblem(FEModel(sc, space), meas, noise, rigid_body=rigid_body)
+    x, _ = problem.polish(space.from_unit(np.full((1, 2), 0.5))[0], max_nfev=60)
+    return problem, x, float(problem.chi2(x[None])[0])
+
+
+def test_inversion_on_dic_data_is_blind_to_a_rigid_rotation_with_removal(dic_wall):
+    sc, space, noise, plain, rotated = dic_wall
+    p_plain, x_plain, chi2_plain = _polish(sc, space, plain, noise, "auto")
+    p_rot, x_rot, chi2_rot = _polish(sc, space, rotated, noise, "auto")
+    assert p_rot.n_removed == 3 * len(sc.load_levels)
+    # the two misfits agree to rounding; the optimiser stops at its own tolerance (xtol 1e-8 in the
+    # unit cube), so the optima agree to about that
+    assert_allclose(x_rot, x_plain, rtol=1e-6)
+    assert_allclose(chi2_rot, chi2_plain, rtol=1e-6)
+    assert_allclose(p_rot.chi2(x_plain[None]), p_plain.chi2(x_plain[None]), rtol=1e-9)
+    dof = p_rot.n_obs - p_rot.n_removed - 2
+    assert chi2_rot / dof < 1.5  # the model explains the data within the noise
+    assert_allclose(x_plain, [60.0, 25.0], rtol=0.1)
+    # kept, the same rotation (up to 18 µm, 7 σ of a DIC point) wrecks the fit: inadequate, biased
+    p_keep, x_keep, chi2_keep = _polish(sc, space, rotated, noise, "keep")
+    assert p_keep.n_removed == 0
+    assert chi2_keep / (p_keep.n_obs - 2) > 5.0
+    assert np.max(np.abs(x_keep / x_plain - 1.0)) > 0.05, x_keep
+
+
+def test_diagnosis_fit_is_blind_to_a_rigid_rotation_with_removal(dic_wall):
+    """The diagnosis's FE fitter (``_Fitter``, where diagnose() hooks the removal): same base fit
+    and χ² on rotated and plain data with the modes; a χ²/dof far off without them."""
+    sc, space, noise, plain, rotated = dic_wall
+    values = sc.resolve()
+    fits = {}
+    for name, meas, option in (("plain", plain, "auto"), ("rotated", rotated, "auto"), ("kept", rotated, "keep")):
+        ctx = FEContext(sc, space.names, values, offset_scale=np.max(np.abs(meas.values)))
+        modes = rigid_body_modes(meas, absolute_displacements(sc.sensors), option)
+        fitter = _Fitter(ctx, space, meas, noise, np.arange(meas.n_obs), None, modes)
+        fits[name] = fitter.fit(np.full(2, 0.5))
+    assert_allclose(fits["rotated"].chi2, fits["plain"].chi2, rtol=1e-6)
+    assert_allclose([fits["rotated"].free[n] for n in space.names], [fits["plain"].free[n] for n in space.names],
+                    rtol=1e-6)
+    assert fits["rotated"].n_removed == 12 and fits["rotated"].dof == plain.n_obs - 12 - 2
+    assert fits["rotated"].chi2_dof < 1.5 and fits["kept"].chi2_dof > 5.0
