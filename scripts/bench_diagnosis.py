@@ -138,6 +138,7 @@ def main():
     seen = visible_joints(diag)
     rows = defaultdict(Counter)
     raw_strong = Counter()  # the criterion: the effect moves some reading by ≥ 3σ
+    extra = Counter()  # single hidden effects for which the forward selection named more than one cause
     places = Counter()
     seconds = []
     series = [(cause, setup, None) for cause, setup in causes.items()] + [("weak_joint", diag, seen)]
@@ -149,6 +150,8 @@ def main():
             d = setup.run(trial, k)
             seconds.append(time.perf_counter() - t0)
             named, place = outcome(d, trial)
+            extra["trials"] += 1
+            extra["more than one cause"] += len(d.causes) > 1
             band = "≥3σ" if trial.identifiable_effect >= 3 else "<3σ"
             label = cause if among is None else "weak_joint (visible segment)"
             rows[(label, band)][named] += 1
