@@ -72,6 +72,9 @@ def counterpart_spec(scenario, target):
     spec = dict(scenario.spec.to_dict())
     spec["scenario"] = NONLINEAR_COUNTERPARTS[spec["scenario"]]
     spec.pop("parameters", None)  # values are passed to every run explicitly
+    if spec.get("support") == "rigid":  # the twins' supports are the rigid contact: nothing differs
+        spec.pop("support")
+        spec.pop("support_stiffness", None)
     known = {f.name for f in dataclasses.fields(SCENARIOS[spec["scenario"]].Options)}
     dropped = sorted(k for k in spec if k != "scenario" and k not in known)
     spec = {k: v for k, v in spec.items() if k not in dropped}
