@@ -98,6 +98,19 @@ def model_error(scenario, values, measurement, model_tolerance=None, rigid=None)
     return tolerance_error(measurement, model_tolerance).std
 
 
+def _draw(ctx, cause, location, value, rng):
+    """``(candidate, location, parameter, value)`` of ``cause``, the location drawn at random when
+    None and the value by :func:`draw_strength` when None."""
+    cand = CANDIDATES[cause]
+    if location is None:
+        locations = cand.locations(ctx)
+        location = locations[int(rng.integers(len(locations)))]
+    par = cand.parameter(ctx, location)
+    if value is None:
+        value = draw_strength(cause, location, par, rng)
+    return cand, location, par, float(value)
+
+
 def make_trial(scenario, space, truth, cause=None, location=None, value=None, *, rng, model_tolerance=None,
                rigid_body="auto"):
     """Pseudo-data from ``truth`` with an optional effect, plus noise; see :class:`Trial`.
@@ -112,13 +125,7 @@ def make_trial(scenario, space, truth, cause=None, location=None, value=None, *,
     clean = ctx.readings(values)
     ctx.offset_scale = float(np.max(np.abs(clean)))  # as diagnose() sets it from the data
     if cause is not None:
-        cand = CANDIDATES[cause]
-        if location is None:
-            locations = cand.locations(ctx)
-            location = locations[int(rng.integers(len(locations)))]
-        par = cand.parameter(ctx, location)
-        if value is None:
-            value = draw_strength(cause, location, par, rng)
+        cand, location, _, value = _draw(ctx, cause, location, value, rng)
         effect = cand.readings(ctx, values, location, value)
     else:
         effect = clean
@@ -157,16 +164,7 @@ def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, mod
     ctx = FEContext(scenario, space.names, values)
     clean = ctx.readings(values)
     ctx.offset_scale = float(np.max(np.abs(clean)))
-    drawn = []
-    for name, location, value in causes:
-        cand = CANDIDATES[name]
-        if location is None:
-            locations = cand.locations(ctx)
-            location = locations[int(rng.integers(len(locations)))]
-        par = cand.parameter(ctx, location)
-        if value is None:
-            value = draw_strength(name, location, par, rng)
-        drawn.append((cand, location, par, float(value)))
+    drawn = [_draw(ctx, name, location, value, rng) for name, location, value in causes]
     effect = ctx.readings_with(values, [(c, loc, v) for c, loc, _, v in drawn])
     sigma = noise_sigma(effect) if sigma is None else float(sigma)
     noise = NoiseModel(sigma=sigma)

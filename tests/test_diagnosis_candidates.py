@@ -196,21 +196,15 @@ def _named(d, trial):
 
 
 @pytest.mark.slow
-def test_hidden_gauge_slip_is_named_with_its_sensor_and_level(wall):
-    rng = np.random.default_rng(1818)
-    trial = _strong_trial(wall, "gauge_slip", rng, _wall_truth)
-    d = wall.diagnose(trial.measurement, trial.noise)
-    assert d.verdict == "inadequate" and d.cause == "gauge_slip", [c.to_dict() for c in d.candidates[:3]]
-    assert trial.location.key in _named(d, trial)
-    assert d.to_dict()["extended"]["chi2_dof"] < 1.5
-
-
-@pytest.mark.slow
-def test_hidden_slot_contact_is_named_with_its_jack_and_end(jack):
-    rng = np.random.default_rng(1819)
-    trial = _strong_trial(jack, "slot_contact", rng, _jack_truth)
-    d = jack.diagnose(trial.measurement, trial.noise)
-    assert d.verdict == "inadequate" and d.cause == "slot_contact", [c.to_dict() for c in d.candidates[:3]]
+@pytest.mark.parametrize("cause, setup, truth, seed", [("gauge_slip", "wall", _wall_truth, 1818),
+                                                      ("slot_contact", "jack", _jack_truth, 1819)])
+def test_hidden_effect_is_named_with_its_location(cause, setup, truth, seed, request):
+    """A slipped gauge (its sensor and level) on the diagonal test, a jack without contact at one
+    end (its jack and end) on the flat-jack panel."""
+    setup = request.getfixturevalue(setup)
+    trial = _strong_trial(setup, cause, np.random.default_rng(seed), truth)
+    d = setup.diagnose(trial.measurement, trial.noise)
+    assert d.verdict == "inadequate" and d.cause == cause, [c.to_dict() for c in d.candidates[:3]]
     assert trial.location.key in _named(d, trial)
     assert d.to_dict()["extended"]["chi2_dof"] < 1.5
 
