@@ -105,6 +105,25 @@ def two_cause_series(setup, seen, n, rng):
     return out
 
 
+def print_pairs(pairs):
+    """The table of the two-hidden-effect series (rows of :func:`two_cause_series`)."""
+    print("\n## Two hidden effects (both named, in either order; 'strong': each ≥ 3σ left after refitting "
+          "the base parameters and the other)\n")
+    print("| pair | strong trials | both named | weak trials | both named |")
+    print("|---|---|---|---|---|")
+    both_total = both_ok = 0
+    for pair in PAIRS:
+        rows_pair = [(strong, set(named) == set(pair)) for p_, strong, named, _ in pairs if p_ == pair]
+        st = [ok for strong, ok in rows_pair if strong]
+        wk = [ok for strong, ok in rows_pair if not strong]
+        both_total += len(st)
+        both_ok += sum(st)
+        print(f"| {' + '.join(pair)} | {len(st)} | {sum(st)} | {len(wk)} | {sum(wk)} |")
+    print(f"\nboth causes named where each survives refitting by ≥ 3σ: {both_ok}/{both_total} "
+          f"({100 * both_ok / max(both_total, 1):.0f} %); seconds per diagnosis: median "
+          f"{np.median([t for *_, t in pairs]):.1f}")
+
+
 def outcome(d, trial):
     """Named cause (or 'adequate' / 'unexplained') and whether the location is right."""
     if d.verdict == "adequate":
@@ -126,6 +145,7 @@ def main():
     ap.add_argument("--no-timing", action="store_true", help="skip the default-mesh timing rows")
     ap.add_argument("--pairs", type=int, default=4, help="two-hidden-effect trials per pair of causes")
     ap.add_argument("--timing-only", action="store_true", help="only the default-mesh timing rows")
+    ap.add_argument("--pairs-only", action="store_true", help="only the two-hidden-effect series")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     if args.timing_only:
@@ -134,6 +154,8 @@ def main():
           f"BLAS 1 thread; trials {args.trials}/cause, controls {args.controls}, seed {args.seed}; "
           f"load average {os.getloadavg()[0]:.1f}")
     diag = Setup(diagonal_spec(dic=not args.gauges_only))
+    if args.pairs_only:
+        return print_pairs(two_cause_series(diag, visible_joints(diag), args.pairs, rng))
     shear = Setup({"scenario": "shear_compression", "nx": 2, "ny": 1})
     causes = {"head_joint_stiffness": diag, "weak_joint": diag, "gauge_fault": diag, "load_eccentricity": diag,
               "unit_stiffness": diag, "support_compliance": shear, "gauge_slip": diag}
@@ -215,21 +237,7 @@ def main():
     for label in ("weak_joint", "weak_joint (visible segment)", "gauge_fault", "gauge_slip"):
         print(f"{label}: right location in {places[(label, True)]} of {places[(label, True)] + places[(label, False)]} correct namings")
     if pairs:
-        print("\n## Two hidden effects (both named, in either order; 'strong': each ≥ 3σ left after refitting "
-              "the base parameters and the other)\n")
-        print("| pair | strong trials | both named | weak trials | both named |")
-        print("|---|---|---|---|---|")
-        both_total = both_ok = 0
-        for pair in PAIRS:
-            rows_pair = [(strong, set(named) == set(pair)) for p_, strong, named, _ in pairs if p_ == pair]
-            st = [ok for strong, ok in rows_pair if strong]
-            wk = [ok for strong, ok in rows_pair if not strong]
-            both_total += len(st)
-            both_ok += sum(st)
-            print(f"| {' + '.join(pair)} | {len(st)} | {sum(st)} | {len(wk)} | {sum(wk)} |")
-        print(f"\nboth causes named where each survives refitting by ≥ 3σ: {both_ok}/{both_total} "
-              f"({100 * both_ok / max(both_total, 1):.0f} %); seconds per diagnosis: median "
-              f"{np.median([t for *_, t in pairs]):.1f}")
+        print_pairs(pairs)
     print("\n## False alarms (verdict 'inadequate' on data without any effect)\n")
     print("| control | false alarms |")
     print("|---|---|")
