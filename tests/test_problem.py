@@ -9,7 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from podkrig.online.measurement import Measurement, NoiseModel
-from podkrig.online.problem import InverseProblem, fix_from_scenario, unit_template
+from podkrig.online.problem import FEModel, InverseProblem, SurrogateModel, check_dof, fix_from_scenario, unit_template
 from podkrig.parameters import Parameter, ParameterSpace
 
 SIGMA = 0.01  # mm, noise of every reading
@@ -112,6 +112,11 @@ def test_jacobian_is_exact_for_a_linear_model_and_one_sided_at_the_faces():
         assert_allclose(problem.jacobian_unit(u), expected, rtol=1e-6)
         rows = np.array(model.rows)
         assert np.all(rows >= 0.0) and np.all(rows[:, 0] <= 1.0) and np.all(rows[:, 1] <= 2.0)
+    # the polish (Gauss-Newton on a linear model) lands on the truth; its count is the rows evaluated
+    model.rows.clear()
+    x, n_evaluations = problem.polish([0.9, 0.1])
+    assert_allclose(x, TRUTH, rtol=1e-8)
+    assert n_evaluations == len(model.rows)
 
 
 class TwoBasinModel:
@@ -247,3 +252,114 @@ def test_fix_from_scenario_fills_defaults_at_the_box_faces_and_skips_unknown_nam
         space = Model.space
 
     assert fix_from_scenario(NoSpec(), ("E_b",), {"nu_b": 0.12}) == (("E_b",), {"nu_b": 0.12})
+
+
+def test_check_dof_counts_and_refuses_no_degrees_of_freedom():
+    """Defects: dof ≠ n_obs − n_free, dof = 0 accepted, a message without both counts."""
+    assert check_dof(12, ("a", "b")) == 10
+    assert check_dof(3, ["a", "b"]) == 1  # any sequence of names
+    with pytest.raises(ValueError, match=r"^data.csv: 2 reading\(s\) cannot identify 2 free parameter\(s\) \(a, b\): "
+                                         r"degrees of freedom n_obs − n_free = 2 − 2 = 0 ≤ 0"):
+        check_dof(2, ("a", "b"), "data.csv")
+    with pytest.raises(ValueError, match=r"^measurement: 1 reading\(s\) .* = 1 − 3 = -2 ≤ 0"):
+        check_dof(1, ("a", "b", "c"))
+
+
+class _Readings:
+    def __init__(self, readings):
+        self.readings = readings
+
+
+class _Scenario:
+    """An FE stand-in: readings ``(L / 10 kN) · A m`` of 2 gauges at 10, 20 kN, from a parameter dict."""
+
+    sensor_names = ["g1", "g2"]
+    load_levels = [10, 20]
+    load_unit = "kN"
+    load_response = "affine"
+
+    def run(self, params):
+        m = np.array([params["m1"], params["m2"]])
+        return _Readings(np.array([L / 10.0 * (A @ m) for L in self.load_levels]))
+
+
+def test_fe_model_runs_one_scenario_per_row_and_passes_the_scenario_on():
+    """Defects: rows not all run or run with other values, the run count wrong, the scenario's
+    sensors, levels, unit or load response not exposed, a std returned for the FE model."""
+    model = FEModel(_Scenario(), LineModel.space)
+    assert model.sensor_names == ("g1", "g2") and model.load_unit == "kN" and model.load_response == "affine"
+    assert model.load_levels.dtype == float and model.load_levels.tolist() == [10.0, 20.0]
+    X = np.array([[0.3, 1.1], [1.0, 0.0], [0.0, 2.0]])
+    assert_allclose(model.predict(X), LineModel().clean(X), rtol=1e-15)
+    Y, std = model.predict(X[0], return_std=True)
+    assert std is None and Y.shape == (1, 4) and model.n_runs == 4
+    assert_allclose(Y[0], LineModel().clean(X[0])[0], rtol=1e-15)
+
+    class Bare:  # a scenario without a load response: discrete levels
+        sensor_names, load_levels, load_unit, run = ("g1",), (1.0,), "mm", None
+
+    assert FEModel(Bare(), LineModel.space).load_response == "discrete"
+
+
+class _Surrogate:
+    """What SurrogateModel reads of a fitted PODKriging: space, provenance_, predict, predict_unit."""
+
+    def __init__(self, provenance, space=LineModel.space):
+        self.provenance_ = provenance
+        self.space = space
+        self.line = UnitLineModel()
+
+    def predict(self, X, return_std=False):
+        return self.line.predict(X, return_std=return_std)
+
+    def predict_unit(self, U, return_std=False):
+        return self.line.predict_unit(U, return_std=return_std)
+
+
+def test_surrogate_model_exposes_the_provenance_and_refuses_what_cannot_invert():
+    """Defects: a surrogate without sensors, levels, spec or space accepted (or the message not
+    naming what is missing and how to build one), a field surrogate accepted, provenance values
+    (sensors, levels, unit, spec, the scenario's load response) not exposed, predictions altered."""
+    spec = {"scenario": "diagonal_compression", "parameters": {}}
+    prov = {"sensor_names": ["g1", "g2"], "load_levels": [10, 20], "scenario_spec": spec, "load_unit": "N"}
+    model = SurrogateModel(_Surrogate(prov))
+    assert model.sensor_names == ("g1", "g2") and model.load_levels.tolist() == [10.0, 20.0]
+    assert model.load_levels.dtype == float and model.load_unit == "N" and model.scenario_spec == spec
+    assert model.space is LineModel.space and model.load_response == "affine"  # diagonal_compression
+    X = np.array([[0.3, 1.1], [0.9, 0.2]])
+    Y, std = model.predict(X, return_std=True)
+    assert_allclose(Y, LineModel().clean(X), rtol=1e-15)
+    assert_allclose(std, LineModel().std(X), rtol=1e-15)
+    Yu, stdu = model.predict_unit(LineModel.space.to_unit(X), return_std=True)
+    assert_allclose(Yu, Y, rtol=1e-12)
+    assert_allclose(stdu, std, rtol=1e-12)
+    assert_allclose(model.predict(X), Y, rtol=1e-15)
+    assert_allclose(model.predict_unit(LineModel.space.to_unit(X)), Y, rtol=1e-12)
+
+    defaults = SurrogateModel(_Surrogate({k: v for k, v in prov.items() if k != "load_unit"}
+                                         | {"scenario_spec": {"scenario": "flat_jack"}}))
+    assert defaults.load_unit == "kN" and defaults.load_response == "discrete"  # flat_jack
+    assert SurrogateModel(_Surrogate(prov | {"scenario_spec": "not a dict"})).load_response == "discrete"
+    assert SurrogateModel(_Surrogate(prov | {"output": "readings"})).sensor_names == ("g1", "g2")
+
+    build = "build it from a snapshot store with 'podkrig surrogate build' so that it knows its sensors and load levels"
+    with pytest.raises(ValueError, match=r"^the surrogate lacks \['sensor_names', 'scenario_spec'\]: " + build):
+        SurrogateModel(_Surrogate({"load_levels": [10]}))
+    with pytest.raises(ValueError, match=r"^the surrogate lacks \['a parameter space'\]: " + build):
+        SurrogateModel(_Surrogate(prov, space=None))
+    with pytest.raises(ValueError, match="^this surrogate predicts displacement fields; inversion needs a surrogate "
+                                         "of the sensor readings$"):
+        SurrogateModel(_Surrogate(prov | {"output": "field"}))
+
+
+def test_surrogate_model_rebuilds_its_training_scenario():
+    """Defects: the scenario not rebuilt from the surrogate's spec (its parameter values lost), the
+    solver choice not passed on. Two scenario builds, ~0.7 s each."""
+    spec = {"scenario": "diagonal_compression", "parameters": {"E_b": 15000.0}}
+    prov = {"sensor_names": ["D1"], "load_levels": [10], "scenario_spec": spec}
+    model = SurrogateModel(_Surrogate(prov))
+    scenario = model.scenario(solver="superlu")
+    assert scenario.name == "diagonal_compression" and scenario.parameters["E_b"].default == 15000.0
+    assert model.scenario().spec == scenario.spec  # the default solver ("auto") builds it too
+    with pytest.raises(ValueError, match="unknown solver backend 'no-such-solver'"):
+        model.scenario(solver="no-such-solver")
