@@ -259,7 +259,8 @@ def test_check_dof_counts_and_refuses_no_degrees_of_freedom():
     assert check_dof(12, ("a", "b")) == 10
     assert check_dof(3, ["a", "b"]) == 1  # any sequence of names
     with pytest.raises(ValueError, match=r"^data.csv: 2 reading\(s\) cannot identify 2 free parameter\(s\) \(a, b\): "
-                                         r"degrees of freedom n_obs − n_free = 2 − 2 = 0 ≤ 0"):
+                                         r"degrees of freedom n_obs − n_free = 2 − 2 = 0 ≤ 0. Add readings \(more sensors or load "
+                                         r"levels\) or fix parameters$"):
         check_dof(2, ("a", "b"), "data.csv")
     with pytest.raises(ValueError, match=r"^measurement: 1 reading\(s\) .* = 1 − 3 = -2 ≤ 0"):
         check_dof(1, ("a", "b", "c"))
