@@ -9,7 +9,14 @@ import pytest
 from numpy.testing import assert_allclose
 
 from podkrig.online.measurement import Measurement, NoiseModel
-from podkrig.online.problem import FEModel, InverseProblem, SurrogateModel, check_dof, fix_from_scenario, unit_template
+from podkrig.online.problem import (
+    FEModel,
+    InverseProblem,
+    SurrogateModel,
+    check_dof,
+    fix_from_scenario,
+    unit_template,
+)
 from podkrig.parameters import Parameter, ParameterSpace
 
 SIGMA = 0.01  # mm, noise of every reading
@@ -274,8 +281,8 @@ class _Readings:
 class _Scenario:
     """An FE stand-in: readings ``(L / 10 kN) · A m`` of 2 gauges at 10, 20 kN, from a parameter dict."""
 
-    sensor_names = ["g1", "g2"]
-    load_levels = [10, 20]
+    sensor_names = ("g1", "g2")
+    load_levels = (10, 20)
     load_unit = "kN"
     load_response = "affine"
 
