@@ -12,7 +12,7 @@ from podkrig.online.findings import (
     CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
     identifiability_verdict, inversion_findings, offline_findings,
 )
-from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
+from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert, rng_seed
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.nested import NestedAnalysis, OverparamResult, information_criteria, nested_analyses
 from podkrig.online.problem import InverseProblem, fix_from_scenario
@@ -187,6 +187,31 @@ def test_nested_analyses_rows_are_their_seeded_analyses():
     assert many[0].rvc["sum"] == pytest.approx(float(np.max(rvc(region, SumModel(), rng=seed).cv)), rel=1e-9)
     v = region.samples.sum(axis=1)
     assert many[0].rvc["sum"] == pytest.approx(np.std(v, ddof=1) / np.mean(v), rel=0.02)  # subset of 20 000
+
+
+def test_polish_starts_are_the_best_mutually_distant_points():
+    """Defects (``invert``'s n_starts docstring): the best point not first, the second best skipped,
+    more or fewer starts than asked, the distance to the farthest chosen start used instead of the
+    nearest, a sum instead of a difference, a start exactly at the minimum distance refused."""
+    U = np.array([[0.50, 0.50], [0.55, 0.50], [0.75, 0.50], [0.20, 0.90], [0.60, 0.55], [0.50, 0.25], [0.9, 0.9]])
+    omega = np.array([3.0, 4.0, 5.0, 6.0, 1.0, 7.0, 8.0])  # best: U[4], then U[0] (0.1 away), U[1], U[2], ...
+    # max-norm distance ≥ 0.25 to every start already chosen, best first
+    assert_allclose(_distinct_starts(U, omega, 3, min_distance=0.25), U[[4, 3, 5]])
+    assert_allclose(_distinct_starts(U, omega, 10, min_distance=0.25), U[[4, 3, 5, 6]])
+    assert_allclose(_distinct_starts(U, omega, 1), U[[4]])
+    # default 0.15: U[0] is 0.1 from U[4] and U[1] 0.05 (skipped), U[2] 0.15 (taken)
+    assert_allclose(_distinct_starts(U, omega, 3), U[[4, 2, 3]])
+    # exact binary distances: the second is 0.25 from the first (taken: "at least"); the third is 0.25
+    # from the first but 0.125 from the second (skipped: the nearest chosen start counts)
+    edge = np.array([[0.5, 0.5], [0.75, 0.5], [0.75, 0.625]])
+    assert_allclose(_distinct_starts(edge, np.array([1.0, 2.0, 3.0]), 3, min_distance=0.25), edge[[0, 1]])
+
+
+def test_rng_seed_draws_distinct_reproducible_seeds():
+    """Defects: no seed (or one from a tiny range) drawn from a Generator, an int not passed through."""
+    seeds = [rng_seed(np.random.default_rng(i)) for i in range(50)]
+    assert all(isinstance(s, int) and 0 <= s < 2**31 for s in seeds) and len(set(seeds)) == 50
+    assert rng_seed(np.random.default_rng(7)) == rng_seed(np.random.default_rng(7)) and rng_seed(12) == 12
 
 
 def test_finding_fe_check_and_held_out_round_trips():
