@@ -3,8 +3,12 @@
 mutmut is a developer tool, not a CI step::
 
     pip install "mutmut>=3.8"
-    mutmut run --max-children 2          # modules and test selection: [tool.mutmut] in pyproject.toml
+    NUMBA_THREADING_LAYER=forksafe mutmut run --max-children 1   # selection: [tool.mutmut] in pyproject.toml
     python scripts/mutation_score.py     # this table; --survivors lists the surviving mutants
+
+``NUMBA_THREADING_LAYER=forksafe``: mutmut forks each mutant from a warmed-up process, and numba's
+default GNU-OpenMP threading layer terminates such a child (exit code -15, "other" below) as soon
+as a kriging kernel runs; the fork-safe layer (workqueue here) does not.
 
 mutmut writes one ``mutants/<module path>.meta`` JSON file per mutated module with the exit code
 of the test run of each mutant. The score is ``(killed + timeout) / checked``: a mutant that makes

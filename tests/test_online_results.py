@@ -12,9 +12,9 @@ from podkrig.online.findings import (
     CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
     identifiability_verdict, inversion_findings, offline_findings,
 )
-from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
+from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert, rng_seed
 from podkrig.online.measurement import Measurement, NoiseModel
-from podkrig.online.nested import NestedAnalysis, OverparamResult
+from podkrig.online.nested import NestedAnalysis, OverparamResult, information_criteria, nested_analyses
 from podkrig.online.problem import InverseProblem, fix_from_scenario
 from podkrig.online.propagation import RVCResult, rvc
 from podkrig.online.region import Region, identifiability, likelihood_ratio_region, noise_monte_carlo_region
@@ -121,6 +121,97 @@ def test_region_rvc_and_nested_round_trips(solved):
     over = OverparamResult((row,))
     d = _json_round(over.to_dict())
     assert OverparamResult.from_dict(d).to_dict() == d and len(over) == 1
+
+
+class SumModel:
+    """A validation model: one gauge reading ``m1 + m2`` (mm) at one load, exact."""
+
+    space = LinearModel.space
+    sensor_names = ("v",)
+    load_levels = np.array([30.0])
+
+    def predict(self, X, return_std=False):
+        Y = np.atleast_2d(X).sum(axis=1, keepdims=True)
+        return (Y, np.zeros_like(Y)) if return_std else Y
+
+
+def test_nested_analyses_rows_are_their_seeded_analyses():
+    """Defects: a row's field (free set, best fit, misfit, χ²/dof, AIC, BIC, intervals, RVC) lost
+    or swapped; BIC ≠ χ² + k ln n; the confidence, sample count or seed not passed on to the
+    region; a validation model fed its own value of a parameter the calibration fixed
+    (docstring: it takes the calibration's value); no RVC (None) when no validation is given."""
+    base = _problem()
+
+    def make(free):
+        return InverseProblem(base.model, base.measurement, base.noise, free=free,
+                              fixed={} if "m2" in free else {"m2": 1.5}, model_error=False)
+
+    seed, confidence, n_samples = 3, 0.68, 2**12
+    rows = nested_analyses(make, [("m1",), ("m1", "m2")], confidence=confidence, rng=seed, n_samples=n_samples,
+                           validation={"sum": (SumModel(), {"m2": 0.2})})
+    assert len(rows) == 2 and [r.free for r in rows] == [("m1",), ("m1", "m2")]
+    for row, m2_fixed in zip(rows, (1.5, None)):
+        problem = make(row.free)
+        # the documented steps run by hand with the same seed: identify, then sample the region
+        result = invert(problem, rng=seed)
+        region = likelihood_ratio_region(problem, result.x, confidence=confidence, rng=seed, n_samples=n_samples)
+        assert row.parameters == pytest.approx({n: result.parameters[n] for n in row.free}, rel=1e-9)
+        assert set(row.parameters) == set(row.free)
+        assert row.misfit == pytest.approx(result.misfit, rel=1e-9)
+        assert row.chi2_dof == pytest.approx(result.chi2_dof, rel=1e-9)
+        k, n = len(row.free), 6  # free parameters, observations (3 gauges x 2 loads)
+        assert row.aic == pytest.approx(result.chi2 + 2 * k, rel=1e-9)
+        assert row.bic == pytest.approx(result.chi2 + k * np.log(n), rel=1e-9)
+        assert information_criteria(result)["bic"] == pytest.approx(result.chi2 + k * np.log(n), rel=1e-12)
+        for name, (lo, hi) in region.intervals.items():
+            assert row.intervals[name] == pytest.approx((lo, hi), rel=1e-9)
+            assert row.to_dict()["intervals"][name] == pytest.approx([lo, hi], rel=1e-9) and lo < hi
+        assert row.identifiability == region.identifiability
+        # RVC of m1 + m2 over the region (< 20 000 members: no subsampling), closed form std/mean;
+        # m2 not freed takes the calibration's 1.5, never the validation's own 0.2
+        m1 = region.samples[:, 0]
+        v = m1 + (m2_fixed if m2_fixed is not None else region.samples[:, 1])
+        assert len(region.samples) < 20_000
+        assert row.rvc["sum"] == pytest.approx(np.std(v, ddof=1) / np.mean(v), rel=1e-9)
+    wider = nested_analyses(make, [("m1",)], confidence=0.99, rng=seed, n_samples=n_samples)
+    assert np.ptp(wider[0].intervals["m1"]) > 1.3 * np.ptp(rows[0].intervals["m1"])  # Wilks 1-dof: 2.58 / 0.99
+    # no validation: no RVC, and the row still serialises and loads without one
+    assert wider[0].rvc is None and "rvc" not in wider[0].to_dict()
+    d = _json_round(wider[0].to_dict())
+    assert NestedAnalysis.from_dict(d).rvc is None and NestedAnalysis.from_dict(d).to_dict() == d
+    # a region of > 20 000 members: RVC uses a random subset, drawn with the analysis's seed
+    many = nested_analyses(make, [("m1", "m2")], rng=seed, n_samples=2**17, validation={"sum": (SumModel(), {})})
+    problem = make(("m1", "m2"))
+    region = likelihood_ratio_region(problem, invert(problem, rng=seed).x, rng=seed, n_samples=2**17)
+    assert len(region.samples) > 20_000
+    assert many[0].rvc["sum"] == pytest.approx(float(np.max(rvc(region, SumModel(), rng=seed).cv)), rel=1e-9)
+    v = region.samples.sum(axis=1)
+    assert many[0].rvc["sum"] == pytest.approx(np.std(v, ddof=1) / np.mean(v), rel=0.02)  # subset of 20 000
+
+
+def test_polish_starts_are_the_best_mutually_distant_points():
+    """Defects (``invert``'s n_starts docstring): the best point not first, the second best skipped,
+    more or fewer starts than asked, the distance to the farthest chosen start used instead of the
+    nearest, a sum instead of a difference, a start exactly at the minimum distance refused."""
+    U = np.array([[0.50, 0.50], [0.55, 0.50], [0.75, 0.50], [0.20, 0.90], [0.60, 0.55], [0.50, 0.25], [0.9, 0.9]])
+    omega = np.array([3.0, 4.0, 5.0, 6.0, 1.0, 7.0, 8.0])  # best: U[4], then U[0] (0.1 away), U[1], U[2], ...
+    # max-norm distance ≥ 0.25 to every start already chosen, best first
+    assert_allclose(_distinct_starts(U, omega, 3, min_distance=0.25), U[[4, 3, 5]])
+    assert_allclose(_distinct_starts(U, omega, 10, min_distance=0.25), U[[4, 3, 5, 6]])
+    assert_allclose(_distinct_starts(U, omega, 1), U[[4]])
+    # default 0.15: U[0] is 0.1 from U[4] and U[1] 0.05 (skipped), U[2] 0.15 (taken)
+    assert_allclose(_distinct_starts(U, omega, 3), U[[4, 2, 3]])
+    # exact binary distances: the second is 0.25 from the first (taken: "at least"); the third is 0.25
+    # from the first but 0.125 from the second (skipped: the nearest chosen start counts)
+    edge = np.array([[0.5, 0.5], [0.75, 0.5], [0.75, 0.625]])
+    assert_allclose(_distinct_starts(edge, np.array([1.0, 2.0, 3.0]), 3, min_distance=0.25), edge[[0, 1]])
+
+
+def test_rng_seed_draws_distinct_reproducible_seeds():
+    """Defects: no seed (or one from a tiny range) drawn from a Generator, an int not passed through."""
+    seeds = [rng_seed(np.random.default_rng(i)) for i in range(50)]
+    assert all(isinstance(s, int) and 0 <= s < 2**31 for s in seeds) and len(set(seeds)) == 50
+    assert rng_seed(np.random.default_rng(7)) == rng_seed(np.random.default_rng(7)) and rng_seed(12) == 12
 
 
 def test_finding_fe_check_and_held_out_round_trips():
