@@ -26,6 +26,9 @@ from podkrig.online.misfit import Misfit
 from podkrig.online.rigid_body import RigidBodyModes, may_remove, rigid_body_modes
 from podkrig.parameters import ParameterSpace
 
+#: distance of the polish's start from the faces of the unit cube (see UnitCubeLeastSquares.polish_unit)
+FACE_MARGIN = 1e-6
+
 
 class FEModel:
     """A scenario seen as a batched model (one FE run per row; no predictive variance).
@@ -129,7 +132,10 @@ class UnitCubeLeastSquares:
 
     def polish_unit(self, u0, max_nfev=200):
         """:meth:`polish` in the unit cube of the free space: from ``u0`` ``(n_free,)`` in [0, 1];
-        returns ``(u, n_evaluations)``."""
+        returns ``(u, n_evaluations)``. The start is moved ``FACE_MARGIN`` inside the cube: started
+        exactly on a face (a GA optimum clipped to the box), scipy's 'trf' takes one step of about
+        1e-10, meets its tolerance and stops there (found by mutation testing, issue 12)."""
+        u0 = np.clip(np.asarray(u0, dtype=float), FACE_MARGIN, 1.0 - FACE_MARGIN)
         sol = optimize.least_squares(self.residuals_unit, u0, jac=self.jacobian_unit, bounds=(0.0, 1.0),
                                      x_scale=1.0, max_nfev=max_nfev, method="trf")
         return sol.x, int(sol.nfev + 2 * len(u0) * sol.njev)
