@@ -365,7 +365,8 @@ def _score_round(names, ctx, fitter, current, terms, space, n_applicable, alpha,
     for k, name in enumerate(names):
         cand = CANDIDATES[name]
         reason = cand.not_applicable(ctx)
-        locations = [] if reason else [loc for loc in cand.locations(ctx) if (name, loc.key) not in found_keys]
+        every = [] if reason else cand.locations(ctx)
+        locations = [loc for loc in every if (name, loc.key) not in found_keys]
         if reason is None and not locations:
             reason = "already in the model"
         if reason is not None:
@@ -373,15 +374,14 @@ def _score_round(names, ctx, fitter, current, terms, space, n_applicable, alpha,
             continue
         say(f"screening {name}" + (f" (cause {round_index + 1})" if round_index else ""), k, len(names))
         scores.append(_score_candidate(cand, locations, ctx, fitter, screen, current, terms, u_cur, t_cur,
-                                       np.log(n_applicable * len(cand.locations(ctx))), alpha, refit_locations,
-                                       noise_std, n_applicable))
+                                       np.log(n_applicable * len(every)), alpha, refit_locations, noise_std))
     ranked = sorted([s for s in scores if s.applicable],
                     key=lambda s: (s.effect_left < MIN_EFFECT, s.log10_p_corrected, -s.delta_chi2))
     return ranked + [s for s in scores if not s.applicable]
 
 
 def _score_candidate(cand, locations, ctx, fitter, screen, current, terms, u_cur, t_cur, log_correction, alpha,
-                     refit_locations, noise_std, n_applicable):
+                     refit_locations, noise_std):
     """Screen every location of a candidate against the current model, refit the best few with the
     base parameters and the causes already found free, and return its :class:`CandidateScore`."""
     found = _found_at(terms, current)
