@@ -17,7 +17,7 @@ import numpy as np
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, FEContext
 from podkrig.diagnosis.engine import Term, _Fitter
-from podkrig.diagnosis.model_error import discretisation_error, tolerance_error
+from podkrig.online.model_error import discretisation_error, tolerance_error
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.rigid_body import rigid_body_modes
 

@@ -16,7 +16,7 @@ from numpy.testing import assert_allclose
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from podkrig.diagnosis import CANDIDATES, Diagnosis, FEContext, build_base_surrogate, diagnose
-from podkrig.diagnosis.model_error import discretisation_error, tolerance_error
+from podkrig.online.model_error import discretisation_error, tolerance_error
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
 

@@ -124,3 +124,25 @@ def test_frozen_model_error_for_one_row_all_observed_without_copy_and_small_rela
     assert_allclose(rel.whitened_residuals(X), [[0.2, -0.5]], rtol=1e-12)
     with pytest.raises(ValueError, match="a Gaussian prior needs both prior_mean and prior_cov"):
         Misfit(linear_model(), meas, NoiseModel(sigma=1.0), np.arange(6), prior_mean=np.zeros(2))
+
+
+def test_model_form_error_adds_its_variance_per_reading_to_the_noise():
+    """C_D = C_d + C_T,surrogate + diag(e²) (thesis eq. 2.10), per reading, for a diagonal and a full
+    noise covariance alike; the noise σ reported stays the noise's own (the FE check compares with it)."""
+    d = A @ np.array([0.3, 0.7])
+    meas = measurement(d)
+    e = np.linspace(0.01, 0.06, 6)
+    model_std = 0.02
+    X = rng.normal(size=(4, 2))
+    r = X @ A.T - d
+    expected = 0.5 * np.sum(r**2 / (0.03**2 + model_std**2 + e**2), axis=1)
+    diag = Misfit(linear_model(model_std), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e)
+    full = Misfit(linear_model(model_std), meas, NoiseModel(covariance=np.diag(np.full(6, 0.03**2))), np.arange(6),
+                  form_error=e)
+    assert_allclose(diag(X), expected, rtol=1e-12)
+    assert_allclose(full(X), expected, rtol=1e-12)
+    assert_allclose(diag.noise_std, 0.03)
+    with pytest.raises(ValueError, match="form_error must be 6 finite standard deviations"):
+        Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e[:5])
+    with pytest.raises(ValueError, match="form_error must be 6"):
+        Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=-e)

@@ -26,9 +26,10 @@ from podkrig.cli._common import (
 from podkrig.cli.simulate import parse_assignment
 from podkrig.limits import check_region_samples
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
-from podkrig.online.invert import InverseResult, invert
+from podkrig.online.invert import InverseResult, invert, invert_with_model_form_error
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement, zero_phase
+from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
 from podkrig.online.posterior import sample_posterior
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
@@ -136,6 +137,7 @@ class Inversion:
             "confidence": region.confidence,
             "chi2_dof": r.chi2_dof,
             "chi2_basis": r.chi2_basis,
+            "model_form_error": r.measurement.get("model_form_error"),
             "residual_convention": RESIDUAL_CONVENTION,
             "misfit": r.misfit,
             "n_evaluations": r.n_evaluations,
@@ -153,12 +155,20 @@ class Inversion:
         return d
 
 
-def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mcmc_steps, region_method="likelihood-ratio"):
-    """Inversion + region + identifiability + FE check (+ MCMC) + findings: an :class:`Inversion`."""
+def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mcmc_steps, region_method="likelihood-ratio",
+                  model_form_error=None):
+    """Inversion + region + identifiability + FE check (+ MCMC) + findings: an :class:`Inversion`;
+    ``model_form_error`` (None, "estimated" or ε) as
+    :func:`~podkrig.online.invert.invert_with_model_form_error` takes it (the region and the
+    posterior then use the problem with it)."""
     if region_method not in ("likelihood-ratio", "noise-mc"):
         raise ValueError(f"--region-method must be likelihood-ratio or noise-mc; got {region_method!r}")
     t0 = time.perf_counter()
-    result = invert(problem, rng=seed)
+    if model_form_error is None:
+        result = invert(problem, rng=seed)
+    else:
+        result = invert_with_model_form_error(problem, model.scenario(), model_form_error, rng=seed)
+        problem = result.problem
     if region_method == "noise-mc":
         region = noise_monte_carlo_region(problem, result.x, confidence=confidence, rng=seed)
     else:
@@ -174,6 +184,9 @@ def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mc
     return Inversion(result, region, posterior, findings, time.perf_counter() - t0)
 
 
+MODEL_FORM_ERROR_HELP = ("The FE model's own discretisation error in C_D (thesis eq. 2.10): none (default), "
+                         "estimated (per reading from the scenario's mesh refined twice, at a first optimum; "
+                         "then inverted again) or a relative tolerance, e.g. 0.01 for 1 % of each reading.")
 _NOISE_ABS = typer.Option([], "--noise-abs", help="Absolute noise (resolution floor) σ_res in mm, for all sensors, "
                           "or NAME=SIGMA per sensor (repeatable); with --noise-rel: σ² = σ_res² + (δ d)².")
 _NOISE_REL = typer.Option(None, "--noise-rel", help="Relative noise δ (σ_i = δ |d_i|, or combined with --noise-abs).")
@@ -208,6 +221,7 @@ def register(app):
         fix: list[str] = typer.Option([], "--fix", help="Fixed parameter NAME=VALUE (repeatable)."),
         rigid_body: RigidBody = typer.Option(RigidBody.auto, "--rigid-body", help=RIGID_BODY_HELP),
         rigid_group: list[str] = typer.Option([], "--rigid-group", help=RIGID_GROUP_HELP),
+        model_form_error: str = typer.Option("none", "--model-form-error", help=MODEL_FORM_ERROR_HELP),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
         seed: int = typer.Option(0, "--seed", help="Seed of the GA and of the region sampling."),
@@ -227,6 +241,7 @@ def register(app):
             if not 0 < confidence < 1:
                 raise ValueError(f"--confidence must be in (0, 1); got {confidence}")
             check_region_samples(region_samples)
+            form_error = parse_model_form_error(model_form_error)
             if repeats not in REPEATS:
                 raise ValueError(f"--repeats must be one of {', '.join(REPEATS)}; got {repeats!r}")
             settings = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
@@ -238,7 +253,8 @@ def register(app):
                                                        settings, instrument, rigid_body=rigid_body,
                                                        rigid_groups=parse_rigid_groups(rigid_group))
             out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
-                                fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method)
+                                fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method,
+                                model_form_error=form_error)
             if report is not None:
                 write_inversion_report(report, out.result, out.region, posterior=out.posterior, load_unit=model.load_unit,
                                        noise_text=noise_text, findings=out.findings)

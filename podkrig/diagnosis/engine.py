@@ -7,7 +7,7 @@
    (:func:`podkrig.online.invert.invert`), then a least-squares polish with the FE model itself so that
    the adequacy test is not blurred by surrogate error. The data covariance is
    ``C_D = C_d + C_T`` (thesis eq. 2.10), with the model-form part ``C_T`` *estimated* per
-   reading from the scenario on a mesh refined twice (:mod:`podkrig.diagnosis.model_error`), or a
+   reading from the scenario on a mesh refined twice (:mod:`podkrig.online.model_error`), or a
    fixed relative tolerance the user gives.
 2. **Adequacy**: χ² of the whitened residuals ``r = L⁻¹(d − g(m*))`` (``C_D = L Lᵀ``) against
    χ²(n_obs − n_free), and the residual structure across sensors and load levels.
@@ -46,7 +46,7 @@ from scipy import linalg, optimize, stats
 
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, DEFAULT_CANDIDATES, FEContext
-from podkrig.diagnosis.model_error import (
+from podkrig.online.model_error import (
     DEFAULT_RATE,
     FALLBACK_TOLERANCE,
     discretisation_error,
@@ -163,7 +163,7 @@ def data_covariance(measurement, noise, model_error=None):
     """``C_D = C_d + C_T`` (thesis eq. 2.10), mm², with the model-form part
     ``C_T = diag(e_i²)``: ``model_error`` ``(n_obs,)`` mm is the standard deviation of each
     reading's model-form error (estimated discretisation error, or a fixed tolerance ``ε |d_i|``:
-    :func:`podkrig.diagnosis.model_error.tolerance_error`)."""
+    :func:`podkrig.online.model_error.tolerance_error`)."""
     C = noise.covariance_matrix(measurement)
     if model_error is not None:
         C = C + np.diag(np.asarray(model_error, dtype=float) ** 2)
@@ -202,7 +202,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
         user's override. By default (None) the model-form error of each reading is *estimated*: the
         scenario is run again on a mesh refined twice in each direction at the calibrated values,
         and the difference, scaled by Richardson's factor, is the standard deviation of that
-        reading's discretisation error (:func:`podkrig.diagnosis.model_error.discretisation_error`).
+        reading's discretisation error (:func:`podkrig.online.model_error.discretisation_error`).
     model_error_rate : float
         Convergence rate p assumed by that Richardson factor ``2^p / (2^p − 1)``.
     max_causes : int

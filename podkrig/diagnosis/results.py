@@ -10,7 +10,7 @@ import numpy as np
 from fe.scenarios import build_scenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import EffectParameter, Location
-from podkrig.diagnosis.model_error import ModelError
+from podkrig.online.model_error import ModelError
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.online.measurement import Measurement
 from podkrig.online.rigid_body import rigid_body_modes

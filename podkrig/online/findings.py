@@ -63,13 +63,16 @@ CHI2_BASIS = {
 }
 
 
-def chi2_basis(kind, model_error=None):
+def chi2_basis(kind, model_error=None, form_error=None):
     """The sentence of :data:`CHI2_BASIS` for ``kind``; for ``"diagnosis"`` with how the model-form
     error C_T was obtained (``model_error``: its description, e.g. "e², e estimated per reading
-    from two meshes ...")."""
+    from two meshes ..."); for an inversion with the FE model's model-form error in C_D
+    (``form_error``: its description), that term appended."""
     text = CHI2_BASIS[kind]
     if kind == "diagnosis" and model_error is not None:
         text += f" = {model_error}"
+    if form_error is not None:
+        text += f" + FE model-form error {form_error}"
     return text
 
 

@@ -21,6 +21,7 @@ from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
 from podkrig.online._repr import html_table, number
 from podkrig.online.findings import RESIDUAL_CONVENTION, at_bound, chi2_basis, fe_check_ok
+from podkrig.online.model_error import discretisation_error, tolerance_error
 
 logger = logging.getLogger(__name__)
 
@@ -134,7 +135,9 @@ class InverseResult:
         if self.basis is not None:
             return self.basis
         model_error = True if self.problem is None else bool(self.problem.model_error)
-        return chi2_basis("surrogate" if model_error else "surrogate-noise")
+        form_error = getattr(self.problem, "model_form_error", None)
+        return chi2_basis("surrogate" if model_error else "surrogate-noise",
+                          form_error=None if form_error is None else form_error.describe())
 
     @property
     def free_parameters(self):
@@ -267,6 +270,42 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
     return result
 
 
+def invert_with_model_form_error(problem, scenario, model_form_error, *, rng=0, **options):
+    """:func:`invert` with the FE model's model-form error in ``C_D`` (thesis eq. 2.10).
+
+    Parameters
+    ----------
+    problem : InverseProblem
+        Without a model-form error.
+    scenario : fe.Scenario
+        The scenario the model stands for (its mesh options ``nx``, ``ny`` are refined).
+    model_form_error : None, "estimated" or float
+        As :func:`~podkrig.online.model_error.parse_model_form_error` returns it: None inverts
+        ``problem`` as it is; ``"estimated"`` inverts once, estimates each reading's
+        discretisation error at that optimum from the scenario on a mesh refined twice
+        (:func:`~podkrig.online.model_error.discretisation_error`, rigid motion removed as the
+        problem removes it) and inverts again with it; a float ε inverts once with ``e_i = ε |d_i|``.
+    rng, **options
+        As :func:`invert` (the same seed for both inversions).
+
+    Returns
+    -------
+    InverseResult
+        Its :attr:`~InverseResult.problem` carries the model-form error (for the region and the
+        posterior); :attr:`~InverseResult.chi2_basis` and ``measurement["model_form_error"]`` say
+        what it was.
+    """
+    if model_form_error is None:
+        return invert(problem, rng=rng, **options)
+    if model_form_error == "estimated":
+        first = invert(problem, rng=rng, **options)
+        error = discretisation_error(scenario, first.parameters, problem.measurement,
+                                     rigid_body=problem.misfit.rigid_body, observation=problem.misfit.observation)
+    else:
+        error = tolerance_error(problem.measurement, float(model_form_error))
+    return invert(dataclasses.replace(problem, model_form_error=error), rng=rng, **options)
+
+
 def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
     """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
     returns the best point and the updated evaluation count."""
@@ -330,7 +369,9 @@ def fe_check(result, scenario, response=None):
     mean, _ = problem.misfit.predict(result.x[None])
     diff = fe_obs - mean[0]
     sd = problem.misfit.noise_std
-    resid = problem.misfit.whiten(fe_obs - problem.measurement.data)[0]  # noise only, rigid motion removed
+    noise_only = problem.misfit if problem.misfit.form_error is None else dataclasses.replace(problem.misfit,
+                                                                                              form_error=None)
+    resid = noise_only.whiten(fe_obs - problem.measurement.data)[0]  # noise only, rigid motion removed
     over_noise = float(np.max(np.abs(diff) / sd))
     return FECheck(
         max_abs_diff=float(np.max(np.abs(diff))),
@@ -342,4 +383,4 @@ def fe_check(result, scenario, response=None):
     )
 
 
-__all__ = ["FECheck", "InverseResult", "fe_check", "invert", "rng_seed"]
+__all__ = ["FECheck", "InverseResult", "fe_check", "invert", "invert_with_model_form_error", "rng_seed"]

@@ -8,7 +8,9 @@
 
 (thesis eqs. 2.10, 2.13): the data covariance ``C_d`` of the noise model plus the modelling
 covariance ``C_T``, here the surrogate's predictive variance at ``m`` (diagonal), so that
-surrogate error widens the fit instead of biasing it. The prior term is optional. As an
+surrogate error widens the fit instead of biasing it; optionally also the model-form error of the
+FE model itself, ``diag(e²)`` with ``e`` per reading (``form_error``:
+:mod:`podkrig.online.model_error`). The prior term is optional. As an
 alternative, ``kind="relative"`` gives the relative least-squares discrepancy of the group's
 papers, ½ Σ ((g_i − d_i) / d_i)².
 
@@ -52,6 +54,9 @@ class Misfit:
         Add the model's predictive variance ``C_T`` to ``C_d``.
     rigid_body : RigidBodyModes, optional
         Rigid-body motions removed from the residual (module docstring); None: none.
+    form_error : ndarray of shape (n_obs,), optional
+        Standard deviation of the FE model's model-form (discretisation) error of each observed
+        entry, mm: ``diag(form_error²)`` is added to ``C_d`` (thesis eq. 2.10); None: none.
     """
 
     model: object
@@ -63,6 +68,7 @@ class Misfit:
     kind: str = "gaussian"
     model_error: bool = True
     rigid_body: object = None
+    form_error: np.ndarray | None = None
 
     def __post_init__(self):
         if self.kind not in ("gaussian", "relative"):
@@ -70,7 +76,15 @@ class Misfit:
         if (self.prior_mean is None) != (self.prior_cov is None):
             raise ValueError("a Gaussian prior needs both prior_mean and prior_cov")
         object.__setattr__(self, "_d", self.measurement.data)
-        object.__setattr__(self, "_Cd", self.noise.covariance_matrix(self.measurement))
+        Cd = self.noise.covariance_matrix(self.measurement)
+        object.__setattr__(self, "_noise_sd", np.sqrt(np.diag(Cd)))
+        if self.form_error is not None:
+            e = np.asarray(self.form_error, dtype=float)
+            if e.shape != (len(self._d),) or not np.all(np.isfinite(e)) or np.any(e < 0):
+                raise ValueError(f"form_error must be {len(self._d)} finite standard deviations ≥ 0 (mm), one per "
+                                 f"observed entry; got shape {e.shape}")
+            Cd = Cd + np.diag(e**2)
+        object.__setattr__(self, "_Cd", Cd)
         object.__setattr__(self, "_sd", np.sqrt(np.diag(self._Cd)))
         op = self.output_indices
         if not isinstance(op, ObservationOperator):
@@ -96,8 +110,8 @@ class Misfit:
 
     @property
     def noise_std(self):
-        """Noise standard deviation of each observed entry, ``(n_obs,)`` mm."""
-        return self._sd
+        """Noise standard deviation of each observed entry, ``(n_obs,)`` mm (without ``form_error``)."""
+        return self._noise_sd
 
     def prior_residuals(self, X):
         """``L_M⁻¹ (m − m_prior)`` for each row of ``X``, ``(n, n_params)``; zeros without a prior."""

@@ -23,6 +23,7 @@ from scipy import optimize
 from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
 from fe.sensors import absolute_displacements
 from podkrig.online.misfit import Misfit
+from podkrig.online.model_error import ModelError
 from podkrig.online.rigid_body import RigidBodyModes, may_remove, rigid_body_modes
 from podkrig.parameters import ParameterSpace
 
@@ -169,6 +170,10 @@ class InverseProblem(UnitCubeLeastSquares):
         built already (None: none). The χ² then loses :attr:`n_removed` degrees of freedom.
     rigid_groups : dict of str to sequence of str, optional
         Group name → point displacement sensors whose rigid motion is fitted together.
+    model_form_error : ModelError, optional
+        The FE model's own model-form (discretisation) error of each observed entry
+        (:mod:`podkrig.online.model_error`), added to ``C_D`` as ``diag(e²)`` (thesis eq. 2.10);
+        None: none. :func:`~podkrig.online.invert.invert_with_model_form_error` estimates it.
     """
 
     model: object
@@ -183,6 +188,7 @@ class InverseProblem(UnitCubeLeastSquares):
     frozen_model_std: np.ndarray | None = None
     rigid_body: object = "auto"
     rigid_groups: dict | None = None
+    model_form_error: ModelError | None = None
 
     def __post_init__(self):
         space = self.model.space
@@ -225,6 +231,7 @@ class InverseProblem(UnitCubeLeastSquares):
         misfit = Misfit(
             self._predict, self.measurement, self.noise, observation, self.prior_mean, self.prior_cov,
             kind=self.kind, model_error=self.model_error, rigid_body=rigid,
+            form_error=None if self.model_form_error is None else self.model_form_error.std,
         )
         object.__setattr__(self, "misfit", misfit)
         # unit-cube path (GA, polish, region, posterior): the free space is made of the model's own
@@ -316,7 +323,8 @@ class InverseProblem(UnitCubeLeastSquares):
         rigid = self.misfit.rigid_body
         return {"file": str(meas.source), "sensors": list(meas.sensor_names),
                 "load_levels": meas.load_levels.tolist(), "load_unit": getattr(self.model, "load_unit", "kN"),
-                "n_obs": self.n_obs, **({} if rigid is None else {"rigid_body": rigid.to_dict()})}
+                "n_obs": self.n_obs, **({} if rigid is None else {"rigid_body": rigid.to_dict()}),
+                **({} if self.model_form_error is None else {"model_form_error": self.model_form_error.summary(meas)})}
 
     def with_noisy_data(self, x, rng):
         """The same problem with data g(x) + e, e ~ N(0, C_d) (a noise Monte Carlo copy; ``x`` free, physical)."""

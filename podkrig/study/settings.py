@@ -434,7 +434,7 @@ class SensitivitySettings:
 class DiagnosisSettings:
     """Model diagnosis on or off, its seed, the most causes it names in turn, and an optional fixed
     relative model-form tolerance (by default each reading's discretisation error is estimated
-    from the scenario on a mesh refined twice: :mod:`podkrig.diagnosis.model_error`)."""
+    from the scenario on a mesh refined twice: :mod:`podkrig.online.model_error`)."""
 
     enabled: StrictBool = False
     seed: Seed = 0

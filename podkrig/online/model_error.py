@@ -12,6 +12,10 @@ reading from the difference,
 with ``p`` the convergence rate of the readings (``DEFAULT_RATE``). Where the scenario removes
 rigid-body motion from displacement fields, the difference is taken after that removal, as the
 readings are. :func:`tolerance_error` is the user's fixed override, ``e_i = ε |d_i|``.
+
+The diagnosis always adds ``C_T = diag(e²)`` to the noise; the inversion does when asked
+(``podkrig invert --model-form-error estimated`` or ``ε``; :func:`parse_model_form_error`,
+:func:`podkrig.online.invert.invert_with_model_form_error`).
 """
 
 from dataclasses import dataclass
@@ -70,6 +74,12 @@ class ModelError:
             return text + (f" ({self.note})" if self.note else "")
         return (f"e², e estimated per reading from two meshes ({self.mesh}; Richardson, rate p = {self.rate:g})")
 
+    def summary(self, measurement):
+        """What an inversion result records: :meth:`to_dict` without the per-reading list, with the
+        median and largest relative error and the :meth:`describe` sentence."""
+        d = {k: v for k, v in self.to_dict(measurement).items() if k != "std_mm"}
+        return {**d, "description": self.describe()}
+
     def to_dict(self, measurement=None):
         d = {"method": self.method, "tolerance": self.tolerance, "refinement": self.refinement, "rate": self.rate,
              "mesh": self.mesh, "note": self.note, "std_mm": self.std.tolist()}
@@ -96,7 +106,30 @@ def tolerance_error(measurement, tolerance, note=None):
     return ModelError(np.abs(tolerance * measurement.data), "tolerance", tolerance=float(tolerance), note=note)
 
 
-def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAULT_RATE, rigid_body=None):
+#: what ``--model-form-error`` accepts besides a relative tolerance ε
+MODEL_FORM_ERROR_CHOICES = ("none", "estimated")
+
+
+def parse_model_form_error(value, source="--model-form-error"):
+    """The inversion's model-form error option: None (none), ``"estimated"`` (two meshes, at the
+    first optimum) or a relative tolerance ε in [0, 0.5) (``e_i = ε |d_i|``); ``value`` as the
+    user wrote it (str or number). ``source`` names the option or key in the error message."""
+    if value is None or (isinstance(value, str) and value.strip().lower() == "none"):
+        return None
+    if isinstance(value, str) and value.strip().lower() == "estimated":
+        return "estimated"
+    try:
+        eps = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{source} must be none, estimated or a relative tolerance in [0, 0.5) "
+                         f"(e.g. 0.01 for 1 % of each reading); got {value!r}") from None
+    if not 0 <= eps < 0.5:
+        raise ValueError(f"{source}: a relative tolerance must be in [0, 0.5); got {eps:g}")
+    return eps
+
+
+def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAULT_RATE, rigid_body=None,
+                         observation=None):
     """Estimate the discretisation error of each observed reading of ``scenario`` at ``values``.
 
     Parameters
@@ -115,6 +148,10 @@ def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAU
         The rigid-body modes removed from data and model (:mod:`podkrig.online.rigid_body`): the
         difference of the two meshes is taken with its rigid motion removed as well, since the
         readings compared with the data are.
+    observation : ObservationOperator, optional
+        How the observed entries follow from the flattened readings (an inverse problem's
+        ``misfit.observation``, e.g. readings interpolated to measured loads); default: the
+        measurement's own load levels picked from the scenario's.
 
     Returns
     -------
@@ -132,10 +169,13 @@ def discretisation_error(scenario, values, measurement, refinement=2, rate=DEFAU
     except SpecError as e:
         raise ValueError(f"{scenario.name}: the mesh refined {refinement}× cannot be built ({e}); give a fixed "
                          "model_tolerance instead") from e
-    idx = measurement.output_indices(scenario.sensor_names, scenario.load_levels)
-    coarse_r = scenario.run(values).readings.ravel()[idx]
-    fine_r = fine.run(values).readings.ravel()[idx]
-    difference = coarse_r - fine_r
+    if observation is None:
+        idx = measurement.output_indices(scenario.sensor_names, scenario.load_levels)
+        difference = scenario.run(values).readings.ravel()[idx] - fine.run(values).readings.ravel()[idx]
+    else:
+        difference = observation.apply(np.stack([scenario.run(values).readings.ravel(),
+                                                 fine.run(values).readings.ravel()]))
+        difference = difference[0] - difference[1]
     if rigid_body is not None:
         difference = rigid_body.remove(difference)
     factor = refinement**rate / (refinement**rate - 1.0)
