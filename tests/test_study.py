@@ -338,6 +338,35 @@ def test_report_warning_in_plain_words(tiny, tmp_path):
     assert "What to do:" in source
 
 
+def test_study_estimates_the_model_form_error_when_asked(tiny, tmp_path, fe_counter):
+    """``[measurement] model_form_error = "estimated"``: one stage more (two FE runs, the coarse and the
+    twice-refined mesh at a first optimum), its estimate in C_D of the inversion and the region (a
+    wider region than with noise alone: more variance per reading), nothing offline rerun; a
+    fixed ε is taken as given, without the stage."""
+    study, out0, _ = tiny
+    d = tmp_path / "copy"
+    shutil.copytree(study.parent, d)
+    (d / "study.toml").write_text(TINY.replace("noise_rel = 0.01", 'noise_rel = 0.01\nmodel_form_error = "estimated"'))
+    counter = fe_counter()
+    _run(d / "study.toml", d / "out")
+    stages = _stages(d / "out")
+    assert stages["model_form_error"]["fe_runs"] == 2
+    assert counter.calls <= 2 + stages["inversion"]["fe_runs"] + stages["diagnosis"]["fe_runs"]
+    estimate = stages["model_form_error"]["result"]["None"]
+    assert estimate["method"] == "two meshes" and estimate["mesh"] == "Q8 2×1 and 4×2 per unit"
+    inv = stages["inversion"]["result"]
+    assert inv["measurement"]["model_form_error"]["median_relative"] == estimate["median_relative"]
+    assert "FE model-form error" in inv["chi2_basis"]
+    plain = _stages(out0)
+    width = {k: np.log(hi / lo) for k, (lo, hi) in stages["region"]["result"]["intervals"].items()}
+    width0 = {k: np.log(hi / lo) for k, (lo, hi) in plain["region"]["result"]["intervals"].items()}
+    assert all(width[k] > width0[k] for k in width)
+    (d / "study.toml").write_text(TINY.replace("noise_rel = 0.01", "noise_rel = 0.01\nmodel_form_error = 0.02"))
+    _run(d / "study.toml", d / "out")
+    inv = _stages(d / "out")["inversion"]["result"]
+    assert "ε = 2 % of each reading" in inv["chi2_basis"] and inv["measurement"]["model_form_error"]["tolerance"] == 0.02
+
+
 def test_study_with_a_library_backend(tmp_path):
     """``[surrogate] backend`` puts a library's regressor behind the same pipeline: surrogate,
     held-out check and inversion run, the summary and the report name the backend."""

@@ -131,6 +131,7 @@ def run_study(study, out, *, progress=None, confirm=None):
     for test in tests:
         stages.surrogate(run, test)
         stages.held_out_validation(run, test)
+    stages.model_form_error(run)  # only when a test asks for it estimated
     if study.sensitivity.enabled:
         stages.sensitivity(run)
     stages.inversion(run)

@@ -34,6 +34,7 @@ from pydantic_core import PydanticCustomError
 from podkrig import limits
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
+from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.parameters import SCALES, ParameterSpace
 
@@ -288,6 +289,20 @@ def _rigid_groups(value):
     return {k: tuple(v) for k, v in value.items()}
 
 
+_MODEL_FORM_ERROR_ALLOWED = ('"none", "estimated" or a number in [0, 0.5) (a relative tolerance, e.g. 0.01 for 1 % '
+                             'of each reading)')
+
+
+def _model_form_error(value):
+    if isinstance(value, bool) or not isinstance(value, str | int | float):
+        raise study_error(f"got {type_name(value)} {value!r}", allowed=_MODEL_FORM_ERROR_ALLOWED)
+    try:
+        parsed = parse_model_form_error(value)
+    except ValueError:
+        raise study_error(f"got {value!r}", allowed=_MODEL_FORM_ERROR_ALLOWED) from None
+    return "none" if parsed is None else parsed
+
+
 def _load_range(value):
     if (isinstance(value, list) and len(value) == 2
             and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value)
@@ -308,7 +323,11 @@ class MeasurementSettings:
     readings lie far outside every FE run of the probe (before the training snapshots) and of the
     training design (a unit or sign error); false also skips the probe runs. ``rigid_body``:
     removal of the rigid-body motion of absolute displacement readings from data and model
-    (:mod:`podkrig.online.rigid_body`; "auto": each DIC grid and the ``rigid_groups``). Validating a table
+    (:mod:`podkrig.online.rigid_body`; "auto": each DIC grid and the ``rigid_groups``).
+    ``model_form_error``: the FE model's own discretisation error added to C_D in the inversion
+    (thesis eq. 2.10): "none", "estimated" (per reading from the mesh refined twice, at a first
+    optimum: the ``model_form_error`` stage) or a relative tolerance ε
+    (:mod:`podkrig.online.model_error`). Validating a table
     needs the study file's folder in the context (``{"folder": Path}``); constructing one in
     code takes an existing file.
     """
@@ -332,6 +351,7 @@ class MeasurementSettings:
     range_check: StrictBool = True
     rigid_body: _choice(RIGID_BODY_CHOICES, _RIGID_BODY_ALLOWED) = "auto"
     rigid_groups: Annotated[Any, AfterValidator(lambda v: None if v is None else _rigid_groups(v))] = None
+    model_form_error: Annotated[Any, AfterValidator(_model_form_error)] = "none"
 
     def __post_init__(self):
         if self.rigid_body == "keep" and self.rigid_groups:

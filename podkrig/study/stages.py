@@ -15,6 +15,10 @@ Stages, in order (the measurement check, FE work, then the online stages)::
                              scenario (FE), one stage per model
     surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
     held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
+    model_form_error         each reading's discretisation error at a (no files)
+                             first optimum, from the mesh refined
+                             twice ([measurement] model_form_error
+                             = "estimated" in some test)
     sensitivity              Sobol' indices of readings and misfit    report/sensitivity.png
                              ([sensitivity] enabled)
     inversion                GA + polish, FE check at the optimum     report/fit.png, residuals.png, ga_*.png,
@@ -49,6 +53,7 @@ from podkrig.offline.store import SnapshotStore
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.joint import JointProblem
 from podkrig.online.measurement_csv import read_measurement
+from podkrig.online.model_error import ModelError, discretisation_error, tolerance_error
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
 from podkrig.online.rigid_body import rigid_body_modes
@@ -482,24 +487,69 @@ def held_out_validation(run, test):
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 
 
-def _problem(run, test):
-    """The inverse problem of one test on its surrogate: (problem, model)."""
+def _problem(run, test, form_error=True):
+    """The inverse problem of one test on its surrogate: (problem, model); with ``form_error``, the
+    test's ``[measurement] model_form_error`` in C_D (a fixed ε, or the estimate of the
+    ``model_form_error`` stage)."""
     model = SurrogateModel(PODKriging.load(run.out / test.file("surrogate.h5")))
     data, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
                                          model.load_response)
     free, fixed = fix_from_scenario(model)
     m = test.measurement
+    error = None
+    if form_error and m.model_form_error == "estimated":
+        error = ModelError.from_dict(run.manifest("model_form_error")["result"][str(test.name)])
+    elif form_error and m.model_form_error != "none":
+        error = tolerance_error(data, float(m.model_form_error))
     return InverseProblem(model, data, noise, free=free, fixed=fixed, rigid_body=m.rigid_body,
-                          rigid_groups=m.rigid_groups), model
+                          rigid_groups=m.rigid_groups, model_form_error=error), model
 
 
-def calibration_problem(run):
+def calibration_problem(run, form_error=True):
     """The study's calibration problem: the one test's :class:`InverseProblem`, or the
-    :class:`~podkrig.online.joint.JointProblem` of every ``[[test]]``."""
+    :class:`~podkrig.online.joint.JointProblem` of every ``[[test]]`` (``form_error``: see
+    :func:`_problem`)."""
     tests = run.study.calibration_tests
     if not run.study.tests:
-        return _problem(run, tests[0])[0]
-    return JointProblem({t.name: _problem(run, t)[0] for t in tests})
+        return _problem(run, tests[0], form_error)[0]
+    return JointProblem({t.name: _problem(run, t, form_error)[0] for t in tests})
+
+
+def _estimates_form_error(run):
+    """The calibration tests whose ``[measurement] model_form_error`` is "estimated"."""
+    return [t for t in run.study.calibration_tests if t.measurement.model_form_error == "estimated"]
+
+
+def model_form_error(run):
+    """Each reading's discretisation error for the tests that ask for it estimated: one inversion
+    without it, then :func:`~podkrig.online.model_error.discretisation_error` at that optimum
+    (two FE runs per test): ``{test name: ModelError.to_dict()}``. Nothing to do otherwise."""
+    tests = _estimates_form_error(run)
+    if not tests:
+        return
+    s = run.study.inversion
+    inputs = {**_online_inputs(run), "ga": {"seed": s.seed, "population_size": s.population_size,
+                                            "generations": s.generations, "n_starts": s.n_starts}}
+
+    def compute():
+        problem = calibration_problem(run, form_error=False)
+        first = invert(problem, rng=s.seed, population_size=s.population_size, generations=s.generations,
+                       n_starts=s.n_starts)
+        per_test = _test_problems(problem)
+        result = {}
+        for test in tests:
+            one, p = (first, problem) if test.name is None else (first.tests[test.name], per_test[test.name])
+            error = discretisation_error(run.scenario(test), one.parameters, p.measurement,
+                                         rigid_body=p.misfit.rigid_body, observation=p.misfit.observation)
+            result[str(test.name)] = error.to_dict(p.measurement)
+        return result, [], 2 * len(tests)
+
+    run.stage("model_form_error", "Model-form error (two meshes)", inputs, compute)
+
+
+def _form_error_input(run):
+    """The model-form error estimates an online stage depends on (empty when none is estimated)."""
+    return {"model_form_error": run.manifest("model_form_error")["result"]} if _estimates_form_error(run) else {}
 
 
 def _test_problems(problem):
@@ -515,7 +565,8 @@ def _online_inputs(run):
         one = {"surrogate": run.outputs(t.stage("surrogate")), "measurement": file_sha256(m.file),
                "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
                "import": dataclasses.asdict(m.import_settings()),
-               "rigid_body": {"option": m.rigid_body, "groups": m.rigid_groups}}
+               "rigid_body": {"option": m.rigid_body, "groups": m.rigid_groups},
+               **({} if m.model_form_error == "none" else {"model_form_error": m.model_form_error})}
         if t.name is None:
             return one
         inputs[t.name] = one
@@ -527,7 +578,8 @@ def sensitivity(run):
     misfit of the calibration, and the free parameters proposed for fixing (total index below
     :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and the misfit)."""
     s = run.study.sensitivity
-    inputs = {**_online_inputs(run), "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
+    inputs = {**_online_inputs(run), **_form_error_input(run), "n": s.n, "seed": s.seed,
+              "threshold": NEGLIGIBLE_TOTAL_INDEX}
 
     def compute():
         options = {"n": s.n, "seed": s.seed}
@@ -556,8 +608,9 @@ def inversion(run):
     """GA + polish on the surrogate(s), FE check at the optimum: :meth:`InverseResult.to_dict` (with
     each test's view under ``tests`` in a joint calibration)."""
     s = run.study.inversion
-    inputs = {**_online_inputs(run), "ga": {"seed": s.seed, "population_size": s.population_size,
-                                            "generations": s.generations, "n_starts": s.n_starts},
+    inputs = {**_online_inputs(run), **_form_error_input(run),
+              "ga": {"seed": s.seed, "population_size": s.population_size, "generations": s.generations,
+                     "n_starts": s.n_starts},
               "fe_check": s.fe_check}
 
     def compute():
