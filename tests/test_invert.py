@@ -20,7 +20,9 @@ from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.problem import InverseProblem
-from tests.test_online_results import SIGMA, TRUTH, LinearModel, TwoBasinModel, _problem
+from tests.test_online_results import SIGMA, TRUTH, LinearModel, _problem
+from tests.test_problem import TwoBasinModel as TwoExactMinima
+from tests.test_problem import _zero_data
 
 
 class CountingModel(LinearModel):
@@ -97,9 +99,11 @@ def test_invert_counts_every_model_evaluation_and_its_time(caplog):
     assert model.calls.count(1024) == 1 and max(model.calls) == 1024  # the Sobol' screen, one batch
     assert result.n_evaluations == sum(model.calls) - 2 - 3
     assert result.n_evaluations > result.ga.nfev + 1024 + 3  # each polish evaluates more than its start
-    model.calls.clear()
-    one = invert(problem, rng=1, population_size=10, generations=5, n_starts=1)
-    assert 1024 not in model.calls and one.n_evaluations == sum(model.calls) - 2 - 1  # one polish, no screen
+    for n_starts in (1, 2):
+        model.calls.clear()
+        few = invert(problem, rng=1, population_size=10, generations=5, n_starts=n_starts)
+        assert few.n_evaluations == sum(model.calls) - 2 - n_starts
+        assert model.calls.count(1024) == (n_starts > 1)  # one start: the GA's best alone, no screen
     [record] = [r for r in caplog.records if r.name == "podkrig.online.invert"]
     assert record.getMessage() == (f"inversion: omega={result.misfit:.4g} chi2/dof={result.chi2_dof:.3g} in "
                                    f"{result.seconds:.3f} s ({result.n_evaluations} evaluations)")
@@ -109,14 +113,13 @@ def test_one_start_polishes_the_ga_best_into_its_own_basin():
     """Defects: the polish started elsewhere than at the GA's best (e.g. a corner of the box), a
     Sobol' screen polished although ``n_starts = 1`` asks for the GA's best only.
 
-    The two-basin model of ``test_online_results.py`` (broad basin at m = 0.3, ω = ½ (0.5/σ)²;
-    narrow global one at 0.85); the GA's own polish off, so its best (0.389 with seed 0) is rough."""
-    model = TwoBasinModel()
-    problem = InverseProblem(model, Measurement(np.zeros((1, 1)), ("g",), np.array([1.0])), NoiseModel(sigma=0.01),
-                             model_error=False)
+    The two-basin model of ``test_problem.py`` (zero data, exact minima at m = 0.2 and 0.8); the
+    GA's own polish off, so its best (0.175 with seed 0) is rough and in the basin of 0.2."""
+    model = TwoExactMinima()
+    problem = InverseProblem(model, _zero_data(model), NoiseModel(sigma=SIGMA))
     result = invert(problem, rng=0, population_size=6, generations=2, n_starts=1, options=GAOptions(polish="none"))
-    assert abs(result.ga.x[0] - 0.3) > 0.05  # the premise: a rough GA best in the broad basin
-    assert result.x[0] == pytest.approx(0.3, abs=1e-4) and result.misfit == pytest.approx(0.5 * (0.5 / 0.01) ** 2)
+    assert result.ga.x[0] == pytest.approx(0.175)  # the premise: a rough GA best, nearer 0.2
+    assert result.x[0] == pytest.approx(0.2, abs=1e-6) and result.misfit < 1e-12
     assert result.n_evaluations < result.ga.nfev + 1024
 
 
