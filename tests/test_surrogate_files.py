@@ -3,6 +3,7 @@ estimator, side-effect-free ``predict``, unit-cube prediction, and files of sche
 
 import copy
 import dataclasses
+import datetime
 from pathlib import Path
 
 import h5py
@@ -11,10 +12,11 @@ import pytest
 from numpy.testing import assert_array_equal, assert_equal
 
 from podkrig.offline.sampling import sobol, uniform
+from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.surrogate.kriging import DEFAULT_BETA, KrigingHyperparameters, OrdinaryKriging
 from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import SCHEMA_VERSION, PODKriging
+from podkrig.surrogate.podkriging import SCHEMA_VERSION, PODKriging, fit_from_store, training_data
 
 DATA = Path(__file__).parent / "data"
 SPACE = ParameterSpace((Parameter("E_b", 5000.0, 20000.0, unit="MPa"),
@@ -126,6 +128,15 @@ def test_predict_unit_is_predict_without_the_round_trip(surrogate):
         surrogate.predict_unit([[0.5, 1.01, 0.5]])
     with pytest.raises(ValueError, match=r"U must have shape \(n, 3\)"):
         surrogate.predict_unit(np.zeros((2, 2)))
+    # the mean alone by default; one sample as a vector; integer corners; the snapshot shape (another
+    # batch size may change the BLAS path: equal to rounding, 1e-14)
+    np.testing.assert_allclose(surrogate.predict_unit(U[:5]), m_unit[:5], rtol=1e-14)
+    np.testing.assert_allclose(surrogate.predict_unit(U[4]), m_unit[4:5], rtol=1e-14)
+    assert_array_equal(surrogate.predict_unit([[0, 1, 0]]), surrogate.predict_unit([[0.0, 1.0, 0.0]]))
+    np.testing.assert_allclose(surrogate.predict_unit(U[:5], reshape=True), m_unit[:5].reshape(5, 3, 4), rtol=1e-14)
+    for bad in (np.nan, np.inf):
+        with pytest.raises(ValueError, match=r"^U must be finite; found NaN or inf$"):
+            surrogate.predict_unit([[0.5, bad, 0.5]])
 
 
 def test_physical_box_is_exact():
@@ -149,3 +160,93 @@ def test_one_default_exponent():
     assert DEFAULT_BETA == "fit-shared" == OrdinaryKriging().beta
     assert _templates(None, None, "podkrig", None, None, None, None)[1].beta == DEFAULT_BETA
     assert SurrogateSettings.__dataclass_fields__["beta"].default == DEFAULT_BETA
+
+
+# --- fitting on a snapshot store -----------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def store_path(tmp_path_factory, coarse_diagonal):
+    """A store of 8 rows over (kN_bj, E_b): rows 0–4 done (readings and fields a smooth function of
+    the parameters, no FE run), row 5 failed, rows 6 and 7 pending."""
+    sc = coarse_diagonal
+    space = ParameterSpace.from_scenario(sc, {"kN_bj": (10, 1000, "log"), "E_b": (5000, 20000)})
+    path = tmp_path_factory.mktemp("store") / "store.h5"
+    with SnapshotStore.create(path, sc, space, sobol(8, 2, seed=1), sampling="sobol", seed=1, fields=True) as s:
+        X = s.parameters(only_done=False)[:6]
+        shape = (s.n_loads, s.n_sensors)
+        readings = np.stack([np.full(shape, 1 / k) + np.linspace(0, 1e3 / E, shape[1]) for k, E in X])
+        fields = np.stack([np.full((s.n_loads, s.n_nodes, 2), 1e3 / E) for _, E in X])
+        status = np.array([DONE] * 5 + [FAILED])
+        s.write_results(np.arange(6), status, readings, [""] * 5 + ["SolverError: singular"],
+                        np.full(6, 0.01), fields)
+    return path
+
+
+def test_training_data_are_the_finished_rows_of_the_store(store_path, tmp_path, coarse_diagonal):
+    """Defects: failed or pending rows used, unit-cube instead of physical parameters, the readings
+    given for ``output="field"``, another output kind accepted, fewer than 3 finished snapshots
+    accepted (or refused without the path, the count and the remedy)."""
+    with SnapshotStore.open(store_path) as s:
+        done = s.status() == DONE
+        X, Y = training_data(s)
+        assert_array_equal(X, s.parameters(only_done=False)[done])
+        assert X.shape == (5, 2) and X[:, 0].max() > 1.0  # physical kN_bj, not unit-cube coordinates
+        assert_array_equal(Y, s.readings(only_done=False)[done])
+        Xf, F = training_data(s, "field")
+        assert_array_equal(Xf, X)
+        assert F.shape == (5, s.n_loads, s.n_nodes, 2)
+        assert_array_equal(F, np.broadcast_to((1e3 / X[:, 1])[:, None, None, None], F.shape))  # as written
+        with pytest.raises(ValueError, match=r"^output must be 'readings' or 'field'; got 'fields'$"):
+            training_data(s, "fields")
+    small = tmp_path / "small.h5"
+    with SnapshotStore.open(store_path) as s, SnapshotStore.create(
+            small, coarse_diagonal, s.space, s.parameters(physical=False, only_done=False)[:3], sampling="sobol",
+            seed=1) as t:
+        t.write_results(np.arange(3), np.array([DONE, DONE, FAILED]), s.readings(only_done=False)[:3],
+                        ["", "", "SolverError"], np.full(3, 0.01))
+        with pytest.raises(ValueError, match=rf"^{small} has 2 finished snapshots; the surrogate needs at least 3 "
+                                             r"\(run 'podkrig snapshots run' first\)$"):
+            training_data(t)
+
+
+def test_fit_from_store_fits_the_store_on_its_space_and_records_where_it_came_from(store_path):
+    """Defects: the store's space not used for scaling, the templates not passed on, a provenance
+    entry missing or wrong (store path, content hash, scenario, sensors, load levels and unit,
+    reading unit, output kind, node count, training size)."""
+    with SnapshotStore.open(store_path) as s:
+        sur = fit_from_store(s, pod=POD(n_modes=1), kriging=OrdinaryKriging(beta=1.5))
+        X, Y = training_data(s)
+        direct = PODKriging(pod=POD(n_modes=1), kriging=OrdinaryKriging(beta=1.5), space=s.space).fit(X, Y)
+        assert sur.space.to_dict() == s.space.to_dict() and sur.n_modes_ == 1
+        assert sur.kriging_.hyperparameters_.beta == pytest.approx(1.5)
+        assert_array_equal(sur.predict(X[:3]), direct.predict(X[:3]))
+        prov = dict(sur.provenance_)
+        assert datetime.datetime.fromisoformat(prov.pop("created")).tzinfo is not None  # ISO 8601, UTC
+        assert prov.pop("package_version") == direct.provenance_["package_version"]
+        assert prov == {
+            "source_store": str(store_path.resolve()), "source_content_hash": s.content_hash(),
+            "scenario_spec": s.spec.to_dict(), "sensor_names": list(s.sensor_names),
+            "load_levels": list(s.load_levels), "load_unit": s.load_unit, "reading_unit": "mm",
+            "output": "readings", "n_nodes": s.n_nodes, "n_train": 5,
+        }
+        assert fit_from_store(s, output="field").provenance_["output"] == "field"
+
+
+def test_get_params_gives_the_templates_back():
+    """Defects: a template missing or swapped in ``get_params`` (scikit-learn's clone rebuilds the
+    estimator from it)."""
+    pod, kriging = POD(n_modes=2), OrdinaryKriging(beta=1.5)
+    params = PODKriging(pod=pod, kriging=kriging, space=SPACE).get_params()
+    assert params == {"pod": pod, "kriging": kriging, "space": SPACE}
+
+
+def test_kriging_settings_round_trip_through_the_file(tmp_path):
+    """Defects: a tuple or array setting of the kriging template (``range_bounds``, per-parameter
+    ``ranges``) lost or not writable: a refit of the loaded surrogate would then use other settings."""
+    X = SPACE.from_unit(sobol(16, 3, seed=0))
+    kriging = OrdinaryKriging(beta=1.5, ranges=np.array([0.3, 0.5, 0.7]), range_bounds=(1e-3, 10.0))
+    PODKriging(kriging=kriging, space=SPACE).fit(X, snapshots(X)).save(tmp_path / "s.h5")
+    back = PODKriging.load(tmp_path / "s.h5").kriging.get_params()
+    assert_array_equal(back.pop("ranges"), [0.3, 0.5, 0.7])
+    assert back == {k: v for k, v in kriging.get_params().items() if k != "ranges"}

@@ -311,11 +311,12 @@ def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
     returns the best point and the updated evaluation count."""
     best_omega = ga.fun
     space = problem.free_space
-    screen = scrambled_sobol(1024, problem.n_free, rng_seed(rng))
-    screen_omega = problem.omega_unit(screen)
-    n_eval += len(screen)
-    starts = np.vstack([np.clip(space.to_unit(x[None]), 0.0, 1.0),
-                        _distinct_starts(screen, screen_omega, n_starts - 1)])
+    starts = space.to_unit(x[None])  # polish_unit moves a start on (or an ulp past) a face inside
+    if n_starts > 1:
+        screen = scrambled_sobol(1024, problem.n_free, rng_seed(rng))
+        screen_omega = problem.omega_unit(screen)
+        n_eval += len(screen)
+        starts = np.vstack([starts, _distinct_starts(screen, screen_omega, n_starts - 1)])
     for u0 in starts:
         u_pol, n_pol = problem.polish_unit(u0)
         n_eval += n_pol
