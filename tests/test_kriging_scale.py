@@ -57,6 +57,41 @@ def test_full_factorisation_equals_the_exact_system_at_the_same_hyperparameters(
     assert forced.Q_.shape == (2, 0, 0) and forced.L_.shape == (2, 64, 64)
 
 
+@pytest.mark.parametrize("variogram, beta, criterion", [("exponential", 1.5, "loo"), ("power", 1.5, "ml"),
+                                                        ("power", 1.2, "loo")])
+def test_subset_path_builds_the_exact_fits_system_for_every_variogram_and_criterion(data, variogram, beta, criterion):
+    """The branches the exponential-ML test above leaves out: the power model (the exact fit's
+    bordered system of n - 1 contrasts, ``Q`` kept), the leave-one-out criterion (variance
+    calibrated on the LOO residuals, criterion = Σ e² / Σ (y - ȳ)²) and a constant output (variance
+    0). At the same ranges the subset path must give the exact fit's weights, factors, Q, q1, c0,
+    mean, variance, criterion and LOO residuals and variances: the same formulas on the same
+    matrices, so 1e-9 of each quantity's scale (measured ≤ 1e-12; these exponents are far from the
+    near-singular β = 2)."""
+    X, Y, Xp = data
+    Y = np.column_stack([Y, np.full(len(Y), 0.7)])  # a third, constant output
+    settings = dict(variogram=variogram, beta=beta, criterion=criterion)
+    exact = OrdinaryKriging(**settings, fit_subset=None).fit(X, Y)
+    forced = OrdinaryKriging(**settings, ranges=exact.ranges_, optimizer=None, fit_subset=16).fit(X, Y)
+    assert forced.fit_method_.method == "subset" and forced.fit_method_.range_scale == (1.0, 1.0, 1.0)
+    names = ["alpha_", "q1_", "c0_", "mu_", "sigma2_", "criterion_", "loo_residuals_", "loo_variance_", "L_"]
+    names += ["Q_"] if variogram == "power" else []
+    for name in names:
+        a, b = getattr(forced, name), getattr(exact, name)
+        assert a.shape == b.shape, name
+        if name == "criterion_" and criterion == "loo":
+            # the constant output's LOO criterion is a ratio of rounding errors (Σ e² / Σ (y - ȳ)²,
+            # both ~0): compared on the two varying outputs only
+            a, b = a[:2], b[:2]
+        assert_allclose(a, b, rtol=0, atol=1e-9 * max(np.abs(b).max(), 1.0), err_msg=name)
+    assert forced.sigma2_[2] == 0.0 and np.all(forced.loo_variance_[:, 2] == 0.0)
+    if criterion == "loo":  # the LOO-calibrated variance, by its closed form
+        dq = forced.sigma2_[0] / forced.loo_variance_[:, 0]
+        assert forced.sigma2_[0] == pytest.approx(np.mean(forced.loo_residuals_[:, 0] ** 2 * dq), rel=1e-12)
+    (m1, s1), (m2, s2) = exact.predict(Xp, return_std=True), forced.predict(Xp, return_std=True)
+    assert_allclose(m2, m1, rtol=0, atol=1e-9 * np.abs(Y).max())
+    assert_allclose(s2, s1, rtol=0, atol=1e-7 * s1.max())
+
+
 def test_subset_fit_predicts_within_the_exact_fits_error(data, monkeypatch):
     """The threshold lowered so that "auto" takes the subset path at n = 64 (32 samples for the
     hyperparameters): its held-out error stays within 2x the exact fit's (measured 1.0-1.6x here; the

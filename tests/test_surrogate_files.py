@@ -208,6 +208,13 @@ def test_training_data_are_the_finished_rows_of_the_store(store_path, tmp_path, 
         with pytest.raises(ValueError, match=rf"^{small} has 2 finished snapshots; the surrogate needs at least 3 "
                                              r"\(run 'podkrig snapshots run' first\)$"):
             training_data(t)
+    three = tmp_path / "three.h5"
+    with SnapshotStore.open(store_path) as s, SnapshotStore.create(
+            three, coarse_diagonal, s.space, s.parameters(physical=False, only_done=False)[:3], sampling="sobol",
+            seed=1) as t:
+        t.write_results(np.arange(3), np.array([DONE] * 3), s.readings(only_done=False)[:3], [""] * 3,
+                        np.full(3, 0.01))
+        assert len(training_data(t)[0]) == 3  # the smallest design kriging accepts
 
 
 def test_fit_from_store_fits_the_store_on_its_space_and_records_where_it_came_from(store_path):
@@ -230,7 +237,38 @@ def test_fit_from_store_fits_the_store_on_its_space_and_records_where_it_came_fr
             "load_levels": list(s.load_levels), "load_unit": s.load_unit, "reading_unit": "mm",
             "output": "readings", "n_nodes": s.n_nodes, "n_train": 5,
         }
-        assert fit_from_store(s, output="field").provenance_["output"] == "field"
+        field = fit_from_store(s, output="field")
+        assert field.provenance_["output"] == "field"
+        assert field.output_shape_ == (s.n_loads, s.n_nodes, 2)  # the field was fitted, not the readings
+
+
+def test_surrogate_file_describes_itself_to_a_reader_without_podkrig(tmp_path, surrogate):
+    """What h5py alone shows of a surrogate file (``h5dump``, another language): when and by which
+    version it was written, the backend's version, the unit of ``X``, and settings and provenance as
+    JSON with sorted keys, so that two saves of one surrogate differ only in the time stamp. A
+    provenance holding numpy values and other objects (a path) is written as plain JSON. Defects:
+    an attribute missing or renamed, keys unsorted, numpy values or objects refused by ``json``."""
+    import json
+
+    from podkrig import __version__
+    from podkrig.surrogate.backends import backend_version
+
+    sur = copy.deepcopy(surrogate)
+    sur.provenance_.update(zeta=np.float64(0.5), alpha=np.arange(3), count=np.int64(7), source=Path("a") / "b.h5")
+    t0 = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0)
+    sur.save(tmp_path / "a.h5")
+    sur.save(tmp_path / "b.h5")
+    with h5py.File(tmp_path / "a.h5") as a, h5py.File(tmp_path / "b.h5") as b:
+        saved = datetime.datetime.fromisoformat(a.attrs["saved"])
+        assert t0 <= saved <= datetime.datetime.now(datetime.timezone.utc)
+        assert a.attrs["package_version"] == __version__
+        assert a.attrs["backend_version"] == backend_version(sur.kriging_) != ""
+        assert a["X"].attrs["unit"] == "physical parameter units"
+        for key in ("settings", "provenance"):
+            text = a.attrs[key]
+            assert text == json.dumps(json.loads(text), sort_keys=True) == b.attrs[key]
+        prov = json.loads(a.attrs["provenance"])
+        assert (prov["zeta"], prov["alpha"], prov["count"], prov["source"]) == (0.5, [0, 1, 2], 7, str(Path("a") / "b.h5"))
 
 
 def test_get_params_gives_the_templates_back():

@@ -521,9 +521,9 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
         "sensor_names": list(store.sensor_names),
         "load_levels": np.asarray(store.load_levels).tolist(),
         "load_unit": store.load_unit,
-        "reading_unit": getattr(store, "reading_unit", "mm"),
+        "reading_unit": store.reading_unit,
         "output": output,
-        "n_nodes": int(getattr(store, "n_nodes", 0) or 0),
+        "n_nodes": int(store.n_nodes),
         "n_train": len(X),
     })
     return sur
