@@ -207,7 +207,7 @@ def inversion_findings(result, region=None, *, context="cli", diagnosis_enabled=
             "noise.",
             "check the noise level; if it is right, a physical effect is missing from the model"
             + (" " if context == "cli" else ": ") + then))
-    if region is not None:
+    if region is not None and not per_test:
         for name, v in region.identifiability.items():
             if v["identifiable"]:
                 continue
