@@ -6,6 +6,7 @@ a saturating (tanh) model has a region wider than its Gauss–Newton curvature p
 sampling box must grow. Each test names the defect it guards; all run in well under a second.
 """
 
+import logging
 import time
 
 import numpy as np
@@ -136,17 +137,21 @@ def test_region_wider_than_the_curvature_grows_the_box_until_no_member_touches_i
     assert capped.intervals["m"] == pytest.approx((0.5 - gn, 0.5 + gn), abs=0.01 * gn)
 
 
-@pytest.mark.parametrize("centre", [0.025, 0.975])
-def test_region_growth_never_samples_outside_the_search_range(centre):
+@pytest.mark.parametrize("centre", [0.01, 0.025, 0.975, 0.99])
+def test_region_growth_never_samples_outside_the_search_range(centre, caplog):
     """Fails if the grown sampling box is not clipped to the search range: near a bound (region
-    [centre ∓ 0.0183], first box ∓ 0.0142, grown by its width 0.028) the model, which a surrogate
-    only knows inside its training box, would be evaluated at m < 0 or m > 1. The interval is
-    still the exact one (1 % of its half-width)."""
+    [centre ∓ 0.0183], first box ∓ 0.0142, grown by its width) the model, which a surrogate only
+    knows inside its training box, would be evaluated at m < 0 or m > 1; or if a box clipped at
+    one face and touched at the other only is not grown (centre 0.01, 0.99). The interval is still
+    the exact one (1 % of its half-width); the growth is logged."""
     problem = _tanh_problem(centre)
-    region = likelihood_ratio_region(problem, np.array([centre]), n_samples=2**10, rng=0)
+    with caplog.at_level(logging.INFO, logger="podkrig.online.region"):
+        region = likelihood_ratio_region(problem, np.array([centre]), n_samples=2**10, rng=0)
+    assert caplog.messages == ["region round 0: members touch the sampling box; growing it"]
     assert 0.0 <= problem.model.seen[0] and problem.model.seen[1] <= 1.0
     half = TanhModel.W * np.arctanh(TanhModel.Q)
-    assert region.intervals["m"] == pytest.approx((centre - half, centre + half), abs=0.01 * half)
+    exact = (max(centre - half, 0.0), min(centre + half, 1.0))  # the region ends at the range's face
+    assert region.intervals["m"] == pytest.approx(exact, abs=0.01 * half)
 
 
 def test_unconstrained_parameter_spans_its_range_without_leaving_it():
@@ -168,14 +173,15 @@ def test_unconstrained_parameter_spans_its_range_without_leaving_it():
                              NoiseModel(sigma=SIGMA), model_error=False)
     region = likelihood_ratio_region(problem, np.array([0.7, 1.3]), n_samples=2**12, rng=0)
     assert region.intervals["m2"] == pytest.approx((0.0, 2.0), abs=0.02)
+    assert region.n_evaluated == 2**12  # members at a face of the range do not grow the box: one round
     seen = np.vstack(model.seen)
     assert seen.min(axis=0).tolist() >= [0.0, 0.0] and np.all(seen.max(axis=0) <= [2.0, 2.0])
     assert not region.identifiability["m2"]["identifiable"] and region.identifiability["m1"]["identifiable"]
 
 
 class WallModel:
-    """One reading x + 10⁹ sign(x) (|x| − 1)₊³, x = (m − 0.5)/W, against data 0: linear (slope 1/W) within
-    W of 0.5, then a wall. The Gauss–Newton box (from the slope) is 3000 times wider than the region
+    """One reading x + 10⁹ sign(x) (|x| − 1)₊³, x = (m − centre)/W, against data 0: linear (slope 1/W)
+    within W of the centre, then a wall; keeps the smallest and largest m it was evaluated at. The Gauss–Newton box (from the slope) is 3000 times wider than the region
     |m − 0.5| ≤ 1.0215 W: a 1024-point Sobol' round over it has no sample in the region."""
 
     space = ParameterSpace((Parameter("m", 0.0, 1.0),))
@@ -183,8 +189,14 @@ class WallModel:
     load_levels = np.array([1.0])
     W = 3e-5
 
+    def __init__(self, centre=0.5):
+        self.centre = centre
+        self.seen = [np.inf, -np.inf]
+
     def predict(self, X, return_std=False):
-        x = (np.atleast_2d(X)[:, :1] - 0.5) / self.W
+        m = np.atleast_2d(X)[:, :1]
+        self.seen = [min(self.seen[0], m.min()), max(self.seen[1], m.max())]
+        x = (m - self.centre) / self.W
         Y = x + 1e9 * np.sign(x) * np.maximum(np.abs(x) - 1, 0) ** 3
         return (Y, np.zeros_like(Y)) if return_std else Y
 
@@ -193,15 +205,19 @@ def test_region_narrower_than_the_sample_spacing_shrinks_the_box():
     """Fails if a round without any accepted sample is repeated over the same box (the defect this
     test was written for: 7 identical rounds, then a region of the best fit alone, a zero-width
     interval reported as "identified"): the box halves about m* until samples land in the region;
-    every member lies in the exact region |m − 0.5| ≤ 1.0215 W (x + 10⁹ (x − 1)³ = 10⁴)."""
-    sigma = 1e4 / np.sqrt(stats.chi2.ppf(0.95, 1))  # √(2δ) σ = 10⁴: the region's edge at g = 10⁴
-    problem = InverseProblem(WallModel(), Measurement(np.zeros((1, 1)), ("g",), np.array([1.0])),
-                             NoiseModel(sigma=sigma), model_error=False)
-    region = likelihood_ratio_region(problem, np.array([0.5]), n_samples=2**10, rng=0)
-    lo, hi = region.intervals["m"]
-    assert len(region.samples) > 1 and hi - lo > 0
-    assert 0.5 - 1.0215 * WallModel.W <= lo and hi <= 0.5 + 1.0215 * WallModel.W
-    assert region.n_evaluated < 7 * 2**10  # stopped once samples were accepted
+    every member lies in the exact region |m − centre| ≤ 1.0215 W (x + 10⁹ (x − 1)³ = 10⁴), and near a
+    bound the shrunken box stays inside the search range."""
+    for centre in (0.5, 0.3, 0.002, 0.998):
+        sigma = 1e4 / np.sqrt(stats.chi2.ppf(0.95, 1))  # √(2δ) σ = 10⁴: the region's edge at g = 10⁴
+        problem = InverseProblem(WallModel(centre), Measurement(np.zeros((1, 1)), ("g",), np.array([1.0])),
+                                 NoiseModel(sigma=sigma), model_error=False)
+        region = likelihood_ratio_region(problem, np.array([centre]), n_samples=2**10, rng=0)
+        lo, hi = region.intervals["m"]
+        assert len(region.samples) > 1 and hi > lo, (centre, region.intervals)
+        assert centre - 1.0215 * WallModel.W <= lo and hi <= centre + 1.0215 * WallModel.W
+        assert region.n_evaluated < 7 * 2**10  # stopped once samples were accepted
+        # the shrunken boxes stay inside the search range
+        assert 0.0 <= problem.model.seen[0] and problem.model.seen[1] <= 1.0
 
 
 def test_region_is_seeded_and_independent_of_the_batch_size():
@@ -317,15 +333,6 @@ def test_noise_monte_carlo_region_is_its_seeded_refits():
     assert 0 < mc.seconds <= wall
 
 
-@pytest.mark.parametrize("n", [19, 100_001, 20.0, True])
-def test_noise_monte_carlo_refuses_a_bad_number_of_realisations(n):
-    """Fails if fewer than 20 or more than 100 000 realisations, a float or a bool are accepted, or
-    the message does not give the allowed range and the value."""
-    problem, x_best = _linear()
-    with pytest.raises(ValueError, match=rf"n_realisations must be an integer in \[20, 100000\] .*got {n!r}$"):
-        noise_monte_carlo_region(problem, x_best, n_realisations=n)
-
-
 class _FirstRefit(Exception):
     """Raised by :class:`_StopAtFirstRefit` when the first noisy copy is asked for."""
 
@@ -335,6 +342,15 @@ class _StopAtFirstRefit:
 
     def with_noisy_data(self, x, rng):
         raise _FirstRefit
+
+
+@pytest.mark.parametrize("n", [19, 100_001, 20.0, True])
+def test_noise_monte_carlo_refuses_a_bad_number_of_realisations(n):
+    """Fails if fewer than 20 or more than 100 000 realisations, a float or a bool are accepted, or
+    the message does not give the allowed range and the value (a stub problem stops a run that
+    wrongly starts at its first refit)."""
+    with pytest.raises(ValueError, match=rf"n_realisations must be an integer in \[20, 100000\] .*got {n!r}$"):
+        noise_monte_carlo_region(_StopAtFirstRefit(), np.array([0.5]), n_realisations=n)
 
 
 @pytest.mark.parametrize("n", [20, 100_000])
