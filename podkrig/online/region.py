@@ -147,7 +147,8 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
     rng : int or Generator
         Seed of the scrambled Sobol sequence.
     max_grow : int
-        Rounds in which the sampling box may grow when members touch its faces.
+        Rounds in which the sampling box may grow when members touch its faces (or, when no
+        sample is accepted, shrink to half its width about m*).
     freeze_model_error : bool
         Evaluate the surrogate's predictive variance C_T once at m* and keep it over the region
         (it varies little there), so that only the mean is predicted: several times faster.
@@ -187,8 +188,8 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
         n_eval += len(U)
         keep = om <= threshold
         members = U[keep]
-        if len(members) == 0:
-            lo, hi = np.clip(u_best - 0.5 * (hi - lo), 0, 1), np.clip(u_best + 0.5 * (hi - lo), 0, 1)
+        if len(members) == 0:  # a region narrower than the sample spacing: halve the box about m*
+            lo, hi = np.clip(u_best - 0.25 * (hi - lo), 0, 1), np.clip(u_best + 0.25 * (hi - lo), 0, 1)
             continue
         width = hi - lo
         margin = 0.02 * width
