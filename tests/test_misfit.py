@@ -146,3 +146,18 @@ def test_model_form_error_adds_its_variance_per_reading_to_the_noise():
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e[:5])
     with pytest.raises(ValueError, match="form_error must be 6"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=-e)
+
+
+def test_integer_parameter_vectors_are_evaluated_as_real_numbers():
+    """ω at the integer point (2, 4) equals ω at (2.0, 4.0) (rtol 1e-15) for a model with a negative
+    power of a parameter (a compliance 1/E): the parameters reach the model as floats, as integer
+    arrays cannot be raised to a negative integer power in numpy."""
+    meas = Measurement(np.array([[0.4, 0.3]]), ("a", "b"), np.array([1.0]))
+
+    def compliance(X):
+        return np.column_stack([X[:, 0] ** -1, X[:, 1] ** -1]), None
+
+    f = Misfit(compliance, meas, NoiseModel(sigma=0.1), np.arange(2))
+    expected = 0.5 * ((0.5 - 0.4) ** 2 + (0.25 - 0.3) ** 2) / 0.1**2
+    assert_allclose(f([[2, 4]]), [expected], rtol=1e-15)
+    assert_allclose(f(np.array([2, 4])), f(np.array([[2.0, 4.0]])), rtol=1e-15)
