@@ -346,3 +346,12 @@ def test_per_sensor_noise_follows_missing_readings_and_a_zero_delta_with_sigma()
     C = NoiseModel(sigma=0.001, delta=0.01).covariance_matrix(m)
     assert_allclose(C, np.diag(np.hypot(0.001, 0.01 * np.array([0.1, 0.2, 0.4])) ** 2), rtol=1e-12)
     assert NoiseModel(sigma=0.001).is_diagonal and not NoiseModel(covariance=np.eye(3)).is_diagonal
+
+
+def test_a_level_repeated_by_a_load_cycle_is_read_at_its_first_occurrence():
+    """A stepped loading–unloading cycle 0.5 → 5 → 0.5 MPa (19 levels, each but the peak twice): a
+    reading at 1, 3 or 4.5 MPa is matched to the loading branch (the level's first occurrence:
+    indices 1, 5, 8), not to the unloading one, however many levels the cycle has."""
+    up = [0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0]
+    index, w = level_weights([1.0, 3.0, 4.5], up + up[-2::-1], "discrete", "MPa")
+    assert index[:, 0].tolist() == [1, 5, 8] and w.tolist() == [[1.0, 0.0]] * 3

@@ -2,6 +2,7 @@
 numeric input (issue 12: mutation testing)."""
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from podkrig.surrogate.kriging import covariance, semivariogram
@@ -27,3 +28,23 @@ def test_single_precision_ranges_and_lags_are_used_in_double_precision():
         g = semivariogram(h, variogram, beta=1.3, sill=3.0, range_=0.7)
         assert g.dtype == np.float64
         assert_allclose(g, semivariogram(h.astype(float), variogram, beta=1.3, sill=3.0, range_=0.7), rtol=1e-14)
+
+
+def test_exponent_range_of_each_model():
+    """The exponential family takes 0 < β ≤ 2 and the power model 0 < β < 2 (open at 0 for both): β = 1
+    gives the linear power variogram γ(h) = s·|h|/a (hand values at h = 0.5, 2 with a = 2, s = 3) and
+    the exponential one 1 − e^{−|h|/a}; β = 0 (a flat γ, no spatial structure) and a non-number are
+    refused with the allowed range."""
+    h = np.array([0.5, 2.0])
+    assert_allclose(semivariogram(h, "power", beta=1.0, sill=3.0, range_=2.0), [0.75, 3.0], rtol=1e-14)
+    assert_allclose(semivariogram(h, "exponential", beta=1, range_=2.0), 1 - np.exp(-h / 2.0), rtol=1e-14)
+    assert_allclose(semivariogram(h, "power", beta=0.2), h**0.2, rtol=1e-14)
+    with pytest.raises(ValueError, match=r"^beta of the exponential family must satisfy 0 < beta <= 2; got 0$"):
+        semivariogram(h, "exponential", beta=0.0)
+    with pytest.raises(ValueError, match=r"^beta of the power model must satisfy 0 < beta < 2 \(beta = 2 is not a "
+                                         r"valid intrinsic model\); got 0$"):
+        semivariogram(h, "power", beta=0.0)
+    with pytest.raises(ValueError, match=r"^beta must be a number in \(0, 2\] or 'fit'; got 'steep'$"):
+        semivariogram(h, beta="steep")
+    with pytest.raises(ValueError, match=r"^beta must be a number in \(0, 2\] or 'fit'; got None$"):
+        semivariogram(h, beta=None)
