@@ -220,3 +220,17 @@ def test_relative_misfit_removes_the_rigid_motion_before_dividing_by_the_data():
     expected = modes.projector() @ (g - d) / np.abs(d)
     assert np.abs(expected).max() > 0.01  # the removal leaves a residual to compare
     assert_allclose(f.whitened_residuals(np.zeros((1, 1))), [expected], rtol=1e-12, atol=1e-15)
+
+
+def test_an_integer_noise_covariance_takes_the_model_variance():
+    """A full noise covariance given with integer entries (mm², here 4 I + a coupling 1 between the
+    first two readings) plus the model's predictive variance: χ² = rᵀ (C_d + s² I)⁻¹ r (rtol 1e-12)."""
+    d = A @ np.array([0.3, 0.7])
+    meas = measurement(d)
+    C = 4 * np.eye(6, dtype=int)
+    C[0, 1] = C[1, 0] = 1
+    X = rng.normal(size=(2, 2))
+    r = X @ A.T - d
+    f = Misfit(linear_model(0.5), meas, NoiseModel(covariance=C), np.arange(6))
+    CD = C + 0.25 * np.eye(6)
+    assert_allclose(f.chi2(X), np.einsum("ij,ij->i", r, np.linalg.solve(CD, r.T).T), rtol=1e-12)
