@@ -1,11 +1,15 @@
 """The misfit of thesis eq. (2.13) against closed forms and its χ² statistics."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from fe.sensors import PointDisplacement, absolute_displacements
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.misfit import Misfit
+from podkrig.online.rigid_body import rigid_body_modes
 
 rng = np.random.default_rng(3)
 A = rng.normal(size=(6, 2))  # a linear "model": 3 loads × 2 sensors from 2 parameters
@@ -78,7 +82,7 @@ def test_relative_misfit_and_subset_indices():
 
     f = Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="relative")
     assert_allclose(f(np.array([[1.1, 0.0]])), 0.5 * 2 * 0.1**2, rtol=1e-12)
-    with pytest.raises(ValueError, match="kind must be"):
+    with pytest.raises(ValueError, match=r"^misfit kind must be 'gaussian' or 'relative'; got 'l1'$"):
         Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="l1")
 
 
@@ -122,13 +126,15 @@ def test_frozen_model_error_for_one_row_all_observed_without_copy_and_small_rela
     rel = Misfit(lambda Xs: (np.tile([0.06, -0.3], (len(Xs), 1)), None), small, NoiseModel(sigma=1.0),
                  np.arange(2), kind="relative")
     assert_allclose(rel.whitened_residuals(X), [[0.2, -0.5]], rtol=1e-12)
-    with pytest.raises(ValueError, match="a Gaussian prior needs both prior_mean and prior_cov"):
-        Misfit(linear_model(), meas, NoiseModel(sigma=1.0), np.arange(6), prior_mean=np.zeros(2))
+    for prior in ({"prior_mean": np.zeros(2)}, {"prior_cov": np.eye(2)}):
+        with pytest.raises(ValueError, match=r"^a Gaussian prior needs both prior_mean and prior_cov$"):
+            Misfit(linear_model(), meas, NoiseModel(sigma=1.0), np.arange(6), **prior)
 
 
 def test_model_form_error_adds_its_variance_per_reading_to_the_noise():
     """C_D = C_d + C_T,surrogate + diag(e²) (thesis eq. 2.10), per reading, for a diagonal and a full
-    noise covariance alike; the noise σ reported stays the noise's own (the FE check compares with it)."""
+    noise covariance alike; the noise σ reported stays the noise's own (the FE check compares with it);
+    e = 0 is allowed for a reading, e < 0 and an observation of the wrong length are refused with the counts."""
     d = A @ np.array([0.3, 0.7])
     meas = measurement(d)
     e = np.linspace(0.01, 0.06, 6)
@@ -142,7 +148,89 @@ def test_model_form_error_adds_its_variance_per_reading_to_the_noise():
     assert_allclose(diag(X), expected, rtol=1e-12)
     assert_allclose(full(X), expected, rtol=1e-12)
     assert_allclose(diag.noise_std, 0.03)
+    # a reading without model-form error (e = 0) is allowed: σ² + σ_T² alone there
+    e0 = np.where(np.arange(6) < 2, 0.0, e)
+    with_zero = Misfit(linear_model(model_std), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e0)
+    assert_allclose(with_zero(X), 0.5 * np.sum(r**2 / (0.03**2 + model_std**2 + e0**2), axis=1), rtol=1e-12)
+    with pytest.raises(ValueError, match=r"^the observation gives 5 entries; the measurement has 6$"):
+        Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(5))
     with pytest.raises(ValueError, match="form_error must be 6 finite standard deviations"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e[:5])
     with pytest.raises(ValueError, match="form_error must be 6"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=-e)
+
+
+def test_integer_parameter_vectors_are_evaluated_as_real_numbers():
+    """ω at the integer point (2, 4) equals ω at (2.0, 4.0) (rtol 1e-15) for a model with a negative
+    power of a parameter (a compliance 1/E): the parameters reach the model as floats, as integer
+    arrays cannot be raised to a negative integer power in numpy."""
+    meas = Measurement(np.array([[0.4, 0.3]]), ("a", "b"), np.array([1.0]))
+
+    def compliance(X):
+        return np.column_stack([X[:, 0] ** -1, X[:, 1] ** -1]), None
+
+    f = Misfit(compliance, meas, NoiseModel(sigma=0.1), np.arange(2))
+    expected = 0.5 * ((0.5 - 0.4) ** 2 + (0.25 - 0.3) ** 2) / 0.1**2
+    assert_allclose(f([[2, 4]]), [expected], rtol=1e-15)
+    assert_allclose(f(np.array([2, 4])), f(np.array([[2.0, 4.0]])), rtol=1e-15)
+
+
+def test_per_row_model_std_broadcast_along_the_outputs_weights_each_row_by_its_own():
+    """A model whose std is one value per parameter vector, broadcast along the outputs (a view with
+    a zero column stride), gives each row its own C_T: ω_i = ½ Σ r²/(σ² + s_i²) (closed form, rtol
+    1e-12); only a std shared by all rows (zero row stride) may be taken from the first row."""
+    d = A @ np.array([0.3, 0.7])
+    meas = measurement(d)
+    X = rng.normal(size=(3, 2))
+    s_row = np.array([0.01, 0.05, 0.2])
+
+    def model(Xs):
+        mean = Xs @ A.T
+        return mean, np.broadcast_to(s_row[: len(Xs), None], mean.shape)
+
+    f = Misfit(model, meas, NoiseModel(sigma=0.03), np.arange(6))
+    r = X @ A.T - d
+    assert_allclose(f(X), 0.5 * np.sum(r**2, axis=1) / (0.03**2 + s_row**2), rtol=1e-12)
+
+
+def test_whiten_takes_integer_residuals_and_leaves_its_input_alone():
+    """Raw residuals given as integers (mm) are whitened as reals: r/σ (rtol 1e-15), and the caller's
+    array is not modified in place."""
+    meas = measurement(A @ np.array([0.3, 0.7]))
+    f = Misfit(linear_model(), meas, NoiseModel(sigma=0.5), np.arange(6))
+    r = np.array([[1, 2, 0, -1, 3, 0]])
+    assert_allclose(f.whiten(r), r / 0.5, rtol=1e-15)
+    assert r.tolist() == [[1, 2, 0, -1, 3, 0]]
+    with pytest.raises(ValueError, match=r"^the rigid-body modes are for 4 entries; the measurement has 6$"):
+        Misfit(linear_model(), meas, NoiseModel(sigma=0.5), np.arange(6), rigid_body=SimpleNamespace(n_obs=4))
+
+
+def test_relative_misfit_removes_the_rigid_motion_before_dividing_by_the_data():
+    """Relative residuals with rigid-body removal are P (g − d)/|d| (module docstring), with P the
+    projector of the four point displacements' rigid modes (rtol 1e-12)."""
+    sensors = (PointDisplacement("P1", (0.0, 0.0), "x"), PointDisplacement("P2", (100.0, 0.0), "y"),
+               PointDisplacement("P3", (0.0, 100.0), "x"), PointDisplacement("P4", (100.0, 100.0), "y"))
+    names = tuple(n for sensor in sensors for n in sensor.channel_names)
+    d = np.array([0.2, -0.4, 0.5, 0.8])
+    meas = Measurement(d[None], names, [1.0])
+    modes = rigid_body_modes(meas, absolute_displacements(sensors), "remove")
+    g = np.array([0.25, -0.3, 0.45, 1.0])
+    f = Misfit(lambda X: (np.tile(g, (len(X), 1)), None), meas, NoiseModel(sigma=1.0), np.arange(4),
+               kind="relative", rigid_body=modes)
+    expected = modes.projector() @ (g - d) / np.abs(d)
+    assert np.abs(expected).max() > 0.01  # the removal leaves a residual to compare
+    assert_allclose(f.whitened_residuals(np.zeros((1, 1))), [expected], rtol=1e-12, atol=1e-15)
+
+
+def test_an_integer_noise_covariance_takes_the_model_variance():
+    """A full noise covariance given with integer entries (mm², here 4 I + a coupling 1 between the
+    first two readings) plus the model's predictive variance: χ² = rᵀ (C_d + s² I)⁻¹ r (rtol 1e-12)."""
+    d = A @ np.array([0.3, 0.7])
+    meas = measurement(d)
+    C = 4 * np.eye(6, dtype=int)
+    C[0, 1] = C[1, 0] = 1
+    X = rng.normal(size=(2, 2))
+    r = X @ A.T - d
+    f = Misfit(linear_model(0.5), meas, NoiseModel(covariance=C), np.arange(6))
+    CD = C + 0.25 * np.eye(6)
+    assert_allclose(f.chi2(X), np.einsum("ij,ij->i", r, np.linalg.solve(CD, r.T).T), rtol=1e-12)

@@ -170,3 +170,18 @@ def test_energy_curve_and_truncation_by_energy_on_a_hand_basis(caplog):
     assert pod.n_modes_ == 1 and pod.retained_energy_ == pytest.approx(0.9, rel=1e-14)
     assert POD(energy=0.9 + 1e-9, center=False).fit(Y).n_modes_ == 2
     assert caplog.messages == ["POD (svd): 2 snapshots x 3 outputs, rank 2, 1 modes keep 0.9000000000 of the energy"]
+
+
+def test_single_precision_snapshots_are_decomposed_and_measured_in_double_precision():
+    """Snapshots stored as float32 (e.g. a float32 HDF5 dataset) are upcast before the SVD: the modes
+    are float64 and orthonormal to rounding (1e-12; a float32 decomposition reaches only ~1e-7), the
+    singular values equal those of the same numbers given as float64 (rtol 1e-12), and the relative
+    projection error divides by the float64 norm (equal to the float64 input's within 1e-12)."""
+    Y, _, _ = _data(9, n=12, m=30, rank=3)
+    Y32 = Y.astype(np.float32)
+    pod = POD(n_modes=2).fit(Y32)
+    ref = POD(n_modes=2).fit(Y32.astype(float))
+    assert pod.modes_.dtype == np.float64
+    assert_allclose(pod.modes_ @ pod.modes_.T, np.eye(2), rtol=0, atol=1e-12)
+    assert_allclose(pod.singular_values_, ref.singular_values_, rtol=1e-12)
+    assert_allclose(pod.projection_error(Y32), ref.projection_error(Y32.astype(float)), rtol=1e-12)

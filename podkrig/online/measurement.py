@@ -305,8 +305,8 @@ class Measurement:
         sensor_names = list(sensor_names)
         unknown = [s for s in self.sensor_names if s not in sensor_names]
         if unknown:
-            named = repr(unknown[0]) if len(unknown) == 1 else f"(s) {unknown}"
-            raise ValueError(f"{self.source}: unknown sensor {named}; the model has {sensor_names}")
+            named = f"sensor {unknown[0]!r}" if len(unknown) == 1 else f"sensor(s) {unknown}"
+            raise ValueError(f"{self.source}: unknown {named}; the model has {sensor_names}")
         cols = np.array([sensor_names.index(s) for s in self.sensor_names], dtype=np.intp)
         n_s = len(sensor_names)
         index, weights = level_weights(self.load_levels, load_levels, load_response, load_unit, self.source)
