@@ -6,6 +6,7 @@ checks of the settings, by hand-computed values."""
 
 import csv
 import math
+import sys
 import zipfile
 
 import numpy as np
@@ -217,8 +218,8 @@ def test_a_units_row_below_the_header(tmp_path):
      "{p}: no row has a load in load_range [0, 5] kN; the loads span [10, 20] kN"),
     ("load,D1\n10,1\n", {"settings": ImportSettings(zero="first")}, "{p}: only the zero reference row; no readings left"),
     ("load,D1,D2\n10,,\n20,,\n", {}, "{p}: no readings (every sensor cell is empty)"),
-    ("load,D1,D2\n10,1,\n20,2,3\n", {"settings": ImportSettings(zero="first")},
-     "{p}, row 2: the zero reference (first row) has no reading of D2"),
+    ("load,D1,D2,U1\n10,1,,\n20,2,3,4\n", {"settings": ImportSettings(zero="first")},
+     "{p}, row 2: the zero reference (first row) has no reading of D2, U1"),
     ("load,D1,D2,U1\n2,1,1,\n10,2,,1\n", {"settings": ImportSettings(zero=6)},
      "{p}: no reading of D2, U1 at the zero reference load 6 kN (interpolated between rows 2 and 3)"),
     ("load,D1,D2\n2,1,1\n6,2,\n10,3,3\n", {"settings": ImportSettings(zero=6)},
@@ -506,3 +507,71 @@ def test_the_former_reader_name_passes_every_argument_on(tmp_path):
     assert m.load_levels.tolist() == [20.0] and m.values.tolist() == [[2.5]]
     with pytest.raises(ValueError, match="load_response must be one of"):
         read_measurement_csv(p, SENSORS, LEVELS, "kN", "exact")
+
+
+def test_excel_damage_and_a_missing_openpyxl_are_explained(tmp_path, monkeypatch):
+    """A workbook whose sheet is cut off is refused naming the damage; a file over the size limit is
+    refused before it is opened, with the limit in MiB; without openpyxl the user is told to install
+    it or save the sheet as CSV."""
+    plain = _workbook(tmp_path / "plain.xlsx", {"s": [["load", "D1"], [10, 1]]})
+    p = tmp_path / "cut.xlsx"
+    with zipfile.ZipFile(plain) as src, zipfile.ZipFile(p, "w") as dst:
+        for item in src.infolist():
+            data = src.read(item.filename)
+            if item.filename == "xl/worksheets/sheet1.xml":
+                data = data[: data.index(b'<row r="2">') + 15]
+            dst.writestr(item, data)
+    with pytest.raises(ValueError) as info:
+        read_measurement(p, SENSORS, LEVELS, "kN", "affine")
+    assert str(info.value).startswith(f"{p}: cannot read the Excel sheet (ParseError: unclosed token: line 1, column ")
+    big = _write(tmp_path, b"x" * (2**21 + 1), "big.xlsx")  # refused on its size alone
+    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", 2**21)
+    with pytest.raises(ValueError) as info:
+        read_measurement(big, SENSORS, LEVELS, "kN", "affine")
+    assert str(info.value) == f"{big}: larger than 2 MiB"
+    monkeypatch.setitem(sys.modules, "openpyxl", None)  # as if not installed
+    with pytest.raises(ValueError) as info:
+        read_measurement(plain, SENSORS, LEVELS, "kN", "affine")
+    assert str(info.value) == (f"{plain}: reading Excel files needs openpyxl: pip install 'openpyxl>=3.1' (or save the "
+                               "sheet as CSV)")
+
+
+def test_the_unit_registry_is_built_on_first_use(monkeypatch):
+    """pint's registry is built the first time a unit is converted (not at import) and then reused."""
+    monkeypatch.setattr(measurement_csv, "_UNITS", None)
+    assert unit_factor("µm", "mm", "w") == pytest.approx(1e-3, rel=1e-15)
+    registry = measurement_csv._UNITS
+    assert registry is not None
+    assert unit_factor("cm", "mm", "w") == pytest.approx(10.0, rel=1e-15) and measurement_csv._UNITS is registry
+
+
+def test_zero_at_a_load_is_read_exactly_or_interpolated(tmp_path):
+    """A zero load a row reaches to 1e-9 relative is read at that row; one 1.25e-6 relative away is
+    interpolated (8.00001 kN between 8 and 10 kN: 3 + 2 · 5e-6). Compared to 1e-12 absolute (the
+    rounding of 3 − 3.00001 is ~4e-16; reading at the row instead would be off by 1e-5)."""
+    m = _read(tmp_path, "load,D1\n0,1\n8,3\n10,5\n", settings=ImportSettings(zero=8.00001))
+    assert_allclose(m.values[:, 0], [1 - 3.00001, 3 - 3.00001, 5 - 3.00001], rtol=0, atol=1e-12)
+    assert "gauges zeroed at 8.00001 kN (interpolated between rows 3 and 4); the model is compared as g(P) − g(P_ref)" \
+        in m.notes
+
+
+def test_phase_errors_and_notes(tmp_path):
+    """zero = "end of PHASE": an empty phase column, a phase not in the column (no typo hint when no
+    phase is close; at most 20 phases listed), readings missing at the reference (every sensor
+    named) are refused naming the column or row; the note lists at most 20 phases."""
+    phases = [f"p{k:02d}" for k in range(21)]
+    rows = "".join(f"{ph},{k},{k},{2 * k}\n" for k, ph in enumerate(phases))
+    log = "phase,load,D1,D2\n" + rows
+    listed = ", ".join(repr(ph) for ph in phases[:20])
+    assert (_error(tmp_path, log, settings=ImportSettings(zero="end of shear"))
+            == f"{{p}}, column 1 (phase): no row of phase 'shear' (zero = 'end of shear'); the phases in this column "
+               f"are {listed}")
+    m = _read(tmp_path, log, settings=ImportSettings(zero="end of p05"))
+    assert ("gauges zeroed at the end of phase 'p05' (row 7, 5 kN); the 6 row(s) up to it are not used; "
+                          f"phases in column 1 (phase): {', '.join(phases[:20])}; the model is compared as "
+                          "g(P) − g(P_ref)") in m.notes
+    assert_allclose(m.values[0], [1.0, 2.0], rtol=1e-15)
+    assert (_error(tmp_path, "phase,load,D1\n,10,1\n ,20,2\n", settings=ImportSettings(zero="end of x"))
+            == "{p}, column 1 (phase): zero = 'end of x', but the phase column is empty")
+    assert (_error(tmp_path, "phase,load,D1,D2,U1\na,10,,,1\nb,20,2,2,2\n", settings=ImportSettings(zero="end of a"))
+            == "{p}, row 2: the zero reference (end of phase 'a') has no reading of D1, D2")
