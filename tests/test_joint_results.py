@@ -176,6 +176,9 @@ def test_each_tests_view_and_the_parameter_table():
     assert table == {"s": 1.5, "t": 0.75, "e": 0.625, "k": 0.5}
     assert all(type(v) is float for v in table.values())
     assert joint.parameters_at(x.tolist()) == table
+    ints = joint.parameters_at([1, 0, 1])  # integer input: the table still holds floats, as written to reports
+    assert ints == {"s": 1.0, "t": 0.0, "e": 1.0, "k": 0.5} and all(type(v) is float for v in ints.values())
+    assert joint.parts([1, 0, 1])["jack"][1].dtype == np.float64  # each test's view: float, as for one test
     # one test alone: its own fixed values are agreed on by every test
     assert JointProblem({"wall": wall}).parameters_at([1.5]) == {"s": 1.5, "t": 0.25, "k": 0.5, "h": 0.1}
 

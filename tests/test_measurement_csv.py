@@ -422,6 +422,10 @@ def test_repeats_are_averaged_per_step_from_its_first_load(tmp_path):
         assert not any("averaged" in n for n in m.notes)
     m = _read(tmp_path, "load,D1\n10,1\n10.5,3\n", settings=ImportSettings(load_tolerance=0.25))
     assert m.load_levels.tolist() == [10, 10.5]
+    m = _read(tmp_path, "load,D1\n10,1\n10.5,3\n", settings=ImportSettings(load_tolerance=1))  # two rows, 1 kN
+    assert m.load_levels.tolist() == [10.25] and m.values.tolist() == [[2.0]]
+    m = _read(tmp_path, "load,D1\n10,1\n10,3\n")  # two rows of one load: averaged
+    assert m.load_levels.tolist() == [10.0] and m.values.tolist() == [[2.0]]
 
 
 def test_zeroing_at_the_first_row_or_a_load(tmp_path):
