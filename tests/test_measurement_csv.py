@@ -579,3 +579,15 @@ def test_phase_errors_and_notes(tmp_path):
             == "{p}, column 1 (phase): zero = 'end of x', but the phase column is empty")
     assert (_error(tmp_path, "phase,load,D1,D2,U1\na,10,,,1\nb,20,2,2,2\n", settings=ImportSettings(zero="end of a"))
             == "{p}, row 2: the zero reference (end of phase 'a') has no reading of D1, D2")
+
+
+def test_a_title_line_mentioning_the_load_is_not_the_header(tmp_path):
+    """A defect found by mutation testing (issue 12): the delimiter was taken from the first line
+    *containing* the load column's name, so a title such as "Load test, wall 3" above a semicolon
+    header made the reader split at commas and refuse the file ("no load column 'load' in the header
+    ['Load test', 'wall 3']"). The header is the first line with a *cell* naming the load column
+    (quoted or with a unit as well)."""
+    m = _read(tmp_path, "Load test, wall 3\nload;D1\n10;1,5\n")
+    assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 1 line(s) before the header"
+    m = _read(tmp_path, "Wall 3 (load-controlled)\nDate: 2026, Nov 2\n\"Load [kN]\";\"D1\"\n10;1,5\n")
+    assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 2 line(s) before the header"

@@ -244,11 +244,13 @@ def _read_text(path, notes):
 
 
 def _detect_delimiter(text, load_column="load"):
-    """The most frequent of tab, ';' and ',' in the header (the first line naming the load column;
-    else the first line with any of them)."""
+    """The most frequent of tab, ';' and ',' in the header (the first line with a cell, split at any
+    of them, naming the load column — not a title line that merely contains the word; else the first
+    line with any of them)."""
     lines = text.splitlines()[:200]
     want = load_column.strip().casefold()
-    header = [ln for ln in lines if want in ln.casefold()][:1]
+    header = [ln for ln in lines if any(split_header(c.strip().strip('"'))[0].casefold() == want
+                                        for d in ("\t", ";", ",") for c in ln.split(d))][:1]
     for line in header + lines[:50]:
         counts = {d: line.count(d) for d in ("\t", ";", ",")}
         best = max(counts, key=counts.get)
