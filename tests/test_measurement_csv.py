@@ -128,6 +128,8 @@ def test_unit_factors_and_their_errors():
     assert type(unit_factor("m", "mm", "w")) is float
     cases = [(("bananas", "mm", "f, row 1"), ("f, row 1: unknown unit 'bananas' (use e.g. mm, µm, um, m for readings; "
                                              "kN, N for loads)")),
+             (("0.1 mm", "mm", "f"), ("f: unknown unit '0.1 mm' (use e.g. mm, µm, um, m for readings; kN, N for "
+                                     "loads)")),  # a unit, not a quantity: no hidden scale factor
              (("kN", "mm", "f"), "f: unit 'kN' is not a length (readings are displacements)"),
              (("kN", "mm", "f", "load"), "f: unit 'kN' is not convertible to mm"),
              (("mm", "kN", "f", "load"), "f: unit 'mm' is not convertible to kN")]
