@@ -130,6 +130,7 @@ def test_unit_factors_and_their_errors():
                                              "kN, N for loads)")),
              (("0.1 mm", "mm", "f"), ("f: unknown unit '0.1 mm' (use e.g. mm, µm, um, m for readings; kN, N for "
                                      "loads)")),  # a unit, not a quantity: no hidden scale factor
+             (("(ym/Ym)**20*mm", "mm", "f"), "f: unit '(ym/Ym)**20*mm' has no usable conversion to mm"),  # 0.0
              (("kN", "mm", "f"), "f: unit 'kN' is not a length (readings are displacements)"),
              (("kN", "mm", "f", "load"), "f: unit 'kN' is not convertible to mm"),
              (("mm", "kN", "f", "load"), "f: unit 'mm' is not convertible to kN")]
@@ -238,6 +239,12 @@ def test_a_units_row_below_the_header(tmp_path):
     ("load,D1\n10,1\n15,2\n", {"response": "discrete"}, ("{p}, row 3, column 1 (load): unknown load level 15 kN; the "
                                                          "model has [10.0, 20.0, 30.0, 40.0] (its levels are steps: "
                                                          "readings are taken only there)")),
+    ("load,D1\n10,1\n10.00001,1\n", {"response": "discrete"},  # 1e-6 off a level is not that level (1e-9)
+     ("{p}, row 3, column 1 (load): unknown load level 10 kN; the model has [10.0, 20.0, 30.0, 40.0] (its levels "
+      "are steps: readings are taken only there)")),
+    ("load,D1\n1,1\n4,1\n", {"response": "discrete", "levels": (1, 2, 3)},  # integer levels listed as floats
+     ("{p}, row 3, column 1 (load): unknown load level 4 kN; the model has [1.0, 2.0, 3.0] (its levels are steps: "
+      "readings are taken only there)")),
 ])
 def test_bad_logs_are_refused_naming_file_row_and_column(tmp_path, content, kwargs, message):
     """Each refusal, whole: the file, the 1-based row a spreadsheet shows (title and blank lines
