@@ -600,3 +600,5 @@ def test_a_title_line_mentioning_the_load_is_not_the_header(tmp_path):
     assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 1 line(s) before the header"
     m = _read(tmp_path, "Wall 3 (load-controlled)\nDate: 2026, Nov 2\n\"Load [kN]\";\"D1\"\n10;1,5\n")
     assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 2 line(s) before the header"
+    m = _read(tmp_path, "Wall 3, 2026\nt;FX;D1\n0;10;1,5\n", settings=ImportSettings(load_column="Fx"))
+    assert m.values.tolist() == [[1.5]]  # a load column whose name ends in X is found too
