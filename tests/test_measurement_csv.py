@@ -602,3 +602,18 @@ def test_a_title_line_mentioning_the_load_is_not_the_header(tmp_path):
     assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 2 line(s) before the header"
     m = _read(tmp_path, "Wall 3, 2026\nt;FX;D1\n0;10;1,5\n", settings=ImportSettings(load_column="Fx"))
     assert m.values.tolist() == [[1.5]]  # a load column whose name ends in X is found too
+
+
+def test_load_range_is_inclusive_and_rows_stay_aligned(tmp_path):
+    """``load_range`` keeps the loads at both ends (documented inclusive) and notes only when rows
+    are dropped; after zeroing at the first row an error still names the right row of the file."""
+    content = "load,D1\n10,1\n20,2\n30,3\n40,4\n"
+    m = _read(tmp_path, content, settings=ImportSettings(load_range=(10, 30)))
+    assert m.load_levels.tolist() == [10, 20, 30]
+    assert "1 row(s) outside load_range [10, 30] kN dropped" in m.notes
+    m = _read(tmp_path, content, settings=ImportSettings(load_range=(10, 40)))
+    assert m.load_levels.tolist() == [10, 20, 30, 40] and not any("load_range" in n for n in m.notes)
+    assert (_error(tmp_path, "load,D1\n10,0\n20,1\n25,2\n", response="discrete",
+                   settings=ImportSettings(zero="first"))
+            == ("{p}, row 4, column 1 (load): unknown load level 25 kN; the model has [10.0, 20.0, 30.0, 40.0] (its "
+                "levels are steps: readings are taken only there)"))
