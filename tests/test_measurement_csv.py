@@ -215,6 +215,9 @@ def test_a_units_row_below_the_header(tmp_path):
     ("load,D1\n10,1.5\n20,\"1,5\"\n", {}, f"{{p}}, row 3, column 2 (D1): '1,5' is not a number {HINT}"),
     ("load,D1\n10,1\n20,1..5\n", {}, f"{{p}}, row 3, column 2 (D1): '1..5' is not a number {HINT}"),
     ("load,D1\n1 0,1\n", {}, f"{{p}}, row 2, column 1 (load): '1 0' is not a number {HINT}"),
+    ("load,D1\n10, 1\n20,2X\n", {}, f"{{p}}, row 3, column 2 (D1): '2X' is not a number {HINT}"),
+    ("load;D1\n10;1,5\n20;abc\n", {}, f"{{p}}, row 3, column 2 (D1): 'abc' is not a number {HINT}"),
+    ("load,D1\n10,\"1,5\"\n", {}, f"{{p}}, row 2, column 2 (D1): '1,5' is not a number {HINT}"),
     ("load,D1\n,1\n", {}, "{p}: no data rows with a load"),
     ("load,D1\n,1\n", {"settings": ImportSettings(load_range=(12, 35))}, "{p}: no rows with a load"),
     ("load,D1\n10,1\n20,2\n", {"settings": ImportSettings(load_range=(0, 5))},
@@ -617,3 +620,14 @@ def test_load_range_is_inclusive_and_rows_stay_aligned(tmp_path):
                    settings=ImportSettings(zero="first"))
             == ("{p}, row 4, column 1 (load): unknown load level 25 kN; the model has [10.0, 20.0, 30.0, 40.0] (its "
                 "levels are steps: readings are taken only there)"))
+
+
+def test_cells_padded_with_tabs_or_spaces_and_the_source(tmp_path):
+    """Cells padded with tabs or spaces in a comma file read as their numbers; a comma-delimited
+    file with quoted decimal-comma cells reads with ``decimal = ","``; the measurement names its file."""
+    p = _write(tmp_path, "load,D1,D2\n10,\t1.5,2\n20, 2.5\t,\t\n")
+    m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
+    assert_allclose(m.values, [[1.5, 2.0], [2.5, np.nan]], rtol=0)
+    assert m.source == str(p)
+    m = _read(tmp_path, "load,D1\n10,\"1,5\"\n", settings=ImportSettings(decimal=","))
+    assert m.values.tolist() == [[1.5]]
