@@ -408,8 +408,8 @@ def test_missing_cells_rows_without_a_load_and_short_rows(tmp_path):
     assert m.load_levels.tolist() == [10, 20, 30, 40]
     assert_allclose(m.values, [[1.5, np.nan], [np.nan, np.nan], [np.nan, 2.0], [np.nan, 3.0]], rtol=1e-15)
     assert "2 row(s) without a load skipped (e.g. row 3)" in m.notes
-    m = _read(tmp_path, "load,D1\n10,1\n20,2\n")
-    assert not any("without a load" in n for n in m.notes)
+    m = _read(tmp_path, "load,D1\n10,1\n,\n\n20,2\n , \n")  # rows of empty cells (spreadsheet exports): no rows
+    assert m.load_levels.tolist() == [10, 20] and not any("without a load" in n for n in m.notes)
 
 
 def test_repeats_are_averaged_per_step_from_its_first_load(tmp_path):
