@@ -640,3 +640,15 @@ def test_cells_padded_with_tabs_or_spaces_and_the_source(tmp_path):
     assert m.source == str(p)
     m = _read(tmp_path, "load,D1\n10,\"1,5\"\n", settings=ImportSettings(decimal=","))
     assert m.values.tolist() == [[1.5]]
+
+
+@pytest.mark.xfail(strict=True, reason="defect found by mutation testing (issue 12), not fixed yet: whitespace other "
+                                       "than spaces and tabs around a number is refused as 'unreadable cells'")
+def test_a_number_padded_with_a_non_breaking_space_reads(tmp_path):
+    """A cell "1.5" followed by a non-breaking space (spreadsheets in European locales write them) or
+    a quoted carriage return passes the cell-by-cell check (``str.strip``) but not the vectorised
+    path (which strips only spaces and tabs), so the reader ends in its "unreadable cells" fallback,
+    naming the column but no row or cell. Expected: read as 1.5 (or the cell named). Reports XPASS,
+    and fails, once fixed (e.g. clean up every whitespace but the newline in ``_Table._column``)."""
+    m = _read(tmp_path, "load,D1\n10,1.5\xa0\n20,\"2\r\"\n")
+    assert m.values.tolist() == [[1.5], [2.0]]
