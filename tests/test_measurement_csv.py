@@ -77,6 +77,7 @@ def _error(tmp_path, content, **kwargs):
     ({"load_range": (0, "2")}, ("load_range must be [lower, upper] with lower <= upper (scenario load unit); "
                                "got (0, '2')")),
     ({"load_range": "12"}, "load_range must be [lower, upper] with lower <= upper (scenario load unit); got '12'"),
+    ({"load_range": 5}, "load_range must be [lower, upper] with lower <= upper (scenario load unit); got 5"),
     ({"delimiter": "|"}, "delimiter must be ',', ';' or a tab; got '|'"),
     ({"decimal": ";"}, "decimal must be '.' or ','; got ';'"),
     ({"delimiter": ",", "decimal": ","}, "a comma cannot be both the delimiter and the decimal mark"),
