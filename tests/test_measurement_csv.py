@@ -653,3 +653,15 @@ def test_a_number_padded_with_a_non_breaking_space_reads(tmp_path):
     and fails, once fixed (e.g. clean up every whitespace but the newline in ``_Table._column``)."""
     m = _read(tmp_path, "load,D1\n10,1.5\xa0\n20,\"2\r\"\n")
     assert m.values.tolist() == [[1.5], [2.0]]
+
+
+def test_step_loads_and_every_typo_hint(tmp_path):
+    """A stepped test's load column (unit "step", "-" or none) is read as the step numbers themselves
+    (no conversion); every near miss of a sensor gets its own hint (similarity ≥ 0.75: "Dxx2" at 0.67
+    gets none)."""
+    for unit in ("step", "-"):
+        m = _read(tmp_path, f"load [{unit}],D1,D22,U11,Dxx2\n1,1,2,3,4\n2,2,3,4,5\n", unit="step",
+                  response="discrete", levels=(1, 2))
+        assert m.load_levels.tolist() == [1.0, 2.0] and m.values.tolist() == [[1.0], [2.0]]
+        assert m.notes[0] == ("ignored column(s) that name no sensor: D22, U11, Dxx2 ('D22' is close to sensor 'D2': "
+                              "a typo?) ('U11' is close to sensor 'U1': a typo?)")
