@@ -665,3 +665,13 @@ def test_step_loads_and_every_typo_hint(tmp_path):
         assert m.load_levels.tolist() == [1.0, 2.0] and m.values.tolist() == [[1.0], [2.0]]
         assert m.notes[0] == ("ignored column(s) that name no sensor: D22, U11, Dxx2 ('D22' is close to sensor 'D2': "
                               "a typo?) ('U11' is close to sensor 'U1': a typo?)")
+
+
+def test_units_after_a_column_without_one_and_the_default_load_unit(tmp_path):
+    """A sensor with a unit after one without is still converted, every column without a unit is
+    named, and the load unit defaults to kN (a load in N is converted)."""
+    p = _write(tmp_path, "load [N],D1,D2 [µm],U1\n10000,1,2,3\n")
+    m = read_measurement(p, SENSORS, LEVELS)
+    assert m.load_levels.tolist() == [10.0]
+    assert_allclose(m.values, [[1.0, 0.002, 3.0]], rtol=1e-15)
+    assert "no unit in the header of D1, U1: read as mm" in m.notes
