@@ -244,11 +244,13 @@ def _read_text(path, notes):
 
 
 def _detect_delimiter(text, load_column="load"):
-    """The most frequent of tab, ';' and ',' in the header (the first line naming the load column;
-    else the first line with any of them)."""
+    """The most frequent of tab, ';' and ',' in the header (the first line with a cell, split at any
+    of them, naming the load column — not a title line that merely contains the word; else the first
+    line with any of them)."""
     lines = text.splitlines()[:200]
     want = load_column.strip().casefold()
-    header = [ln for ln in lines if want in ln.casefold()][:1]
+    header = [ln for ln in lines if any(split_header(c.strip().strip('"'))[0].casefold() == want
+                                        for d in ("\t", ";", ",") for c in ln.split(d))][:1]
     for line in header + lines[:50]:
         counts = {d: line.count(d) for d in ("\t", ";", ",")}
         best = max(counts, key=counts.get)
@@ -662,15 +664,15 @@ class _Table:
             return ref, float(loads[0]), f"row {int(rows[0])}"
         p0 = float(s.zero)
         hit = np.flatnonzero(np.isclose(loads, p0, rtol=1e-9, atol=1e-12))
-        if len(hit):
+        d = loads - p0
+        cross = np.flatnonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)
+        if not (len(hit) or len(cross)):
+            raise ValueError(f"{self.path}: the log never reaches the zero reference load {p0:g}{unit} (its loads "
+                             f"span [{loads.min():g}, {loads.max():g}]{unit})")
+        if len(hit) and (not len(cross) or hit[0] <= cross[0]):  # where the log first reaches p0
             i = hit[0]
             ref, where = values[i], f"row {int(rows[i])}"
         else:
-            d = loads - p0
-            cross = np.flatnonzero(np.sign(d[:-1]) * np.sign(d[1:]) < 0)
-            if not len(cross):
-                raise ValueError(f"{self.path}: the log never reaches the zero reference load {p0:g}{unit} (its loads "
-                                 f"span [{loads.min():g}, {loads.max():g}]{unit})")
             i = cross[0]
             t = (p0 - loads[i]) / (loads[i + 1] - loads[i])
             ref = (1 - t) * values[i] + t * values[i + 1]
