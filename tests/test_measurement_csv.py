@@ -6,6 +6,7 @@ checks of the settings, by hand-computed values."""
 
 import csv
 import math
+import re
 import sys
 import zipfile
 
@@ -643,16 +644,18 @@ def test_cells_padded_with_tabs_or_spaces_and_the_source(tmp_path):
     assert m.values.tolist() == [[1.5]]
 
 
-@pytest.mark.xfail(strict=True, reason="defect found by mutation testing (issue 12), not fixed yet: whitespace other "
-                                       "than spaces and tabs around a number is refused as 'unreadable cells'")
 def test_a_number_padded_with_a_non_breaking_space_reads(tmp_path):
     """A cell "1.5" followed by a non-breaking space (spreadsheets in European locales write them) or
-    a quoted carriage return passes the cell-by-cell check (``str.strip``) but not the vectorised
-    path (which strips only spaces and tabs), so the reader ends in its "unreadable cells" fallback,
-    naming the column but no row or cell. Expected: read as 1.5 (or the cell named). Reports XPASS,
-    and fails, once fixed (e.g. clean up every whitespace but the newline in ``_Table._column``)."""
+    a quoted carriage return is a number with whitespace around it, read as such. Defect (found by
+    mutation testing, issue 12): the vectorised path stripped only spaces and tabs, so such a column
+    ended in an "unreadable cells" error naming no row. Whitespace inside a number is still refused,
+    naming the cell."""
     m = _read(tmp_path, "load,D1\n10,1.5\xa0\n20,\"2\r\"\n")
     assert m.values.tolist() == [[1.5], [2.0]]
+    m = _read(tmp_path, "load,D1\n10,\u20091.5\n20,\n")  # a thin space before, an empty cell after
+    assert m.values[0].tolist() == [1.5] and np.isnan(m.values[1, 0])
+    with pytest.raises(ValueError, match=r"row 3, column 2 \(D1\): " + re.escape(repr("2\xa05")) + " is not a number"):
+        _read(tmp_path, "load,D1\n10,1.5\n20,2\xa05\n")
 
 
 def test_step_loads_and_every_typo_hint(tmp_path):

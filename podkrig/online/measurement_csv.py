@@ -58,7 +58,10 @@ _NUMBER = r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?"
 _NUMBER_RE = re.compile(_NUMBER, re.ASCII)
 _DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+(?:[eE][+-]?\d+)?", re.ASCII)
 _DECIMAL_POINT = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", re.ASCII)
-_SPACES = re.compile(r"[ \t]*\n[ \t]*")
+# whitespace around a cell (spaces, tabs, a spreadsheet's non-breaking space, a quoted carriage
+# return): every whitespace but the newline that joins the cells of a column
+_BLANK = re.compile(r"[^\S\n]")
+_SPACES = re.compile(r"[^\S\n]*\n[^\S\n]*")
 _MISSING_RE = re.compile(r"^(?:nan|na|n/a)$", re.IGNORECASE | re.MULTILINE)
 _NOT_NUMERIC = re.compile(r"[^0-9eE+\-.\n]")
 _HEADER = re.compile(r"^(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
@@ -547,8 +550,8 @@ class _Table:
         """One column of text as floats (NaN where missing), every bad cell named."""
         name = self.header[j]
         joined = "\n".join(cells)
-        if " " in joined or "\t" in joined:
-            joined = _SPACES.sub("\n", joined).strip(" \t")
+        if _BLANK.search(joined):
+            joined = _SPACES.sub("\n", f"\n{joined}\n")[1:-1]
         if decimal == ",":
             joined = joined.replace(",", ".")
         if _NOT_NUMERIC.search(joined):  # letters: missing-reading words, or a bad cell
