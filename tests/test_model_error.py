@@ -231,6 +231,21 @@ def test_relative_error_ignores_readings_of_zero_size():
     assert_allclose(e.relative(meas), [0.0, 0.0, 0.005], rtol=1e-12)
 
 
+def test_relative_error_of_zero_readings_is_zero_whatever_the_memory_held():
+    """The zero entries are written, not left to whatever memory the result reuses: after arrays
+    of 7.0 of the same size were freed (numpy's allocator hands such blocks out again), 500 zero
+    readings still give exactly 0 in each of 20 calls."""
+    values = np.zeros((1, 1000))
+    values[0, ::2] = 1.0
+    meas = Measurement(values, [f"s{i}" for i in range(1000)], [1.0])
+    e = ModelError(np.full(1000, 0.01), "tolerance", tolerance=0.01)
+    for _ in range(20):
+        junk = np.full(1000, 7.0)
+        del junk
+        rel = e.relative(meas)
+        assert np.all(rel[1::2] == 0.0) and np.all(rel[::2] == 0.01)
+
+
 def test_record_round_trips_and_summarises_the_relative_error():
     """``to_dict`` keeps every field and the per-reading list; with a measurement it adds the
     median and largest relative error; ``summary`` drops the list and adds the description;

@@ -5,7 +5,7 @@ the data no longer biases."""
 import numpy as np
 from scipy import stats
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
@@ -313,3 +313,22 @@ def test_to_dict_records_groups_blocks_and_removed_dof():
     meas = _measurement()
     assert rigid_body_modes(meas, DISPLACEMENTS, "remove").to_dict() == {
         "groups": ["G", POINT_GROUP], "n_blocks": 6, "n_removed": 18}
+
+
+def test_subset_of_one_level_and_subset_of_a_subset():
+    """The load levels a fit keeps, taken at once or in two steps, give the same modes: blocks
+    renumbered in order, gauges and ungrouped sensors outside every block (−1), the removed dof
+    and the fitted motion (ω needs each block's ℓ) of the kept blocks unchanged (1e-12:
+    rounding). One level alone is one block."""
+    meas = _measurement(missing=False)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto")
+    level = np.arange(meas.n_obs).reshape(3, -1)
+    direct = modes.subset(level[2])
+    two_steps = modes.subset(level[[0, 2]].ravel()).subset(np.arange(level.shape[1], 2 * level.shape[1]))
+    for sub in (direct, two_steps):
+        assert sub.labels == (("G", 2),) and sub.n_blocks == 1 and sub.n_removed == 3
+        assert_array_equal(sub.block, modes.block[level[2]] - 2 * (modes.block[level[2]] >= 0))
+        assert_allclose(sub.lengths, modes.lengths[2:], rtol=0)
+        v = _rigid(meas, np.array([[0.1, 0.2]] * 3), np.array([1e-4, 2e-4, 3e-4])).ravel()
+        assert_allclose(sub.fit(v[level[2]]), modes.fit(v)[2:], rtol=1e-12)
+        assert_allclose(sub.projector(), modes.projector()[np.ix_(level[2], level[2])], atol=1e-14)
