@@ -332,3 +332,23 @@ def test_subset_of_one_level_and_subset_of_a_subset():
         v = _rigid(meas, np.array([[0.1, 0.2]] * 3), np.array([1e-4, 2e-4, 3e-4])).ravel()
         assert_allclose(sub.fit(v[level[2]]), modes.fit(v)[2:], rtol=1e-12)
         assert_allclose(sub.projector(), modes.projector()[np.ix_(level[2], level[2])], atol=1e-14)
+
+
+def test_a_subset_without_displacement_readings_removes_nothing():
+    """Rows holding only gauge readings (e.g. the levels a fit keeps read no DIC point): no block,
+    P = I, nothing removed, an empty whitened basis (n, 0) and whitened residuals left as they
+    are; the χ² of such a subset keeps every degree of freedom. Defect fixed (fourth mutation
+    run): ``remove`` raised IndexError and ``whiten_diagonal`` ValueError on such modes."""
+    meas = _measurement(missing=False)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto")
+    gauges = np.flatnonzero(np.broadcast_to(GAUGES, meas.values.shape).ravel())
+    sub = modes.subset(gauges)
+    assert sub.n_blocks == 0 and sub.n_removed == 0 and sub.dense_basis().shape == (len(gauges), 0)
+    assert_array_equal(sub.projector(), np.eye(len(gauges)))
+    L = np.diag(np.arange(1.0, len(gauges) + 1))
+    Q = sub.whitened_basis(L)
+    w = np.arange(len(gauges), dtype=float)
+    assert Q.shape == (len(gauges), 0)
+    assert_array_equal(project_out(Q, w), w)
+    assert_array_equal(sub.remove(w), w)
+    assert_array_equal(sub.whiten_diagonal(w, np.ones(len(gauges))), w[None])
