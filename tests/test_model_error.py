@@ -263,7 +263,8 @@ def test_record_round_trips_and_summarises_the_relative_error():
     assert "std_mm" not in s and s["description"] == e.describe() and s["max_relative"] == pytest.approx(0.05)
     assert set(s) == set(full) - {"std_mm"} | {"description"}
     back = ModelError.from_dict(full)
-    assert_allclose(back.std, e.std, rtol=0) and back.std.dtype == float
+    assert_allclose(back.std, e.std, rtol=0)
+    assert back.std.dtype == float
     assert (back.method, back.tolerance, back.refinement, back.rate, back.mesh, back.note) == (
         "two meshes", None, 2, 0.8, "Q8 2×1 and 4×2 per unit", None)
     t = ModelError.from_dict(tolerance_error(meas, 0.01, "why").to_dict())

@@ -287,7 +287,8 @@ def test_fit_returns_the_motion_of_the_centroid_and_nan_for_what_a_block_cannot_
     assert modes.labels == (("G", 0), ("pair", 0)) and modes.rank.tolist() == [3, 2]
     xc, yc = np.mean([10.0, 155.0, 300.0]), np.mean([20.0, 146.0 + 2 / 3, 273.0 + 1 / 3, 400.0])
     assert_allclose(fitted[0], [0.3 - 2e-4 * yc, -0.2 + 2e-4 * xc, 2e-4], rtol=1e-10)
-    assert_allclose(fitted[1, [0, 2]], [0.3 - 2e-4 * 302.5, 2e-4], rtol=1e-10) and np.isnan(fitted[1, 1])
+    assert_allclose(fitted[1, [0, 2]], [0.3 - 2e-4 * 302.5, 2e-4], rtol=1e-10)
+    assert np.isnan(fitted[1, 1])
     assert_allclose(modes.lengths[1], np.hypot(122.5, 297.5), rtol=1e-12)
 
 

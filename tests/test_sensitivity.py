@@ -47,7 +47,8 @@ def test_additive_linear_model_has_equal_first_and_total_indices():
     assert np.all(np.isnan(res.first[1])) and res.variance[1] == 0.0
     assert res.negligible() == ("c", "d")  # c explains 0.1 % of the variance
     again = SensitivityResult.from_dict(res.to_dict())
-    assert_allclose(again.total, res.total) and again.parameters == res.parameters
+    assert_allclose(again.total, res.total)
+    assert again.parameters == res.parameters
 
 
 def test_uninformative_parameter_is_proposed_for_fixing_by_readings_and_misfit():
@@ -125,7 +126,8 @@ def test_design_and_intervals_are_the_seeded_sobol_matrices_and_bootstrap_percen
     f_AB = np.stack([_two_outputs(M).T for M in mixed])
     live = np.array([True, True])
     first, total = sa._estimate(f_A, f_B, f_AB, live)
-    assert_allclose(res.first, first, rtol=1e-12) and assert_allclose(res.total, total, rtol=1e-12)
+    assert_allclose(res.first, first, rtol=1e-12)
+    assert_allclose(res.total, total, rtol=1e-12)
     boot_first, boot_total = sa._bootstrap(f_A, f_B, f_AB, live, R, np.random.default_rng(seed))
     for low, high, boot in ((res.first_low, res.first_high, boot_first), (res.total_low, res.total_high, boot_total)):
         assert low.shape == high.shape == (2, 2)
@@ -147,7 +149,8 @@ def test_an_exceedance_indicator_is_a_valid_output():
     analysed as 0/1: Y = [u > 0.5] depends on u alone, S_u = S_Tu = 1 and v's indices 0
     (to 0.02, the estimators' error at 2^12 samples)."""
     res = sobol_indices(lambda U: U[:, 0] > 0.5, ("u", "v"), ("exceeds",), n=2**12)
-    assert_allclose(res.first[0], [1.0, 0.0], atol=0.02) and assert_allclose(res.total[0], [1.0, 0.0], atol=0.02)
+    assert_allclose(res.first[0], [1.0, 0.0], atol=0.02)
+    assert_allclose(res.total[0], [1.0, 0.0], atol=0.02)
 
 
 @pytest.mark.parametrize("kw", [{"n": 2}, {"n_resamples": 10}])
