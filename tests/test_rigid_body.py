@@ -5,7 +5,7 @@ the data no longer biases."""
 import numpy as np
 from scipy import stats
 import pytest
-from numpy.testing import assert_allclose
+from numpy.testing import assert_allclose, assert_array_equal
 
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
@@ -15,7 +15,7 @@ from podkrig.diagnosis.engine import _Fitter
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.misfit import Misfit
 from podkrig.online.problem import FEModel, InverseProblem
-from podkrig.online.rigid_body import POINT_GROUP, RigidBodyModes, project_out, rigid_body_modes
+from podkrig.online.rigid_body import POINT_GROUP, RigidBodyModes, may_remove, project_out, rigid_body_modes
 from podkrig.parameters import ParameterSpace
 
 SENSORS = (Gauge("D1", (0.0, 0.0), (100.0, 100.0)), SlipGauge("S1", (10.0, 10.0), (10.0, 50.0)),
@@ -253,3 +253,103 @@ def test_diagnosis_fit_is_blind_to_a_rigid_rotation_with_removal(dic_wall):
     # kept: χ²/dof 4.4 over 262 dof (p < 1e-100) with the rigid supports of issue 18
     assert fits["rotated"].chi2_dof < 1.5 and fits["kept"].chi2_dof > 3.0
     assert stats.chi2.sf(fits["kept"].chi2, fits["kept"].dof) < 1e-20
+
+
+# ----------------------------------------------------------------- fourth mutation run (issue 12)
+
+
+def test_may_remove_decides_from_the_channel_names_alone():
+    """Without sensor definitions: "keep" never removes; "remove" always may (point sensors form a
+    group); "auto" (the default) only with a DIC channel name ``grid[i,j].ux``/``.uy`` or with user
+    groups — gauges and point sensors alone are left as they are. An unknown option is refused
+    with the allowed ones. Guards an inversion that silently drops or keeps 3 dof per block."""
+    points, dic = ["D1", "P1", "P2"], ["D1", "G[0,1].uy"]
+    assert may_remove(points) is False and may_remove(dic) is True
+    assert may_remove(points, "auto", {"pair": ["P1", "P2"]}) is True
+    assert may_remove(points, "remove") is True
+    assert may_remove(dic, "keep") is False and may_remove(dic, "keep", {"pair": ["P1", "P2"]}) is False
+    assert may_remove(["G[0,1]"], "auto") is False and may_remove(["G.ux"], "auto") is False  # not a DIC channel
+    with pytest.raises(ValueError, match=r"^rigid_body must be one of \['auto', 'remove', 'keep'\]; got 'Keep' \(auto: "):
+        may_remove(points, "Keep")
+
+
+def test_fit_returns_the_motion_of_the_centroid_and_nan_for_what_a_block_cannot_see():
+    """A rigid motion (t_x, t_y, ω) about the origin, read by the 3 × 4 DIC grid and by two x
+    components at (5, 5) and (250, 600) mm (group "pair", ℓ = √(122.5² + 297.5²) mm, their RMS
+    distance from the centroid (127.5, 302.5)): the grid's fit is the
+    translation of its centroid (t_x − ω y_c, t_y + ω x_c) and ω in rad; the pair sees t_x at its
+    centroid and ω but not t_y (NaN). 1e-10 relative: rounding of a least-squares fit."""
+    meas = Measurement(np.zeros((1, len(NAMES))), NAMES, [1.0])
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto", {"pair": ["P1", "P3"]})
+    t, omega = np.array([[0.3, -0.2]]), np.array([2e-4])
+    v = _rigid(meas, t, omega).ravel()
+    fitted = modes.fit(v)
+    assert modes.labels == (("G", 0), ("pair", 0)) and modes.rank.tolist() == [3, 2]
+    xc, yc = np.mean([10.0, 155.0, 300.0]), np.mean([20.0, 146.0 + 2 / 3, 273.0 + 1 / 3, 400.0])
+    assert_allclose(fitted[0], [0.3 - 2e-4 * yc, -0.2 + 2e-4 * xc, 2e-4], rtol=1e-10)
+    assert_allclose(fitted[1, [0, 2]], [0.3 - 2e-4 * 302.5, 2e-4], rtol=1e-10)
+    assert np.isnan(fitted[1, 1])
+    assert_allclose(modes.lengths[1], np.hypot(122.5, 297.5), rtol=1e-12)
+
+
+def test_whitening_of_a_batch_is_row_by_row():
+    """Several residual rows with their own σ (the model's predictive std differs per point) are
+    whitened each as if alone, blocks of rank 3 and of rank 1 alike (1e-12: rounding)."""
+    meas = _measurement(n_loads=2)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto", {"lone": ["P2"]})
+    assert sorted(set(modes.rank.tolist())) == [1, 3] and modes.n_blocks == 4
+    rng = np.random.default_rng(6)
+    u, sd = rng.normal(size=(3, meas.n_obs)), rng.uniform(0.5, 2.0, size=(3, meas.n_obs))
+    batch = modes.whiten_diagonal(u, sd)
+    for k in range(3):
+        assert_allclose(batch[k], modes.whiten_diagonal(u[k], sd[k])[0], rtol=1e-12, atol=1e-14)
+        P = modes.projector()
+        r = u[k] * sd[k]
+        chi2 = (P @ r) @ np.linalg.pinv(modes.covariance(np.diag(sd[k] ** 2)), rcond=1e-10) @ (P @ r)
+        assert_allclose(batch[k] @ batch[k], chi2, rtol=1e-9)
+
+
+def test_to_dict_records_groups_blocks_and_removed_dof():
+    """What an inversion's summary records: the groups in order, blocks (group × level) and dof."""
+    meas = _measurement()
+    assert rigid_body_modes(meas, DISPLACEMENTS, "remove").to_dict() == {
+        "groups": ["G", POINT_GROUP], "n_blocks": 6, "n_removed": 18}
+
+
+def test_subset_of_one_level_and_subset_of_a_subset():
+    """The load levels a fit keeps, taken at once or in two steps, give the same modes: blocks
+    renumbered in order, gauges and ungrouped sensors outside every block (−1), the removed dof
+    and the fitted motion (ω needs each block's ℓ) of the kept blocks unchanged (1e-12:
+    rounding). One level alone is one block."""
+    meas = _measurement(missing=False)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto")
+    level = np.arange(meas.n_obs).reshape(3, -1)
+    direct = modes.subset(level[2])
+    two_steps = modes.subset(level[[0, 2]].ravel()).subset(np.arange(level.shape[1], 2 * level.shape[1]))
+    for sub in (direct, two_steps):
+        assert sub.labels == (("G", 2),) and sub.n_blocks == 1 and sub.n_removed == 3
+        assert_array_equal(sub.block, modes.block[level[2]] - 2 * (modes.block[level[2]] >= 0))
+        assert_allclose(sub.lengths, modes.lengths[2:], rtol=0)
+        v = _rigid(meas, np.array([[0.1, 0.2]] * 3), np.array([1e-4, 2e-4, 3e-4])).ravel()
+        assert_allclose(sub.fit(v[level[2]]), modes.fit(v)[2:], rtol=1e-12)
+        assert_allclose(sub.projector(), modes.projector()[np.ix_(level[2], level[2])], atol=1e-14)
+
+
+def test_a_subset_without_displacement_readings_removes_nothing():
+    """Rows holding only gauge readings (e.g. the levels a fit keeps read no DIC point): no block,
+    P = I, nothing removed, an empty whitened basis (n, 0) and whitened residuals left as they
+    are; the χ² of such a subset keeps every degree of freedom. Defect fixed (fourth mutation
+    run): ``remove`` raised IndexError and ``whiten_diagonal`` ValueError on such modes."""
+    meas = _measurement(missing=False)
+    modes = rigid_body_modes(meas, DISPLACEMENTS, "auto")
+    gauges = np.flatnonzero(np.broadcast_to(GAUGES, meas.values.shape).ravel())
+    sub = modes.subset(gauges)
+    assert sub.n_blocks == 0 and sub.n_removed == 0 and sub.dense_basis().shape == (len(gauges), 0)
+    assert_array_equal(sub.projector(), np.eye(len(gauges)))
+    L = np.diag(np.arange(1.0, len(gauges) + 1))
+    Q = sub.whitened_basis(L)
+    w = np.arange(len(gauges), dtype=float)
+    assert Q.shape == (len(gauges), 0)
+    assert_array_equal(project_out(Q, w), w)
+    assert_array_equal(sub.remove(w), w)
+    assert_array_equal(sub.whiten_diagonal(w, np.ones(len(gauges))), w[None])

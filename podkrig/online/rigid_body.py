@@ -180,6 +180,8 @@ class RigidBodyModes:
         motion (data, model predictions, surrogate outputs alike), mm. A Jacobian ``(n_obs, p)``
         goes in transposed: ``remove(J.T).T``."""
         V = np.asarray(V, dtype=float)
+        if not self.n_blocks:  # no displacement reading in these rows (a subset): nothing to remove
+            return V.copy()
         X = np.moveaxis(V, -1, 0)  # (n_obs, ...)
         coef = self._sum_blocks(self.basis.reshape((self.n_obs, 3) + (1,) * (X.ndim - 1)) * X[:, None])
         back = np.einsum("ij,ij...->i...", self.basis, coef[np.maximum(self.block, 0)])
@@ -222,8 +224,10 @@ class RigidBodyModes:
             ``(P r)ᵀ (P C Pᵀ)⁺ (P r)`` (module docstring).
         """
         u = np.atleast_2d(u)
-        inv_sd = 1.0 / np.atleast_2d(sd)  # (n|1, n_obs)
         nb = self.n_blocks
+        if not nb:
+            return np.array(u, dtype=float)
+        inv_sd = 1.0 / np.atleast_2d(sd)  # (n|1, n_obs)
         # per block Σ_i U_i U_iᵀ / σ_i² and Σ_i U_i u_i / σ_i, as sparse products (9 and 3 entries per reading)
         A = (self._outer.T @ (inv_sd**2).T).T.reshape(-1, nb, 3, 3) + np.eye(3) * self._pad[None, :, None, :]
         c = (self._rows.T @ (u * inv_sd).T).T.reshape(-1, nb, 3)

@@ -164,14 +164,20 @@ def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, seed=0, confidence=
 
 def _estimate(f_A, f_B, f_AB, live):
     """First-order and total indices ``(s, d)`` by scipy's Saltelli-2010/Jansen estimators; NaN for
-    outputs without variance."""
+    outputs without variance.
+
+    A single live output is passed twice (the estimators work output by output): scipy 1.17 turns
+    the indices of one output of one parameter into a scalar and then fails writing into it."""
     first = np.full((f_A.shape[0], f_AB.shape[0]), np.nan)
     total = first.copy()
     if live.any():
-        res = stats.sobol_indices(func={"f_A": f_A[live], "f_B": f_B[live], "f_AB": f_AB[:, live]},
-                                  n=f_A.shape[1])
-        first[live] = np.reshape(res.first_order, (-1, f_AB.shape[0]))
-        total[live] = np.reshape(res.total_order, (-1, f_AB.shape[0]))
+        fa, fb, fab = f_A[live], f_B[live], f_AB[:, live]
+        k = len(fa)
+        if k == 1:
+            fa, fb, fab = np.repeat(fa, 2, axis=0), np.repeat(fb, 2, axis=0), np.repeat(fab, 2, axis=1)
+        res = stats.sobol_indices(func={"f_A": fa, "f_B": fb, "f_AB": fab}, n=f_A.shape[1])
+        first[live] = np.reshape(res.first_order, (-1, f_AB.shape[0]))[:k]
+        total[live] = np.reshape(res.total_order, (-1, f_AB.shape[0]))[:k]
     return first, total
 
 
