@@ -290,6 +290,12 @@ def test_fit_returns_the_motion_of_the_centroid_and_nan_for_what_a_block_cannot_
     assert_allclose(fitted[1, [0, 2]], [0.3 - 2e-4 * 302.5, 2e-4], rtol=1e-10)
     assert np.isnan(fitted[1, 1])
     assert_allclose(modes.lengths[1], np.hypot(122.5, 297.5), rtol=1e-12)
+    # a lone x reading (P1 at (5, 5) mm) sees only its own translation: t_x = the reading, the rest NaN
+    lone = rigid_body_modes(meas, DISPLACEMENTS, "auto", {"lone": ["P1"]})
+    fitted = lone.fit(v)
+    assert lone.labels[-1] == ("lone", 0) and lone.rank[-1] == 1
+    assert_allclose(fitted[-1, 0], 0.3 - 2e-4 * 5.0, rtol=1e-12)
+    assert np.isnan(fitted[-1, 1:]).all()
 
 
 def test_whitening_of_a_batch_is_row_by_row():
