@@ -213,6 +213,7 @@ def test_a_units_row_below_the_header(tmp_path):
     ("load,D1\n10,1\n20, " + "x" * 50 + "\n", {},
      "{p}, row 3, column 2 (D1): '" + "x" * 40 + f"'… is not a number {HINT}"),
     ("load,D1\n10,1\n20," + "x" * 40 + "\n", {}, "{p}, row 3, column 2 (D1): '" + "x" * 40 + f"' is not a number {HINT}"),
+    ("load,D1\n10,1\n20," + "x" * 41 + "\n", {}, "{p}, row 3, column 2 (D1): '" + "x" * 40 + f"'… is not a number {HINT}"),
     ("load;D1\n10;1\n20;1,2,3\n", {}, f"{{p}}, row 3, column 2 (D1): '1,2,3' is not a number {HINT}"),
     ("load,D1\n10,1.5\n20,\"1,5\"\n", {}, f"{{p}}, row 3, column 2 (D1): '1,5' is not a number {HINT}"),
     ("load,D1\n10,1\n20,1..5\n", {}, f"{{p}}, row 3, column 2 (D1): '1..5' is not a number {HINT}"),
@@ -387,6 +388,10 @@ def test_excel_sheets_numbers_and_limits(tmp_path, monkeypatch):
                                           "second": [["load", "D2"], [30, None], [40, -3]]})
     m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
     assert m.sensor_names == ("D1",) and m.values.tolist() == [[1.0], [2.5]] and m.load_levels.tolist() == [10, 20]
+    macro = tmp_path / "log.xlsm"  # a macro-enabled workbook, upper case or not, is read as Excel too
+    for q in (macro, tmp_path / "LOG.XLSM"):
+        q.write_bytes(p.read_bytes())
+        assert read_measurement(q, SENSORS, LEVELS, "kN", "affine").values.tolist() == [[1.0], [2.5]]
     m = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(sheet="second"))
     assert m.sensor_names == ("D2",) and m.load_levels.tolist() == [30.0, 40.0]
     assert_allclose(m.values, [[np.nan], [-3.0]], rtol=0)  # an empty cell: a missing reading
