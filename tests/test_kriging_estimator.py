@@ -116,3 +116,32 @@ def test_one_dimensional_outputs_and_the_fits_nugget_survive_persistence():
     assert_array_equal(mean, fitted.predict(Xp))
     schema_1 = {k: v for k, v in attrs.items() if k not in ("variogram", "nugget")}
     assert OrdinaryKriging.from_arrays(arrays, schema_1, fitted.get_params()).hyperparameters_.nugget == 1e-6
+
+
+@pytest.mark.parametrize("settings, message", [
+    ({"optimizer": "bfgs"}, "optimizer must be 'l-bfgs-b' or None; got 'bfgs'"),
+    ({"beta": "fit", "optimizer": None}, "beta='fit' needs an optimizer; give a fixed beta or optimizer='l-bfgs-b'"),
+    ({"range_bounds": (0.0, 1.0)}, "range_bounds must satisfy 0 < lower < upper; got (0.0, 1.0)"),
+    ({"range_bounds": (0.5, 0.5)}, "range_bounds must satisfy 0 < lower < upper; got (0.5, 0.5)"),
+    ({"n_restarts": -1}, "n_restarts must be an integer >= 0; got -1"),
+    ({"n_restarts": 1.0}, "n_restarts must be an integer >= 0; got 1.0"),
+    ({"n_restarts": True}, "n_restarts must be an integer >= 0; got True"),
+    ({"ranges": 0.0}, "ranges must be finite and > 0; got 0.0"),
+    ({"ranges": [0.5, np.inf, 0.5]}, "ranges must be finite and > 0; got [0.5, inf, 0.5]"),
+])
+def test_bad_settings_are_refused_naming_the_setting_and_what_is_allowed(settings, message):
+    """Each setting's check at its edge (a lower range bound of 0, equal bounds, a negative, float or
+    boolean restart count, a zero or infinite range), with the whole message. Defects: an edge
+    accepted (a range of 0 divides by zero in the kernel; an empty bound interval stalls L-BFGS-B) or
+    a message that no longer names the setting and its allowed values."""
+    X = sobol(16, 3, seed=0)
+    with pytest.raises(ValueError) as err:
+        OrdinaryKriging(**{"beta": 1.5, **settings}).fit(X, _f(X))
+    assert str(err.value) == message
+
+
+def test_settings_at_the_allowed_edges_fit():
+    """No restarts, a subset of 3 samples (the smallest kriging takes), a tiny positive range bound."""
+    X = sobol(16, 3, seed=0)
+    fitted = OrdinaryKriging(beta=1.5, n_restarts=0, fit_subset=3, range_bounds=(1e-6, 10.0)).fit(X, _f(X))
+    assert fitted.fit_method_.subset_size == 3
