@@ -219,3 +219,43 @@ def test_lean_system_refuses_an_ill_conditioned_matrix():
         factor_exponential(X, Y, np.array([100.0, 100.0]), 2.0, 0.0, out)
     with pytest.raises(SingularSystemError, match="not positive definite|ill-conditioned"):
         correlation_factor(np.vstack([X, X[:1]]), np.array([0.4, 0.7]), 1.7, 0.0, np.empty((10, 10)))
+
+
+@pytest.mark.parametrize("kind", [EXPONENTIAL, POWER])
+def test_scaling_the_data_scales_the_fit(kind):
+    """Outputs times c = 1e-3 (e.g. m instead of mm): the weights Q, q1, c0 and log det do not
+    change, alpha and mu scale by c and sigma2 by c^2, both in the full and (exponential) in the
+    lean system; the defect guarded is a floor on the process variance that is not scale-free.
+    Exact up to rounding: 1e-10."""
+    c = 1e-3
+    pairs = _pairs(X)
+    S = pairs.power(1.5) @ np.array([0.4, 0.7]) ** -1.5
+    st, small = factor(S, pairs, kind, 0.0, Y), factor(S, pairs, kind, 0.0, c * Y)
+    assert_allclose(small.alpha, c * st.alpha, rtol=1e-10)
+    assert small.mu == pytest.approx(c * st.mu, rel=1e-10)
+    assert small.sigma2 == pytest.approx(c * c * st.sigma2, rel=1e-10)
+    assert (small.logdet, small.c0) == (st.logdet, st.c0)
+    if kind == EXPONENTIAL:
+        out = np.empty((len(X), len(X)))
+        lean, lean_small = (factor_exponential(X, y, np.array([0.4, 0.7]), 1.5, 0.0, out) for y in (Y, c * Y))
+        assert lean_small[2] == pytest.approx(c * c * lean[2], rel=1e-10)
+        assert lean_small[2] == pytest.approx(small.sigma2, rel=1e-9)
+
+
+def test_a_strong_nugget_gives_a_small_but_valid_system():
+    """Two strongly correlated samples with nugget 0.5: R = [[1.5, r], [r, 1.5]] with r ~ 1, so
+    1^T R^-1 1 = 2 / (1.5 + r) < 1 -- a valid system (only <= 0 is singular). mu is the mean of the
+    two outputs (symmetry) and c0 = 1 / (1^T R^-1 1): rel 1e-12."""
+    X2 = np.array([[0.5, 0.5], [0.5001, 0.5]])
+    y2 = np.array([1.0, 3.0])
+    pairs = _pairs(X2)
+    S = pairs.power(2.0) @ np.array([1.0, 1.0])
+    r = np.exp(-S[0])
+    st = factor(S, pairs, EXPONENTIAL, 0.5, y2)
+    s = 2.0 / (1.5 + r)  # the (10 + n) eps of the diagonal is below the tolerance
+    assert s < 1
+    assert st.c0 == pytest.approx(1 / s, rel=1e-12)
+    assert st.mu == pytest.approx(2.0, rel=1e-12)
+    out = np.empty((2, 2))
+    alpha, mu, sigma2, q1, c0, dq, logdet = factor_exponential(X2, y2, np.array([1.0, 1.0]), 2.0, 0.5, out)
+    assert (mu, c0) == (pytest.approx(2.0, rel=1e-12), pytest.approx(1 / s, rel=1e-12))

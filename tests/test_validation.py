@@ -209,11 +209,12 @@ def test_held_out_errors_of_a_zero_snapshot_and_of_a_foreign_backend():
 def test_loo_errors_combine_residuals_and_truncation_by_pythagoras():
     """error_i = sqrt(sum_k e_ik^2 + r_i^2) / |y_i| with kriging residuals e and truncation
     residual r; a zero training snapshot gives 0 (divided by inf, not nan). Hand values:
-    sqrt(9 + 16 + 0)/5 = 1, sqrt(0 + 0 + 4)/8 = 0.25."""
-    kr = SimpleNamespace(loo_residuals_=np.array([[3.0, 4.0], [0.0, 0.0], [0.0, 0.0]]))
-    sur = _stub([[0.0]], [[0.0]], kriging=kr, norms={"train_norm_": np.array([5.0, 8.0, 0.0]),
-                                                     "train_residual_norm_": np.array([0.0, 2.0, 0.0])})
-    assert_allclose(loo_errors(sur), [1.0, 0.25, 0.0], rtol=1e-15)
+    sqrt(9 + 16 + 0)/5 = 1, sqrt(0 + 0 + 4)/8 = 0.25, sqrt(0.09 + 0.16 + 0)/0.5 = 1 (a snapshot of
+    norm below 1 divided by its own norm). Rounding only: 1e-15."""
+    kr = SimpleNamespace(loo_residuals_=np.array([[3.0, 4.0], [0.0, 0.0], [0.0, 0.0], [0.3, 0.4]]))
+    sur = _stub([[0.0]], [[0.0]], kriging=kr, norms={"train_norm_": np.array([5.0, 8.0, 0.0, 0.5]),
+                                                     "train_residual_norm_": np.array([0.0, 2.0, 0.0, 0.0])})
+    assert_allclose(loo_errors(sur), [1.0, 0.25, 0.0, 1.0], rtol=1e-15)
 
 
 def test_loo_errors_equal_explicit_refits(fitted):
@@ -264,6 +265,14 @@ def test_compare_settings_labels_and_errors(fitted):
     sur = PODKriging(pod=POD(n_modes=1), kriging=OrdinaryKriging(**settings[0]), space=space).fit(X, Y)
     assert_allclose(logged["exponential, beta=1.5"], relative_errors(sur.predict(Xh), Yh.reshape(2, -1)), rtol=1e-12)
     assert not np.allclose(logged["exponential, beta=1.5"], out["exponential, beta=1.5"], rtol=1e-3)
+    # the variogram reaches the label and the fit (power model: off the tensor grid, where a sum of
+    # one-dimensional power variograms is singular)
+    Xj = X + 0.03 * np.column_stack([np.sin(7 * X[:, 1]), np.cos(5 * X[:, 0])])
+    power = {"variogram": "power", "beta": 1.5, "ranges": 0.6, "optimizer": None}
+    got = compare_settings(Xj, _snapshots(Xj), Xh, Yh, [power], pod=POD(n_modes=1))
+    sur = PODKriging(pod=POD(n_modes=1), kriging=OrdinaryKriging(**power)).fit(Xj, _snapshots(Xj))
+    assert list(got) == ["power, beta=1.5"]
+    assert_allclose(got["power, beta=1.5"], relative_errors(sur.predict(Xh), Yh.reshape(2, -1)), rtol=1e-12)
     # the POD reaches the fit: the default POD keeps both modes, the errors drop
     both = compare_settings(X, Y, Xh, Yh, settings[:1])
     assert np.all(both["exponential, beta=1.5"] < out["exponential, beta=1.5"])
