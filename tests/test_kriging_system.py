@@ -259,3 +259,18 @@ def test_a_strong_nugget_gives_a_small_but_valid_system():
     out = np.empty((2, 2))
     alpha, mu, sigma2, q1, c0, dq, logdet = factor_exponential(X2, y2, np.array([1.0, 1.0]), 2.0, 0.5, out)
     assert (mu, c0) == (pytest.approx(2.0, rel=1e-12), pytest.approx(1 / s, rel=1e-12))
+
+
+def test_an_indefinite_matrix_is_reported_with_its_pivot():
+    """A matrix that is not positive definite at all (a negative nugget of -0.9 makes the
+    correlation diagonal 0.1 under off-diagonal correlations up to ~0.9) fails the Cholesky
+    factorisation: SingularSystemError naming the matrix and the failing pivot, in the full
+    systems of both kinds and in the lean one (the optimiser catches it; OrdinaryKriging quotes it)."""
+    pairs = _pairs(X)
+    S = pairs.power(1.5) @ np.array([0.4, 0.7]) ** -1.5
+    with pytest.raises(SingularSystemError, match=r"^correlation matrix not positive definite \(pivot \d+\)$"):
+        factor(S, pairs, EXPONENTIAL, -0.9, Y)
+    with pytest.raises(SingularSystemError, match=r"^projected variogram matrix not positive definite \(pivot \d+\)$"):
+        factor(S, pairs, POWER, -5.0, Y)
+    with pytest.raises(SingularSystemError, match=r"^correlation matrix not positive definite \(pivot \d+\)$"):
+        correlation_factor(X, np.array([0.4, 0.7]), 1.5, -0.9, np.empty((len(X), len(X))))
