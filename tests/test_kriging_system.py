@@ -99,11 +99,24 @@ def test_duplicate_points_are_a_singular_system(kind):
 
 
 def test_ill_conditioned_but_factorisable_system_is_refused():
-    """Gaussian correlations at long ranges: Cholesky succeeds but the reciprocal condition number
-    (ranges 100, theta 1e-4) is far below RCOND_MIN = 1e-12: refused with the number in the message."""
+    """Gaussian correlations (beta 2) at long ranges: Cholesky succeeds but the reciprocal condition
+    number (1-norm, LAPACK dpocon on the lower factor) is below RCOND_MIN = 1e-12: refused with the
+    number in the message (ranges 100 and 17); at ranges 8.5 (rcond 6.4e-12) the system is accepted.
+    The defects guarded are a condition estimate read from the wrong triangle of the factor (only
+    its diagonal: ~8e-12 at ranges 17, let through) and a norm other than the 1-norm (all entries:
+    ranges 8.5 refused). Margins of 6x to 9x on each side of the limit."""
     pairs = _pairs(X)
     with pytest.raises(SingularSystemError, match=r"correlation matrix ill-conditioned \(reciprocal condition"):
         factor(pairs.power(2.0) @ np.array([1e-4, 1e-4]), pairs, EXPONENTIAL, 0.0, Y)
+    # ranges 17: rcond ~9e-14 from the whole factor, while its diagonal alone (an estimate from
+    # the wrong triangle) would suggest ~8e-12 and let the system through
+    with pytest.raises(SingularSystemError, match=r"correlation matrix ill-conditioned"):
+        factor(pairs.power(2.0) @ np.array([17.0, 17.0]) ** -2.0, pairs, EXPONENTIAL, 0.0, Y)
+    # ranges 8.5: rcond 6.4e-12 with the 1-norm (largest column sum) -- just above the limit, so the
+    # system is accepted, in the full and the lean path (a norm of all entries, 9x larger, would refuse it)
+    st = factor(pairs.power(2.0) @ np.array([8.5, 8.5]) ** -2.0, pairs, EXPONENTIAL, 0.0, Y)
+    assert np.isfinite(st.sigma2)
+    factor_exponential(X, Y, np.array([8.5, 8.5]), 2.0, 0.0, np.empty((len(X), len(X))))
     assert system.RCOND_MIN == 1e-12
 
 
