@@ -283,13 +283,15 @@ def test_files_without_a_fit_record_were_fitted_exactly(data, fitted):
 
 def test_another_library_version_is_warned_about(data, fitted):
     """A file of another library version loads with a UserWarning naming the backend, both
-    versions and the consequence; the same version loads silently."""
+    versions and the consequence, reported at the line that loads; the same version loads
+    silently."""
     est = fitted["smt-kpls"]
     arrays, attrs = est.to_arrays()
     installed = importlib.metadata.version("smt")
     with pytest.warns(UserWarning, match=(rf"surrogate backend 'smt-kpls' was fitted with smt 0\.1; "
-                                          rf"{installed} is installed: predictions may differ slightly")):
+                                          rf"{installed} is installed: predictions may differ slightly")) as rec:
         backend_from_arrays("smt-kpls", arrays, dict(attrs, library_version="0.1"), est.get_params())
+    assert rec[0].filename == __file__  # the warning points at the caller of backend_from_arrays
     with pytest.warns(UserWarning, match=r"fitted with smt \?;"):
         backend_from_arrays("smt-kpls", arrays, {k: v for k, v in attrs.items() if k != "library_version"},
                             est.get_params())
@@ -321,3 +323,54 @@ def test_subset_fit_uses_the_hyperparameters_of_the_seeded_subset(data, name):
     assert_allclose(est.predict(X), Y, rtol=0, atol=1e-5)
     for fs in (16, 20):
         assert make_backend(name, fit_subset=fs, **kw).fit(X, Y).fit_method_ == FitMethod("exact", 16, 16)
+
+
+# ---------------------------------------------------------------- the documented library models
+def test_sklearn_model_is_the_documented_kernel(data):
+    """The hyperparameters are those of scikit-learn's own GaussianProcessRegressor with the kernel
+    of the docstring (constant in [1e-3, 1e3] times an anisotropic Matérn, lengths in [1e-2, 1e3]
+    started at 0.5, normalised outputs, jitter alpha, the seed): identical to 1e-12 (same optimiser
+    path, same data)."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import ConstantKernel, Matern
+
+    X, Y, Xp = data
+    est = make_backend("sklearn-gpr", nu=1.5, alpha=1e-8, n_restarts_optimizer=1, random_state=3).fit(X, Y)
+    for j in range(2):
+        kernel = ConstantKernel(1.0, (1e-3, 1e3)) * Matern(np.full(2, 0.5), (1e-2, 1e3), nu=1.5)
+        ref = GaussianProcessRegressor(kernel, alpha=1e-8, normalize_y=True, n_restarts_optimizer=1,
+                                       random_state=3).fit(X, Y[:, j])
+        assert_allclose(est.hyper_[j], ref.kernel_.theta, rtol=1e-12)
+        assert_array_equal(est._models[j].kernel_.bounds, ref.kernel_.bounds)  # log of the documented bounds
+        assert_allclose(est.predict(Xp)[:, j], ref.predict(Xp), rtol=1e-10)
+
+
+@pytest.mark.parametrize("method", ["krg", "kpls"])
+def test_smt_model_is_the_documented_one(data, method, capsys):
+    """The hyperparameters are those of SMT's own KRG/KPLS with the settings passed through
+    (correlation, nugget, seed, starts, PLS components), and fitting prints nothing (SMT's
+    print_global off)."""
+    from smt.surrogate_models import KPLS, KRG
+
+    X, Y, _ = data
+    est = SMTKriging(method=method, corr="abs_exp", n_comp=1, n_start=2, nugget=1e-10, random_state=5).fit(X, Y)
+    assert capsys.readouterr().out == ""
+    for j in range(2):
+        opts = {"corr": "abs_exp", "nugget": 1e-10, "print_global": False, "seed": 5, "n_start": 2}
+        ref = KPLS(n_comp=1, **opts) if method == "kpls" else KRG(**opts)
+        ref.set_training_values(X, Y[:, j])
+        ref.train()
+        assert_allclose(est.hyper_[j], ref.optimal_theta, rtol=1e-12)
+
+
+def test_smt_theta_an_ulp_outside_its_bounds_is_kept_at_load(data, fitted):
+    """SMT's optimum can sit an ulp above its upper theta bound (20.000000000000004); loading must
+    use that theta, not SMT's random replacement of an out-of-bounds start: the rebuilt models
+    carry exactly the stored thetas, below and above the default bounds."""
+    est = fitted["smt-krg"]
+    arrays, attrs = est.to_arrays()
+    lo, hi = SMTKriging()._model().options["theta_bounds"]
+    hyper = np.array([[np.nextafter(hi, np.inf), 0.5], [0.5 * lo, 1.0]])
+    back = backend_from_arrays("smt-krg", dict(arrays, hyper=hyper), attrs, est.get_params())
+    for j in range(2):
+        assert_array_equal(back._models[j].optimal_theta, hyper[j])
