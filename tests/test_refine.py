@@ -8,11 +8,13 @@ import logging
 
 import numpy as np
 import pytest
-from numpy.testing import assert_array_equal
+from numpy.testing import assert_allclose, assert_array_equal
 
 from podkrig.offline.runner import run_snapshots
+from podkrig.offline.sampling import sample
 from podkrig.offline.store import SnapshotStore
 from podkrig.parameters import ParameterSpace
+from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.podkriging import PODKriging, fit_from_store
 from podkrig.surrogate.refine import refine_surrogate, select_batch
 
@@ -117,3 +119,25 @@ def test_a_reached_target_adds_nothing(stores, tmp_path):
     assert out["added"] == 0 and out["stop_reason"] == "target 10 reached" and len(out["history"]) == 1
     with SnapshotStore.open(train) as s:
         assert s.n_rows == 8
+
+
+def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(stores, tmp_path):
+    """Each round draws the candidate set with seed ``seed + round`` (design ``sampling``), scores
+    it by the variance summed over the outputs of the surrogate fitted with the file's own
+    settings (here an exponential variogram, kept in the final file) and appends
+    ``select_batch`` of it: the new store rows are exactly those points, in that order (the
+    refinement is reproducible and resumable from the store)."""
+    file, train, held = _copies(stores, tmp_path)
+    with SnapshotStore.open(train) as s:
+        template = fit_from_store(s, kriging=OrdinaryKriging(variogram="exponential"))
+        U0 = s.parameters(physical=False)
+    template.save(file)
+    out = refine_surrogate(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, seed=5,
+                           sampling="random")
+    assert out["added"] == 2
+    U_cand = sample("random", 32, 2, 5 + 1)
+    _, std = template.predict_unit(U_cand, return_std=True)
+    pick = select_batch(U_cand, np.sum(std**2, axis=1), U0, 2)
+    with SnapshotStore.open(train) as s:
+        assert_allclose(s.parameters(physical=False)[8:], U_cand[pick], rtol=0, atol=1e-12)
+    assert PODKriging.load(file).kriging_.hyperparameters_.variogram == "exponential"
