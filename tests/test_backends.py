@@ -372,3 +372,49 @@ def test_smt_theta_an_ulp_outside_its_bounds_is_kept_at_load(data, fitted):
     back = backend_from_arrays("smt-krg", dict(arrays, hyper=hyper), attrs, est.get_params())
     for j in range(2):
         assert_array_equal(back._models[j].optimal_theta, hyper[j])
+
+
+def test_sklearn_load_uses_the_stored_theta_not_a_refit(data, fitted):
+    """Loading builds each regressor at the stored kernel theta without optimising: a theta edited
+    in the file (not the optimum of the data) is the one the rebuilt kernels carry."""
+    est = fitted["sklearn-gpr"]
+    arrays, attrs = est.to_arrays()
+    hyper = np.log([[2.0, 0.3, 0.7], [0.5, 1.5, 0.2]])
+    back = backend_from_arrays("sklearn-gpr", dict(arrays, hyper=hyper), attrs, est.get_params())
+    for j in range(2):
+        assert_allclose(back._models[j].kernel_.theta, hyper[j], rtol=1e-14)
+
+
+def test_a_flat_input_is_not_warned_about(data):
+    """An output that does not depend on one input drives that length to its upper bound (1e3 in
+    the unit cube: "flat along that input", as intended); scikit-learn's "close to the specified
+    upper bound" ConvergenceWarning is not passed on to the user."""
+    X, _, _ = data
+    y = np.sin(3 * X[:, 0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        est = make_backend("sklearn-gpr", n_restarts_optimizer=0).fit(X, y)
+    assert est.hyper_[0, 2] == pytest.approx(np.log(1e3))
+
+
+def test_library_future_warnings_are_silenced_other_warnings_are_not(data, monkeypatch):
+    """A library's FutureWarning (a deprecation note about its own API, nothing the user can act
+    on) raised while fitting or loading is not shown; any other warning of the library (here a
+    RuntimeWarning) still reaches the user, at fit and at load."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    original = GaussianProcessRegressor.fit
+
+    def noisy_fit(self, X, y):
+        warnings.warn("option x is deprecated", FutureWarning)
+        warnings.warn("ill-conditioned", RuntimeWarning)
+        return original(self, X, y)
+
+    monkeypatch.setattr(GaussianProcessRegressor, "fit", noisy_fit)
+    X, Y, _ = data
+    with warnings.catch_warnings(record=True) as rec:
+        warnings.simplefilter("always")
+        est = make_backend("sklearn-gpr", n_restarts_optimizer=0, fit_subset=8).fit(X, Y)
+        backend_from_arrays("sklearn-gpr", *est.to_arrays(), est.get_params())
+    kinds = [w.category for w in rec]
+    assert FutureWarning not in kinds and kinds.count(RuntimeWarning) >= 3  # fit on 8, rebuild on 16, load
