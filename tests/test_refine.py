@@ -1,7 +1,7 @@
 """Adaptive enrichment of a snapshot store (podkrig/surrogate/refine.py, issue 12): the greedy
 spaced batch choice on hand-computed 1-D designs, the setting checks, and a small refinement on
 the coarse diagonal-compression model (two parameters, 8 training and 4 held-out FE runs of
-~0.2 s each) with its stop reasons, the runs added to the store and the record in the file.
+~0.2 s each, with displacement fields) with its stop reasons, the runs added to the store and the record in the file.
 """
 
 import logging
@@ -15,6 +15,7 @@ from podkrig.offline.sampling import sample
 from podkrig.offline.store import SnapshotStore
 from podkrig.parameters import ParameterSpace
 from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import PODKriging, fit_from_store
 from podkrig.surrogate.refine import refine_surrogate, select_batch
 
@@ -80,8 +81,8 @@ def test_setting_errors_name_the_value_before_any_file_is_read(tmp_path, setting
 def stores(tmp_path_factory, coarse_diagonal):
     d = tmp_path_factory.mktemp("refine")
     space = ParameterSpace.from_scenario(coarse_diagonal, BOUNDS)
-    run_snapshots(d / "train.h5", coarse_diagonal, space, n=8, seed=0, workers=1)
-    run_snapshots(d / "held.h5", coarse_diagonal, space, n=4, seed=3, sampling="random", workers=1)
+    run_snapshots(d / "train.h5", coarse_diagonal, space, n=8, seed=0, workers=1, fields=True)
+    run_snapshots(d / "held.h5", coarse_diagonal, space, n=4, seed=3, sampling="random", workers=1, fields=True)
     with SnapshotStore.open(d / "train.h5") as s:
         fit_from_store(s).save(d / "sur.h5")
     return d
@@ -124,12 +125,13 @@ def test_a_reached_target_adds_nothing(stores, tmp_path):
 def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(stores, tmp_path):
     """Each round draws the candidate set with seed ``seed + round`` (design ``sampling``), scores
     it by the variance summed over the outputs of the surrogate fitted with the file's own
-    settings (here an exponential variogram, kept in the final file) and appends
+    settings (here the power variogram, 3 POD modes and the displacement field as output, none
+    of them a default; all kept in the final file) and appends
     ``select_batch`` of it: the new store rows are exactly those points, in that order (the
     refinement is reproducible and resumable from the store)."""
     file, train, held = _copies(stores, tmp_path)
     with SnapshotStore.open(train) as s:
-        template = fit_from_store(s, kriging=OrdinaryKriging(variogram="exponential"))
+        template = fit_from_store(s, pod=POD(n_modes=3), kriging=OrdinaryKriging(variogram="power"), output="field")
         U0 = s.parameters(physical=False)
     template.save(file)
     out = refine_surrogate(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, seed=5,
@@ -140,4 +142,7 @@ def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(s
     pick = select_batch(U_cand, np.sum(std**2, axis=1), U0, 2)
     with SnapshotStore.open(train) as s:
         assert_allclose(s.parameters(physical=False)[8:], U_cand[pick], rtol=0, atol=1e-12)
-    assert PODKriging.load(file).kriging_.hyperparameters_.variogram == "exponential"
+    final = PODKriging.load(file)
+    assert final.kriging_.hyperparameters_.variogram == "power" and final.pod_.n_modes_ == 3
+    assert final.provenance_["output"] == "field"
+    assert final.predict_unit(U0[:1]).shape == template.predict_unit(U0[:1]).shape
