@@ -27,13 +27,17 @@ U_TRAIN = np.array([[0.0], [0.5], [1.0]])  # nearest-neighbour distances 0.5: ra
 def test_batch_takes_the_highest_scores_that_are_a_radius_apart():
     """Radius = half the mean nearest-neighbour distance of the design (0.25 here). Scores in
     decreasing order 0.1, 0.2, 0.6, 0.9: 0.2 is 0.1 from the chosen 0.1 (skipped), 0.6 and 0.9
-    (0.3 apart) are kept; k limits the count and the order is by score."""
-    U = np.array([[0.6], [0.1], [0.9], [0.2]])
-    score = np.array([2.0, 4.0, 1.0, 3.0])
-    assert_array_equal(select_batch(U, score, U_TRAIN, 3), [1, 0, 2])
+    (0.3 apart) are kept, 0.65 (0.05 from 0.6, far from 0.1) is not: the distance to the nearest
+    chosen point counts; k limits the count, the order is by score, and the indices are integers
+    (also none, for k = 0)."""
+    U = np.array([[0.6], [0.1], [0.9], [0.2], [0.65]])
+    score = np.array([2.0, 4.0, 1.0, 3.0, 1.5])
+    assert_array_equal(select_batch(U, score, U_TRAIN, 3), [1, 0, 2])  # 0.65 is 0.05 from the chosen 0.6
     assert_array_equal(select_batch(U, score, U_TRAIN, 2), [1, 0])
     assert_array_equal(select_batch(U, score, U_TRAIN, 1), [1])
     assert select_batch(U, score, U_TRAIN, 3).dtype.kind == "i"
+    empty = select_batch(U, score, U_TRAIN, 0)
+    assert empty.shape == (0,) and empty.dtype.kind == "i" and U[empty].shape == (0, 1)  # usable as an index
 
 
 def test_a_candidate_exactly_one_radius_away_is_kept():
@@ -146,3 +150,10 @@ def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(s
     assert final.kriging_.hyperparameters_.variogram == "power" and final.pod_.n_modes_ == 3
     assert final.provenance_["output"] == "field"
     assert final.predict_unit(U0[:1]).shape == template.predict_unit(U0[:1]).shape
+
+
+def test_a_zero_budget_only_reports_the_current_error(stores, tmp_path):
+    """budget = 0 is allowed: one fit, its held-out error in the history, no FE run."""
+    file, train, held = _copies(stores, tmp_path)
+    out = refine_surrogate(file, train, held, target_error=1e-12, budget=0, batch=1, n_candidates=1)
+    assert out["added"] == 0 and out["stop_reason"] == "budget of 0 FE runs used" and len(out["history"]) == 1
