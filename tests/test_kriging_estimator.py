@@ -169,3 +169,21 @@ def test_variance_is_the_leave_one_out_variance_of_a_refit_without_the_point(var
         assert std[0] ** 2 / without.sigma2_[0] == pytest.approx(full.loo_variance_[i, 0] / full.sigma2_[0], rel=1e-6)
         mean = without.predict(X[i:i + 1])[0]
         assert y[i] - mean == pytest.approx(full.loo_residuals_[i, 0], rel=1e-6)
+
+
+def test_a_subset_as_large_as_the_design_is_the_exact_fit_and_messages_of_misuse():
+    """``fit_subset`` at or above the sample count fits exactly (no random subset of all samples);
+    predicting before fitting, duplicate samples and an unknown fit method are refused with
+    messages that say what to do."""
+    X = sobol(16, 3, seed=0)
+    for m in (16, 100):
+        assert OrdinaryKriging(beta=1.5, fit_subset=m).fit(X, _f(X)).fit_method_ == FitMethod("exact", 16, 16)
+    with pytest.raises(ordinary.NotFittedError, match=r"^this OrdinaryKriging instance is not fitted yet; call "
+                                                      r"fit\(X, Y\) before predict$"):
+        OrdinaryKriging().predict(X)
+    Xd = np.vstack([X, X[3]])
+    with pytest.raises(ValueError, match=r"^duplicate samples: rows \[3, 16\] of X are identical \(.*\); the kriging "
+                                         r"system is singular: remove duplicates or set a nugget \(e\.g\. nugget=1e-8\)$"):
+        OrdinaryKriging(beta=1.5).fit(Xd, _f(Xd))
+    with pytest.raises(ValueError, match=r"^fit method must be one of \('exact', 'subset'\); got 'all'$"):
+        FitMethod("all", 16, 16)
