@@ -160,9 +160,15 @@ def test_sigkilled_job_resumes_to_the_uninterrupted_store(tmp_path, spec_file):
         assert_array_equal(a.status(), b.status())
         assert_array_equal(a.parameters(physical=False, only_done=False), b.parameters(physical=False, only_done=False))
         assert_array_equal(a.parameters(only_done=False), b.parameters(only_done=False))
-        assert_array_equal(a.readings(only_done=False), b.readings(only_done=False))
-        assert a.content_hash() == b.content_hash()
+        # Rows finished before the kill are never rewritten: bitwise what the killed job wrote.
         assert_array_equal(a.readings(only_done=False)[done_before], readings_before[done_before])
+        # Rows computed in another process agree to round-off, not always bitwise: MKL PARDISO picks
+        # its kernels per process (CPU dispatch, memory alignment) unless its conditional numerical
+        # reproducibility mode is on, and a CI run once differed by 8.5e-16 mm (rtol 4.4e-13) here.
+        ra, rb = a.readings(only_done=False), b.readings(only_done=False)
+        np.testing.assert_allclose(ra, rb, rtol=1e-11, atol=1e-14)
+        # the content hash is exact: equal precisely when the finished values are bitwise equal
+        assert (a.content_hash() == b.content_hash()) == np.array_equal(ra, rb)
 
 
 def test_failed_rows_are_reported_and_retried(tmp_path, spec_file, monkeypatch):
