@@ -48,16 +48,13 @@ def _linear(std_slope=0.0, model_error=False):
     return problem, np.linalg.lstsq(model.A, data, rcond=None)[0]
 
 
-class TanhModel:
-    """One reading ``S tanh((m − centre)/W)`` (mm) against data 0: ω = ½ (S/σ)² tanh², whose region
-    |m − centre| ≤ W atanh(√(2δ) σ/S) is 1.9 times the Gauss–Newton estimate √(2δ) σ W/S. Keeps
-    the smallest and largest m it was evaluated at."""
+class _OneReadingModel:
+    """A one-parameter, one-reading surrogate ``reading(m)`` (mm) that keeps the smallest and largest
+    m it was evaluated at."""
 
     space = ParameterSpace((Parameter("m", 0.0, 1.0, unit="MPa"),))
     sensor_names = ("g",)
     load_levels = np.array([1.0])
-    S, W = 1.0, 0.01
-    Q = 0.95  # √(2δ) σ / S at 95 %
 
     def __init__(self, centre=0.5):
         self.centre = centre
@@ -66,8 +63,19 @@ class TanhModel:
     def predict(self, X, return_std=False):
         m = np.atleast_2d(X)[:, :1]
         self.seen = [min(self.seen[0], m.min()), max(self.seen[1], m.max())]
-        Y = self.S * np.tanh((m - self.centre) / self.W)
+        Y = self.reading(m)
         return (Y, np.zeros_like(Y)) if return_std else Y
+
+
+class TanhModel(_OneReadingModel):
+    """One reading ``S tanh((m − centre)/W)`` (mm) against data 0: ω = ½ (S/σ)² tanh², whose region
+    |m − centre| ≤ W atanh(√(2δ) σ/S) is 1.9 times the Gauss–Newton estimate √(2δ) σ W/S."""
+
+    S, W = 1.0, 0.01
+    Q = 0.95  # √(2δ) σ / S at 95 %
+
+    def reading(self, m):
+        return self.S * np.tanh((m - self.centre) / self.W)
 
 
 def _tanh_problem(centre=0.5):
@@ -179,26 +187,16 @@ def test_unconstrained_parameter_spans_its_range_without_leaving_it():
     assert not region.identifiability["m2"]["identifiable"] and region.identifiability["m1"]["identifiable"]
 
 
-class WallModel:
+class WallModel(_OneReadingModel):
     """One reading x + 10⁹ sign(x) (|x| − 1)₊³, x = (m − centre)/W, against data 0: linear (slope 1/W)
-    within W of the centre, then a wall; keeps the smallest and largest m it was evaluated at. The Gauss–Newton box (from the slope) is 3000 times wider than the region
+    within W of the centre, then a wall. The Gauss–Newton box (from the slope) is 3000 times wider than the region
     |m − 0.5| ≤ 1.0215 W: a 1024-point Sobol' round over it has no sample in the region."""
 
-    space = ParameterSpace((Parameter("m", 0.0, 1.0),))
-    sensor_names = ("g",)
-    load_levels = np.array([1.0])
     W = 3e-5
 
-    def __init__(self, centre=0.5):
-        self.centre = centre
-        self.seen = [np.inf, -np.inf]
-
-    def predict(self, X, return_std=False):
-        m = np.atleast_2d(X)[:, :1]
-        self.seen = [min(self.seen[0], m.min()), max(self.seen[1], m.max())]
+    def reading(self, m):
         x = (m - self.centre) / self.W
-        Y = x + 1e9 * np.sign(x) * np.maximum(np.abs(x) - 1, 0) ** 3
-        return (Y, np.zeros_like(Y)) if return_std else Y
+        return x + 1e9 * np.sign(x) * np.maximum(np.abs(x) - 1, 0) ** 3
 
 
 def test_region_narrower_than_the_sample_spacing_shrinks_the_box():
