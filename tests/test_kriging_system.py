@@ -3,12 +3,14 @@ forms (bordered-matrix inverse, generalised least squares), the objectives again
 leave-one-out refits, their analytic gradients against finite differences, and the lean system of
 all samples against the full one. Small systems (n = 9): fast and well conditioned."""
 
+import re
+
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 from scipy.linalg import null_space
 
-from podkrig.surrogate.kriging import system
+from podkrig.surrogate.kriging import OrdinaryKriging, system
 from podkrig.surrogate.kriging._kernels import EXPONENTIAL, POWER
 from podkrig.surrogate.kriging.system import (FAIL, Objective, Pairs, SingularSystemError, correlation_factor, factor,
                                               factor_exponential)
@@ -289,3 +291,55 @@ def test_an_indefinite_matrix_is_reported_with_its_pivot():
         factor(S, pairs, POWER, -5.0, Y)
     with pytest.raises(SingularSystemError, match=r"^correlation matrix not positive definite \(pivot \d+\)$"):
         correlation_factor(X, np.array([0.4, 0.7]), 1.5, -0.9, np.empty((len(X), len(X))))
+
+
+class _FailingLapack:
+    """scipy's LAPACK with one routine made to fail: it returns ``info`` (and, when given, its
+    result replaced by ``result(a)``). Fault injection for branches a small well-conditioned system
+    cannot reach on demand: a LAPACK failure after a successful, well-conditioned ``dpotrf``."""
+
+    def __init__(self, lapack, name, info, result=None):
+        self._lapack, self._name, self._info, self._result = lapack, name, info, result
+
+    def __getattr__(self, attr):
+        routine = getattr(self._lapack, attr)
+        if attr != self._name:
+            return routine
+
+        def failing(*args, **kwargs):
+            out, _ = routine(*args, **kwargs)
+            return (out if self._result is None else self._result(out)), self._info
+
+        return failing
+
+
+@pytest.mark.parametrize("kind, routine, info, result, message", [
+    (EXPONENTIAL, "dpotri", 4, None, "correlation matrix singular (pivot 4)"),
+    (EXPONENTIAL, "dpotri", 0, lambda a: -np.eye(len(a)), "1^T R^-1 1 <= 0: correlation matrix numerically singular"),
+    (POWER, "dpotri", 3, None, "projected variogram matrix singular (pivot 3)"),
+])
+def test_a_lapack_failure_after_the_factorisation_is_named(monkeypatch, kind, routine, info, result, message):
+    """Full system: a failed inverse (info > 0) or a non-positive 1^T R^-1 1 raises
+    SingularSystemError with its whole text, which OrdinaryKriging quotes to the user."""
+    pairs = _pairs(X)
+    S = pairs.power(1.5) @ np.array([0.4, 0.7]) ** -1.5
+    monkeypatch.setattr(system, "lapack", _FailingLapack(system.lapack, routine, info, result))
+    with pytest.raises(SingularSystemError) as raised:
+        factor(S, pairs, kind, 0.0, Y)
+    assert str(raised.value) == message
+    variogram = "exponential" if kind == EXPONENTIAL else "power"
+    with pytest.raises(ValueError, match=r"is singular at ranges \(0\.4, 0\.7\) \(" + re.escape(message) + r"\)"):
+        OrdinaryKriging(variogram, beta=1.5, ranges=[0.4, 0.7], optimizer=None).fit(X, Y)
+
+
+@pytest.mark.parametrize("routine, info, result, message", [
+    ("dpotrs", 2, None, "triangular solve failed (info 2)"),
+    ("dpotrs", 0, lambda w: -np.abs(w), "1^T R^-1 1 <= 0: correlation matrix numerically singular"),
+    ("dtrtri", 5, None, "correlation factor singular (pivot 5)"),
+])
+def test_a_lapack_failure_in_the_lean_system_is_named(monkeypatch, routine, info, result, message):
+    """Lean system of all samples: the same failures after a successful dpotrf, with their texts."""
+    monkeypatch.setattr(system, "lapack", _FailingLapack(system.lapack, routine, info, result))
+    with pytest.raises(SingularSystemError) as raised:
+        factor_exponential(X, Y, np.array([0.4, 0.7]), 1.5, 0.0, np.empty((len(X), len(X))))
+    assert str(raised.value) == message
