@@ -114,17 +114,23 @@ def test_subset_fit_predicts_within_the_exact_fits_error(data, monkeypatch):
     assert_allclose(sub.predict(X), Y, rtol=0, atol=1e-5)
 
 
-def test_ranges_too_long_for_all_samples_are_shortened_and_recorded():
+def test_ranges_too_long_for_all_samples_are_shortened_and_recorded(caplog):
     """A very smooth response: the ranges fitted on 20 of 60 points make the 60-point Gaussian-like
     correlation matrix singular to working precision; the output's ranges are multiplied by
-    RANGE_SHRINK until it is well conditioned, and the factor is recorded."""
+    RANGE_SHRINK until it is well conditioned, and the factor is recorded and logged, once for each
+    output shortened and for no other."""
     rng = np.random.default_rng(0)
     X = rng.random((60, 3))
-    Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1] ** 2, X[:, 0] * X[:, 2]])
-    sub = OrdinaryKriging(fit_subset=20).fit(X, Y)
+    # two smooth outputs and a rough one, whose short ranges need no shortening
+    Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1] ** 2, X[:, 0] * X[:, 2], np.cos(25 * X[:, 0] * X[:, 1])])
+    with caplog.at_level("INFO", logger="podkrig.surrogate.kriging.ordinary"):
+        sub = OrdinaryKriging(fit_subset=20).fit(X, Y)
+    shortened = [r.getMessage() for r in caplog.records if "ranges shortened" in r.getMessage()]
+    assert shortened == [f"output {col}: ranges shortened x{f:.3g} for a well-conditioned system of 60 samples"
+                         for col, f in enumerate(sub.fit_method_.range_scale) if f < 1.0]
     alone = OrdinaryKriging(fit_subset=None).fit(X[sub.subset_index_], Y[sub.subset_index_])
     scale = np.array(sub.fit_method_.range_scale)
-    assert np.any(scale < 1.0)
+    assert np.any(scale < 1.0) and np.any(scale == 1.0)
     assert_allclose(np.log(scale) / np.log(ordinary.RANGE_SHRINK), np.round(np.log(scale) / np.log(ordinary.RANGE_SHRINK)),
                     atol=1e-9)  # whole numbers of shrink steps
     assert_allclose(sub.ranges_, alone.ranges_ * scale[:, None], rtol=1e-12)
