@@ -4,11 +4,17 @@ the coarse diagonal-compression model (two parameters, 8 training and 4 held-out
 ~0.2 s each, with displacement fields) with its stop reasons, the runs added to the store and the record in the file.
 """
 
+import inspect
 import logging
 
 import numpy as np
 import pytest
+import typer
 from numpy.testing import assert_allclose, assert_array_equal
+
+from fe.exceptions import SolverError
+from fe.scenarios import Scenario
+from podkrig.cli import app
 
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.sampling import sample
@@ -17,6 +23,7 @@ from podkrig.parameters import ParameterSpace
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import PODKriging, fit_from_store
+from podkrig.surrogate import refine
 from podkrig.surrogate.refine import refine_surrogate, select_batch
 
 BOUNDS = {"kN_bj": (10, 1000, "log"), "E_b": (5000, 20000)}
@@ -113,7 +120,8 @@ def test_budget_stops_after_the_rounds_it_pays_for(stores, tmp_path, caplog):
     sur = PODKriging.load(file)
     assert sur.provenance_["refinement"] == out
     assert sur.X_.shape[0] == 11  # the file holds the final surrogate, of all 11 snapshots
-    assert "refine: 8 snapshots, held-out median" in caplog.text
+    logged = [r.getMessage() for r in caplog.records if r.name == "podkrig.surrogate.refine"]
+    assert logged == [f"refine: {h['n_train']} snapshots, held-out median {h['median']:.3g}" for h in out["history"]]
 
 
 def test_a_reached_target_adds_nothing(stores, tmp_path):
@@ -126,7 +134,7 @@ def test_a_reached_target_adds_nothing(stores, tmp_path):
         assert s.n_rows == 8
 
 
-def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(stores, tmp_path):
+def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(stores, tmp_path, monkeypatch):
     """Each round draws the candidate set with seed ``seed + round`` (design ``sampling``), scores
     it by the variance summed over the outputs of the surrogate fitted with the file's own
     settings (here the power variogram, 3 POD modes and the displacement field as output, none
@@ -138,11 +146,15 @@ def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(s
         template = fit_from_store(s, pod=POD(n_modes=3), kriging=OrdinaryKriging(variogram="power"), output="field")
         U0 = s.parameters(physical=False)
     template.save(file)
+    scores = []
+    monkeypatch.setattr(refine, "select_batch", lambda U, score, *rest: scores.append(score) or select_batch(U, score, *rest))
     out = refine_surrogate(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, seed=5,
                            sampling="random")
     assert out["added"] == 2
     U_cand = sample("random", 32, 2, 5 + 1)
     _, std = template.predict_unit(U_cand, return_std=True)
+    assert len(scores) == 1
+    assert_allclose(scores[0], np.sum(std**2, axis=1), rtol=1e-9)  # the total predictive variance, mm²
     pick = select_batch(U_cand, np.sum(std**2, axis=1), U0, 2)
     with SnapshotStore.open(train) as s:
         assert_allclose(s.parameters(physical=False)[8:], U_cand[pick], rtol=0, atol=1e-12)
@@ -157,3 +169,31 @@ def test_a_zero_budget_only_reports_the_current_error(stores, tmp_path):
     file, train, held = _copies(stores, tmp_path)
     out = refine_surrogate(file, train, held, target_error=1e-12, budget=0, batch=1, n_candidates=1)
     assert out["added"] == 0 and out["stop_reason"] == "budget of 0 FE runs used" and len(out["history"]) == 1
+
+
+def test_failed_new_runs_are_kept_as_failed_rows_and_left_out_of_the_fit(stores, tmp_path, monkeypatch, caplog):
+    """Every new FE run fails: the rows stay in the store as failed, the warning counts them, and
+    the next fit (and the spacing of the next batch) uses the 8 finished rows only."""
+
+    def failing(self, params=None, *, field=False):
+        raise SolverError("singular stiffness (test)")
+
+    file, train, held = _copies(stores, tmp_path)
+    monkeypatch.setattr(Scenario, "run", failing)
+    with caplog.at_level(logging.WARNING, logger="podkrig.surrogate.refine"):
+        out = refine_surrogate(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32)
+    assert [h["n_train"] for h in out["history"]] == [8, 8] and out["added"] == 2
+    assert [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING] == [
+        "refine: 2 of 2 new FE runs failed (kept as failed rows)"]
+    with SnapshotStore.open(train) as s:
+        assert s.counts()["failed"] == 2 and s.counts()["done"] == 8
+
+
+def test_library_defaults_are_the_commands_defaults():
+    """``refine_surrogate``'s keyword defaults are those of ``podkrig surrogate refine``: a Python user
+    and a command-line user get the same refinement."""
+    command = typer.main.get_command(app).commands["surrogate"].commands["refine"]
+    cli = {p.name: p.default for p in command.params}
+    library = {k: p.default for k, p in inspect.signature(refine_surrogate).parameters.items()
+               if p.default is not inspect.Parameter.empty}
+    assert library == {k: cli["candidates" if k == "n_candidates" else k] for k in library}
