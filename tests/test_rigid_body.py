@@ -157,13 +157,19 @@ def test_group_and_option_errors_name_the_key_and_the_allowed_values():
     meas = _measurement()
     with pytest.raises(ValueError, match=r"rigid_body must be one of \['auto', 'remove', 'keep'\]; got 'off'"):
         rigid_body_modes(meas, DISPLACEMENTS, "off")
-    with pytest.raises(ValueError, match=r"rigid_groups: 'D1' in group 'a' is not a point displacement sensor"):
+    points = sorted(k for k, v in DISPLACEMENTS.items() if v[3] is None)
+    assert points and len(points) < len(DISPLACEMENTS)  # point sensors and DIC channels both present
+    with pytest.raises(ValueError) as raised:
         rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["D1", "P1"]})
+    assert str(raised.value) == ("rigid_groups: 'D1' in group 'a' is not a point displacement sensor; a group holds "
+                                 f"point displacement sensors (kind = \"point\"): {points}")
     with pytest.raises(ValueError, match=r"'G\[0,0\].ux' in group 'a' is a DIC grid channel"):
         rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["G[0,0].ux"]})
     with pytest.raises(ValueError, match="sensor 'P1' is in groups 'a' and 'b'"):
         rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["P1"], "b": ["P1", "P2"]})
     assert rigid_body_modes(meas, DISPLACEMENTS, "keep") is None
+    default, auto = rigid_body_modes(meas, DISPLACEMENTS), rigid_body_modes(meas, DISPLACEMENTS, "auto")
+    assert default.labels == auto.labels and np.array_equal(default.modes, auto.modes)  # "auto" is the default
     gauges_only = Measurement(np.ones((2, 2)), ("D1", "S1"), [1.0, 2.0])
     assert rigid_body_modes(gauges_only, DISPLACEMENTS, "remove") is None
 
