@@ -343,3 +343,20 @@ def test_a_lapack_failure_in_the_lean_system_is_named(monkeypatch, routine, info
     with pytest.raises(SingularSystemError) as raised:
         factor_exponential(X, Y, np.array([0.4, 0.7]), 1.5, 0.0, np.empty((len(X), len(X))))
     assert str(raised.value) == message
+
+
+def test_power_model_condition_uses_the_one_norm():
+    """Two samples 4e-8 apart in the power model: the projected variogram matrix has a reciprocal
+    condition number (1-norm, LAPACK dpocon) of 3.0e-12, above RCOND_MIN = 1e-12, so the system is
+    accepted; estimated with the sum of all entries instead of the largest column sum it would read
+    5.4e-13 and be refused. 1e-8 apart (4e-13) is refused. Margins about 2x either way."""
+    def system_of(d):
+        X2 = np.vstack([X, X[3] + [d, 0.0]])
+        pairs = _pairs(X2)
+        return pairs.power(1.5) @ np.array([0.4, 0.7]) ** -1.5, pairs, np.append(Y, Y[3])
+
+    S, pairs, y = system_of(4e-8)
+    factor(S, pairs, POWER, 0.0, y)  # accepted
+    S, pairs, y = system_of(1e-8)
+    with pytest.raises(SingularSystemError, match=r"^projected variogram matrix ill-conditioned"):
+        factor(S, pairs, POWER, 0.0, y)
