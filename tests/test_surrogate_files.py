@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal, assert_equal
 
+from podkrig.exceptions import SchemaError, StoreError
 from podkrig.offline.sampling import sobol, uniform
 from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import Parameter, ParameterSpace
@@ -288,3 +289,41 @@ def test_kriging_settings_round_trip_through_the_file(tmp_path):
     back = PODKriging.load(tmp_path / "s.h5").kriging.get_params()
     assert_array_equal(back.pop("ranges"), [0.3, 0.5, 0.7])
     assert back == {k: v for k, v in kriging.get_params().items() if k != "ranges"}
+
+
+def _hdf5_with_attrs(path, **attrs):
+    with h5py.File(path, "w") as f:
+        f.attrs.update(attrs)
+    return path
+
+
+def test_every_refused_file_is_named_with_what_to_do(tmp_path, caplog):
+    """PODKriging.load refuses, with the file and the remedy in the whole message: a missing
+    file; a file that is not HDF5 (the integrity check reads it first and names a damaged
+    surrogate file); an HDF5 file of another format; a surrogate of an unknown or missing schema
+    version. A file without a checksum is read with a warning naming it."""
+    missing = tmp_path / "missing.h5"
+    with pytest.raises(StoreError) as raised:
+        PODKriging.load(missing)
+    assert str(raised.value) == f"no surrogate file at {missing}; build one with 'podkrig surrogate build'"
+
+    text = tmp_path / "notes.h5"
+    text.write_text("not HDF5")
+    with pytest.raises(StoreError, match=rf"^{text} cannot be read: damaged surrogate file \("):
+        PODKriging.load(text)
+
+    other = _hdf5_with_attrs(tmp_path / "other.h5", format="podkrig.snapshots")
+    with caplog.at_level("WARNING", logger="podkrig.surrogate.podkriging"), pytest.raises(StoreError) as raised:
+        PODKriging.load(other)
+    assert str(raised.value) == (f"{other} is not a podkrig surrogate (format 'podkrig.snapshots'); "
+                                 "pass the file written by 'podkrig surrogate build'")
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{other} has no checksum (written by an older podkrig): damage cannot be detected; rebuild it"]
+
+    for version, shown in ((99, "99"), (None, "None")):
+        attrs = {"format": "podkrig.surrogate"} | ({} if version is None else {"schema_version": version})
+        future = _hdf5_with_attrs(tmp_path / f"schema_{version}.h5", **attrs)
+        with pytest.raises(SchemaError) as raised:
+            PODKriging.load(future)
+        assert str(raised.value) == (f"{future} has surrogate schema version {shown}; this podkrig reads 1, 2, 3; "
+                                     "rebuild it")

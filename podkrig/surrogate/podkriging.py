@@ -420,8 +420,10 @@ class PODKriging:
             if f.attrs.get("format") != FORMAT:
                 raise StoreError(f"{path} is not a podkrig surrogate (format {f.attrs.get('format')!r}); "
                                  "pass the file written by 'podkrig surrogate build'")
-            if int(f.attrs.get("schema_version", -1)) not in READABLE_SCHEMAS:
-                raise SchemaError(f"{path} has surrogate schema version {f.attrs.get('schema_version')!r}; "
+            version = f.attrs.get("schema_version")
+            version = int(version) if isinstance(version, (int, np.integer)) else version  # 99, not np.int64(99)
+            if version not in READABLE_SCHEMAS:
+                raise SchemaError(f"{path} has surrogate schema version {version!r}; "
                                   f"this podkrig reads {', '.join(map(str, READABLE_SCHEMAS))}; rebuild it")
             try:
                 settings = json.loads(f.attrs["settings"])
