@@ -16,6 +16,7 @@ from podkrig.offline.sampling import sobol, uniform
 from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.surrogate.kriging import DEFAULT_BETA, KrigingHyperparameters, OrdinaryKriging
+from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import SCHEMA_VERSION, PODKriging, fit_from_store, training_data
 
@@ -327,3 +328,15 @@ def test_every_refused_file_is_named_with_what_to_do(tmp_path, caplog):
             PODKriging.load(future)
         assert str(raised.value) == (f"{future} has surrogate schema version {shown}; this podkrig reads 1, 2, 3; "
                                      "rebuild it")
+
+
+def test_another_backend_round_trips_through_the_file(tmp_path):
+    """A surrogate of another backend (scikit-learn's GPR) is read back as that backend, with the
+    predictions it had: the loader reads the backend the file records, not the default."""
+    X = SPACE.from_unit(sobol(16, 3, seed=0))
+    sur = PODKriging(pod=POD(n_modes=2), kriging=make_backend("sklearn-gpr"), space=SPACE).fit(X, snapshots(X))
+    sur.save(tmp_path / "gpr.h5")
+    back = PODKriging.load(tmp_path / "gpr.h5")
+    assert back.backend_ == sur.backend_ == "sklearn-gpr"
+    Xp = SPACE.from_unit(uniform(5, 3, seed=2))
+    assert_array_equal(back.predict(Xp), sur.predict(Xp))
