@@ -329,6 +329,10 @@ def test_every_refused_file_is_named_with_what_to_do(tmp_path, caplog):
         assert str(raised.value) == (f"{future} has surrogate schema version {shown}; this podkrig reads 1, 2, 3; "
                                      "rebuild it")
 
+    empty = _hdf5_with_attrs(tmp_path / "empty.h5", format="podkrig.surrogate", schema_version=SCHEMA_VERSION)
+    with pytest.raises(StoreError, match=rf"^{empty} is a damaged surrogate file \(KeyError: .+\); rebuild it$"):
+        PODKriging.load(empty)
+
 
 def test_another_backend_round_trips_through_the_file(tmp_path):
     """A surrogate of another backend (scikit-learn's GPR) is read back as that backend, with the
@@ -338,5 +342,6 @@ def test_another_backend_round_trips_through_the_file(tmp_path):
     sur.save(tmp_path / "gpr.h5")
     back = PODKriging.load(tmp_path / "gpr.h5")
     assert back.backend_ == sur.backend_ == "sklearn-gpr"
+    assert back.pod_.method_ == sur.pod_.method_ in ("svd", "snapshots")  # the POD method it used
     Xp = SPACE.from_unit(uniform(5, 3, seed=2))
     assert_array_equal(back.predict(Xp), sur.predict(Xp))
