@@ -345,3 +345,25 @@ def test_another_backend_round_trips_through_the_file(tmp_path):
     assert back.pod_.method_ == sur.pod_.method_ in ("svd", "snapshots")  # the POD method it used
     Xp = SPACE.from_unit(uniform(5, 3, seed=2))
     assert_array_equal(back.predict(Xp), sur.predict(Xp))
+
+
+def test_points_are_checked_against_the_trained_box(surrogate):
+    """check_box: one vector is a batch of one; a wrong width or dimension and a non-finite value
+    are refused with whole messages; a point outside the trained box is refused by default and
+    only warned about with extrapolate=True."""
+    lo, hi = surrogate.lower_, surrogate.upper_
+    centre = 0.5 * (lo + hi)
+    assert_array_equal(surrogate.check_box(centre), SPACE.to_unit(centre[None, :]))
+    for bad in (np.ones((2, 2)), np.ones((2, 3, 1))):
+        with pytest.raises(ValueError) as raised:
+            surrogate.check_box(bad)
+        assert str(raised.value) == f"X must have shape (n, 3) for parameters ['E_b', 'kN_bj', 'r_hj']; got {bad.shape}"
+    with pytest.raises(ValueError) as raised:
+        surrogate.check_box(np.array([centre[0], np.nan, centre[2]]))
+    assert str(raised.value) == "X must be finite; found NaN or inf"
+    outside = np.array([[centre[0], centre[1], 1.5]])
+    with pytest.raises(ValueError, match=r"^1 of 1 samples lie outside the trained box, e\.g\. sample 0: r_hj = 1\.5 - "
+                                         r"not in \[0\.1, 1\]; the surrogate does not extrapolate"):
+        surrogate.check_box(outside)
+    with pytest.warns(UserWarning, match="extrapolating, accuracy unknown"):
+        surrogate.check_box(outside, extrapolate=True)
