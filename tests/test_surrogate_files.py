@@ -361,9 +361,21 @@ def test_points_are_checked_against_the_trained_box(surrogate):
     with pytest.raises(ValueError) as raised:
         surrogate.check_box(np.array([centre[0], np.nan, centre[2]]))
     assert str(raised.value) == "X must be finite; found NaN or inf"
-    outside = np.array([[centre[0], centre[1], 1.5]])
-    with pytest.raises(ValueError, match=r"^1 of 1 samples lie outside the trained box, e\.g\. sample 0: r_hj = 1\.5 - "
-                                         r"not in \[0\.1, 1\]; the surrogate does not extrapolate"):
+    # two of three samples outside; the first outside entry is named, with its unit ("-": dimensionless)
+    outside = np.array([[centre[0], centre[1], 1.5], centre, [0.5 * lo[0], centre[1], 1.5]])
+    with pytest.raises(ValueError) as raised:
         surrogate.check_box(outside)
-    with pytest.warns(UserWarning, match="extrapolating, accuracy unknown"):
-        surrogate.check_box(outside, extrapolate=True)
+    assert str(raised.value) == ("2 of 3 samples lie outside the trained box, e.g. sample 0: r_hj = 1.5 - not in "
+                                 "[0.1, 1]; the surrogate does not extrapolate: pass extrapolate=True to predict "
+                                 "anyway (accuracy unknown) or train on a wider space")
+    with pytest.warns(UserWarning, match=r"^2 of 3 samples .*; extrapolating, accuracy unknown$") as caught:
+        surrogate.predict(outside, extrapolate=True)
+    assert [w.filename for w in caught] == [__file__]  # attributed to the caller of predict
+    # without a parameter space: the box of the training data, parameters x0, x1, ..., no unit
+    X = SPACE.from_unit(sobol(16, 3, seed=0))
+    bare = PODKriging(pod=POD(n_modes=2), kriging=OrdinaryKriging()).fit(X, snapshots(X))
+    low = np.array([[bare.lower_[0], 0.5 * bare.lower_[1], bare.lower_[2]]])
+    with pytest.raises(ValueError) as raised:
+        bare.check_box(low)
+    assert str(raised.value).startswith(f"1 of 1 samples lie outside the trained box, e.g. sample 0: x1 = "
+                                        f"{low[0, 1]:g} not in [{bare.lower_[1]:g}, {bare.upper_[1]:g}]; ")
