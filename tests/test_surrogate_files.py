@@ -379,3 +379,15 @@ def test_points_are_checked_against_the_trained_box(surrogate):
         bare.check_box(low)
     assert str(raised.value).startswith(f"1 of 1 samples lie outside the trained box, e.g. sample 0: x1 = "
                                         f"{low[0, 1]:g} not in [{bare.lower_[1]:g}, {bare.upper_[1]:g}]; ")
+
+
+def test_fit_keeps_its_own_copy_of_the_inputs():
+    """Changing the caller's parameter array after the fit changes neither the stored training
+    inputs nor the predictions."""
+    X = SPACE.from_unit(sobol(16, 3, seed=0))
+    sur = PODKriging(pod=POD(n_modes=2), kriging=OrdinaryKriging(), space=SPACE).fit(X, snapshots(X))
+    kept, Xp = sur.X_.copy(), SPACE.from_unit(uniform(4, 3, seed=3))
+    before = sur.predict(Xp)
+    X[:] = X[::-1]
+    assert_array_equal(sur.X_, kept)
+    assert_array_equal(sur.predict(Xp), before)
