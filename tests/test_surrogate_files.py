@@ -391,3 +391,34 @@ def test_fit_keeps_its_own_copy_of_the_inputs():
     X[:] = X[::-1]
     assert_array_equal(sur.X_, kept)
     assert_array_equal(sur.predict(Xp), before)
+
+
+def test_fit_refuses_bad_training_data_naming_what_is_wrong():
+    """Each refusal of ``PODKriging.fit`` whole: parameters not a table, snapshots without one row per
+    parameter vector (too few dimensions, or too few rows), a table narrower than the space, samples
+    outside the space (the first parameter with an offending sample named, below or above, with
+    its bounds and unit), and without a space a constant column. Defects: a check skipped or
+    weakened (one of two conditions), a message emptied or naming the wrong parameter."""
+    X = SPACE.from_unit(sobol(16, 3, seed=0))
+    Y = snapshots(X)
+    sur = PODKriging(pod=POD(n_modes=2), kriging=OrdinaryKriging(beta=1.5), space=SPACE)
+    above, below_and_above = X.copy(), X.copy()
+    above[5, 2] = 1.2
+    below_and_above[5, 2], below_and_above[9, 1] = 1.2, 5.0
+    constant = X.copy()
+    constant[:, 1] = 50.0
+    cases = [
+        (sur, X[0], Y, "X must have shape (n_samples, n_params); got (3,)"),
+        (sur, X, Y[:, 0, 0], "Y must have shape (16, ...) (one snapshot per row of X); got (16,)"),
+        (sur, X, Y[:15], "Y must have shape (16, ...) (one snapshot per row of X); got (15, 3, 4)"),
+        (sur, X[:, :2], Y, "X has 2 columns but the space has parameters ['E_b', 'kN_bj', 'r_hj']"),
+        (sur, above, Y, "training samples of 'r_hj' lie outside its bounds [0.1, 1] -; widen the space"),
+        (sur, below_and_above, Y, "training samples of 'kN_bj' lie outside its bounds [10, 1000] N/mm³; widen the space"),
+        (PODKriging(pod=POD(n_modes=2), kriging=OrdinaryKriging(beta=1.5)), constant, Y,
+         "parameter column 1 is constant (50) in the training samples; remove it or give a ParameterSpace"),
+    ]
+    for estimator, Xbad, Ybad, message in cases:
+        with pytest.raises(ValueError) as raised:
+            estimator.fit(Xbad, Ybad)
+        assert str(raised.value) == message
+    assert not hasattr(sur, "kriging_")  # nothing half-fitted left behind
