@@ -4,6 +4,7 @@ estimator, side-effect-free ``predict``, unit-cube prediction, and files of sche
 import copy
 import dataclasses
 import datetime
+import logging
 from pathlib import Path
 
 import h5py
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_array_equal, assert_equal
 
-from podkrig.exceptions import SchemaError, StoreError
+from podkrig.exceptions import NotFittedError, SchemaError, StoreError
 from podkrig.offline.sampling import sobol, uniform
 from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import Parameter, ParameterSpace
@@ -422,3 +423,20 @@ def test_fit_refuses_bad_training_data_naming_what_is_wrong():
             estimator.fit(Xbad, Ybad)
         assert str(raised.value) == message
     assert not hasattr(sur, "kriging_")  # nothing half-fitted left behind
+
+
+def test_defaults_the_log_line_and_use_before_fit(caplog):
+    """Without a space the training box is mapped linearly onto the unit cube (the kriging sees
+    (x - min) / (max - min)); the default POD keeps 1 - 1e-8 of the energy; the fit logs its sizes;
+    a surrogate used before ``fit`` says so. Defects: another scaling, POD default or log
+    argument; a bare error."""
+    X = SPACE.from_unit(sobol(16, 3, seed=0))
+    with caplog.at_level(logging.INFO, logger="podkrig.surrogate.podkriging"):
+        bare = PODKriging(kriging=OrdinaryKriging(beta=1.5)).fit(X, snapshots(X))
+    assert_array_equal(bare.U_, (X - X.min(axis=0)) / (X.max(axis=0) - X.min(axis=0)))
+    assert bare.pod_.energy == 1 - 1e-8
+    assert f"POD-kriging fitted: 16 samples, 12 outputs, {bare.pod_.n_modes_} modes" in caplog.messages
+    for use in (lambda s: s.predict(X), lambda s: s.n_modes_, lambda s: s.save("never.h5")):
+        with pytest.raises(NotFittedError) as raised:
+            use(PODKriging())
+        assert str(raised.value) == "this PODKriging instance is not fitted yet; call fit(X, Y) first"
