@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from podkrig.offline.sampling import sobol
+from podkrig.offline.sampling import sobol, uniform
 from podkrig.surrogate.kriging import FitMethod, KrigingHyperparameters, OrdinaryKriging, ordinary
 
 
@@ -345,3 +345,29 @@ def test_a_clearly_negative_variance_warns_once_with_its_value_and_is_clipped(mo
             assert caught[0].category is UserWarning and caught[0].filename == __file__
         else:
             assert caught == []
+
+
+@pytest.mark.parametrize("block_bytes, blocks", [(3 * 8 * 16 * 2, [3, 3, 3, 1]), (5 * 8 * 16 * 2 - 1, [4, 4, 2]),
+                                                 (100, [1] * 10), (2**30, [10])])
+def test_variances_are_formed_in_blocks_within_the_memory_bound(monkeypatch, block_bytes, blocks):
+    """The cross-covariances of a variance pass, ``(n_outputs, block, n)`` doubles, stay within
+    ``VARIANCE_BLOCK_BYTES`` (at least one point per block), each point in exactly one block, and
+    the result does not depend on the blocking. Defects: a block sized on the dimensions instead of
+    the samples, rounded up, or past the bound; blocks that overlap, repeat or run empty."""
+    X = sobol(16, 3, seed=0)
+    fitted = OrdinaryKriging(beta=1.5).fit(X, _f(X))
+    Xp = uniform(10, 3, seed=1)
+    reference = fitted.predict(Xp, return_std=True)
+    sizes, real = [], ordinary._kernels.predict_mean_and_covariance
+
+    def spy(points, *args, **kwargs):
+        sizes.append(len(points))
+        return real(points, *args, **kwargs)
+
+    monkeypatch.setattr(ordinary, "VARIANCE_BLOCK_BYTES", block_bytes)
+    monkeypatch.setattr(ordinary._kernels, "predict_mean_and_covariance", spy)
+    mean, std = fitted.predict(Xp, return_std=True)
+    assert sizes == blocks
+    assert_array_equal(mean, reference[0])  # the kernel works point by point: any blocking, the same bits
+    # the triangular product (BLAS) may block its columns differently for another count: rounding only
+    assert_allclose(std, reference[1], rtol=1e-12)
