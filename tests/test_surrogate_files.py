@@ -423,6 +423,11 @@ def test_fit_refuses_bad_training_data_naming_what_is_wrong():
             estimator.fit(Xbad, Ybad)
         assert str(raised.value) == message
     assert not hasattr(sur, "kriging_")  # nothing half-fitted left behind
+    # accepted: samples on the space's bounds, and flat snapshots (n, n_outputs)
+    X[0], X[1] = SPACE.lower, SPACE.upper
+    sur.fit(X, snapshots(X).reshape(16, -1))
+    assert sur.output_shape_ == (12,)
+    assert_array_equal(sur.U_[:2], [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]])
 
 
 def test_defaults_the_log_line_and_use_before_fit(caplog):

@@ -448,9 +448,8 @@ class OrdinaryKriging:
         i, j = np.triu_indices(n, 1)
         A = np.abs(X[i] - X[j])
         logA = None
-        if beta is None:
-            with np.errstate(divide="ignore"):
-                logA = np.where(A > 0, np.log(np.where(A > 0, A, 1.0)), 0.0)
+        if beta is None:  # log|Δx| for the exponent's gradient, 0 where a coordinate repeats
+            logA = np.log(np.where(A > 0, A, 1.0))  # (there A^β log A = 0 anyway)
         pairs = Pairs(n, (i, j), A, logA, {})
         rng = np.random.default_rng(self.random_state)
         fit_beta = beta is None
