@@ -461,3 +461,17 @@ def test_a_constant_output_is_reproduced_without_a_search_and_with_zero_variance
     assert np.all(std[:, 0] == 0.0) and np.all(std[:, 1] > 0)
     assert caplog.messages == [(f"kriging fitted: 16 samples, 3 dims, 2 outputs, "
                                 f"{int(fitted.n_evaluations_.sum())} criterion evaluations")]
+
+
+def test_the_documented_defaults_and_every_setting_given_are_kept():
+    """The defaults the class docstring documents (and ``podkrig surrogate build`` and the study file
+    rely on), and every setting a user passes stored as given. Defects: a default changed silently
+    (e.g. one more random restart: slower fits, other hyperparameters), a setting dropped."""
+    assert OrdinaryKriging().get_params() == {
+        "variogram": "exponential", "beta": "fit-shared", "ranges": 0.5, "nugget": 0.0, "criterion": "ml",
+        "optimizer": "l-bfgs-b", "n_restarts": 1, "range_bounds": (0.01, 100.0), "random_state": 0,
+        "use_numba": None, "fit_subset": "auto"}
+    given = {"variogram": "power", "beta": 1.2, "ranges": [0.2, 0.3], "nugget": 1e-8, "criterion": "loo",
+             "optimizer": None, "n_restarts": 3, "range_bounds": (0.1, 10.0), "random_state": 5, "use_numba": False,
+             "fit_subset": 64}
+    assert OrdinaryKriging(**given).get_params() == given
