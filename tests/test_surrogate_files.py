@@ -392,6 +392,9 @@ def test_fit_keeps_its_own_copy_of_the_inputs():
     X[:] = X[::-1]
     assert_array_equal(sur.X_, kept)
     assert_array_equal(sur.predict(Xp), before)
+    # parameters given as integers (moduli in MPa, say) are kept as floats, as the file expects
+    whole = np.column_stack([np.round(kept[:, :2]), np.ones(16)]).astype(int)  # r_hj = 1: its upper bound
+    assert PODKriging(pod=POD(n_modes=2), kriging=OrdinaryKriging(), space=SPACE).fit(whole, snapshots(whole)).X_.dtype == np.float64
 
 
 def test_fit_refuses_bad_training_data_naming_what_is_wrong():
