@@ -230,6 +230,10 @@ KERNEL_BETAS = {
     "fast": [2.0, 1.5, 1.0, 2.0],
     "generic": [1.8, 1.8, 1.8],
     "mixed": [1.2, 1.8, 1.5, 0.6, 1.79, 1.999],
+    # within 1e-9 of a fast base: a polynomial of degree 1, folded (one exponent) or per output;
+    # the only plans whose need for logarithms rests on a 2-term polynomial alone
+    "folded, degree 1": [2.0 - 1e-9] * 3,
+    "per output, degree 1": [2.0, 1.5 - 1e-9, 1.5],
 }
 
 
