@@ -23,6 +23,7 @@ import os
 import subprocess
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 
 from rich.progress import track
@@ -64,9 +65,7 @@ def main(argv=None):
         status, failed = recheck(name, args.tests, args.timeout)
         done[name] = {"status": status, "failed": failed, "seconds": round(time.perf_counter() - t0, 1)}
         out.write_text(json.dumps(done, indent=1, ensure_ascii=False))
-    counts = {}
-    for result in done.values():
-        counts[result["status"]] = counts.get(result["status"], 0) + 1
+    counts = Counter(result["status"] for result in done.values())
     print(f"{len(done)} mutants: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
     for name, result in done.items():
         if result["status"] != "killed":

@@ -354,7 +354,8 @@ def test_a_clearly_negative_variance_warns_once_with_its_value_and_is_clipped(mo
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             m, std = fitted.predict(Xp, return_std=True)
-        assert_array_equal(m, mean) and np.all(std == 0.0)
+        assert_array_equal(m, mean)
+        assert np.all(std == 0.0)
         if warns:
             assert [str(w.message) for w in caught] == [(
                 f"kriging variance down to {-2e-6 * sill.max():.3g} < 0 (ill-conditioned system), clipped to 0; "

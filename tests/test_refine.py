@@ -15,15 +15,14 @@ from numpy.testing import assert_allclose, assert_array_equal
 from fe.exceptions import SolverError
 from fe.scenarios import Scenario
 from podkrig.cli import app
-
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.sampling import sample
 from podkrig.offline.store import SnapshotStore
 from podkrig.parameters import ParameterSpace
+from podkrig.surrogate import refine
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import PODKriging, fit_from_store
-from podkrig.surrogate import refine
 from podkrig.surrogate.refine import refine_surrogate, select_batch
 
 BOUNDS = {"kN_bj": (10, 1000, "log"), "E_b": (5000, 20000)}
