@@ -97,7 +97,8 @@ def test_linear_region_is_the_chi2_ellipse():
     omega_best = problem.omega(x_best[None])[0]
     delta = -np.log(1 - 0.95)  # ½ χ²₂(c) = −ln(1 − c)
     assert region.threshold == pytest.approx(omega_best + delta, rel=1e-12)
-    assert_allclose(region.samples[0], x_best, rtol=0) and region.omega[0] == omega_best
+    assert_allclose(region.samples[0], x_best, rtol=0)
+    assert region.omega[0] == omega_best
     assert np.all(region.omega <= region.threshold)
     assert_allclose(region.omega, problem.omega(region.samples), rtol=1e-10)
     cov = SIGMA**2 * np.linalg.inv(LinearModel.A.T @ LinearModel.A)
