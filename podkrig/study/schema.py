@@ -216,7 +216,7 @@ class _Reader:
                             if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING]
                 allowed = f"required top-level keys: {', '.join(required)}"
             self.fail(parent, f"missing key {loc[-1]!r}", allowed)
-        if kind == "study":
+        if kind == "settings":
             ctx = e["ctx"]
             self.fail((*loc, *ctx["key"]), ctx["message"], ctx["allowed"])
         if kind in _EXPECTED:

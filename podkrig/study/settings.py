@@ -21,17 +21,16 @@ from typing import Annotated, Any
 from pydantic import (
     AfterValidator,
     BeforeValidator,
-    ConfigDict,
     Field,
     StrictBool,
     StrictFloat,
     StrictInt,
     StrictStr,
 )
-from pydantic.dataclasses import dataclass as pydantic_dataclass
-from pydantic_core import PydanticCustomError
 
 from podkrig import limits
+from podkrig.config import Seed, finite as _finite, limit as _limit, settings as _settings, type_name
+from podkrig.config import allowed as _allowed, choice as _choice, settings_error as study_error
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
 from podkrig.online.model_error import parse_model_form_error
@@ -54,71 +53,6 @@ SAMPLING_METHODS = ("sobol", "lhs", "random", "lhs-ese")
 #: surrogate backends behind the one surrogate interface (issue 12, item 5)
 BACKENDS = ("podkrig", "smt-krg", "smt-kpls", "sklearn-gpr")
 
-_TABLE = ConfigDict(extra="forbid")  # an unknown key is an error
-_settings = pydantic_dataclass(frozen=True, config=_TABLE)
-
-
-def type_name(value):
-    """The TOML name of a value's type, for messages ("integer", "table", …)."""
-    return {bool: "boolean", int: "integer", float: "number", str: "string", dict: "table",
-            list: "array"}.get(type(value), type(value).__name__)
-
-
-def study_error(message, key=None, allowed=None):
-    """An error of a rule that ties keys together, for the checker to place and word.
-
-    Parameters
-    ----------
-    message : str
-        What is wrong (e.g. "give either energy or modes, not both").
-    key : str, tuple or None
-        Key path, relative to the table being validated, that the message names (None: the
-        table or the field being validated).
-    allowed : str or None
-        What is allowed, in words.
-    """
-    key = () if key is None else ((key,) if isinstance(key, str) else tuple(key))
-    return PydanticCustomError("study", "{message}", {"message": message, "key": key, "allowed": allowed})
-
-
-def _allowed(text, **constraints):
-    """Field constraints with the words the checker shows when they are broken."""
-    return Field(json_schema_extra={"allowed": text}, **constraints)
-
-
-def _one_of(choices):
-    def check(value):
-        if value not in choices:
-            raise ValueError("not one of the allowed values")
-        return value
-
-    return AfterValidator(check)
-
-
-def _choice(choices, text=None):
-    return Annotated[StrictStr, _one_of(choices), _allowed(text or ", ".join(choices))]
-
-
-def _finite(value):
-    if not math.isfinite(value):
-        raise ValueError("not finite")
-    return value
-
-
-def _limit(check, allowed):
-    """A validator running one of the shared checks of :mod:`podkrig.limits` (the same bounds as
-    the CLI and the Python API), its message — with the memory estimate — as the study's error."""
-    def validate(value):
-        try:
-            check(value)
-        except ValueError as e:
-            raise study_error(str(e), allowed=allowed) from None
-        return value
-
-    return AfterValidator(validate)
-
-
-Seed = Annotated[StrictInt, _allowed("an integer >= 0", ge=0)]
 #: FE runs of a design: at most limits.MAX_ROWS (the estimate at ~1 KiB per stored row)
 _ROWS_ALLOWED = f"an integer in [{{}}, {limits.MAX_ROWS}] (FE runs)"
 _rows = _limit(lambda n: limits.check_rows(n, 1024, "n"), _ROWS_ALLOWED.format(1))
