@@ -356,8 +356,9 @@ class PODKriging:
         pod, kr = self.pod_, self.kriging_
         settings = {
             "pod": pod.get_params(),
-            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
-                        for k, v in kr.get_params().items()},
+            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple))
+                            else f"callable {getattr(v, '__qualname__', type(v).__name__)}" if callable(v) else v)
+                        for k, v in kr.get_params().items()},  # a callable optimizer: its name only
         }
         arrays, attrs = kr.to_arrays()
         try:
