@@ -167,10 +167,13 @@ def test_overparam_flags_what_the_data_cannot_pin_down(surrogates):
 
 def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(surrogates):
     """Issue 18 item 3 (the inversion's option): data from the same test on a mesh four times finer
-    (Q8 8 × 4 per unit) with 0.2 % noise, against the 2 × 1 surrogate. With noise alone the fit runs
-    to the bounds of E_b and r_hj; with the discretisation error estimated from the model's mesh
-    refined twice it lands within 5 % of every true value (the 5 %: what is left of the systematic,
-    correlated mesh error that a diagonal C_T cannot remove; 3.5 % on kV_bj when written)."""
+    (Q8 8 × 4 per unit) with 0.2 % noise, against the 2 × 1 surrogate. With noise alone the fit does
+    not explain the data (χ²/dof > 10) and is biased (towards the bounds of E_b and r_hj: 0.21 to
+    0.4 relative error in its worst parameter, depending on the optimiser's path on the machine);
+    with the discretisation error estimated from the model's mesh refined twice it lands within 5 %
+    of every true value (the 5 %: what is left of the systematic, correlated mesh error that a
+    diagonal C_T cannot remove; 3.5 % on kV_bj when written), at most half the worst error of the
+    noise-only fit."""
     sur, _, truth, d = surrogates
     sc = build_scenario({"scenario": "diagonal_compression", "nx": 8, "ny": 4})
     clean = sc.run(truth).readings
@@ -181,10 +184,15 @@ def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(su
               "--region-samples", 16384]
     plain = json.loads(_ok(common))
     assert plain["chi2_dof"] > 10 and plain["model_form_error"] is None
-    assert max(abs(plain["parameters"][n] / truth[n] - 1) for n in truth) > 0.3
     out = json.loads(_ok(common + ["--model-form-error", "estimated"]))
     for name, value in truth.items():
         assert abs(out["parameters"][name] / value - 1) < 0.05, (name, out["parameters"][name])
+    # where the biased noise-only fit stops in its flat valley depends on the optimiser's path (another
+    # CPU or process gave 0.209 instead of > 0.3); the claim is the comparison: the model-form error
+    # removes most of the bias, so the worst error at least halves
+    worst = {fit: max(abs(fit_out["parameters"][n] / truth[n] - 1) for n in truth)
+             for fit, fit_out in (("plain", plain), ("estimated", out))}
+    assert worst["estimated"] <= 0.5 * worst["plain"], worst
     assert out["chi2_dof"] < 2
     mfe = out["model_form_error"]
     assert mfe["method"] == "two meshes" and mfe["mesh"] == "Q8 2×1 and 4×2 per unit" and mfe["rate"] == 0.8

@@ -39,14 +39,20 @@ def surrogate():
     return PODKriging(pod=POD(energy=1 - 1e-10), kriging=OrdinaryKriging(beta="fit"), space=SPACE).fit(X, snapshots(X))
 
 
-def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
-    """The reference file was written by the code before this layout (see tests/data/README.md)."""
+def test_schema_1_file_loads_and_predicts_as_before(tmp_path):
+    """The reference file was written by the code before this layout (see tests/data/README.md), on
+    another machine: its predictions are reproduced to rounding, and a rewrite in today's schema
+    predicts bit for bit what the loaded file predicts (one process)."""
     with h5py.File(DATA / "surrogate_v1.h5") as f:
         assert (f.attrs["format"], int(f.attrs["schema_version"])) == ("podkrig.surrogate", 1)
     sur = PODKriging.load(DATA / "surrogate_v1.h5")
     expected = np.load(DATA / "surrogate_v1_expected.npz")
     mean, std = sur.predict(expected["X"], return_std=True, reshape=True)
-    assert_array_equal(mean, expected["mean"])
+    # the expected means were computed on another CPU: BLAS and numba kernels round differently
+    # across CPUs (AMD EPYC: all 192 means differ, by at most 3e-11 relative); 1e-9 relative
+    # (plus 1e-12 of the largest mean for values near zero) is rounding, far below any accuracy
+    # that matters, and far above what a wrong weight or mode would leave
+    np.testing.assert_allclose(mean, expected["mean"], rtol=1e-9, atol=1e-12 * np.abs(expected["mean"]).max())
     # the variance is now formed with the stored explicit L^-1 (a triangular product) instead of
     # triangular solves: the same formula in another rounding order. The kriging sums near the
     # conditioning limit amplify rounding ~1e6-fold: 7e-10 relative here; 1e-8 leaves a margin
@@ -57,7 +63,7 @@ def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
     with h5py.File(tmp_path / "v2.h5") as f:
         assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 3 and f.attrs["backend"] == "podkrig"
     again = PODKriging.load(tmp_path / "v2.h5")
-    assert_array_equal(again.predict(expected["X"], reshape=True), expected["mean"])
+    assert_array_equal(again.predict(expected["X"], reshape=True), mean)  # same process: the same bits
 
 
 def test_hyperparameters_are_one_frozen_value_object(surrogate):
