@@ -7,8 +7,9 @@ module-level helpers it calls)::
 
     anchored   a ``match=`` / ``.match()`` pattern anchored at both ends (``^...$``), or anchored
                at one end with a sentence (SENTENCE_WORDS or more words) behind the anchor
-    sentence   a ``match=`` pattern, or ``re.escape(...)`` of a literal, of SENTENCE_WORDS or more
-               words; or a literal sentence compared with ``==`` / ``!=`` / ``in`` against
+    sentence   a ``match=`` pattern, or ``re.escape(...)`` of a literal, with a sentence between
+               its wildcards (``A.*B`` asserts the fragments A and B); or a literal sentence
+               compared with ``==`` / ``!=`` / ``in`` against
                anything (``str(err.value) == "..."``, ``"..." in result.output``,
                ``caplog.messages == [...]``, ``describe() == "..."``)
     optimiser  an optimiser (``minimize``, ``fmin*``, ``least_squares``,
@@ -34,6 +35,9 @@ from pathlib import Path
 SENTENCE_WORDS = 7
 OPTIMISERS = re.compile(r"^(minimize|minimize_scalar|fmin\w*|least_squares|differential_evolution|dual_annealing"
                         r"|basinhopping|shgo)$")
+
+
+WILDCARD = re.compile(r"\.[*+]\??")
 
 
 def literal_text(node):
@@ -78,7 +82,8 @@ def pattern_reason(node, bound):
     tail = text.endswith("$") and not text.endswith("\\$")
     if head and tail:
         return "anchored"
-    if is_sentence(text):
+    # a pattern "A.*B" asserts the fragments A and B: the longest decides
+    if any(is_sentence(piece) for piece in WILDCARD.split(text)):
         return "anchored" if head or tail else "sentence"
     return None
 
@@ -115,14 +120,14 @@ def parametrized_sentences(func):
 
 
 def reasons(func):
-    """The set of reasons ``func`` (a test or a helper) pins wording or bookkeeping."""
+    """The reasons ``func`` (a test or a helper) pins wording or bookkeeping: ``{reason: lines}``."""
     bound = parametrized_sentences(func)
     for sub in ast.walk(func):  # local names bound to a sentence: message = "..."
         if isinstance(sub, ast.Assign) and is_sentence(literal_text(sub.value)):
             for target in sub.targets:
                 if isinstance(target, ast.Name):
                     bound[target.id] = "sentence"
-    found = set()
+    found = {}
     for sub in ast.walk(func):
         if isinstance(sub, ast.Call):
             patterns = [kw.value for kw in sub.keywords if kw.arg == "match"]
@@ -131,23 +136,23 @@ def reasons(func):
             for pattern in patterns:
                 why = pattern_reason(pattern, bound)
                 if why:
-                    found.add(why)
+                    found.setdefault(why, set()).add(pattern.lineno)
             if is_call(sub, "setattr") and isinstance(sub.func, ast.Attribute) and len(sub.args) >= 2:
                 owner = sub.func.value
                 if isinstance(owner, ast.Name) and owner.id == "monkeypatch":
                     target = literal_text(sub.args[1]) if len(sub.args) >= 3 else literal_text(sub.args[0])
                     if target and OPTIMISERS.match(target.rsplit(".", 1)[-1]):
-                        found.add("optimiser")
+                        found.setdefault("optimiser", set()).add(sub.lineno)
         elif isinstance(sub, ast.Compare) and any(isinstance(op, (ast.Eq, ast.NotEq, ast.In, ast.NotIn))
                                                   for op in sub.ops):
             if any(sentences_in(side, bound) for side in [sub.left, *sub.comparators]):
-                found.add("sentence")
+                found.setdefault("sentence", set()).add(sub.lineno)
     return found
 
 
 def scan(path):
-    """``[(test name, sorted reasons)]`` for every test function of ``path`` and the number of
-    test functions. A test inherits the reasons of the module-level helpers it calls."""
+    """``[(test name, {reason: lines})]`` for the pinned test functions of ``path``, and the number
+    of test functions. A test inherits the reasons of the module-level helpers it calls."""
     tree = ast.parse(Path(path).read_text(), filename=str(path))
     functions = {}
     for node in ast.walk(tree):
@@ -158,12 +163,13 @@ def scan(path):
              and f.name.startswith("test_")]
     pinned = []
     for test in tests:
-        why = set(reasons(test))
+        why = reasons(test)
         called = {n.func.id for n in ast.walk(test) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
         for name in called & helpers.keys():
-            why |= helpers[name]
+            for reason, lines in helpers[name].items():
+                why.setdefault(reason, set()).update(lines)
         if why:
-            pinned.append((test.name, sorted(why)))
+            pinned.append((test.name, why))
     return pinned, len(tests)
 
 
@@ -191,7 +197,8 @@ def main(argv=None):
               f"  {count['optimiser']:>9}")
         if args.list:
             for name, why in pinned:
-                print(f"    {name}  ({', '.join(why)})")
+                print(f"    {name}  (" + "; ".join(f"{k}: line {', '.join(map(str, sorted(v)))}"
+                                                  for k, v in sorted(why.items())) + ")")
     print(f"{'total':<{width}}  {total_pinned:>6}  {total_tests:>5}")
     return 0
 
