@@ -61,7 +61,9 @@ def words(text):
 
 
 def is_sentence(text):
-    return text is not None and words(text) >= SENTENCE_WORDS
+    """A literal of SENTENCE_WORDS or more words between regex wildcards (``A.*B`` holds the
+    fragments A and B)."""
+    return text is not None and any(words(piece) >= SENTENCE_WORDS for piece in WILDCARD.split(text))
 
 
 def is_call(node, name):
@@ -82,8 +84,7 @@ def pattern_reason(node, bound):
     tail = text.endswith("$") and not text.endswith("\\$")
     if head and tail:
         return "anchored"
-    # a pattern "A.*B" asserts the fragments A and B: the longest decides
-    if any(is_sentence(piece) for piece in WILDCARD.split(text)):
+    if is_sentence(text):
         return "anchored" if head or tail else "sentence"
     return None
 
