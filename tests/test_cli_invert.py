@@ -110,7 +110,7 @@ def test_invert_warns_when_the_noise_is_understated(surrogates):
     assert len(chi2) == 1 and f"χ²/dof = {out['chi2_dof']:.2f}" in chi2[0]["what"]
     assert chi2[0]["what"] in out["warnings"] and "podkrig diagnose" in chi2[0]["what_to_do"]
     text = _ok(args)
-    assert "does not reproduce the data within the stated noise" in " ".join(text.split())  # wrapped by the terminal
+    assert "within the stated noise" in " ".join(text.split())  # wrapped by the terminal
 
 
 def test_invert_noise_monte_carlo_region(surrogates):
@@ -128,9 +128,10 @@ def test_invert_noise_monte_carlo_region(surrogates):
     [
         (["--noise-rel", "0.01", "--instrument", "lvdt"], "give one noise model"),
         ([], "give one noise model"),
-        (["--instrument", "laser"], "--instrument 'laser': known instruments are lvdt, dial_gauge, dic"),
-        (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end': expected first, none or a load"),
-        (["--noise-rel", "0.01", "--zero", "end of shear"], "zero = 'end of shear' needs a phase column 'phase'"),
+        (["--instrument", "laser"], "--instrument 'laser'"),
+        (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end'"),
+
+        (["--noise-rel", "0.01", "--zero", "end of shear"], "phase column 'phase'"),
         (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
         (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),
         (["--noise-rel", "0.01", "--free", "G_f"], "unknown parameter"),
@@ -142,6 +143,8 @@ def test_invert_errors(surrogates, extra, message):
     result = runner.invoke(app, ["invert", str(sur["diagonal_compression"]), "--data", str(data), *extra])
     assert result.exit_code == 2, result.output
     assert message in result.output
+    if "laser" in extra:
+        assert "lvdt, dial_gauge, dic" in result.output  # the known instruments, to choose from
 
 
 def test_rvc_with_a_validation_model(surrogates):
@@ -204,15 +207,15 @@ def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(su
     # a fixed tolerance instead: ε = 1 % of each reading
     fixed = json.loads(_ok(common + ["--model-form-error", "0.01"]))
     assert fixed["model_form_error"]["method"] == "tolerance" and fixed["model_form_error"]["tolerance"] == 0.01
-    assert "ε = 1 % of each reading" in fixed["chi2_basis"]
+    assert "ε = 1 %" in fixed["chi2_basis"]
 
 
-@pytest.mark.parametrize("value, message", [("banana", "--model-form-error must be none, estimated or a relative "
-                                                       "tolerance in [0, 0.5)"),
-                                            ("0.7", "--model-form-error: a relative tolerance must be in [0, 0.5)")])
-def test_invert_model_form_error_option_errors(surrogates, value, message):
+@pytest.mark.parametrize("value, fragments", [("banana", ("--model-form-error", "none, estimated", "[0, 0.5)")),
+                                              ("0.7", ("--model-form-error", "[0, 0.5)"))])
+def test_invert_model_form_error_option_errors(surrogates, value, fragments):
     sur, data, _, _ = surrogates
     result = runner.invoke(app, ["invert", str(sur["diagonal_compression"]), "--data", str(data), "--noise-rel", "0.01",
                                  "--model-form-error", value])
     assert result.exit_code == 2, result.output
-    assert message in " ".join(result.output.split())
+    assert all(fragment in " ".join(result.output.split()) for fragment in fragments), result.output
+

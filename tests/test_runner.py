@@ -119,7 +119,7 @@ def test_mismatched_rerun_is_refused(reference, scenario, space, change, message
 def test_non_sobol_store_cannot_grow(tmp_path, scenario, space):
     path = tmp_path / "lhs.h5"
     prepare_store(path, scenario, space, n=8, seed=1, sampling="lhs")
-    with pytest.raises(StoreError, match=r"only a 'sobol' store can grow, a 'lhs' design cannot be extended"):
+    with pytest.raises(StoreError, match=r"only a 'sobol' store can grow.*'lhs'"):
         prepare_store(path, scenario, space, n=16, seed=1, sampling="lhs")
 
 
@@ -156,9 +156,9 @@ def test_failed_fe_runs_become_failed_rows_and_can_be_retried(tmp_path, monkeypa
 def test_argument_errors(tmp_path, scenario, space):
     with pytest.raises(ValueError, match="either workers .* or scheduler"):
         run_snapshots(tmp_path / "s.h5", scenario, space, n=4, seed=0, workers=2, scheduler="tcp://x:1")
-    with pytest.raises(ValueError, match="chunk_size must be an integer >= 1; got 0"):
+    with pytest.raises(ValueError, match="chunk_size .*>= 1; got 0"):
         run_snapshots(tmp_path / "s.h5", scenario, space, n=4, seed=0, workers=1, chunk_size=0)
-    with pytest.raises(ValueError, match="n must be an integer >= 1; got 0"):
+    with pytest.raises(ValueError, match="n must be .*>= 1; got 0"):
         run_snapshots(tmp_path / "t.h5", scenario, space, n=0, seed=0, workers=1)
     with pytest.raises(StoreError, match="no snapshot store at"):
         run_pending(tmp_path / "missing.h5", workers=1)
@@ -174,7 +174,8 @@ def test_a_small_job_runs_serially_with_workers_2_and_says_why(tmp_path, referen
     path = tmp_path / "small.h5"
     summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2)
     assert summary.executor.startswith("serial: 2 workers asked, but 64 runs ×"), summary.executor
-    assert "less than a local cluster takes to start" in summary.executor
+    assert "local cluster" in summary.executor  # why: the cluster's start-up
+
     assert summary.done == 64 and summary.ran == 64
     _assert_same_store(path, reference)
 
