@@ -180,7 +180,6 @@ def test_kpls_components_cannot_exceed_the_inputs(data):
     ({"nu": 2.0}, r"nu .*\(0.5, 1.5, 2.5, inf\); got 2.0"),
     ({"alpha": 0.0}, "alpha .*finite number > 0; got 0.0"),
     ({"alpha": np.nan}, "alpha .*finite number > 0; got nan"),
-
     ({"n_restarts_optimizer": -1}, "n_restarts_optimizer .*integer >= 0; got -1"),
     ({"n_restarts_optimizer": False}, "n_restarts_optimizer .*integer >= 0; got False"),
     ({"n_restarts_optimizer": 1.0}, "n_restarts_optimizer .*integer >= 0; got 1.0"),
@@ -289,7 +288,6 @@ def test_another_library_version_is_warned_about(data, fitted):
     arrays, attrs = est.to_arrays()
     installed = importlib.metadata.version("smt")
     with pytest.warns(UserWarning, match=rf"'smt-kpls' .*smt 0\.1.*{installed} is installed"):
-
         backend_from_arrays("smt-kpls", arrays, dict(attrs, library_version="0.1"), est.get_params())
     with pytest.warns(UserWarning, match=r"fitted with smt \?;"):
         backend_from_arrays("smt-kpls", arrays, {k: v for k, v in attrs.items() if k != "library_version"},

@@ -130,7 +130,6 @@ def test_invert_noise_monte_carlo_region(surrogates):
         ([], "give one noise model"),
         (["--instrument", "laser"], "--instrument 'laser'"),
         (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end'"),
-
         (["--noise-rel", "0.01", "--zero", "end of shear"], "phase column 'phase'"),
         (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
         (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),

@@ -65,7 +65,6 @@ def test_bad_parameters_are_refused_naming_them(coarse_diagonal, params, match):
         ({"scenario": "diagonal_compression", "parameters": {"E_b": -1}}, "'E_b' = -1 is outside"),
         ({"scenario": "diagonal_compression", "thickness": -1.0}, "thickness must be > 0"),
         ({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "support": "glued"}, "option .support. .*one of"),
-
     ],
 )
 def test_bad_specs_are_refused(spec, match):

@@ -529,7 +529,6 @@ def test_bad_bounds_and_objective_are_refused():
     with pytest.raises(ValueError, match=r"bounds must have shape \(n_params, 2\)"):
         minimize(sphere, [(-1.0, 0.0, 1.0)])
     with pytest.raises(ValueError, match=r"fun must return shape \(40,\).*got \(40, 1\)"):
-
         minimize(lambda X: sphere(X)[:, None], [(-1.0, 1.0)] * 2)
     with pytest.raises(ValueError, match="fun returned NaN at x = "):
         minimize(lambda X: np.full(X.shape[0], np.nan), [(-1.0, 1.0)] * 2)

@@ -285,7 +285,6 @@ def test_inverse_result_shows_its_best_fit_and_chi2_in_jupyter():
     # χ² to 4 digits, χ²/dof = 12.3456789 / 4 to 3; no problem attached: the surrogate with C_T
     assert fit_rows == [["surrogate", "12.35", "4", "3.09", CHI2_BASIS["surrogate"]]]
     assert all(f in fit_cap for f in ("ω = 1.235", "321 evaluations", "1.23 s", RESIDUAL_CONVENTION))
-
     # the basis read back from a dict wins; with an FE check its χ²/dof (noise only) gets a row
     check = FECheck(0.1, 2.0, 0.01, 1.23456, False)
     (_, _, rows), (_, _, fit_rows) = _Tables(_hand_made_result(fe_check=check, basis="C_D = C_d",

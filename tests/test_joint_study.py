@@ -147,7 +147,6 @@ def test_joint_report_has_each_tests_sections_and_figures(joint):
 @pytest.mark.parametrize("edit, message", [
     (lambda s: 'scenario = "diagonal_compression"\n' + s,
      r"scenario: .*each \[\[test\]\] its own scenario"),
-
     (lambda s: s[: s.index('[[test]]\nname = "shear"')],
      r"one \[\[test\]\] table: .*two or more tests"),
     (lambda s: s.replace('name = "shear"', 'name = "diagonal"'), r"test\[2\]\.name: 'diagonal' names two tests"),

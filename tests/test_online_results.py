@@ -262,7 +262,7 @@ def test_report_shows_the_chi2_warning(tmp_path):
     result = invert(problem, rng=0, population_size=20, generations=10, n_starts=2)
     region = likelihood_ratio_region(problem, result.x, n_samples=2**10, rng=0)
     page = write_inversion_report(tmp_path, result, region).read_text(encoding="utf-8")
-    assert "does not reproduce the data within the stated noise" in page and "podkrig diagnose" in page
+    assert "within the stated noise" in page and "podkrig diagnose" in page
     assert page.count("does not reproduce the data") == 1  # said once, not by two policies
 
 

@@ -82,7 +82,6 @@ def test_input_not_modified_and_uncentred():
         ({"n_modes": 0}, None, "n_modes .*integer >= 1"),
         ({"n_modes": True}, None, "n_modes .*integer >= 1"),
         ({"energy": 0.0}, None, r"< energy <= 1; got 0.0.*energy=0.9999"),
-
         ({"n_modes": 9}, None, "exceeds the numerical rank 5"),
         ({"method": "qr"}, None, "method must be one of"),
         ({}, np.ones((5, 3)), "all snapshots are identical"),

@@ -267,7 +267,6 @@ def test_check_dof_counts_and_refuses_no_degrees_of_freedom():
     with pytest.raises(ValueError, match=r"data.csv: 2 reading\(s\).*2 free parameter\(s\) \(a, b\)") as raised:
         check_dof(2, ("a", "b"), "data.csv")
     assert "2 − 2 = 0" in str(raised.value) and "fix parameters" in str(raised.value)  # the count, a remedy
-
     with pytest.raises(ValueError, match=r"measurement: 1 reading\(s\) .*1 − 3 = -2"
 ):
         check_dof(1, ("a", "b", "c"))
@@ -357,7 +356,6 @@ def test_surrogate_model_exposes_the_provenance_and_refuses_what_cannot_invert()
     with pytest.raises(ValueError, match=r"lacks \['a parameter space'\]: .*" + build):
         SurrogateModel(_Surrogate(prov, space=None))
     with pytest.raises(ValueError, match="predicts displacement fields.*sensor readings"):
-
         SurrogateModel(_Surrogate(prov | {"output": "field"}))
 
 

@@ -184,7 +184,6 @@ def test_failed_new_runs_are_kept_as_failed_rows_and_left_out_of_the_fit(stores,
     assert [h["n_train"] for h in out["history"]] == [8, 8] and out["added"] == 2
     (warning,) = [r for r in caplog.records if r.levelno == logging.WARNING]
     assert warning.name == "podkrig.surrogate.refine" and warning.args[:2] == (2, 2)  # failed, new runs
-
     with SnapshotStore.open(train) as s:
         assert s.counts()["failed"] == 2 and s.counts()["done"] == 8
 

@@ -162,7 +162,6 @@ def test_job_estimate_states_runs_time_and_disk():
     assert all(f in text for f in ("256 FE runs", "9360 dofs", "3.8 s", "976.6 KiB")) and not large
     text, large = limits.fe_job_estimate([(512, 9360, True), (64, 8000, False)], 10**6)
     assert all(f in text for f in ("576 (512 nonlinear) FE runs", "8000–9360 dofs", "6.39 h"))
-
     assert large
     assert limits.fe_job_estimate([(2**16 + 1, 10, False)], 0)[1]  # runs alone
     assert limits.fe_job_estimate([(10, 10, False)], 5 * 2**30)[1]  # disk alone

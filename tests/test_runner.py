@@ -175,7 +175,6 @@ def test_a_small_job_runs_serially_with_workers_2_and_says_why(tmp_path, referen
     summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2)
     assert summary.executor.startswith("serial: 2 workers asked, but 64 runs ×"), summary.executor
     assert "local cluster" in summary.executor  # why: the cluster's start-up
-
     assert summary.done == 64 and summary.ran == 64
     _assert_same_store(path, reference)
 

@@ -414,7 +414,8 @@ def test_fe_differences_stand_in_where_exact_sensitivities_cannot(tmp_path, capl
     opts = dict(k=1, n_points=4, n_random=2, methods=("greedy",), include_current=False)
     with pytest.raises(ExactSensitivitiesUnavailable, match="release = 'exact'"):
         place_sensors(sc, with_km, cands, model="exact", **opts)
-    with pytest.raises(ValueError, match="model must be a batched model or one of"):
+    with pytest.raises(ValueError, match="model must be .*one of"
+):
         place_sensors(sc, with_km, cands, model="surrogate", **opts)
     with caplog.at_level("WARNING", logger="podkrig.sensors.placement"):
         auto = place_sensors(sc, with_km, cands, model="auto", **opts)

@@ -177,9 +177,7 @@ def _damaged_header(path, scenario, space):
         (_garbage, r"is not an HDF5 file.*left untouched"),
         (_empty, r"is not an HDF5 file"),
         (_foreign, r"not a podkrig snapshot store"),
-
         (_damaged_header, r"cannot be opened: .*corrupt HDF5 file"),
-
     ],
 )
 def test_damaged_files_are_refused_and_untouched(tmp_path, scenario, space, damage, message):

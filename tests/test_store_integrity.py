@@ -225,7 +225,6 @@ def test_a_flipped_bit_is_refused_with_the_row_named(tmp_path, scenario, space, 
     path = _filled(tmp_path / "s.h5", scenario, space)
     _poke(path, dataset, (5, 1) if dataset != "status" else (5, 0), bit=0)
     message = rf"rows 5 of dataset .*{dataset}.*checksums"
-
     if when == "open":
         with pytest.raises(IntegrityError, match=message):
             SnapshotStore.open(path)
@@ -280,7 +279,6 @@ def test_store_without_checksums_loads_and_can_be_rehashed(tmp_path, scenario, s
         assert not s.checksummed and s.readings().shape[0] == 8
     (record,) = [r for r in caplog.records if "checksums" in r.getMessage()]
     assert record.levelno == logging.WARNING and "--rehash" in record.getMessage()  # the remedy's option
-
     result = runner.invoke(app, ["snapshots", "verify", str(path)])
     assert result.exit_code == 1 and "no checksums" in result.output
     assert runner.invoke(app, ["snapshots", "verify", "--rehash", str(path)]).exit_code == 0
