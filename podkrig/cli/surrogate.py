@@ -1,7 +1,6 @@
 """``podkrig surrogate``: build a POD-kriging surrogate from a snapshot store, validate it, refine it."""
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -9,16 +8,17 @@ import typer
 
 from fe.scenarios import build_scenario
 from podkrig.cli._common import (
-    KrigingCriterion, SurrogateBackend, TableFormat, Variogram, configure_logging, user_errors,
+    KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
+    settings_from_options, user_errors,
 )
-from podkrig.offline.sampling import METHODS
+from podkrig.config import field_info
+from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
 from podkrig.reports import surrogate as figs
-from podkrig.surrogate.backends import BACKENDS, DEFAULT_BACKEND, make_backend
-from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
-from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.surrogate.podkriging import PODKriging, training_data
 from podkrig.surrogate.refine import refine_surrogate
+from podkrig.surrogate.settings import BACKENDS, SurrogateSettings, fit_surrogate
 from podkrig.surrogate.validation import compare_settings, held_out_errors
 
 surrogate_app = typer.Typer(
@@ -28,30 +28,35 @@ surrogate_app = typer.Typer(
 )
 
 
+#: the defaults of the surrogate settings, shown in the options' help
+_DEFAULTS = {name: f["default"] for name, f in field_info(SurrogateSettings).items()}
+#: the options that set our kriging (a library backend fits its own hyperparameters)
+_KRIGING_OPTIONS = {"variogram": "--variogram", "beta": "--beta", "criterion": "--criterion", "nugget": "--nugget"}
+
+
 def _beta(text):
-    if text in ("fit", "fit-shared"):
-        return text
+    """``--beta``: a number, or a word of the settings ("fit", "fit-shared"; checked there)."""
+    if text is None:
+        return None
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"--beta must be a number in (0, 2], 'fit' or 'fit-shared'; got {text!r}") from None
+        return text
 
 
-def _templates(energy, modes, backend, variogram, beta, criterion, nugget):
-    if energy is not None and modes is not None:
-        raise ValueError("give either --energy or --modes, not both")
-    pod = POD(n_modes=modes) if modes is not None else POD(energy=DEFAULT_ENERGY if energy is None else energy)
-    if backend not in BACKENDS:
-        raise ValueError(f"--backend must be one of {', '.join(BACKENDS)}; got {backend!r}")
-    ours = {"variogram": variogram, "beta": beta, "criterion": criterion, "nugget": nugget}
+def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget):
+    """The :class:`~podkrig.surrogate.settings.SurrogateSettings` of ``podkrig surrogate build``'s
+    options (None: not given, the settings' default); a kriging option with another backend than
+    ours is refused, as that backend fits its own hyperparameters."""
+    ours = {"variogram": variogram, "beta": _beta(beta), "criterion": criterion, "nugget": nugget}
     if backend != "podkrig":
-        given = [f"--{k}" for k, v in ours.items() if v is not None]
+        given = [_KRIGING_OPTIONS[k] for k, v in ours.items() if v is not None]
         if given:
             raise ValueError(f"{', '.join(given)} set(s) the podkrig kriging; backend {backend!r} fits its own "
                              "hyperparameters: drop the option(s) or use --backend podkrig")
-        return pod, make_backend(backend)
-    return pod, OrdinaryKriging(variogram=variogram or "exponential", beta=_beta(beta or DEFAULT_BETA),
-                                criterion=criterion or "ml", nugget=0.0 if nugget is None else nugget)
+    options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend)}
+    options.update({k: (_KRIGING_OPTIONS[k], v) for k, v in ours.items()})
+    return settings_from_options(SurrogateSettings, options)
 
 
 def _describe(kriging):
@@ -69,27 +74,26 @@ def build(
     out: Path = typer.Option(..., "--out", help="Surrogate file to write (HDF5)."),
     energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
     modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
-    backend: SurrogateBackend = typer.Option(SurrogateBackend(DEFAULT_BACKEND), "--backend",
+    backend: SurrogateBackend = typer.Option(SurrogateBackend(_DEFAULTS["backend"]), "--backend",
                                 help=f"Regressor of the POD coefficients: {', '.join(BACKENDS)} "
                                      "(podkrig: ours; smt-krg/smt-kpls: SMT's KRG/KPLS per mode; "
                                      "sklearn-gpr: scikit-learn's GaussianProcessRegressor per mode)."),
-    variogram: Variogram = typer.Option(None, "--variogram", help="Semivariogram: exponential (default) or power (podkrig backend)."),
-    beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all; the default, {DEFAULT_BETA!r}) (podkrig backend)."),
-    criterion: KrigingCriterion = typer.Option(None, "--criterion", help="Hyperparameters by 'ml' (likelihood, default) or 'loo' (podkrig backend)."),
-    nugget: float = typer.Option(None, "--nugget", help="Nugget relative to the sill (default 0: exact interpolation) (podkrig backend)."),
+    variogram: Variogram = typer.Option(None, "--variogram", help=f"Semivariogram: {' or '.join(Variogram)} (default "
+                                                                  f"{_DEFAULTS['variogram']}) (podkrig backend)."),
+    beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all); default {_DEFAULTS['beta']!r} (podkrig backend)."),
+    criterion: KrigingCriterion = typer.Option(None, "--criterion", help=f"Hyperparameters by 'ml' (likelihood) or 'loo' (leave-one-out); default {_DEFAULTS['criterion']!r} (podkrig backend)."),
+    nugget: float = typer.Option(None, "--nugget", help=f"Nugget relative to the sill (default {_DEFAULTS['nugget']:g}: exact interpolation) (podkrig backend)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
-        pod, kriging = _templates(energy, modes, backend.value, variogram and variogram.value, beta,
-                                  criterion and criterion.value, nugget)
-        t0 = time.perf_counter()
+        settings = surrogate_settings(energy, modes, backend.value, variogram and variogram.value, beta,
+                                      criterion and criterion.value, nugget)
         with SnapshotStore.open(store) as s:
-            sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
-        seconds = time.perf_counter() - t0
-        sur.provenance_["training_seconds"] = seconds
+            sur = fit_surrogate(s, settings, output="field" if field else "readings")
+        seconds = sur.provenance_["training_seconds"]
         sur.save(out)
     fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]; "
               f"{sur.kriging_.fit_method_.describe()}" if sur.backend_ == "podkrig" else f"backend {sur.backend_}")
@@ -185,7 +189,8 @@ def refine(
     batch: int = typer.Option(8, "--batch", help="FE runs added per round."),
     candidates: int = typer.Option(4096, "--candidates", help="Size of the Sobol' candidate set."),
     seed: int = typer.Option(1, "--seed", help="Seed of the candidate set."),
-    sampling: str = typer.Option("sobol", "--sampling", help=f"Candidate design: {', '.join(METHODS)}."),
+    sampling: SamplingMethod = typer.Option(SamplingMethod(field_info(Design)["method"]["default"]), "--sampling",
+                                            help="Candidate design."),
     workers: int = typer.Option(1, "--workers", help="FE workers (1: in this process)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
@@ -194,7 +199,7 @@ def refine(
     with user_errors():
         result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
                                   batch=batch, n_candidates=candidates, seed=seed, workers=workers,
-                                  sampling=sampling)
+                                  sampling=sampling.value)
     hist = result["history"]
     typer.echo(
         f"{file}: {result['added']} FE runs added in {len(hist) - 1} rounds, held-out median relative error "

@@ -37,7 +37,6 @@ the ``to_dict`` of their result objects and read upstream results back with ``fr
 import dataclasses
 import logging
 import shutil
-import time
 
 import numpy as np
 
@@ -69,10 +68,9 @@ from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
 from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256
-from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.kriging import OrdinaryKriging
-from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.podkriging import PODKriging, training_data
+from podkrig.surrogate.settings import fit_surrogate
 from podkrig.surrogate.validation import held_out_errors
 
 logger = logging.getLogger(__name__)
@@ -139,7 +137,7 @@ def _run_store(run, path, spec, space, design):
     """Fill the store at ``path``: resume it, or build a new one next to a store that cannot be used
     (written for another design, damaged), which is kept under a timestamped name — never deleted.
     A store another run is filling is never touched (:class:`StoreInUseError` propagates)."""
-    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method}
+    kwargs = design.run_arguments()
     notes = []
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -396,27 +394,12 @@ def offline(run, test, name, title, filename, design):
     run.stage(test.stage(name), test.title(title), inputs, compute, total=design.n)
 
 
-def _templates(settings):
-    """POD and regression templates of the surrogate settings: ``[surrogate] backend`` chooses
-    ours (the kriging settings apply) or a library's (it fits its own hyperparameters)."""
-    pod = POD(n_modes=settings.modes) if settings.modes is not None else POD(energy=settings.energy or DEFAULT_ENERGY)
-    if settings.backend != "podkrig":
-        return pod, make_backend(settings.backend)
-    kriging = OrdinaryKriging(variogram=settings.variogram, beta=settings.beta, criterion=settings.criterion,
-                              nugget=settings.nugget)
-    return pod, kriging
-
-
 def _fit(store_path, settings, out_path):
-    """Fit and save a surrogate on a store; returns it and its training time (s)."""
-    pod, kriging = _templates(settings)
-    t0 = time.perf_counter()
+    """Fit and save a surrogate of ``settings`` on a store; returns it and its training time (s)."""
     with SnapshotStore.open(store_path) as store:
-        sur = fit_from_store(store, pod=pod, kriging=kriging)
-    seconds = time.perf_counter() - t0
-    sur.provenance_["training_seconds"] = seconds
+        sur = fit_surrogate(store, settings)
     sur.save(out_path)
-    return sur, seconds
+    return sur, sur.provenance_["training_seconds"]
 
 
 def _surrogate_result(sur, seconds):
