@@ -76,8 +76,10 @@ def run(
     from fe.scenarios import build_scenario
     from fe.scenarios.nonlinear import NonlinearScenario
 
-    from podkrig.parameters import ParameterSpace, parse_params
+    from podkrig.offline.results import OfflineResult
     from podkrig.offline.runner import rows_to_run, run_snapshots
+    from podkrig.parameters import ParameterSpace, parse_params
+    from podkrig.reports.offline import rows_text
     from podkrig.offline.store import store_bytes_per_row
 
     with user_errors():
@@ -117,15 +119,15 @@ def run(
             raise typer.Exit(code=130) from None
         finally:
             progress.stop()
+        result = OfflineResult.from_store(store, summary)
     rate = summary.snapshots_per_second
     typer.echo(
-        f"{summary.action} {store}: {summary.done} done, {summary.failed} failed, {summary.pending} pending "
-        f"of {summary.total} rows; ran {summary.ran} in {summary.seconds:.1f} s "
-        f"({rate if math.isfinite(rate) else 0:.1f} snapshots/s, {summary.executor})"
+        f"{summary.action} {store}: {rows_text(result)}; ran {summary.ran} in {summary.seconds:.1f} s "
+        f"({rate if math.isfinite(rate) else 0:.1f} snapshots/s, {result.executor})"
     )
-    if summary.failed:
+    if result.failed:
         typer.echo(
-            f"{summary.failed} rows failed: see 'podkrig snapshots info {store}'; rerun with --retry-failed "
+            f"{result.failed} rows failed: see 'podkrig snapshots info {store}'; rerun with --retry-failed "
             "to run them again", err=True,
         )
 

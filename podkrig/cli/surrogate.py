@@ -18,6 +18,7 @@ from podkrig.reports import surrogate as figs
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.podkriging import PODKriging, training_data
 from podkrig.surrogate.refine import refine_surrogate
+from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult
 from podkrig.surrogate.settings import BACKENDS, SurrogateSettings, fit_surrogate
 from podkrig.surrogate.validation import compare_settings, held_out_errors
 
@@ -126,10 +127,8 @@ def validate(
             Xh, Yh = training_data(h, output)
             held_hash = h.content_hash()
         rep = held_out_errors(sur, Xh, Yh)
-        summary = rep.summary()
-        summary["held_out_store"] = str(held_out)
-        summary["held_out_content_hash"] = held_hash
-        summary["backend"] = sur.backend_
+        held = HeldOutResult.from_report(rep, backend=sur.backend_, held_out_store=str(held_out),
+                                         held_out_content_hash=held_hash)
         if report is not None:
             comparison = None
             src = sur.provenance_.get("source_store")
@@ -138,21 +137,21 @@ def validate(
                     X, Y = training_data(s, output)
                 settings = [{"beta": b} for b in (1.2, 1.5, 1.8, "fit", "fit-shared")] + [{"variogram": "power", "beta": 1.5}]
                 comparison = compare_settings(X, Y, Xh, Yh, settings, space=sur.space, pod=sur.pod)
-            _write_report(report, sur, rep, summary, comparison)
+            _write_report(report, sur, rep, held, comparison)
     if format == "json":
-        typer.echo(json.dumps(summary, indent=2))
+        typer.echo(json.dumps(held.to_dict(), indent=2))
         return
-    r, p = summary["rel_error"], summary["pod_error"]
+    r, p = held.rel_error, held.pod_error
     typer.echo(
-        f"{summary['n_held_out']} held-out runs, {summary['n_train']} training, {summary['n_modes']} modes: "
+        f"{held.n_held_out} held-out runs, {held.n_train} training, {held.n_modes} modes: "
         f"relative error median {r['median']:.3e}, p95 {r['p95']:.3e}, max {r['max']:.3e} (POD part median "
-        f"{p['median']:.3e}); {100 * summary['coverage_2sigma']:.1f} % of outputs within ±2σ"
-        + (f"; {summary['fit_description']}" if "fit_description" in summary else "")
+        f"{p['median']:.3e}); {100 * held.coverage_2sigma:.1f} % of outputs within ±2σ"
+        + (f"; {held.fit_description}" if held.fit_description is not None else "")
         + (f"; report {report / 'index.html'}" if report is not None else "")
     )
 
 
-def _write_report(directory, sur, rep, summary, comparison):
+def _write_report(directory, sur, rep, held, comparison):
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     prov = sur.provenance_
@@ -164,10 +163,11 @@ def _write_report(directory, sur, rep, summary, comparison):
     elif prov.get("output") == "field" and "scenario_spec" in prov:
         nodes = build_scenario(prov["scenario_spec"]).mesh.nodes
         figures.append(("First POD modes on the mesh", figs.plot_field_modes(sur.pod_, nodes, directory / "modes.png")))
+    extra = None
     if comparison:
         figures.append(("Held-out relative errors per semivariogram and exponent (cf. thesis Fig. 4.4)",
                         figs.plot_error_histograms(comparison, directory / "error_histograms.png")))
-        summary = dict(summary, comparison={k: float(np.median(v)) for k, v in comparison.items()})
+        extra = {"comparison": {k: float(np.median(v)) for k, v in comparison.items()}}
     figures.append(("Surrogate against FE on the held-out runs",
                     figs.plot_predicted_vs_fe(rep, directory / "predicted_vs_fe.png",
                                               unit=prov.get("reading_unit", "mm"))))
@@ -176,7 +176,8 @@ def _write_report(directory, sur, rep, summary, comparison):
         f"backend {sur.backend_}; " + _describe(sur.kriging_),
         f"package version {prov.get('package_version', '?')}",
     ]
-    figs.write_html(directory, "POD-kriging surrogate: held-out validation", summary, figures, notes)
+    figs.write_html(directory, "POD-kriging surrogate: held-out validation", SurrogateFitResult.from_surrogate(sur),
+                    held, figures, notes, extra)
 
 
 @surrogate_app.command("refine")
