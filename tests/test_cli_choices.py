@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 from podkrig.cli import app
 from podkrig.cli._common import (
     KrigingCriterion,
+    PlacementCriterion,
     RegionMethod,
     RigidBody,
     SamplingMethod,
@@ -20,6 +21,7 @@ from podkrig.config import choices
 from podkrig.offline.settings import Design, SamplingSettings
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.sensors.placement import SENSITIVITY_SOURCES
+from podkrig.sensors.settings import SearchSettings
 from podkrig.study.settings import REGION_METHODS, StudyFile
 from podkrig.surrogate.settings import SurrogateSettings
 
@@ -29,7 +31,8 @@ runner = CliRunner()
 @pytest.mark.parametrize(
     "enum, settings, field",
     [(SamplingMethod, Design, "method"), (Variogram, SurrogateSettings, "variogram"),
-     (KrigingCriterion, SurrogateSettings, "criterion"), (SurrogateBackend, SurrogateSettings, "backend")],
+     (KrigingCriterion, SurrogateSettings, "criterion"), (SurrogateBackend, SurrogateSettings, "backend"),
+     (PlacementCriterion, SearchSettings, "criterion")],
 )
 def test_cli_choices_are_the_settings_choices(enum, settings, field):
     assert tuple(c.value for c in enum) == choices(settings, field)

@@ -61,3 +61,48 @@ def test_cli_options_build_settings_and_a_wrong_value_names_its_option():
         settings_from_options(SurrogateSettings, {"nugget": ("--nugget", -1.0)})
     with pytest.raises(ValueError, match="--modes 2.*either energy or modes"):
         settings_from_options(SurrogateSettings, {"energy": ("--energy", 0.9), "modes": ("--modes", 2)})
+
+
+def test_candidate_settings_build_the_grids_the_candidate_functions_build(coarse_diagonal):
+    from podkrig.sensors.candidates import Zone, dic_points, gauge_grid, parse_range
+    from podkrig.sensors.settings import CandidateSettings
+
+    mesh, zone = coarse_diagonal.mesh, Zone(150.0, 150.0, 250.0, 250.0)
+    where = CandidateSettings(grid_x="20:380:40", grid_y="20:380:40", lengths=(80.0, 160.0), dic_x="50:350:100",
+                              dic_y="50:350:100", cost_dic=2.0)
+    got = where.candidates(mesh, forbidden=[zone])
+    g = parse_range("20:380:40")
+    want = gauge_grid(mesh, g, g, lengths=(80.0, 160.0), forbidden=[zone]) + dic_points(
+        mesh, parse_range("50:350:100"), parse_range("50:350:100"), forbidden=[zone], cost=2.0)
+    assert got.names == want.names and got.cost.tolist() == want.cost.tolist()
+    with pytest.raises(ValueError, match="no candidates"):
+        CandidateSettings().candidates(mesh)
+
+
+@pytest.mark.parametrize(
+    "options, fragments",
+    [({"grid_x": ("--grid-x", "20:380:40"), "grid_y": ("--grid-y", None)}, ["--grid-y", "give both grid_x and grid_y"]),
+     ({"grid_x": ("--grid-x", "20:10:40"), "grid_y": ("--grid-y", "0:1:1")}, ["--grid-x '20:10:40'", "STEP > 0",
+                                                                               "START:STOP:STEP"]),
+     ({"cost_dic": ("--cost-dic", 0.0)}, ["--cost-dic 0.0", "a number > 0"])],
+)
+def test_candidate_options_are_refused_by_their_option(options, fragments):
+    from podkrig.sensors.settings import CandidateSettings
+
+    with pytest.raises(ValueError) as e:
+        settings_from_options(CandidateSettings, options)
+    for fragment in fragments:
+        assert fragment in str(e.value), (fragment, str(e.value))
+
+
+def test_placement_settings_defaults_are_the_documented_ones():
+    from podkrig.sensors.criteria import UNIFORM_PRIOR_INFORMATION
+    from podkrig.sensors.search import METHODS
+    from podkrig.sensors.settings import PlacementSettings
+
+    s = PlacementSettings()
+    assert (s.search.criterion, s.search.n_points, s.search.methods, s.search.prior_information) == (
+        "d", 64, METHODS, UNIFORM_PRIOR_INFORMATION)
+    assert (s.comparison.n_random, s.comparison.n_monte_carlo, s.comparison.n_truths, s.seed) == (20, 0, 1, 0)
+    with pytest.raises(pydantic.ValidationError, match="criterion"):
+        PlacementSettings(search={"criterion": "b"})

@@ -21,11 +21,13 @@ from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
 from podkrig.offline.settings import Design
+from podkrig.sensors.settings import SearchSettings
 from podkrig.surrogate.settings import SurrogateSettings
 
 __all__ = [
     "KrigingCriterion",
     "LinearSolver",
+    "PlacementCriterion",
     "RegionMethod",
     "ResponseFormat",
     "RigidBody",
@@ -63,6 +65,8 @@ Variogram = _choices_enum("Variogram", SurrogateSettings, "variogram",
 KrigingCriterion = _choices_enum("KrigingCriterion", SurrogateSettings, "criterion",
                                  "Hyperparameters by likelihood or by leave-one-out (``--criterion``).")
 SurrogateBackend = _choices_enum("SurrogateBackend", SurrogateSettings, "backend", "Surrogate backend (``--backend``).")
+PlacementCriterion = _choices_enum("PlacementCriterion", SearchSettings, "criterion",
+                                   "Criterion of the sensor layout (``podkrig sensors --criterion``).")
 
 
 class RegionMethod(StrEnum):
