@@ -173,6 +173,7 @@ def _write_report(directory, sur, rep, held, comparison):
                                               unit=prov.get("reading_unit", "mm"))))
     notes = [
         f"training store: {prov.get('source_store', '?')} ({prov.get('source_content_hash', '?')})",
+        f"held-out store: {held.held_out_store} ({held.held_out_content_hash})",
         f"backend {sur.backend_}; " + _describe(sur.kriging_),
         f"package version {prov.get('package_version', '?')}",
     ]
