@@ -94,14 +94,13 @@ def build(
                                       criterion and criterion.value, nugget)
         with SnapshotStore.open(store) as s:
             sur = fit_surrogate(s, settings, output="field" if field else "readings")
-        seconds = sur.provenance_["training_seconds"]
         sur.save(out)
-    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]; "
-              f"{sur.kriging_.fit_method_.describe()}" if sur.backend_ == "podkrig" else f"backend {sur.backend_}")
+    fit = SurrogateFitResult.from_surrogate(sur)
+    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in fit.beta)}]; {sur.kriging_.fit_method_.describe()}"
+              if fit.beta is not None else f"backend {fit.backend}")
     typer.echo(
-        f"{out}: {len(sur.X_)} snapshots, {sur.n_modes_} POD modes "
-        f"(retained energy {sur.pod_.retained_energy_:.10f}), {fitted}, "
-        f"trained in {seconds:.2f} s"
+        f"{out}: {fit.n_train} snapshots, {fit.n_modes} POD modes (retained energy {fit.retained_energy:.10f}), "
+        f"{fitted}, trained in {fit.training_seconds:.2f} s"
     )
 
 
