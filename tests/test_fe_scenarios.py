@@ -59,8 +59,7 @@ def test_bad_parameters_are_refused_naming_them(coarse_diagonal, params, match):
     [
         ({"scenario": "triaxial"}, "unknown scenario 'triaxial'"),
         ({"scenario": "diagonal_compression", "mesh_size": 3}, r"unknown option\(s\) \['mesh_size'\]"),
-        ({"scenario": "diagonal_compression", "nx": "fine"}, "option 'nx' .*type int"
-),
+        ({"scenario": "diagonal_compression", "nx": "fine"}, "option 'nx' .*type int"),
         ({"scenario": "diagonal_compression", "nx": 3}, "nx must be an even integer"),
         ({"scenario": "diagonal_compression", "parameters": {"E_b": -1}}, "'E_b' = -1 is outside"),
         ({"scenario": "diagonal_compression", "thickness": -1.0}, "thickness must be > 0"),

@@ -505,12 +505,9 @@ def test_deb_rules_return_a_feasible_point_over_a_better_infeasible_one():
         ({"n_grid": 0}, ValueError,
          "n_grid .*integer >= 1.*one per parameter; got 0"),
         ({"n_grid": (10, 10, 10)}, ValueError,
-         r"n_grid .*2 of them.*got \(10, 10, 10\)"
-
-),
+         r"n_grid .*2 of them.*got \(10, 10, 10\)"),
         ({"on_stall": "retry"}, ValueError,
-         "on_stall .*'auto', 'stop', 'restart'; got 'retry'"
-),
+         "on_stall .*'auto', 'stop', 'restart'; got 'retry'"),
         ({"options": {"population_size": 10}}, TypeError,
          "options .*GAOptions or None; got dict"),
         ({"polish": "always"}, ValueError, "polish must be one of"),

@@ -210,6 +210,5 @@ def test_a_shared_parameter_is_one_search_range(other, shown):
         JointProblem({"wall": wall, "twin": twin})
     for fragment in ("[0, 2] MPa (linear) in test 'wall'", f"{shown} in test 'twin'", "same bounds and scale"):
         assert fragment in str(info.value)  # both ranges with their tests, and the remedy
-    with pytest.raises(ValueError, match="needs at least one test"
-):
+    with pytest.raises(ValueError, match="needs at least one test"):
         JointProblem({})

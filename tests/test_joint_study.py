@@ -175,8 +175,7 @@ def test_a_study_without_scenario_or_tests_names_both_forms(tmp_path):
 
 def test_sensitivity_settings_are_checked(tmp_path):
     study = _write(tmp_path, JOINT + "\n[sensitivity]\nn = 1000\n")
-    with pytest.raises(StudyError, match=r"sensitivity\.n: 1000 .*power of two"
-):
+    with pytest.raises(StudyError, match=r"sensitivity\.n: 1000 .*power of two"):
         load_study(study)
     study = _write(tmp_path, JOINT + "\n[sensitivity]\nenabled = false\n")
     assert load_study(study).sensitivity.enabled is False

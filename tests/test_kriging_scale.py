@@ -208,7 +208,5 @@ def test_sklearn_backend_fits_on_a_subset_and_keeps_the_record(data):
 @pytest.mark.parametrize("bad", [2, True, "all", 1.5])
 def test_fit_subset_setting_errors(data, bad):
     X, Y, _ = data
-    with pytest.raises(ValueError, match="fit_subset .*'auto', None.*>= 3"
-
-):
+    with pytest.raises(ValueError, match="fit_subset .*'auto', None.*>= 3"):
         OrdinaryKriging(fit_subset=bad).fit(X, Y)

@@ -201,8 +201,7 @@ def test_whiten_takes_integer_residuals_and_leaves_its_input_alone():
     r = np.array([[1, 2, 0, -1, 3, 0]])
     assert_allclose(f.whiten(r), r / 0.5, rtol=1e-15)
     assert r.tolist() == [[1, 2, 0, -1, 3, 0]]
-    with pytest.raises(ValueError, match=r"rigid-body modes are for 4 entries.*measurement has 6"
-):
+    with pytest.raises(ValueError, match=r"rigid-body modes are for 4 entries.*measurement has 6"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.5), np.arange(6), rigid_body=SimpleNamespace(n_obs=4))
 
 

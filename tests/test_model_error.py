@@ -184,8 +184,7 @@ def test_bad_refinement_or_rate_is_refused_with_both_values(refine, kw):
     refine.coarse = coarse
     meas = Measurement(G0, SENSORS, LEVELS)
     r, p = kw.get("refinement", 2), kw.get("rate", DEFAULT_RATE)
-    with pytest.raises(ValueError, match=rf"refinement .*≥ 2.*rate > 0.*got {r}, {p}"
-):
+    with pytest.raises(ValueError, match=rf"refinement .*≥ 2.*rate > 0.*got {r}, {p}"):
         discretisation_error(coarse, {}, meas, **kw)
     assert refine.built == [] and coarse.runs == []
 
@@ -296,6 +295,5 @@ def test_model_form_error_option_refuses_other_values_naming_the_option(value, m
 def test_model_form_error_message_names_the_study_key():
     with pytest.raises(ValueError, match=r"\[inversion\] model_form_error: .*tolerance"):
         parse_model_form_error(0.7, source="[inversion] model_form_error")
-    with pytest.raises(ValueError, match=r"\[inversion\] model_form_error .*none"
-):
+    with pytest.raises(ValueError, match=r"\[inversion\] model_form_error .*none"):
         parse_model_form_error("x", source="[inversion] model_form_error")

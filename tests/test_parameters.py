@@ -49,8 +49,7 @@ def test_round_trip(space):
 def test_shape_and_log_domain_errors(space):
     with pytest.raises(ValueError, match=r"shape \(n_samples, 3\).*got shape \(4, 2\)"):
         space.to_unit(np.ones((4, 2)))
-    with pytest.raises(ValueError, match="'kN_bj' .*> 0; got -1"
-):
+    with pytest.raises(ValueError, match="'kN_bj' .*> 0; got -1"):
         space.to_unit([[6000.0, -1.0, 0.5]])
 
 
@@ -134,8 +133,7 @@ def test_parse_param_errors(text, message):
 
 def test_parse_params():
     assert parse_params(["E_b=1:2", "kN_bj=1:2:log"]) == {"E_b": (1.0, 2.0, "linear"), "kN_bj": (1.0, 2.0, "log")}
-    with pytest.raises(ValueError, match="'E_b' is given more than once"
-):
+    with pytest.raises(ValueError, match="'E_b' is given more than once"):
         parse_params(["E_b=1:2", "E_b=3:4"])
     with pytest.raises(ValueError, match="no free parameters"):
         parse_params([])

@@ -267,8 +267,7 @@ def test_check_dof_counts_and_refuses_no_degrees_of_freedom():
     with pytest.raises(ValueError, match=r"data.csv: 2 reading\(s\).*2 free parameter\(s\) \(a, b\)") as raised:
         check_dof(2, ("a", "b"), "data.csv")
     assert "2 − 2 = 0" in str(raised.value) and "fix parameters" in str(raised.value)  # the count, a remedy
-    with pytest.raises(ValueError, match=r"measurement: 1 reading\(s\) .*1 − 3 = -2"
-):
+    with pytest.raises(ValueError, match=r"measurement: 1 reading\(s\) .*1 − 3 = -2"):
         check_dof(1, ("a", "b", "c"))
 
 

@@ -51,8 +51,7 @@ def test_rvc_output_errors_name_what_is_missing_and_what_exists():
     region = _region([[1.0, 1.0], [1.2, 0.8]])
     with pytest.raises(ValueError, match=r"\['w@15'\].*SENSOR@LOAD.*\['u@5', 'v@5', 'u@15'\]"):
         rvc(region, ValidationModel(), fixed={"c": 0.25}, outputs=["u@5", "w@15"])
-    with pytest.raises(ValueError, match=r"needs values for \['c'\].*fixed"
-):
+    with pytest.raises(ValueError, match=r"needs values for \['c'\].*fixed"):
         rvc(region, ValidationModel())
     picked = rvc(region, ValidationModel(), fixed={"c": 0.25}, outputs=["v@5", "u@5"])
     assert picked.outputs == ("v@5", "u@5")

@@ -299,8 +299,7 @@ def test_region_summary_keys_html_table_and_round_trip():
     assert back.to_dict(members=True) == full and back.intervals == intervals
     with pytest.raises(ValueError, match="3 members.*2 samples and 3 misfits"):
         Region.from_dict(d, samples=region.samples[:2], omega=region.omega)
-    with pytest.raises(ValueError, match="3 members.*3 samples and 2 misfits"
-):
+    with pytest.raises(ValueError, match="3 members.*3 samples and 2 misfits"):
         Region.from_dict(d, samples=region.samples, omega=region.omega[:2])
     page = region._repr_html_()
     assert "<caption" in page and "likelihood-ratio, 90 %" in page and "3 members of 4096 evaluations" in page
@@ -350,8 +349,7 @@ def test_noise_monte_carlo_refuses_a_bad_number_of_realisations(n):
     """Fails if fewer than 20 or more than 100 000 realisations, a float or a bool are accepted, or
     the message does not give the allowed range and the value (a stub problem stops a run that
     wrongly starts at its first refit)."""
-    with pytest.raises(ValueError, match=rf"n_realisations .*\[20, 100000\].*got {n!r}"
-):
+    with pytest.raises(ValueError, match=rf"n_realisations .*\[20, 100000\].*got {n!r}"):
         noise_monte_carlo_region(_StopAtFirstRefit(), np.array([0.5]), n_realisations=n)
 
 

@@ -18,6 +18,7 @@ from podkrig.cli._common import error_message
 from podkrig.exceptions import StoreInUseError
 from podkrig.limits import check_name, check_output_folder, check_region_samples
 from podkrig.offline.sampling import sobol
+from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
 from podkrig.online import measurement_csv
 from podkrig.online.measurement_csv import read_measurement_csv
@@ -53,7 +54,7 @@ def test_pipeline_never_deletes_a_store_another_run_is_writing(tmp_path, coarse_
     try:
         assert holder.stdout.readline().strip() == "open"
         before = path.read_bytes()  # as the holder left it (opening sets a superblock flag)
-        design = SimpleNamespace(n=8, seed=0, method="sobol")
+        design = Design(n=8, seed=0, method="sobol")
         with pytest.raises(StoreInUseError, match="in use"):
             _run_store(_run(), path, coarse_diagonal, space, design)
     finally:
@@ -67,7 +68,7 @@ def test_pipeline_never_deletes_a_store_another_run_is_writing(tmp_path, coarse_
 def test_pipeline_keeps_an_unusable_store_aside_and_says_so(tmp_path, coarse_diagonal, space, caplog):
     path = tmp_path / "train.h5"
     path.write_bytes(b"not a store, but someone's file")
-    design = SimpleNamespace(n=4, seed=0, method="sobol")
+    design = Design(n=4, seed=0, method="sobol")
     with caplog.at_level(logging.WARNING):
         summary, notes = _run_store(_run(), path, coarse_diagonal, space, design)
     kept = [p for p in tmp_path.iterdir() if p.name.startswith("train.unusable-")]
@@ -141,8 +142,7 @@ def test_bad_files_give_messages_with_the_file(tmp_path, monkeypatch):
         read_measurement_csv(path, SENSORS, LEVELS)
     # lab software writes Windows-1252 (issue 14): read as such, and a bad cell is still named
     path = _csv(tmp_path, b"load,D1\n25,\xff\xfe\n", mode="b")
-    with pytest.raises(ValueError, match=r"m\.csv, .*row 2, column 2 \(D1\): 'ÿþ'"
-):
+    with pytest.raises(ValueError, match=r"m\.csv, .*row 2, column 2 \(D1\): 'ÿþ'"):
         read_measurement_csv(path, SENSORS, LEVELS)
     monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", 2**20)  # the real bound (256 MiB) is slow to test
     path = _csv(tmp_path, "load,D1\n25," + "1" * 200_000 + "\n")
@@ -230,8 +230,7 @@ def test_scenario_options_out_of_range_are_refused(option, message):
 
 @pytest.mark.parametrize("line, message", [
     ("noise_rel = inf", "inf is not a finite number"), ("noise_rel = nan", "nan is not a finite number"),
-    ("noise_rel = 1" + "0" * 400, "401 digits.*not a finite number"
-),
+    ("noise_rel = 1" + "0" * 400, "401 digits.*not a finite number"),
 
 ])
 def test_study_numbers_must_be_finite(tmp_path, line, message):

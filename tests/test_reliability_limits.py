@@ -100,8 +100,7 @@ def test_noise_monte_carlo_region_arguments_are_checked(kwargs, message):
     ({"sigma": 1e300}, r"must be in \[0\.0, 1000000\.0\]"),
     ({"sigma": {"D1": 0.01, "D2": float("inf")}}, "sigma of sensor 'D2' .* finite"),
     ({"delta": float("nan")}, "delta .*finite"),
-    ({"covariance": np.array([[1.0, 0.0], [0.0, np.inf]])}, "covariance .*finite"
-),
+    ({"covariance": np.array([[1.0, 0.0], [0.0, np.inf]])}, "covariance .*finite"),
 ])
 def test_noise_levels_must_be_finite(kwargs, message):
     """Before: NoiseModel(sigma=inf) was accepted and made every reading weightless (χ² = 0)."""

@@ -274,8 +274,7 @@ def test_may_remove_decides_from_the_channel_names_alone():
     assert may_remove(points, "remove") is True
     assert may_remove(dic, "keep") is False and may_remove(dic, "keep", {"pair": ["P1", "P2"]}) is False
     assert may_remove(["G[0,1]"], "auto") is False and may_remove(["G.ux"], "auto") is False  # not a DIC channel
-    with pytest.raises(ValueError, match=r"rigid_body .*\['auto', 'remove', 'keep'\]; got 'Keep'"
-):
+    with pytest.raises(ValueError, match=r"rigid_body .*\['auto', 'remove', 'keep'\]; got 'Keep'"):
         may_remove(points, "Keep")
 
 

@@ -90,8 +90,7 @@ def test_lhs_ese_is_a_latin_hypercube_that_fills_space_better():
     for j in range(3):
         assert_array_equal(np.sort(np.floor(U[:, j] * 20)), np.arange(20))
     assert phi_p(U) < min(phi_p(latin_hypercube(20, 3, seed=s)) for s in range(5))
-    with pytest.raises(ValueError, match="'lhs-ese' design of 8 points"
-):
+    with pytest.raises(ValueError, match="'lhs-ese' design of 8 points"):
         sample("lhs-ese", 4, 2, seed=0, skip=8)
 
 

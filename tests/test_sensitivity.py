@@ -186,9 +186,7 @@ def test_settings_at_the_limits_are_refused_with_the_value(kw, match):
 
 
 def test_a_function_returning_too_few_outputs_is_named():
-    with pytest.raises(ValueError, match=r"fun_unit returned 1 outputs.*2 output names"
-
-):
+    with pytest.raises(ValueError, match=r"fun_unit returned 1 outputs.*2 output names"):
         sobol_indices(lambda U: U[:, 0], ("a",), ("y", "z"), n=4)
 
 

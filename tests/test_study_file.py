@@ -162,8 +162,7 @@ def test_missing_table_and_toml_syntax_errors(tmp_path):
     text = VALID.replace("[measurement]\n", "")
     text = text.replace('file = "measured.csv"\nnoise_rel = 0.01\n', "")
     path = _write(tmp_path, text)
-    with pytest.raises(StudyError, match=r"study\.toml: missing key 'measurement'"
-):
+    with pytest.raises(StudyError, match=r"study\.toml: missing key 'measurement'"):
         load_study(path)
     path = _write(tmp_path, VALID.replace("nx = 2", "nx = = 2"))
     with pytest.raises(StudyError, match=r"study\.toml: not valid TOML: .*line 5"):

@@ -58,8 +58,7 @@ def test_relative_errors_hand_values_over_all_outputs_of_a_snapshot():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the zero snapshots raise no division warning
         assert_allclose(relative_errors(P, Y), [0.2, 5.0, 0.0, np.inf], rtol=1e-15)
-    with pytest.raises(ValueError, match=r"differ in shape.*\(4, 2, 2\) vs \(4, 4\)"
-):
+    with pytest.raises(ValueError, match=r"differ in shape.*\(4, 2, 2\) vs \(4, 4\)"):
         relative_errors(P, Y.reshape(4, 4))
 
 
@@ -176,8 +175,7 @@ def test_held_out_errors_refuses_mismatched_snapshots(fitted):
     sur, X = fitted
     with pytest.raises(ValueError, match=r"shape \(4,\) per sample.*predicts \(2, 2\)"):
         held_out_errors(sur, X[:2], np.zeros((2, 4)))
-    with pytest.raises(ValueError, match=r"held-out parameter vectors.*got 3 and 2"
-):
+    with pytest.raises(ValueError, match=r"held-out parameter vectors.*got 3 and 2"):
         held_out_errors(sur, X[:3], np.zeros((2, 2, 2)))
     with pytest.raises(ValueError, match=r"got 0 and 0"):
         held_out_errors(sur, X[:0], np.zeros((0, 2, 2)))

@@ -45,6 +45,5 @@ def test_exponent_range_of_each_model():
         semivariogram(h, "power", beta=0.0)
     with pytest.raises(ValueError, match=r"beta .*\(0, 2\] or 'fit'; got 'steep'"):
         semivariogram(h, beta="steep")
-    with pytest.raises(ValueError, match=r"beta .*\(0, 2\] or 'fit'; got None"
-):
+    with pytest.raises(ValueError, match=r"beta .*\(0, 2\] or 'fit'; got None"):
         semivariogram(h, beta=None)
