@@ -9,15 +9,18 @@ module-level helpers it calls)::
                at one end with a sentence (SENTENCE_WORDS or more words) behind the anchor
     sentence   a ``match=`` pattern, or ``re.escape(...)`` of a literal, with a sentence between
                its wildcards (``A.*B`` asserts the fragments A and B); or a literal sentence
-               compared with ``==`` / ``!=`` / ``in`` against
-               anything (``str(err.value) == "..."``, ``"..." in result.output``,
-               ``caplog.messages == [...]``, ``describe() == "..."``)
+               compared with ``==`` / ``!=`` / ``in`` against anything (``str(err.value) ==
+               "..."``, ``"..." in result.output``, ``caplog.messages == [...]``,
+               ``describe() == "..."``)
     optimiser  an optimiser (``minimize``, ``fmin*``, ``least_squares``,
                ``differential_evolution``, ``minimize_scalar``) replaced with ``monkeypatch``
 
 A *sentence* is a string literal (an f-string counts its literal words, each ``{...}`` as one)
-of at least SENTENCE_WORDS whitespace-separated words. Fragments -- a parameter name, a value,
-an option, a short phrase such as "must be positive" -- are what tests should match (STYLE B7).
+of at least SENTENCE_WORDS (7) whitespace-separated words. Fragments -- a parameter name, a
+value, an option, a short phrase such as "must be positive" -- are what tests should match, as
+``pytest.raises(ValueError, match="kN_bj")``; log records are checked by logger, level and
+``record.args``. The rule is a heuristic: a whole message shorter than 7 words is not counted, and
+fragments passed to a helper are not inspected.
 
 Usage::
 
