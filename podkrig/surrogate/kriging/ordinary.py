@@ -244,7 +244,8 @@ class OrdinaryKriging:
         Hyperparameters by maximum concentrated likelihood ([1]_; for the intrinsic power model,
         the likelihood of the n − 1 contrasts) or by the closed-form leave-one-out error [2]_.
     optimizer : "l-bfgs-b", callable or None, default "l-bfgs-b"
-        Minimiser of the criterion over the log-ranges (and beta), run from every starting point.
+        Minimiser of the criterion over the log-ranges (and beta), run from every starting point
+        (and for the polish of an exponent that ends near its upper bound).
         ``"l-bfgs-b"``: :func:`l_bfgs_b` (SciPy's L-BFGS-B with the analytic gradient, at most 200
         iterations). A callable ``optimizer(objective, x0, bounds) -> (x, f)``, as scikit-learn's
         ``GaussianProcessRegressor(optimizer=...)`` allows: ``objective(x)`` returns the criterion
