@@ -17,7 +17,7 @@ from podkrig.cli import app
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.invert import InverseResult
 from podkrig.online.measurement import Measurement
-from podkrig.online.measurement_csv import write_measurement_csv
+from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.region import Region
 from podkrig.reports.figures import read_panels
 from podkrig.reports.study import SECTIONS

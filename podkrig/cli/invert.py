@@ -28,7 +28,7 @@ from podkrig.limits import check_region_samples
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, invert, invert_with_model_form_error
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement, zero_phase
+from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
 from podkrig.online.posterior import sample_posterior

@@ -52,7 +52,7 @@ from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.joint import JointProblem
-from podkrig.online.measurement_csv import read_measurement
+from podkrig.io.measurement_log import read_measurement
 from podkrig.online.model_error import ModelError, discretisation_error, tolerance_error
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
