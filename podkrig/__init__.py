@@ -8,7 +8,8 @@ The public API, by stage (each name also lives in its stage's module)::
     from podkrig import ParameterSpace                                  # shared
     from podkrig import SnapshotStore, run_snapshots, sample            # offline
     from podkrig import PODKriging, fit_from_store, make_backend        # surrogate
-    from podkrig import (Measurement, NoiseModel, read_measurement_csv,  # online
+    from podkrig import read_measurement, load_surrogate, save_surrogate  # files (podkrig.io)
+    from podkrig import (Measurement, NoiseModel,                       # online
                          InverseProblem, JointProblem, SurrogateModel, FEModel, invert, fe_check,
                          invert_with_model_form_error,
                          likelihood_ratio_region, rvc, nested_analyses, sample_posterior,
@@ -46,6 +47,9 @@ _PUBLIC = {
     "Measurement": "podkrig.online.measurement",
     "NoiseModel": "podkrig.online.measurement",
     "read_measurement_csv": "podkrig.io.measurement_log",
+    "write_measurement_csv": "podkrig.io.measurement_log",
+    "load_surrogate": "podkrig.io.surrogate_file",
+    "save_surrogate": "podkrig.io.surrogate_file",
     "read_measurement": "podkrig.io.measurement_log",
     "ImportSettings": "podkrig.io.measurement_log",
     "instrument_noise": "podkrig.online.measurement",

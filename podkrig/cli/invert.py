@@ -24,6 +24,7 @@ from podkrig.cli._common import (
     user_errors,
 )
 from podkrig.cli.simulate import parse_assignment
+from podkrig.io.surrogate_file import load_surrogate
 from podkrig.limits import check_region_samples
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, invert, invert_with_model_form_error
@@ -101,7 +102,7 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
 
     ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``,
     ``rigid_groups``: see :class:`~podkrig.online.problem.InverseProblem`."""
-    model = SurrogateModel(PODKriging.load(surrogate_path))
+    model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
                                    model.load_response, import_settings)
     noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names)
@@ -288,7 +289,7 @@ def register(app):
             best = out.result.parameters
             results = {"calibration": rvc_of(out.region, model, fixed=problem.fixed, outputs=list(output) or None, rng=seed)}
             for path in validation:
-                vmodel = SurrogateModel(PODKriging.load(path))
+                vmodel = SurrogateModel(load_surrogate(path))
                 fixed = {n: best[n] for n in vmodel.space.names if n not in problem.free and n in best}
                 for p in vmodel.space.parameters:
                     if p.name not in problem.free and p.name not in fixed:
@@ -331,7 +332,7 @@ def register(app):
                 return build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, [",".join(free)], [])[0]
 
             # a validation model's parameters that an analysis does not free take the calibration's values
-            vals = {Path(p).stem: (SurrogateModel(PODKriging.load(p)), {}) for p in validation}
+            vals = {Path(p).stem: (SurrogateModel(load_surrogate(p)), {}) for p in validation}
             rows = nested_analyses(make, free_sets, confidence=confidence, rng=seed, validation=vals or None)
         if format == "json":
             typer.echo(json.dumps(rows.to_dict()["analyses"], indent=2))

@@ -11,13 +11,14 @@ from fe.scenarios import build_scenario
 from podkrig.cli._common import (
     KrigingCriterion, SurrogateBackend, TableFormat, Variogram, configure_logging, user_errors,
 )
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.sampling import METHODS
 from podkrig.offline.store import SnapshotStore
 from podkrig.reports import surrogate as figs
 from podkrig.surrogate.backends import BACKENDS, DEFAULT_BACKEND, make_backend
 from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
 from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.podkriging import DEFAULT_ENERGY, fit_from_store, training_data
 from podkrig.surrogate.refine import refine_surrogate
 from podkrig.surrogate.validation import compare_settings, held_out_errors
 
@@ -90,7 +91,7 @@ def build(
             sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
         seconds = time.perf_counter() - t0
         sur.provenance_["training_seconds"] = seconds
-        sur.save(out)
+        save_surrogate(sur, out)
     fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]; "
               f"{sur.kriging_.fit_method_.describe()}" if sur.backend_ == "podkrig" else f"backend {sur.backend_}")
     typer.echo(
@@ -116,7 +117,7 @@ def validate(
     with user_errors():
         if format not in ("table", "json"):
             raise ValueError(f"--format must be table or json; got {format!r}")
-        sur = PODKriging.load(file)
+        sur = load_surrogate(file)
         output = sur.provenance_.get("output", "readings")
         with SnapshotStore.open(held_out) as h:
             Xh, Yh = training_data(h, output)
@@ -192,9 +193,11 @@ def refine(
     """Add FE runs where the surrogate is least certain until --target-error or --budget is reached."""
     configure_logging(verbose)
     with user_errors():
-        result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
-                                  batch=batch, n_candidates=candidates, seed=seed, workers=workers,
-                                  sampling=sampling)
+        sur = refine_surrogate(load_surrogate(file), store, held_out, target_error=target_error, budget=budget,
+                               batch=batch, n_candidates=candidates, seed=seed, workers=workers,
+                               sampling=sampling)
+        save_surrogate(sur, file)
+    result = sur.provenance_["refinement"]
     hist = result["history"]
     typer.echo(
         f"{file}: {result['added']} FE runs added in {len(hist) - 1} rounds, held-out median relative error "

@@ -46,6 +46,7 @@ from fe.scenarios.nonlinear import NonlinearScenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.limits import fe_job_estimate
 from podkrig.offline.files import move_aside
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
@@ -415,7 +416,7 @@ def _fit(store_path, settings, out_path):
         sur = fit_from_store(store, pod=pod, kriging=kriging)
     seconds = time.perf_counter() - t0
     sur.provenance_["training_seconds"] = seconds
-    sur.save(out_path)
+    save_surrogate(sur, out_path)
     return sur, seconds
 
 
@@ -474,7 +475,7 @@ def held_out_validation(run, test):
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
 
     def compute():
-        sur = PODKriging.load(run.out / test.file("surrogate.h5"))
+        sur = load_surrogate(run.out / test.file("surrogate.h5"))
         with SnapshotStore.open(run.out / test.file("held_out.h5")) as store:
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
@@ -491,7 +492,7 @@ def _problem(run, test, form_error=True):
     """The inverse problem of one test on its surrogate: (problem, model); with ``form_error``, the
     test's ``[measurement] model_form_error`` in C_D (a fixed ε, or the estimate of the
     ``model_form_error`` stage)."""
-    model = SurrogateModel(PODKriging.load(run.out / test.file("surrogate.h5")))
+    model = SurrogateModel(load_surrogate(run.out / test.file("surrogate.h5")))
     data, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
                                          model.load_response)
     free, fixed = fix_from_scenario(model)
@@ -693,10 +694,10 @@ def rvc_stage(run):
         seed = study.inversion.seed
         results = {}
         for t in tests:
-            model = SurrogateModel(PODKriging.load(run.out / t.file("surrogate.h5")))
+            model = SurrogateModel(load_surrogate(run.out / t.file("surrogate.h5")))
             results[t.stage("calibration")] = rvc(found, model, fixed=t.fixed, rng=seed)
         for m in study.validation:
-            model = SurrogateModel(PODKriging.load(run.out / f"validation_{m.name}_surrogate.h5"))
+            model = SurrogateModel(load_surrogate(run.out / f"validation_{m.name}_surrogate.h5"))
             results[m.name] = rvc(found, model, outputs=list(m.outputs) if m.outputs else None, rng=seed)
         inverse_figures.plot_rvc(results, run.figures / "rvc.png")
         return {"models": {k: v.to_dict() for k, v in results.items()}}, ["report/rvc.png"], 0
