@@ -23,6 +23,7 @@ its version; the stages pull numba, scipy, h5py and Dask, several seconds on a c
 """
 
 import importlib
+import sys
 from importlib.metadata import PackageNotFoundError, version
 
 try:
@@ -91,3 +92,15 @@ def __getattr__(name):
 
 def __dir__():
     return __all__
+
+
+def _show_results_in_jupyter():
+    """In a running IPython (a notebook), show the online results as HTML tables
+    (:func:`podkrig.reports.jupyter.register_formatters`); elsewhere nothing is imported."""
+    ipython = sys.modules.get("IPython")
+    shell = ipython.get_ipython() if ipython is not None and hasattr(ipython, "get_ipython") else None
+    if shell is not None and hasattr(shell, "display_formatter"):
+        importlib.import_module("podkrig.reports.jupyter").register_formatters(shell)
+
+
+_show_results_in_jupyter()

@@ -36,6 +36,7 @@ from podkrig.online.posterior import sample_posterior
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc as rvc_of
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.reports.findings import words
 from podkrig.reports.inverse import write_inversion_report
 from podkrig.surrogate.podkriging import PODKriging
 
@@ -180,8 +181,8 @@ def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mc
     if mcmc_steps:
         posterior = sample_posterior(problem, result.x, n_steps=mcmc_steps, confidence=confidence, rng=seed)
     m = problem.measurement
-    findings = measurement_findings(m.check_summary(model.sensor_names, problem.noise), context="cli")
-    findings += inversion_findings(result, region, context="cli")
+    findings = words(measurement_findings(m.check_summary(model.sensor_names, problem.noise))
+                     + inversion_findings(result, region), "cli")
     return Inversion(result, region, posterior, findings, time.perf_counter() - t0)
 
 
