@@ -247,7 +247,8 @@ def test_constructing_a_problem_only_checks_it_and_the_misfit_is_built_on_first_
     parameter choice and the data against the model, and does nothing heavy: no model evaluation,
     no sensor positions asked for (a surrogate rebuilds its scenario for them), no noise covariance.
     Defect: work moved back into the constructor. The misfit is built once, on first use, and is
-    the same object afterwards; its ω is the closed form."""
+    the same object afterwards; it builds its noise covariance when first evaluated; bad data are
+    still refused by the constructor."""
     model = _PositionedLineModel()
     _PositionedLineModel.looked_at_sensors = 0
     data = Measurement(np.array([[0.1, 0.2], [0.2, 0.4]]), model.sensor_names, np.array([10.0, 20.0]))
@@ -258,6 +259,10 @@ def test_constructing_a_problem_only_checks_it_and_the_misfit_is_built_on_first_
     misfit = copy.misfit
     assert _PositionedLineModel.looked_at_sensors == 2 and copy.misfit is misfit
     assert copy.n_removed == 2 * 2  # x and y translations at each of 2 loads (no rotation from one point)
+    fresh = InverseProblem(model, data, NoiseModel(sigma=SIGMA), rigid_body="keep")
+    assert "_Cd" not in vars(fresh.misfit)  # the misfit builds its noise covariance on first evaluation
+    fresh.omega(TRUTH[None])
+    assert "_Cd" in vars(fresh.misfit)
     with pytest.raises(ValueError, match=r"unknown sensor|P9x"):  # the data are still checked at once
         InverseProblem(model, Measurement(np.zeros((2, 1)), ("P9x",), np.array([10.0, 20.0])), NoiseModel(sigma=SIGMA))
 
