@@ -117,10 +117,45 @@ def test_linear_limit_reproduces_the_linear_solver():
 def test_budget_ends_the_run_with_its_converged_part():
     sc = build_scenario({"scenario": "couplet_tension", "max_steps": 5})
     r = sc.run()
-    assert r.status == BUDGET and "step budget of 5" in r.message
+    assert r.status == BUDGET and r.limit == "steps" and "step budget of 5" in r.message
     assert len(r.path.path) <= 5 and np.isnan(r.loads[-1]) and np.isfinite(r.loads[0])
-    r = sc.run(settings=PathSettings(max_seconds=1e-3))
-    assert r.status == BUDGET and "wall-time" in r.message
+    assert r.summary()["limit"] == "steps" and r.path.to_dict()["limit"] == "steps"
+
+
+def test_a_tiny_iteration_budget_names_the_iterations():
+    """Counts, not clocks: the run stops after exactly its iteration budget, whatever the load of
+    the machine."""
+    sc = build_scenario({"scenario": "couplet_tension", "max_total_iterations": 7})
+    r = sc.run()
+    assert r.status == BUDGET and r.limit == "iterations"
+    assert r.path.total_iterations == 7 and "iteration budget of 7" in r.message
+    assert np.isnan(r.loads[-1])
+
+
+def test_a_zero_cpu_budget_names_the_cpu_and_the_wall_clock_is_only_a_hang_guard():
+    """A CPU budget of 0 s ends the run before its first increment (deterministic: no threshold a
+    loaded machine could cross). A tiny wall-clock limit names "wall". The defaults put the
+    wall-clock guard far above the CPU budget, and a normal run ends converged without naming any
+    limit."""
+    sc = build_scenario({"scenario": "couplet_tension", "nx": 2, "ny": 1, "load_levels": [0.002, 0.01],
+                         "increment": 0.001, "max_increment": 0.01})
+    r = sc.run(settings=PathSettings(max_cpu_seconds=0.0))
+    assert r.status == BUDGET and r.limit == "cpu" and "CPU-time budget of 0 s" in r.message
+    assert len(r.path.path) == 0 and r.path.total_iterations == 0
+    r = sc.run(settings=PathSettings(max_seconds=1e-12))
+    assert r.status == BUDGET and r.limit == "wall" and "hang guard" in r.message
+    defaults = sc.options.path_settings()
+    assert defaults.max_seconds >= 10 * defaults.max_cpu_seconds
+    r = sc.run()
+    assert r.status == CONVERGED and r.limit is None
+    assert r.path.cpu_seconds > 0 and r.path.to_dict()["limit"] is None
+
+
+def test_budget_settings_are_validated():
+    with pytest.raises(ValueError, match="max_cpu_seconds.*-1"):
+        PathSettings(max_cpu_seconds=-1.0)
+    with pytest.raises(ValueError, match="max_seconds.*hang guard"):
+        PathSettings(max_seconds=0.0)
 
 
 def test_inadmissible_strengths_are_refused_with_the_reason():
