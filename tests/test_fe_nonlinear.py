@@ -6,6 +6,7 @@ import pytest
 
 from fe.exceptions import SpecError
 from fe.scenarios import build_scenario
+from fe.scenarios.catalogue import describe_scenario
 from fe.solvers.nonlinear import BUDGET, CONVERGED, NOT_CONVERGED, PathSettings
 
 A = 210.0 * 100.0  # joint area of the specimens, mm²
@@ -55,7 +56,8 @@ def test_triplet_shear_peak_and_residual_match_closed_forms(law):
 
 
 def test_prism_compression_peak_equals_A_fc():
-    sc = build_scenario({"scenario": "prism_compression", "load_levels": [0.2, 0.5, 0.8, 1.2]})
+    # Set A joints (kN 82): four joints reach the cap's peak near 4 (f_c/kN + κ_p) ≈ 0.87 mm
+    sc = build_scenario({"scenario": "prism_compression", "load_levels": [0.2, 0.5, 0.8, 1.2, 2.0]})
     r = sc.run(STIFF_UNITS)
     assert r.status == CONVERGED
     assert r.peak_load == pytest.approx(A * 10.5 / 1000, rel=0.005)
@@ -66,7 +68,7 @@ def test_prism_compression_peak_equals_A_fc():
 def test_prism_compression_with_the_hyperbolic_cap_peaks_at_A_fc(cap):
     """The hyperbolic law with its cap crushes the prism at A f_c within 0.5 % (both shapes share
     the vertex σ = −σ̄3), then softens; without the cap the same prism stays elastic past it."""
-    levels = [0.2, 0.5, 0.8, 1.2]
+    levels = [0.2, 0.5, 0.8, 1.2, 2.0]
     sc = build_scenario({"scenario": "prism_compression", "load_levels": levels, "law": "hyperbolic",
                          "hyperbolic_cap": cap})
     r = sc.run(STIFF_UNITS)
@@ -156,6 +158,19 @@ def test_budget_settings_are_validated():
         PathSettings(max_cpu_seconds=-1.0)
     with pytest.raises(ValueError, match="max_seconds.*hang guard"):
         PathSettings(max_seconds=0.0)
+
+
+@pytest.mark.parametrize("name", ["couplet_tension", "triplet_shear", "prism_compression"])
+def test_specimens_default_to_the_walls_parameter_set_and_say_so(name):
+    """One default set (Eindhoven Set A: E_b 16 700, ν 0.15, kN 82, kV 36 with the Set A strengths),
+    the same as the wall's, stated in the description that `podkrig scenarios NAME` prints."""
+    wall = build_scenario("shear_compression_nl").resolve()
+    assert build_scenario(name).resolve() == wall
+    assert {k: wall[k] for k in ("E_b", "nu_b", "kN_bj", "kV_bj", "ft_bj", "c_bj")} == {
+        "E_b": 16700.0, "nu_b": 0.15, "kN_bj": 82.0, "kV_bj": 36.0, "ft_bj": 0.25, "c_bj": 0.35}
+    d = describe_scenario(name)
+    assert "Set A" in d.summary
+    assert {p.name: p.default for p in d.parameters} == wall
 
 
 def test_inadmissible_strengths_are_refused_with_the_reason():

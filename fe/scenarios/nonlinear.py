@@ -109,6 +109,13 @@ class NonlinearOptions(WallOptions):
                             record_states=record_states)
 
 
+#: Stiffness defaults of the TU Eindhoven walls' "Set A" (Lourenço & Rots 1997, as used for J4D–J7D):
+#: units E_b = 16 700 MPa, ν = 0.15; bed joints kN = 82, kV = 36 N/mm³. With the strengths of
+#: :data:`STRENGTH_PARAMETERS` (also Set A) they are the one default set of the Eindhoven wall and the
+#: small specimens. Unit mid-planes keep the walls' 10⁵ N/mm³ (a moderate dummy stiffness).
+SET_A_STIFFNESS = {"E_b": 16700.0, "nu_b": 0.15, "kN_bj": 82.0, "kV_bj": 36.0}
+
+
 def nonlinear_parameters(defaults=None):
     """Masonry stiffness parameters plus :data:`STRENGTH_PARAMETERS`, with scenario defaults."""
     defaults = defaults or {}

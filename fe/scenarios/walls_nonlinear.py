@@ -25,7 +25,7 @@ from ..sensors import sensor_from_dict
 from . import diagonal_compression as dc
 from . import shear_compression as sc
 from .masonry import wall_mesh
-from .nonlinear import NonlinearOptions, NonlinearScenario, Phase, nonlinear_parameters, reduced_dof
+from .nonlinear import SET_A_STIFFNESS, NonlinearOptions, NonlinearScenario, Phase, nonlinear_parameters, reduced_dof
 
 TOP_CONDITIONS = ("fixed_vertical", "constant_force")
 
@@ -59,7 +59,7 @@ class ShearCompressionNonlinear(NonlinearScenario):
 
     name = "shear_compression_nl"
     Options = ShearWallOptions
-    PARAMETERS = nonlinear_parameters(sc._DEFAULTS)
+    PARAMETERS = nonlinear_parameters(SET_A_STIFFNESS)
 
     def _build(self):
         o = self.options
