@@ -223,14 +223,15 @@ def test_base_joints_use_the_bed_joint_law_and_parameters():
     assert top_ux.point[1] > WALL_HEIGHT
 
 
-def test_linear_limit_reproduces_the_linear_solver():
-    """With strengths far beyond the stresses, the nonlinear wall (N constant, without the joints
-    against the beams, like the linear wall) equals the linear scenario loaded by the computed
-    horizontal reaction: readings to 1e-10 relative."""
+@pytest.mark.parametrize("base_joints", [False, True])
+def test_linear_limit_reproduces_the_linear_solver(base_joints):
+    """With strengths far beyond the stresses, the nonlinear wall (N constant) equals the linear
+    scenario with the same ``base_joints`` loaded by the computed horizontal reaction: readings to
+    1e-10 relative."""
     huge = {"ft_bj": 1e3, "c_bj": 1e4, "GfI_bj": 1e9, "GfII_bj": 1e9, "fc": 1e6, "ft_bb": 1e4, "GfI_bb": 1e9}
-    geometry = {"nx": 2, "ny": 1}
+    geometry = {"nx": 2, "ny": 1, "base_joints": base_joints}
     nl = build_scenario({"scenario": "shear_compression_nl", "top": "constant_force", "load_levels": [0.2, 0.5],
-                         "increment": 0.2, "max_increment": 0.2, "base_joints": False, **geometry})
+                         "increment": 0.2, "max_increment": 0.2, **geometry})
     r = nl.run(huge)
     assert r.status == CONVERGED
     lin = build_scenario({"scenario": "shear_compression", "load_levels": r.loads.tolist(), **geometry})

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..constraints import constraint_transform
-from ..sensors import PointDisplacement, sensor_from_dict
+from ..sensors import sensor_from_dict
 from . import diagonal_compression as dc
 from . import shear_compression as sc
 from .masonry import wall_mesh
@@ -76,27 +76,15 @@ class ShearCompressionNonlinear(NonlinearScenario):
     def _build(self):
         o = self.options
         self.mesh = mesh = wall_mesh(o)
-        if o.base_joints:  # rigid beams: every node of each beam held or tied
-            bottom, top = mesh.node_sets["bottom_beam"], mesh.node_sets["top_beam"]
-        else:
-            bottom, top = mesh.node_sets["bottom"], mesh.node_sets["top"]
+        bottom, top = sc.wall_supports(mesh, o.base_joints)  # with base joints: rigid beams
         fixed = np.concatenate([2 * bottom, 2 * bottom + 1])
         self.supported_nodes, self.tie_groups = bottom, [2 * top, 2 * top + 1]
         T = constraint_transform(mesh.n_dofs, fixed, ties=self.tie_groups)
-        self.sensors = self._default_sensors() if o.sensors is None else tuple(
+        self.sensors = sc.default_sensors(mesh, o.base_joints) if o.sensors is None else tuple(
             sensor_from_dict(k, v) for k, v in o.sensors.items())
         self.model = self._nonlinear_model(T)
         self._horizontal = reduced_dof(T, 2 * top[0])
         self._vertical = reduced_dof(T, 2 * top[0] + 1)
-
-    def _default_sensors(self):
-        """The linear wall's sensors; with base joints ``top_ux`` moves from the wall's top face
-        (now a joint, where the displacement jumps) to mid-height of the top beam."""
-        if not self.options.base_joints or self.options.continuum:
-            return sc.DEFAULT_SENSORS
-        y = float(self.mesh.nodes[self.mesh.node_sets["top_beam"], 1].mean())
-        return tuple(PointDisplacement(s.name, (s.point[0], y), s.component) if s.name == "top_ux" else s
-                     for s in sc.DEFAULT_SENSORS)
 
     @property
     def vertical_force(self):
