@@ -496,3 +496,25 @@ def test_a_grid_design_with_repeated_coordinates_fits_its_exponent_cleanly():
         warnings.simplefilter("error")
         fitted = OrdinaryKriging(beta="fit").fit(X, y)
     assert np.isfinite(fitted.criterion_).all() and 0.2 <= fitted.beta_[0] <= 2.0
+
+
+def test_a_surrogate_fitted_with_an_injected_optimiser_is_written_with_its_name(tmp_path):
+    """A callable optimiser cannot be stored: the surrogate file records its name, the loaded
+    surrogate predicts as the fitted one, and refitting the loaded settings asks for an optimiser
+    the estimator knows. Defects: writing the file fails on the callable, or a refit silently uses
+    another optimiser."""
+    from podkrig.io.surrogate_file import load_surrogate, save_surrogate
+    from podkrig.surrogate.podkriging import PODKriging
+
+    def custom_search(objective, x0, bounds):
+        return l_bfgs_b(objective, x0, bounds)
+
+    X = sobol(16, 3, seed=0)
+    fitted = PODKriging(kriging=OrdinaryKriging(optimizer=custom_search)).fit(X, _f(X))
+    save_surrogate(fitted, tmp_path / "s.h5")
+    loaded = load_surrogate(tmp_path / "s.h5")
+    assert "custom_search" in loaded.kriging.optimizer
+    Xp = uniform(5, 3, seed=2)
+    assert_array_equal(loaded.predict(Xp), fitted.predict(Xp))  # same process, same arrays
+    with pytest.raises(ValueError, match="optimizer .*'l-bfgs-b', a callable or None"):
+        OrdinaryKriging(**loaded.kriging.get_params()).fit(X, _f(X))
