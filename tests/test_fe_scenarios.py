@@ -84,14 +84,3 @@ def test_response_shape_and_field(coarse_diagonal):
     with pytest.raises(KeyError, match="no sensor 'D9'"):
         r.reading("D9")
     assert np.all(r.field[:, coarse_diagonal.mesh.node_sets["bottom_left"]] == 0)
-
-
-def test_docstring_examples_run():
-    import doctest
-
-    import importlib
-
-    for name in ("fe", "fe.mesh.brick_wall"):
-        module = importlib.import_module(name)
-        result = doctest.testmod(module)
-        assert result.attempted > 0 and result.failed == 0
