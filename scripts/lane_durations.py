@@ -3,7 +3,8 @@
 The lanes (README, "Set up and run the tests"):
 
 - ``fast``: ``python -m pytest -m "not slow" -n 2`` — every test module, no FE-heavy test;
-- ``full``: ``python -m pytest -q -n 2`` — the README's test command, what CI runs.
+- ``full``: ``python -m pytest -q -n 2`` — the README's test command, what CI runs;
+- ``slow`` (on request): ``-m slow``, what the full lane adds to the fast one.
 
 For the record, not a gate: speed is measured here, not asserted in tests (a timing assertion
 fails on a loaded machine). Wall time depends on the load of the machine; CPU time (user + system
@@ -32,7 +33,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-LANES = {"fast": ["-m", "not slow"], "full": []}
+LANES = {"fast": ["-m", "not slow"], "full": [], "slow": ["-m", "slow"]}  # slow: what full adds to fast
 LOG_ENV = "LANE_DURATIONS_LOG"
 
 
@@ -107,7 +108,8 @@ def run_lane(name, workers, paths, top):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--lanes", default="fast,full", help="comma-separated: fast, full (default both)")
+    parser.add_argument("--lanes", default="fast,full",
+                        help="comma-separated: fast, full (default both); slow: the slow tests alone")
     parser.add_argument("--workers", type=int, default=2, help="xdist workers; 0 runs in one process")
     parser.add_argument("--top", type=int, default=30, help="slowest tests to list per lane (by CPU)")
     parser.add_argument("paths", nargs="*", help="test files or folders (default: the configured testpaths)")
