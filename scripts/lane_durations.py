@@ -84,8 +84,8 @@ def run_lane(name, workers, paths, top):
     """Run one lane; returns (row, per-test records)."""
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "tests.jsonl"
-        env = {**os.environ, LOG_ENV: str(log),
-               "PYTHONPATH": os.pathsep.join([str(ROOT / "scripts"), os.environ.get("PYTHONPATH", "")])}
+        path = [str(ROOT / "scripts")] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])
+        env = {**os.environ, LOG_ENV: str(log), "PYTHONPATH": os.pathsep.join(path)}  # finds this plugin
         xdist = ["-p", "no:xdist"] if workers == 0 else ["-n", str(workers)]
         cmd = [sys.executable, "-m", "pytest", "-q", "-p", "lane_durations", *xdist, *LANES[name],
                f"--durations={top}", *paths]
@@ -99,10 +99,10 @@ def run_lane(name, workers, paths, top):
     counts = _summary_counts(proc.stdout)
     tail = "\n".join(proc.stdout.splitlines()[-(top + 8):])
     print(tail, flush=True)
-    row = {"lane": name, "tests": sum(counts.get(k, 0) for k in ("passed", "failed", "skipped", "xfailed", "xpassed",
-                                                                 "error", "errors")),
-           "passed": counts.get("passed", 0), "failed": counts.get("failed", 0) + counts.get("errors", 0)
-           + counts.get("error", 0), "wall": wall, "cpu": cpu, "exit": proc.returncode}
+    failed = sum(counts.get(k, 0) for k in ("failed", "error", "errors"))
+    tests = failed + sum(counts.get(k, 0) for k in ("passed", "skipped", "xfailed", "xpassed"))
+    row = {"lane": name, "tests": tests, "passed": counts.get("passed", 0), "failed": failed,
+           "wall": wall, "cpu": cpu, "exit": proc.returncode}
     return row, records
 
 
@@ -126,10 +126,11 @@ def main(argv=None):
             print(f"{r['cpu']:8.2f} {r['wall']:8.2f}  {r['test']}{'  [slow]' if r['slow'] else ''}")
     load = os.getloadavg()[0]
     print(f"\nmachine: {os.cpu_count()} cores, load {load:.1f}; workers: {args.workers or 'one process'}")
-    print(f"| {'lane':<5} | {'tests':>6} | {'passed':>6} | {'failed':>6} | {'wall (s)':>9} | {'CPU (s)':>8} |")
-    print(f"|{'-' * 7}|{'-' * 8}|{'-' * 8}|{'-' * 8}|{'-' * 11}|{'-' * 10}|")
+    print("| lane  |  tests | passed | failed |  wall (s) |  CPU (s) |")
+    print("|-------|--------|--------|--------|-----------|----------|")
     for r in rows:
-        print(f"| {r['lane']:<5} | {r['tests']:>6} | {r['passed']:>6} | {r['failed']:>6} | {r['wall']:>9.1f} | {r['cpu']:>8.1f} |")
+        print(f"| {r['lane']:<5} | {r['tests']:>6} | {r['passed']:>6} | {r['failed']:>6} "
+              f"| {r['wall']:>9.1f} | {r['cpu']:>8.1f} |")
     return max(r["exit"] for r in rows)
 
 

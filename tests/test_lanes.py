@@ -9,60 +9,89 @@ or its module (``pytestmark``) carries ``pytest.mark.slow``.
 """
 
 import ast
+import textwrap
 from pathlib import Path
 
 import pytest
 
 TESTS = Path(__file__).resolve().parent
+FUNCTIONS = (ast.FunctionDef, ast.AsyncFunctionDef)
 
 
 def _is_slow_mark(node):
     """``pytest.mark.slow`` or ``mark.slow``, called or not."""
     if isinstance(node, ast.Call):
         node = node.func
-    return isinstance(node, ast.Attribute) and node.attr == "slow" and (
-        (isinstance(node.value, ast.Attribute) and node.value.attr == "mark")
-        or (isinstance(node.value, ast.Name) and node.value.id == "mark"))
+    if not (isinstance(node, ast.Attribute) and node.attr == "slow"):
+        return False
+    owner = node.value
+    return (isinstance(owner, ast.Attribute) and owner.attr == "mark") or (
+        isinstance(owner, ast.Name) and owner.id == "mark")
 
 
-def _module_marked_slow(tree):
+def _any_slow(marks):
+    return any(_is_slow_mark(m) for m in marks)
+
+
+def _module_marks(tree):
+    """The marks of ``pytestmark = ...`` (one mark or a list)."""
     for node in tree.body:
-        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "pytestmark" for t in node.targets):
-            marks = node.value.elts if isinstance(node.value, (ast.List, ast.Tuple)) else [node.value]
-            if any(_is_slow_mark(m) for m in marks):
-                return True
-    return False
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "pytestmark" for t in node.targets):
+            return node.value.elts if isinstance(node.value, (ast.List, ast.Tuple)) else [node.value]
+    return []
 
 
 def _tests_of(source):
-    """``(name, slow)`` of every test function and method of a test module's source."""
+    """``(name, slow)`` of every test function and test method in a test module's source."""
     tree = ast.parse(source)
-    module_slow = _module_marked_slow(tree)
+    module_slow = _any_slow(_module_marks(tree))
     found = []
     for node in tree.body:
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name.startswith("test"):
-            found.append((node.name, module_slow or any(_is_slow_mark(d) for d in node.decorator_list)))
+        if isinstance(node, FUNCTIONS) and node.name.startswith("test"):
+            found.append((node.name, module_slow or _any_slow(node.decorator_list)))
         elif isinstance(node, ast.ClassDef) and node.name.startswith("Test"):
-            class_slow = module_slow or any(_is_slow_mark(d) for d in node.decorator_list)
+            class_slow = module_slow or _any_slow(node.decorator_list)
             for f in node.body:
-                if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)) and f.name.startswith("test"):
-                    found.append((f"{node.name}.{f.name}", class_slow or any(_is_slow_mark(d) for d in f.decorator_list)))
+                if isinstance(f, FUNCTIONS) and f.name.startswith("test"):
+                    found.append((f"{node.name}.{f.name}", class_slow or _any_slow(f.decorator_list)))
     return found
 
 
+CASES = [
+    ("""
+     import pytest
+     @pytest.mark.slow
+     def test_a(): pass
+     def test_b(): pass
+     """, [("test_a", True), ("test_b", False)]),
+    ("""
+     import pytest
+     pytestmark = [pytest.mark.peers, pytest.mark.slow]
+     def test_a(): pass
+     """, [("test_a", True)]),
+    ("""
+     from pytest import mark
+     @mark.slow
+     class TestX:
+         def test_a(self): pass
+     class TestY:
+         @mark.slow()
+         def test_b(self): pass
+         def test_c(self): pass
+         def helper(self): pass
+     """, [("TestX.test_a", True), ("TestY.test_b", True), ("TestY.test_c", False)]),
+    ("""
+     import pytest
+     @pytest.mark.parametrize("x", [1])
+     def test_a(x): pass
+     def _helper(): pass
+     """, [("test_a", False)]),
+]
 
 
-@pytest.mark.parametrize("source, expected", [
-    ("import pytest\n@pytest.mark.slow\ndef test_a(): pass\ndef test_b(): pass\n",
-     [("test_a", True), ("test_b", False)]),
-    ("import pytest\npytestmark = [pytest.mark.peers, pytest.mark.slow]\ndef test_a(): pass\n", [("test_a", True)]),
-    ("from pytest import mark\n@mark.slow\nclass TestX:\n    def test_a(self): pass\n"
-     "class TestY:\n    @mark.slow()\n    def test_b(self): pass\n    def test_c(self): pass\n    def helper(self): pass\n",
-     [("TestX.test_a", True), ("TestY.test_b", True), ("TestY.test_c", False)]),
-    ("import pytest\n@pytest.mark.parametrize('x', [1])\ndef test_a(x): pass\ndef _helper(): pass\n", [("test_a", False)]),
-])
+@pytest.mark.parametrize("source, expected", CASES)
 def test_marks_are_read_from_the_source(source, expected):
-    assert _tests_of(source) == expected
+    assert _tests_of(textwrap.dedent(source)) == expected
 
 
 def test_every_test_module_has_a_test_in_the_fast_lane():
@@ -74,5 +103,5 @@ def test_every_test_module_has_a_test_in_the_fast_lane():
         assert tests, f"{path.name}: no test functions found"
         if all(slow for _, slow in tests):
             only_slow.append(path.name)
-    assert not only_slow, (f"every test of {only_slow} is marked slow: add a fast test of what each module "
+    assert not only_slow, (f"every test of {only_slow} is marked slow: add a fast test of what the module "
                            "checks (a smaller case, a coarser mesh), so that `pytest -m 'not slow'` runs it")
