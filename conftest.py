@@ -16,8 +16,8 @@ EXAMPLES = Path(__file__).resolve().parent / "examples"
 
 
 @pytest.fixture(autouse=True)
-def _doctest_in_a_scratch_folder(request, tmp_path, monkeypatch):
-    if isinstance(request.node, DoctestItem):
+def _doctest_in_a_scratch_folder(request):
+    if isinstance(request.node, DoctestItem):  # other tests ask for tmp_path themselves
+        tmp_path = request.getfixturevalue("tmp_path")
         shutil.copytree(EXAMPLES, tmp_path / "examples")
-        monkeypatch.chdir(tmp_path)
-    yield
+        request.getfixturevalue("monkeypatch").chdir(tmp_path)
