@@ -16,8 +16,11 @@ from enum import StrEnum
 import typer
 
 from fe.exceptions import FEError
+from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
+from podkrig.online.rigid_body import RIGID_BODY_CHOICES
+from podkrig.online.settings import RegionSettings
 
 __all__ = [
     "KrigingCriterion",
@@ -38,12 +41,14 @@ __all__ = [
     "os_error_message",
     "parse_rigid_groups",
     "print_findings",
+    "settings_from_options",
     "user_errors",
 ]
 
 # The same words as the study file's (podkrig.study.settings; tests/test_cli_choices.py checks
-# they agree). Spelt out rather than imported: importing the study package (pydantic, the
-# pipeline) made `import podkrig.cli` take 4.4 s instead of 2.4 s (measured on the loaded machine).
+# they agree). Those of the online stage come from its settings (podkrig.online.settings); the
+# others are spelt out rather than imported: importing the study package (pydantic, the pipeline)
+# made `import podkrig.cli` take 4.4 s instead of 2.4 s (measured on the loaded machine).
 
 
 class SamplingMethod(StrEnum):
@@ -69,11 +74,16 @@ class KrigingCriterion(StrEnum):
     loo = "loo"
 
 
-class RegionMethod(StrEnum):
-    """Region of equivalence method (``--region-method``)."""
+def _enum(name, options, doc):
+    """A :class:`StrEnum` of a settings field's choices (members named like the words, ``-`` as ``_``)."""
+    enum = StrEnum(name, [(o.replace("-", "_"), o) for o in options])
+    enum.__doc__ = doc
+    return enum
 
-    likelihood_ratio = "likelihood-ratio"
-    noise_mc = "noise-mc"
+
+#: region of equivalence method (``--region-method``): the choices of RegionSettings.method
+RegionMethod = _enum("RegionMethod", choices(RegionSettings, "method"),
+                     "Region of equivalence method (``--region-method``).")
 
 
 class SurrogateBackend(StrEnum):
@@ -102,13 +112,10 @@ class LinearSolver(StrEnum):
     superlu = "superlu"
 
 
-class RigidBody(StrEnum):
-    """Removal of the rigid-body motion of absolute displacement readings (``--rigid-body``; the
-    study file's ``[measurement] rigid_body``, :data:`podkrig.online.rigid_body.RIGID_BODY_CHOICES`)."""
-
-    auto = "auto"
-    remove = "remove"
-    keep = "keep"
+#: removal of the rigid-body motion of absolute displacement readings (``--rigid-body``; the study
+#: file's ``[measurement] rigid_body``)
+RigidBody = _enum("RigidBody", RIGID_BODY_CHOICES, "Removal of the rigid-body motion of absolute displacement "
+                  "readings (``--rigid-body``).")
 
 
 #: help of ``--rigid-body`` and ``--rigid-group`` (invert, diagnose)
@@ -206,6 +213,31 @@ def user_errors():
             MemoryError) as e:
         typer.echo(f"error: {error_message(e)}", err=True)
         raise typer.Exit(code=2) from None
+
+
+def settings_from_options(cls, options=None, **values):
+    """``cls(**values)``, a settings object of :mod:`podkrig.config` built from command-line
+    options; a value it refuses raises a ValueError naming the option (``options``: field name →
+    option, default ``--field-name``), the value and what is allowed."""
+    from pydantic import ValidationError  # loaded with the settings classes already
+
+    try:
+        return cls(**values)
+    except ValidationError as e:
+        err = e.errors()[0]
+        ctx = err.get("ctx") or {}
+        loc = [p for p in err["loc"] if isinstance(p, str)]
+        key = loc[0] if loc else next(iter(ctx.get("key") or ()), None)
+        option = (options or {}).get(key, f"--{key.replace('_', '-')}") if key else cls.__name__
+        value = values.get(key)
+        if err["type"] == "settings":
+            what = ctx["message"]
+        elif err["type"].startswith(("greater", "less")):
+            what = f"{value!r} is out of range"
+        else:
+            what = err["msg"]
+        allowed = ctx.get("allowed") or (field_info(cls)[key]["allowed"] if key in field_info(cls) else None)
+        raise ValueError(f"{option} {value!r}: {what}" + (f" (allowed: {allowed})" if allowed else "")) from None
 
 
 def number(value, digits=4):

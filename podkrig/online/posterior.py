@@ -60,6 +60,30 @@ class Posterior:
     n_steps: int
     seconds: float
 
+    def to_dict(self, *, members=False):
+        """JSON-able summary (without the samples unless ``members``)."""
+        d = {"names": list(self.names), "confidence": self.confidence,
+             "intervals": {k: list(v) for k, v in self.intervals.items()}, "median": dict(self.median),
+             "autocorr_time": np.asarray(self.autocorr_time, dtype=float).tolist(),
+             "effective_samples": self.effective_samples, "acceptance": self.acceptance,
+             "r_hat": np.asarray(self.r_hat, dtype=float).tolist(), "converged": self.converged,
+             "n_steps": self.n_steps, "seconds": self.seconds}
+        if members:
+            d["samples"] = self.samples.tolist()
+        return d
+
+    @classmethod
+    def from_dict(cls, d, *, samples=None):
+        """Read back :meth:`to_dict`; the samples from ``d``, from ``samples``, or none (an empty
+        array)."""
+        if samples is None:
+            samples = d.get("samples", np.empty((0, len(d["names"]))))
+        return cls(np.asarray(samples, dtype=float), tuple(d["names"]), float(d["confidence"]),
+                   {k: (float(v[0]), float(v[1])) for k, v in d["intervals"].items()},
+                   {k: float(v) for k, v in d["median"].items()}, np.asarray(d["autocorr_time"], dtype=float),
+                   float(d["effective_samples"]), float(d["acceptance"]), np.asarray(d["r_hat"], dtype=float),
+                   bool(d["converged"]), int(d["n_steps"]), float(d["seconds"]))
+
 
 def _split_r_hat(chain):
     """Split-R̂ of a chain ``(n_steps, n_walkers, n_free)`` (Gelman et al., BDA3, §11.4)."""

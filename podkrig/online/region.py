@@ -61,7 +61,7 @@ class Region:
 
     Attributes
     ----------
-    method : {"likelihood-ratio", "noise-monte-carlo"}
+    method : {"likelihood-ratio", "noise-mc"}
     confidence : float
     samples : ndarray of shape (n_members, n_free)
         Members of the region, physical units.
@@ -231,7 +231,7 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
     q = np.percentile(X, [a, 100 - a], axis=0)
     space = problem.free_space
     intervals = {n: (float(q[0, j]), float(q[1, j])) for j, n in enumerate(space.names)}
-    return Region("noise-monte-carlo", confidence, X, np.full(len(X), np.nan), float("nan"), intervals,
+    return Region("noise-mc", confidence, X, np.full(len(X), np.nan), float("nan"), intervals,
                   tuple(space.names), tuple(space.units), n_eval, time.perf_counter() - t0,
                   identifiability(intervals, space))
 
