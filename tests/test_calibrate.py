@@ -244,3 +244,31 @@ def test_invert_and_run_give_the_same_calibration(tmp_path):
             d.pop("seconds", None)
         assert a == b, part
     assert cli["posterior"] is None and study["posterior"] is None
+
+
+def test_a_study_run_reads_each_measurement_and_surrogate_once(tmp_path, monkeypatch):
+    """One ``podkrig run`` parses the measurement log once and loads the surrogate once, though the
+    measurement check, the range checks, the calibration and the sensitivity all use them."""
+    from podkrig.study import stages
+
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+    clean = sc.run({"E_b": 11000.0, "r_hj": 0.6, "kN_bj": 90.0, "kV_bj": 35.0}).readings
+    write_measurement_csv(tmp_path / "measured.csv", Measurement(clean, sc.sensor_names, sc.load_levels))
+    (tmp_path / "study.toml").write_text(STUDY.replace("range_check = false", "range_check = true")
+                                         .replace("enabled = false", "enabled = true\nn = 256"))
+    calls = {"read": 0, "load": 0}
+    read, load = stages.read_measurement, stages.PODKriging.load
+
+    def counted_read(*args, **kwargs):
+        calls["read"] += 1
+        return read(*args, **kwargs)
+
+    def counted_load(path):
+        calls["load"] += 1
+        return load(path)
+
+    monkeypatch.setattr(stages, "read_measurement", counted_read)
+    monkeypatch.setattr(stages.PODKriging, "load", counted_load)
+    ran = CliRunner().invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
+    assert ran.exit_code == 0, ran.output
+    assert calls == {"read": 1, "load": 1}

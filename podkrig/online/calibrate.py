@@ -203,7 +203,7 @@ def _named(name, findings):
 
 
 def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, context="cli",
-              check_measurement=True, diagnosis_enabled=False, keep_field=False, progress=None):
+              check_measurement=True, diagnosis_enabled=False, keep_field=False, calibration_rvc=True, progress=None):
     """Calibrate: model-form error, inversion, region, FE check, posterior, RVC and findings.
 
     Parameters
@@ -216,11 +216,12 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         The FE scenario of each test (for the FE check and an estimated model-form error): one
         scenario (one test), ``{test name: scenario}`` or ``scenario(test name)``; default: built
         from each surrogate's provenance.
-    validation : dict of str to (model, outputs), optional
+    validation : dict of str to (model, outputs) or (model, outputs, fixed), optional
         Validation models for the RVC by name: a batched model (a
-        :class:`~podkrig.online.problem.SurrogateModel`) and its reported outputs
-        (``"SENSOR@LOAD"``, or None for every sensor at the last load). Parameters a validation
-        model has and the calibration does not identify take their calibrated fixed values.
+        :class:`~podkrig.online.problem.SurrogateModel`), its reported outputs (``"SENSOR@LOAD"``,
+        or None for every sensor at the last load) and values of its own parameters. Parameters a
+        validation model has and the calibration does not identify take the calibration's values
+        (or, where it has none, those ``fixed``).
     outputs : sequence of str, optional
         Outputs of the calibration model's RVC (one test; default every sensor at the last load).
     context : {"cli", "study"}
@@ -232,6 +233,8 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         (study) the study runs the diagnosis (changes the remedy of a large χ²/dof).
     keep_field : bool
         Keep the displacement field of each FE-check run in :attr:`CalibrationResult.responses`.
+    calibration_rvc : bool
+        Also the RVC of each test's calibration model (the validation models' always).
     progress : callable, optional
         ``progress(step, done, total)`` after each step.
 
@@ -280,13 +283,14 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     seed = settings.inversion.seed
     per_test = test_problems(problem)
     rvcs = {}
-    for name, p in per_test.items():
+    for name, p in per_test.items() if calibration_rvc else ():
         key = "calibration" if name is None else f"calibration.{name}"
         rvcs[key] = rvc(region, p.model, fixed=p.fixed, outputs=list(outputs) if outputs and name is None else None,
                         rng=seed)
     best = result.parameters
-    for name, (model, wanted) in (validation or {}).items():
-        fixed = {n: best[n] for n in model.space.names if n not in region.names and n in best}
+    for name, (model, wanted, *own) in (validation or {}).items():
+        fixed = {**(own[0] if own else {}),
+                 **{n: best[n] for n in model.space.names if n not in region.names and n in best}}
         missing = [n for n in model.space.names if n not in region.names and n not in fixed]
         if missing:
             raise ValueError(f"validation model {name!r} varies {missing}, which the calibration neither identifies "
