@@ -40,7 +40,7 @@ from podkrig.online.settings import CalibrationSettings
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["CalibrationResult", "calibrate", "model_form_error", "model_form_errors", "test_problems", "with_model_form_errors"]
+__all__ = ["CalibrationResult", "calibrate", "model_form_error", "model_form_errors", "problems_by_test", "with_model_form_errors"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,7 +120,7 @@ class CalibrationResult:
         return self.inversion.tests or {None: self.inversion}
 
 
-def test_problems(problem):
+def problems_by_test(problem):
     """A calibration problem's problem per test: ``{test name: InverseProblem}`` of a
     :class:`JointProblem`, ``{None: problem}`` for one test."""
     return getattr(problem, "problems", {None: problem})
@@ -166,7 +166,7 @@ def model_form_errors(problem, settings, first=None, *, scenarios=None):
     scenario runs on its mesh and the mesh refined twice); ε needs nothing but the data.
     """
     errors = {}
-    for name, p in test_problems(problem).items():
+    for name, p in problems_by_test(problem).items():
         asked = settings.form_error(name)
         if asked is None:
             continue
@@ -250,7 +250,7 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     # 1–2. the model-form error (an estimate needs a first optimum), then the inversion with it
     # the scenarios of an estimate are built before the first inversion (as they always were: a
     # scenario built after the GA may differ in the last bits of its FE readings)
-    refined = {name: _scenario_of(scenarios, name, p) for name, p in test_problems(problem).items()
+    refined = {name: _scenario_of(scenarios, name, p) for name, p in problems_by_test(problem).items()
                if settings.form_error(name) == "estimated"}
     first = invert(problem, **ga) if refined else None
     errors = model_form_errors(problem, settings, first, scenarios=refined or scenarios)
@@ -264,7 +264,7 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     # 4. FE check at the optimum, per test
     responses = {}
     if settings.fe_check:
-        for name, p in test_problems(problem).items():
+        for name, p in problems_by_test(problem).items():
             one = result if name is None else result.tests[name]
             scenario = _scenario_of(scenarios, name, p)
             response = scenario.run(one.parameters, field=True) if keep_field else scenario.run(one.parameters)
@@ -281,7 +281,7 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     say("posterior", 4, 5)
     # 6. RVC of the calibration model(s) and the validation models
     seed = settings.inversion.seed
-    per_test = test_problems(problem)
+    per_test = problems_by_test(problem)
     rvcs = {}
     for name, p in per_test.items() if calibration_rvc else ():
         key = "calibration" if name is None else f"calibration.{name}"

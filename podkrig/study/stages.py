@@ -50,7 +50,7 @@ from podkrig.limits import fe_job_estimate
 from podkrig.offline.files import move_aside
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
-from podkrig.online.calibrate import CalibrationResult, calibrate, test_problems, with_model_form_errors
+from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.joint import JointProblem
 from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.model_error import ModelError
@@ -580,7 +580,7 @@ def calibration(run):
         np.savez(run.out / "region.npz", samples=region.samples, omega=region.omega)
         files = ["region.npz"] + _draw_calibration(run, result)
         out = result.to_dict()
-        calibrated = test_problems(result.inversion.problem)
+        calibrated = problems_by_test(result.inversion.problem)
         out["model_form_errors"] = {str(n): p.model_form_error.to_dict(p.measurement)
                                     for n, p in calibrated.items() if p.model_form_error is not None}
         return out, files, result.n_fe_runs
@@ -635,7 +635,7 @@ def sensitivity(run):
         problem = with_model_form_errors(run.calibration_problem(), errors)
         misfit = misfit_sensitivity(problem, **options)
         readings, files = {}, []
-        per_test = test_problems(problem)
+        per_test = problems_by_test(problem)
         for test in run.study.calibration_tests:
             one = reading_sensitivity(per_test[test.name].model, **options)
             readings[str(test.name or "calibration")] = one
