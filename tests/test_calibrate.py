@@ -128,14 +128,17 @@ def test_a_tolerance_model_form_error_is_in_the_inversion_and_the_region():
 
 
 def test_the_result_reads_back_from_its_dict():
-    """to_dict → JSON → from_dict → to_dict is the same JSON, with the region's members and the
-    posterior's samples kept when asked."""
+    """to_dict → JSON → from_dict → to_dict is the same JSON (with the model-form error in C_D, the
+    region's members and the posterior's samples kept when asked)."""
     problem = _problem()
-    result = calibrate(problem, dataclasses.replace(SMALL, mcmc_steps=300), scenarios=_Scenario(problem.model))
+    result = calibrate(problem, dataclasses.replace(SMALL, mcmc_steps=300, model_form_error=0.02),
+                       scenarios=_Scenario(problem.model))
+    assert set(result.model_form_errors) == {None}
     d = json.loads(json.dumps(result.to_dict(members=True)))
     back = CalibrationResult.from_dict(d)
     assert back.to_dict(members=True) == d
     assert back.settings == result.settings and back.inversion.fe_check.ok
+    assert_allclose(back.model_form_errors[None].std, result.model_form_errors[None].std, rtol=0, atol=0)
     assert_allclose(back.region.samples, result.region.samples, rtol=0, atol=0)  # JSON keeps a float exactly
     # without members: the region's come from elsewhere (a study's region.npz)
     slim = json.loads(json.dumps(result.to_dict()))

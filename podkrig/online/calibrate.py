@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from podkrig.online.findings import Finding, inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
-from podkrig.online.model_error import DEFAULT_RATE, discretisation_error, tolerance_error
+from podkrig.online.model_error import DEFAULT_RATE, ModelError, discretisation_error, tolerance_error
 from podkrig.online.posterior import Posterior, sample_posterior
 from podkrig.online.propagation import RVCResult, rvc
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
@@ -67,6 +67,9 @@ class CalibrationResult:
         Wall time of the whole calibration, s.
     n_fe_runs : int
         FE runs made (model-form error, FE checks).
+    model_form_errors : dict
+        Test name (None for one test) → the :class:`~podkrig.online.model_error.ModelError` in its
+        C_D, for the tests that have one.
     responses : dict
         Test name (None for one test) → the FE response of its FE check (with the displacement
         field when asked); not part of :meth:`to_dict`.
@@ -80,13 +83,15 @@ class CalibrationResult:
     settings: CalibrationSettings
     seconds: float
     n_fe_runs: int = 0
+    model_form_errors: dict = dataclasses.field(default_factory=dict)
     responses: dict = dataclasses.field(default_factory=dict)
 
     def to_dict(self, *, members=False):
         """JSON-able: ``inversion`` (:meth:`InverseResult.to_dict`), ``region``
         (:meth:`Region.to_dict`; its members and the posterior's samples only with ``members``),
         ``posterior`` (or None), ``rvc`` (name → :meth:`RVCResult.to_dict`), ``findings``,
-        ``settings``, ``seconds``, ``n_fe_runs``."""
+        ``settings``, ``seconds``, ``n_fe_runs``, ``model_form_errors`` (test name, or
+        ``calibration`` for one test → :meth:`ModelError.to_dict`)."""
         return {
             "inversion": self.inversion.to_dict(),
             "region": self.region.to_dict(members=members),
@@ -96,6 +101,8 @@ class CalibrationResult:
             "settings": dataclasses.asdict(self.settings),
             "seconds": self.seconds,
             "n_fe_runs": self.n_fe_runs,
+            "model_form_errors": {"calibration" if name is None else name: e.to_dict()
+                                  for name, e in self.model_form_errors.items()},
         }
 
     @classmethod
@@ -112,6 +119,8 @@ class CalibrationResult:
             CalibrationSettings(**d["settings"]),
             float(d["seconds"]),
             int(d["n_fe_runs"]),
+            {None if name == "calibration" else name: ModelError.from_dict(e)
+             for name, e in d["model_form_errors"].items()},
         )
 
     @property
@@ -308,4 +317,4 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         found += _named(name, inversion_findings(result.tests[name], context=context,
                                                  diagnosis_enabled=diagnosis_enabled, per_test=True))
     return CalibrationResult(result, region, posterior, rvcs, found, settings, time.perf_counter() - t0, n_fe,
-                             responses)
+                             errors, responses)

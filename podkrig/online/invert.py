@@ -21,6 +21,7 @@ from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
 from podkrig.online._repr import html_table, number
 from podkrig.online.findings import RESIDUAL_CONVENTION, at_bound, chi2_basis, fe_check_ok
+from podkrig.online.settings import GA
 
 logger = logging.getLogger(__name__)
 
@@ -224,7 +225,8 @@ class InverseResult:
                    ga, tests=tests)
 
 
-def invert(problem, *, rng=0, population_size=100, generations=100, polish=True, n_starts=6, **ga_options):
+def invert(problem, *, rng=0, population_size=GA["population_size"], generations=GA["generations"], polish=True,
+           n_starts=GA["n_starts"], **ga_options):
     """Identify the free parameters: GA on ω(m), then least-squares polishes.
 
     Parameters

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig.online.calibrate import calibrate
-from podkrig.online.settings import CalibrationSettings, InversionSettings, RegionSettings
+from podkrig.online.settings import CONFIDENCE, CalibrationSettings, InversionSettings, RegionSettings
 
 
 def information_criteria(result):
@@ -99,7 +99,7 @@ class OverparamResult:
         return cls(tuple(NestedAnalysis.from_dict(a) for a in d["analyses"]))
 
 
-def nested_analyses(make_problem, free_sets, *, confidence=0.95, rng=0, validation=None, n_samples=2**16):
+def nested_analyses(make_problem, free_sets, *, confidence=CONFIDENCE, rng=0, validation=None, n_samples=2**16):
     """Compare nested sets of free parameters (thesis ch. 5, analyses 0–5).
 
     Parameters

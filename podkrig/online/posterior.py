@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig.parallel import one_blas_thread
+from podkrig.online.settings import CONFIDENCE
 
 logger = logging.getLogger(__name__)
 
@@ -96,7 +97,7 @@ def _split_r_hat(chain):
     return np.sqrt(var / np.maximum(W, 1e-300))
 
 
-def sample_posterior(problem, x_start, *, n_walkers=32, n_steps=3000, burn=None, confidence=0.95, rng=0):
+def sample_posterior(problem, x_start, *, n_walkers=32, n_steps=3000, burn=None, confidence=CONFIDENCE, rng=0):
     """Sample exp(−ω(m)) over the free parameters' box.
 
     Parameters

@@ -28,6 +28,7 @@ from podkrig.parallel import one_blas_thread
 from podkrig.limits import check_confidence, check_region_samples
 from podkrig.online._repr import html_table, number
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, identifiability_verdict
+from podkrig.online.settings import CONFIDENCE, REGION_SAMPLES
 
 logger = logging.getLogger(__name__)
 
@@ -131,7 +132,7 @@ class Region:
                    {k: dict(v) for k, v in d["identifiability"].items()})
 
 
-def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17, rng=0, max_grow=6, batch=2**16,
+def likelihood_ratio_region(problem, x_best, *, confidence=CONFIDENCE, n_samples=REGION_SAMPLES, rng=0, max_grow=6, batch=2**16,
                             freeze_model_error=True):
     """Region of equivalence by the likelihood-ratio (χ²) bound, sampled densely.
 
@@ -208,7 +209,7 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
                   tuple(space.units), n_eval, time.perf_counter() - t0, identifiability(intervals, space))
 
 
-def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=0.95, rng=0):
+def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=CONFIDENCE, rng=0):
     """Region of equivalence by noise Monte Carlo: re-identify from noisy copies of g(m*).
 
     Each copy adds Gaussian noise with the data covariance to the best-fit prediction and is

@@ -24,12 +24,12 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, StrictBool, StrictFloat, StrictInt
 
 from podkrig import limits
-from podkrig.config import Seed, allowed, choice, limit, settings, settings_error, type_name
+from podkrig.config import Seed, allowed, choice, field_info, limit, settings, settings_error, type_name
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.model_error import parse_model_form_error
 
 __all__ = [
-    "REGION_METHODS", "CalibrationSettings", "InversionSettings", "NoiseSettings", "RegionSettings",
+    "CONFIDENCE", "GA", "REGION_METHODS", "REGION_SAMPLES", "CalibrationSettings", "InversionSettings", "NoiseSettings", "RegionSettings",
     "check_ga_budget", "check_noise",
 ]
 
@@ -240,3 +240,14 @@ class CalibrationSettings:
         if isinstance(value, dict):
             value = value.get(str(test), "none")
         return None if value == "none" else value
+
+
+def _default(cls, name):
+    return field_info(cls)[name]["default"]
+
+
+#: the defaults, for the keywords of the library functions that take them one by one
+#: (:func:`~podkrig.online.invert.invert`, the region functions, the posterior)
+CONFIDENCE = _default(CalibrationSettings, "confidence")
+REGION_SAMPLES = _default(RegionSettings, "samples")
+GA = {name: info["default"] for name, info in field_info(InversionSettings).items()}

@@ -536,8 +536,7 @@ def _form_errors(run):
     if all(t.measurement.model_form_error == "none" for t in run.study.calibration_tests):
         return {}
     stored = run.manifest("calibration")["result"]["model_form_errors"]
-    return {t.name: ModelError.from_dict(stored[str(t.name)]) for t in run.study.calibration_tests
-            if str(t.name) in stored}
+    return {None if name == "calibration" else name: ModelError.from_dict(e) for name, e in stored.items()}
 
 
 def _online_inputs(run):
@@ -579,11 +578,7 @@ def calibration(run):
         region = result.region
         np.savez(run.out / "region.npz", samples=region.samples, omega=region.omega)
         files = ["region.npz"] + _draw_calibration(run, result)
-        out = result.to_dict()
-        calibrated = problems_by_test(result.inversion.problem)
-        out["model_form_errors"] = {str(n): p.model_form_error.to_dict(p.measurement)
-                                    for n, p in calibrated.items() if p.model_form_error is not None}
-        return out, files, result.n_fe_runs
+        return result.to_dict(), files, result.n_fe_runs
 
     run.stage("calibration", "Calibration (inversion, FE check, region, RVC)", inputs, compute)
 
