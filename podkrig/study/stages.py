@@ -545,7 +545,7 @@ def _online_inputs(run):
     for t in run.study.calibration_tests:
         m = t.measurement
         one = {"surrogate": run.outputs(t.stage("surrogate")), "measurement": file_sha256(m.file),
-               "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
+               "noise": dataclasses.asdict(m.noise),
                "import": dataclasses.asdict(m.import_settings()),
                "rigid_body": {"option": m.rigid_body, "groups": m.rigid_groups},
                **({} if m.model_form_error == "none" else {"model_form_error": m.model_form_error})}
@@ -602,7 +602,8 @@ def _draw_calibration(run, result):
     inv = result.inversion
     inverse_figures.plot_ga_history(inv.ga, run.figures / "ga_history.png")
     inverse_figures.plot_ga_parameters(inv.ga, run.figures / "ga_parameters.png", inv.problem.free_space)
-    inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, space=inv.problem.free_space)
+    inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
+                                space=inv.problem.free_space)
     inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
     return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png"]
 
