@@ -1,7 +1,8 @@
 """Helpers shared by CLI commands: error reporting, logging set-up and the choices of options.
 
 Options with a fixed set of values are typed with the enumerations below, so ``--help`` lists
-the choices and a wrong value is refused by the command line parser (exit code 2) with the
+the choices (those of a stage's settings generated from the settings class, the words of the
+study file) and a wrong value is refused by the command line parser (exit code 2) with the
 allowed values. They are :class:`enum.StrEnum`, so a member compares equal to its text and
 library functions receive plain strings in effect.
 """
@@ -19,12 +20,16 @@ from fe.exceptions import FEError
 from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
+from podkrig.offline.settings import Design
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.online.settings import RegionSettings
+from podkrig.sensors.settings import SearchSettings
+from podkrig.surrogate.settings import SurrogateSettings
 
 __all__ = [
     "KrigingCriterion",
     "LinearSolver",
+    "PlacementCriterion",
     "RegionMethod",
     "ResponseFormat",
     "RigidBody",
@@ -45,54 +50,34 @@ __all__ = [
     "user_errors",
 ]
 
-# The same words as the study file's (podkrig.study.settings; tests/test_cli_choices.py checks
-# they agree). Those of the online stage come from its settings (podkrig.online.settings); the
-# others are spelt out rather than imported: importing the study package (pydantic, the pipeline)
-# made `import podkrig.cli` take 4.4 s instead of 2.4 s (measured on the loaded machine).
+
+def _words_enum(name, words, doc):
+    """A :class:`enum.StrEnum` of ``words``: members named by the words with ``-`` as ``_``."""
+    members = StrEnum(name, {word.replace("-", "_"): word for word in words})
+    members.__doc__ = doc
+    members.__module__ = __name__
+    return members
 
 
-class SamplingMethod(StrEnum):
-    """Sampling design of FE runs (``--sampling``); ``lhs-ese``: SMT's optimised LHS."""
-
-    sobol = "sobol"
-    lhs = "lhs"
-    random = "random"
-    lhs_ese = "lhs-ese"
+def _choices_enum(name, cls, field, doc):
+    """A :class:`enum.StrEnum` of the choices of settings field ``cls.field``
+    (:func:`podkrig.config.choices`): members named by the words with ``-`` as ``_``."""
+    return _words_enum(name, choices(cls, field), doc)
 
 
-class Variogram(StrEnum):
-    """Semivariogram model of the kriging (``--variogram``)."""
-
-    exponential = "exponential"
-    power = "power"
-
-
-class KrigingCriterion(StrEnum):
-    """Hyperparameters by likelihood or by leave-one-out (``--criterion``)."""
-
-    ml = "ml"
-    loo = "loo"
+SamplingMethod = _choices_enum("SamplingMethod", Design, "method",
+                               "Sampling design of FE runs (``--sampling``); ``lhs-ese``: SMT's optimised LHS.")
+Variogram = _choices_enum("Variogram", SurrogateSettings, "variogram",
+                          "Semivariogram model of the kriging (``--variogram``).")
+KrigingCriterion = _choices_enum("KrigingCriterion", SurrogateSettings, "criterion",
+                                 "Hyperparameters by likelihood or by leave-one-out (``--criterion``).")
+SurrogateBackend = _choices_enum("SurrogateBackend", SurrogateSettings, "backend", "Surrogate backend (``--backend``).")
+PlacementCriterion = _choices_enum("PlacementCriterion", SearchSettings, "criterion",
+                                   "Criterion of the sensor layout (``podkrig sensors --criterion``).")
 
 
-def _enum(name, options, doc):
-    """A :class:`StrEnum` of a settings field's choices (members named like the words, ``-`` as ``_``)."""
-    enum = StrEnum(name, [(o.replace("-", "_"), o) for o in options])
-    enum.__doc__ = doc
-    return enum
-
-
-#: region of equivalence method (``--region-method``): the choices of RegionSettings.method
-RegionMethod = _enum("RegionMethod", choices(RegionSettings, "method"),
-                     "Region of equivalence method (``--region-method``).")
-
-
-class SurrogateBackend(StrEnum):
-    """Surrogate backend (``--backend``)."""
-
-    podkrig = "podkrig"
-    smt_krg = "smt-krg"
-    smt_kpls = "smt-kpls"
-    sklearn_gpr = "sklearn-gpr"
+RegionMethod = _choices_enum("RegionMethod", RegionSettings, "method",
+                             "Region of equivalence method (``--region-method``).")
 
 
 class SensitivitySource(StrEnum):
@@ -114,8 +99,8 @@ class LinearSolver(StrEnum):
 
 #: removal of the rigid-body motion of absolute displacement readings (``--rigid-body``; the study
 #: file's ``[measurement] rigid_body``)
-RigidBody = _enum("RigidBody", RIGID_BODY_CHOICES, "Removal of the rigid-body motion of absolute displacement "
-                  "readings (``--rigid-body``).")
+RigidBody = _words_enum("RigidBody", RIGID_BODY_CHOICES, "Removal of the rigid-body motion of absolute displacement "
+                        "readings (``--rigid-body``).")
 
 
 #: help of ``--rigid-body`` and ``--rigid-group`` (invert, diagnose)
@@ -215,29 +200,38 @@ def user_errors():
         raise typer.Exit(code=2) from None
 
 
-def settings_from_options(cls, options=None, **values):
-    """``cls(**values)``, a settings object of :mod:`podkrig.config` built from command-line
-    options; a value it refuses raises a ValueError naming the option (``options``: field name →
-    option, default ``--field-name``), the value and what is allowed."""
-    from pydantic import ValidationError  # loaded with the settings classes already
+def settings_from_options(cls, options):
+    """Settings ``cls`` built from command-line options, a wrong value named by its option.
 
+    Parameters
+    ----------
+    cls : settings class (:func:`podkrig.config.settings`)
+    options : dict of str to (str, object)
+        ``{field: (option, value)}``, e.g. ``{"modes": ("--modes", 4)}``; a value None is an option
+        not given (the field keeps its default).
+
+    Raises
+    ------
+    ValueError
+        ``OPTION VALUE: what is wrong; allowed: ...`` (the settings' own words and allowed values).
+    """
+    import pydantic
+
+    given = {k: v for k, (_, v) in options.items() if v is not None}
     try:
-        return cls(**values)
-    except ValidationError as e:
-        err = e.errors()[0]
-        ctx = err.get("ctx") or {}
-        loc = [p for p in err["loc"] if isinstance(p, str)]
-        key = loc[0] if loc else next(iter(ctx.get("key") or ()), None)
-        option = (options or {}).get(key, f"--{key.replace('_', '-')}") if key else cls.__name__
-        value = values.get(key)
-        if err["type"] == "settings":
-            what = ctx["message"]
-        elif err["type"].startswith(("greater", "less")):
-            what = f"{value!r} is out of range"
+        return cls(**given)
+    except pydantic.ValidationError as e:
+        error = e.errors(include_url=False)[0]
+        ctx = error.get("ctx") or {}
+        if error["type"] == "settings":
+            key, what, allowed = (ctx["key"] or error["loc"] or ("",))[0], ctx["message"], ctx["allowed"]
         else:
-            what = err["msg"]
-        allowed = ctx.get("allowed") or (field_info(cls)[key]["allowed"] if key in field_info(cls) else None)
-        raise ValueError(f"{option} {value!r}: {what}" + (f" (allowed: {allowed})" if allowed else "")) from None
+            key, what = error["loc"][0], "out of range"
+            allowed = field_info(cls)[key]["allowed"]
+        option = options[key][0] if key in options else key
+        value = given.get(key)
+        raise ValueError(f"{option}{'' if value is None else f' {value!r}'}: {what}"
+                         + (f"; allowed: {allowed}" if allowed else "")) from None
 
 
 def number(value, digits=4):

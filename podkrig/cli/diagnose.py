@@ -67,9 +67,10 @@ def register(app):
 
             if format not in ("text", "json"):
                 raise ValueError(f"--format must be text or json; got {format!r}")
-            settings = settings_from_options(DiagnosisSettings, seed=seed, max_causes=max_causes, alpha=float(alpha),
-                                             model_tolerance=None if model_tolerance is None else float(model_tolerance),
-                                             n_train=n_train)
+            settings = settings_from_options(DiagnosisSettings, {
+                "seed": ("--seed", seed), "max_causes": ("--max-causes", max_causes), "alpha": ("--alpha", float(alpha)),
+                "model_tolerance": ("--model-tolerance", None if model_tolerance is None else float(model_tolerance)),
+                "n_train": ("--n-train", n_train)})
             sc = build_scenario(load_spec(scenario, spec))
             space = ParameterSpace.from_scenario(sc, parse_params(param))
             fixed = dict(parse_assignment(t, "--set") for t in set_)

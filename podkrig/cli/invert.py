@@ -67,27 +67,29 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
                 raise ValueError(f"--noise-abs {noise_abs[0]!r}: expected a number (mm) or NAME=SIGMA") from None
         else:
             sigma = dict(parse_assignment(t, "--noise-abs") for t in noise_abs)
-    noise = settings_from_options(NoiseSettings, noise_abs=sigma, noise_rel=noise_rel, instrument=instrument)
+    noise = settings_from_options(NoiseSettings, {"noise_abs": ("--noise-abs", sigma), "noise_rel": ("--noise-rel", noise_rel),
+                                                  "instrument": ("--instrument", instrument)})
     return noise.noise_model(sensor_names), noise.describe()
 
 
 def calibration_settings(*, seed=_SEED, population_size=_GA["population_size"]["default"],
-                         generations=_GA["generations"]["default"], n_starts=_GA["n_starts"]["default"], confidence=_CALIBRATION["confidence"]["default"],
-                         region_method=_REGION["method"]["default"], region_samples=_REGION["samples"]["default"],
+                         generations=_GA["generations"]["default"], n_starts=_GA["n_starts"]["default"],
+                         confidence=_CALIBRATION["confidence"]["default"], region_method=_REGION["method"]["default"], region_samples=_REGION["samples"]["default"],
                          fe_check=_CALIBRATION["fe_check"]["default"], mcmc_steps=_CALIBRATION["mcmc_steps"]["default"],
                          model_form_error="none"):
     """The :class:`~podkrig.online.settings.CalibrationSettings` of the CLI options (a refused value
     names its option)."""
     check_region_samples(region_samples)
     form_error = parse_model_form_error(model_form_error)
-    return settings_from_options(
-        CalibrationSettings, {"mcmc_steps": "--mcmc-steps", "fe_check": "--fe-check"},
-        inversion=settings_from_options(InversionSettings, seed=seed, population_size=population_size,
-                                        generations=generations, n_starts=n_starts),
-        region=settings_from_options(RegionSettings, {"method": "--region-method", "samples": "--region-samples"},
-                                     method=str(region_method), samples=region_samples),
-        confidence=float(confidence), fe_check=fe_check, mcmc_steps=mcmc_steps,
-        model_form_error="none" if form_error is None else form_error)
+    inversion = settings_from_options(InversionSettings, {
+        "seed": ("--seed", seed), "population_size": ("--population-size", population_size),
+        "generations": ("--generations", generations), "n_starts": ("--n-starts", n_starts)})
+    region = settings_from_options(RegionSettings, {"method": ("--region-method", str(region_method)),
+                                                    "samples": ("--region-samples", region_samples)})
+    return settings_from_options(CalibrationSettings, {
+        "inversion": ("", inversion), "region": ("", region), "confidence": ("--confidence", float(confidence)),
+        "fe_check": ("--fe-check", fe_check), "mcmc_steps": ("--mcmc-steps", mcmc_steps),
+        "model_form_error": ("--model-form-error", "none" if form_error is None else form_error)})
 
 
 def parse_load_range(text):
