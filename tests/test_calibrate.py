@@ -16,10 +16,10 @@ from fe.scenarios import build_scenario
 from podkrig.cli import app
 from podkrig.cli._common import RegionMethod
 from podkrig.config import choices
+from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.calibrate import CalibrationResult, calibrate
 from podkrig.online.joint import JointProblem
 from podkrig.online.measurement import Measurement, NoiseModel
-from podkrig.online.measurement_csv import write_measurement_csv
 from podkrig.online.problem import InverseProblem
 from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
 from podkrig.parameters import Parameter, ParameterSpace
@@ -111,7 +111,7 @@ def test_calibrate_a_joint_problem_checks_every_test_and_names_its_findings():
     assert result.tests["a"].fe_check.ok and not result.tests["b"].fe_check.ok
     assert set(result.rvc) == {"calibration.a", "calibration.b"}
     fe = [f for f in result.findings if f.code == "fe-check"]
-    assert len(fe) == 1 and fe[0].message.startswith("test b: ")
+    assert len(fe) == 1 and fe[0].test == "b" and fe[0].values["max_diff_over_noise"] > 1
 
 
 def test_a_tolerance_model_form_error_is_in_the_inversion_and_the_region():
@@ -125,6 +125,21 @@ def test_a_tolerance_model_form_error_is_in_the_inversion_and_the_region():
         assert np.diff(loose.region.intervals[name]) > np.diff(plain.region.intervals[name])
     assert loose.inversion.measurement["model_form_error"]["tolerance"] == 0.05
     assert "ε = 5 % of each reading" in loose.inversion.chi2_basis
+
+
+def test_the_result_shows_in_jupyter_as_the_reports_show_it():
+    """The calibration's notebook view is well-formed HTML with the parameters, their region and
+    the findings in words (the report's renderer)."""
+    import html.parser
+
+    from podkrig.reports.jupyter import calibration_html
+
+    result = calibrate(_problem(), dataclasses.replace(SMALL, fe_check=False))
+    text = calibration_html(result)
+    parser = html.parser.HTMLParser()
+    parser.feed(text)
+    parser.close()
+    assert "m1" in text and "region of equivalence (95 %)" in text and "χ² includes" in text
 
 
 def test_the_result_reads_back_from_its_dict():
@@ -260,7 +275,7 @@ def test_a_study_run_reads_each_measurement_and_surrogate_once(tmp_path, monkeyp
     (tmp_path / "study.toml").write_text(STUDY.replace("range_check = false", "range_check = true")
                                          .replace("enabled = false", "enabled = true\nn = 256"))
     calls = {"read": 0, "load": 0}
-    read, load = stages.read_measurement, stages.PODKriging.load
+    read, load = stages.read_measurement, stages.load_surrogate
 
     def counted_read(*args, **kwargs):
         calls["read"] += 1
@@ -271,7 +286,7 @@ def test_a_study_run_reads_each_measurement_and_surrogate_once(tmp_path, monkeyp
         return load(path)
 
     monkeypatch.setattr(stages, "read_measurement", counted_read)
-    monkeypatch.setattr(stages.PODKriging, "load", counted_load)
+    monkeypatch.setattr(stages, "load_surrogate", counted_load)
     ran = CliRunner().invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
     assert ran.exit_code == 0, ran.output
     assert calls == {"read": 1, "load": 1}

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 from fe.scenarios import build_scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement
-from podkrig.online.measurement_csv import write_measurement_csv
+from podkrig.io.measurement_log import write_measurement_csv
 
 runner = CliRunner()
 PARAMS = ["--param", "E_b=6000:18000", "--param", "kN_bj=30:300:log", "--param", "kV_bj=10:120:log", "--param", "r_hj=0.2:1.0"]
@@ -46,7 +46,7 @@ def test_invert_json_and_report(surrogates):
     report = d / "report"
     out = json.loads(_ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01,
                           "--report", report, "--format", "json", "--region-samples", 16384, "--mcmc-steps", 600]))
-    assert set(out) >= {"inversion", "region", "posterior", "rvc", "findings", "settings", "seconds"}
+    assert set(out) >= {"inversion", "region", "posterior", "rvc", "findings", "warnings", "settings", "seconds"}
     inv = out["inversion"]
     for name, value in truth.items():
         lo, hi = out["region"]["intervals"][name]
@@ -60,7 +60,7 @@ def test_invert_json_and_report(surrogates):
     # a purely relative 1 % noise gives the ~1 µm U1 gauge σ ≈ 0.01 µm: flagged as below any instrument
     # (issue 14); nothing else is found
     assert out["posterior"] is not None and [f["code"] for f in out["findings"]] == ["noise-below-floor"]
-    assert "U1" in out["findings"][0]["what"]
+    assert "U1" in out["findings"][0]["values"]["sigma_mm"] and "U1" in out["warnings"][0]["what"]
     html = (report / "index.html").read_text()
     for fig in ("fit.png", "residuals.png", "region.png", "ga_history.png", "ga_parameters.png"):
         assert (report / fig).stat().st_size > 1000 and fig in html
@@ -108,7 +108,8 @@ def test_invert_warns_when_the_noise_is_understated(surrogates):
     out = json.loads(_ok([*args, "--format", "json"]))
     chi2_dof = out["inversion"]["chi2_dof"]
     assert 2 < chi2_dof < 100
-    chi2 = [f for f in out["findings"] if f["code"] == "chi2-dof"]
+    assert [f["code"] for f in out["warnings"]] == [f["code"] for f in out["findings"]]
+    chi2 = [f for f in out["warnings"] if f["code"] == "chi2-dof"]
     assert len(chi2) == 1 and f"χ²/dof = {chi2_dof:.2f}" in chi2[0]["what"]
     assert "podkrig diagnose" in chi2[0]["what_to_do"]
     text = _ok(args)

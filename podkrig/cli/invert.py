@@ -24,17 +24,18 @@ from podkrig.cli._common import (
 )
 from podkrig.cli.simulate import parse_assignment
 from podkrig.config import field_info
+from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
+from podkrig.io.surrogate_file import load_surrogate
 from podkrig.limits import check_region_samples
 from podkrig.online.calibrate import calibrate
 from podkrig.online.findings import chi2_basis
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel
-from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
+from podkrig.reports.findings import words
 from podkrig.reports.inverse import write_inversion_report
-from podkrig.surrogate.podkriging import PODKriging
 
 _CALIBRATION = field_info(CalibrationSettings)
 _REGION = field_info(RegionSettings)
@@ -123,7 +124,7 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
 
     ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``,
     ``rigid_groups``: see :class:`~podkrig.online.problem.InverseProblem`."""
-    model = SurrogateModel(PODKriging.load(surrogate_path))
+    model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
                                    model.load_response, import_settings)
     noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names)
@@ -222,7 +223,8 @@ def register(app):
             if report is not None:
                 write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text, rvc=False)
         if format == "json":
-            typer.echo(json.dumps(out.to_dict(), indent=2))
+            typer.echo(json.dumps({**out.to_dict(), "warnings": [t.to_dict() for t in words(out.findings, "cli")]},
+                                  indent=2))
             return
         _print_table(out, report)
 
@@ -248,7 +250,7 @@ def register(app):
         with user_errors():
             settings = calibration_settings(seed=seed, confidence=confidence, fe_check=False)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
-            models = {Path(path).stem: (SurrogateModel(PODKriging.load(path)), None) for path in validation}
+            models = {Path(path).stem: (SurrogateModel(load_surrogate(path)), None) for path in validation}
             out = calibrate(problem, settings, validation=models, outputs=list(output) or None)
             results = out.rvc
             if report is not None:
@@ -287,7 +289,7 @@ def register(app):
                 return build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, [",".join(free)], [])[0]
 
             # a validation model's parameters that an analysis does not free take the calibration's values
-            vals = {Path(p).stem: (SurrogateModel(PODKriging.load(p)), {}) for p in validation}
+            vals = {Path(p).stem: (SurrogateModel(load_surrogate(p)), {}) for p in validation}
             settings = calibration_settings(seed=seed, confidence=confidence)
             rows = nested_analyses(make, free_sets, confidence=settings.confidence, rng=settings.inversion.seed,
                                    validation=vals or None)
@@ -331,6 +333,6 @@ def _print_table(out, report):
         console.print(escape(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
                              f"({r.fe_check.max_diff_over_noise:.2f}× the noise); χ²/dof of the FE model = "
                              f"{r.fe_check.chi2_dof_fe:.3g} ({chi2_basis('fe_check')})"))
-    print_findings(console, out.findings)
+    print_findings(console, words(out.findings, "cli"))
     if report is not None:
         console.print(escape(f"report: {report / 'index.html'}"))

@@ -60,8 +60,10 @@ class CalibrationResult:
         ``calibration`` (or ``calibration.TEST`` per test of a joint calibration) and each
         validation model by name.
     findings : list of Finding
-        Measurement check (when asked), inversion and region, in report order; in a joint
-        calibration each test's own named ``test NAME: …``.
+        Codes and values (:mod:`podkrig.online.findings`; their words are
+        :func:`podkrig.reports.findings.words`) of the measurement check (when asked), the
+        inversion and the region, in report order; in a joint calibration each test's own carry
+        its name (``test``).
     settings : CalibrationSettings
     seconds : float
         Wall time of the whole calibration, s.
@@ -206,13 +208,14 @@ def _region(problem, x, settings):
 
 
 def _named(name, findings):
+    """``findings`` of test ``name`` of a joint calibration (None: of the one test)."""
     if name is None:
         return findings
-    return [dataclasses.replace(f, message=f"test {name}: {f.message}") for f in findings]
+    return [dataclasses.replace(f, test=name) for f in findings]
 
 
-def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, context="cli",
-              check_measurement=True, diagnosis_enabled=False, keep_field=False, calibration_rvc=True, progress=None):
+def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, check_measurement=True,
+              keep_field=False, calibration_rvc=True, progress=None):
     """Calibrate: model-form error, inversion, region, FE check, posterior, RVC and findings.
 
     Parameters
@@ -233,13 +236,9 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         (or, where it has none, those ``fixed``).
     outputs : sequence of str, optional
         Outputs of the calibration model's RVC (one test; default every sensor at the last load).
-    context : {"cli", "study"}
-        Where the findings' remedies point (command-line options or study-file settings).
     check_measurement : bool
         Include the findings of each test's measurement check (a caller that checked the data
         before, as the study does, leaves them out).
-    diagnosis_enabled : bool
-        (study) the study runs the diagnosis (changes the remedy of a large χ²/dof).
     keep_field : bool
         Keep the displacement field of each FE-check run in :attr:`CalibrationResult.responses`.
     calibration_rvc : bool
@@ -310,11 +309,9 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     found = []
     if check_measurement:
         for name, p in per_test.items():
-            found += _named(name, measurement_findings(p.measurement.check_summary(p.model.sensor_names, p.noise),
-                                                       context=context))
-    found += inversion_findings(result, region, context=context, diagnosis_enabled=diagnosis_enabled)
+            found += _named(name, measurement_findings(p.measurement.check_summary(p.model.sensor_names, p.noise)))
+    found += inversion_findings(result, region)
     for name in result.tests:
-        found += _named(name, inversion_findings(result.tests[name], context=context,
-                                                 diagnosis_enabled=diagnosis_enabled, per_test=True))
+        found += _named(name, inversion_findings(result.tests[name], per_test=True))
     return CalibrationResult(result, region, posterior, rvcs, found, settings, time.perf_counter() - t0, n_fe,
                              errors, responses)

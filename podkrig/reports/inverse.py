@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
+from podkrig.reports.findings import words
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 from podkrig.reports.html import Page, fmt
@@ -324,7 +325,7 @@ def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="
         + (", ".join(f"{k} = {v:g}" for k, v in problem.fixed.items()) or "none") + ".",
         "meta",
     )
-    for f in calibration.findings:
+    for f in words(calibration.findings, "cli"):
         page.warning(f.message, f.remedy)
     page.heading("Identified parameters")
     render_parameters(page, calibration)

@@ -80,8 +80,9 @@ def write_study_report(path, study, records, calibration, warnings):
         Every stage of the run, in order.
     calibration : podkrig.online.calibrate.CalibrationResult
         The calibration stage's result, read back (with the region's members).
-    warnings : sequence of Finding
-        The study's findings (:func:`podkrig.study.pipeline.study_findings`).
+    warnings : sequence of FindingText
+        The study's findings in words (:func:`podkrig.reports.findings.words` of
+        :func:`podkrig.study.pipeline.study_findings`).
     """
     stages = {r.name: r for r in records}
     res = {name: r.result for name, r in stages.items()}

@@ -45,6 +45,8 @@ from fe.scenarios.nonlinear import NonlinearScenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
+from podkrig.io.measurement_log import read_measurement
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.limits import fe_job_estimate
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
@@ -52,7 +54,6 @@ from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.joint import JointProblem
-from podkrig.online.measurement_csv import read_measurement
 from podkrig.online.model_error import ModelError
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.rigid_body import rigid_body_modes
@@ -67,7 +68,7 @@ from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
 from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256
-from podkrig.surrogate.podkriging import PODKriging, training_data
+from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 from podkrig.surrogate.settings import fit_surrogate
 from podkrig.surrogate.validation import held_out_errors
@@ -115,7 +116,7 @@ class StudyRun(StageCache):
         """The :class:`~podkrig.online.problem.SurrogateModel` of a surrogate file of this run
         (relative to its folder), loaded once (after the stage that writes it)."""
         if path not in self._surrogates:
-            self._surrogates[path] = SurrogateModel(PODKriging.load(self.out / path))
+            self._surrogates[path] = SurrogateModel(load_surrogate(self.out / path))
         return self._surrogates[path]
 
     def problem(self, test):
@@ -428,7 +429,7 @@ def _fit(store_path, settings, out_path):
     """Fit and save a surrogate of ``settings`` on a store; returns it."""
     with SnapshotStore.open(store_path) as store:
         sur = fit_surrogate(store, settings)
-    sur.save(out_path)
+    save_surrogate(sur, out_path)
     return sur
 
 
@@ -518,7 +519,6 @@ def calibration(run):
     tests = {t.name: t for t in study.calibration_tests}
     settings = study.calibration_settings()
     inputs = {**_online_inputs(run), "settings": dataclasses.asdict(settings),
-              "diagnosis": study.diagnosis.enabled,
               "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
                                       "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
 
@@ -527,8 +527,8 @@ def calibration(run):
         validation = {m.name: (run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs)
                       for m in study.validation}
         result = calibrate(problem, settings, scenarios=lambda name: run.scenario(tests[name]), validation=validation,
-                           context="study", check_measurement=False, diagnosis_enabled=study.diagnosis.enabled,
-                           keep_field=True, progress=lambda step, done, total: run.progress.advance(done, total))
+                           check_measurement=False, keep_field=True,
+                           progress=lambda step, done, total: run.progress.advance(done, total))
         region = result.region
         np.savez(run.out / "region.npz", samples=region.samples, omega=region.omega)
         files = ["region.npz"] + _draw_calibration(run, result)
