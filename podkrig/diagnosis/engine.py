@@ -54,7 +54,7 @@ from podkrig.diagnosis.results import (
     Alternative,
     CandidateScore,
     Cause,
-    Diagnosis,
+    DiagnosisResult,
     Fit,
     Step,
 )
@@ -217,7 +217,7 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
 
     Returns
     -------
-    Diagnosis
+    DiagnosisResult
     """
     if not measurement.complete or measurement.reference_load is not None:
         raise ValueError(f"{measurement.source}: the diagnosis needs every sensor read at each load level (no "
@@ -291,7 +291,7 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     seconds = time.perf_counter() - t_start
     causes = [t[0].name for t in terms]
     logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, causes, seconds, ctx.n_runs)
-    return Diagnosis(
+    return DiagnosisResult(
         scenario=scenario, measurement=measurement, noise_std=noise_std, alpha=alpha, base=base,
         extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=causes[0] if causes else None,
         best=best, alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,

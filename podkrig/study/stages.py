@@ -604,7 +604,7 @@ def sensitivity(run):
 
 
 def diagnosis(run, test):
-    """The model diagnosis of a test on its FE model (its own report page): :meth:`Diagnosis.to_dict`."""
+    """The model diagnosis of a test on its FE model (its own report page): :meth:`DiagnosisResult.to_dict`."""
     study = run.study
     inputs = {**_online_inputs(run), "settings": dataclasses.asdict(study.diagnosis)}
 
