@@ -581,7 +581,7 @@ def sensitivity(run):
     inputs = {**_online_inputs(run), **estimate, "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
 
     def compute():
-        options = {"n": s.n, "seed": s.seed}
+        options = {"n": s.n, "rng": s.seed}
         problem = with_model_form_errors(run.calibration_problem(), errors)
         misfit = misfit_sensitivity(problem, **options)
         readings, files = {}, []
