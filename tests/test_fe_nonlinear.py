@@ -194,9 +194,13 @@ NO_JOINTS = {
 def test_walls_without_base_joints_reproduce_the_previous_model(top):
     """``base_joints = false`` is the wall as it was: readings, loads and vertical force as stored
     (rtol 1e-6: another machine's sparse solver may converge each increment to a different
-    iterate within the force tolerance only in the last digits; the joints change them by ~14 %)."""
+    iterate within the force tolerance only in the last digits; the joints change them by ~14 %).
+    The stored values were computed with the step control of that time (tangent predictor), which
+    this test therefore uses: the model is under test here, not the step control (the secant
+    predictor moves the 0.3 mm readings by up to 0.9 %, within the path's discretisation error)."""
     readings, loads, vertical = NO_JOINTS[top]
-    r = build_scenario(dict(WALL, top=top, base_joints=False)).run()
+    sc = build_scenario(dict(WALL, top=top, base_joints=False))
+    r = sc.run(settings=dataclasses.replace(sc.options.path_settings(), predictor="tangent", step_rule="easy_steps"))
     assert r.status == CONVERGED
     assert_allclose(r.readings[-1], readings, rtol=1e-6, atol=1e-9)
     assert_allclose(r.loads, loads, rtol=1e-6, atol=0)
