@@ -40,9 +40,11 @@ J4D walls the secant predictor with ``"easy_steps"`` failed fewest increments an
 displacement control needs its detour.
 
 Peaks (``peak_tolerance``). In every displacement- or indirectly controlled phase a load maximum
-is bracketed by three consecutive converged steps (the middle one highest). At the end of the
-phase the brackets whose sampled maximum is within ``peak_margin`` of the largest load are
-refined on a side path, which leaves the recorded steps (and so the readings at the output
+is bracketed by three consecutive converged steps (the middle one highest). If the load were
+concave in the bracket, its maximum could exceed the middle load by at most the larger of the two
+secant extrapolations ``(F_b − F_a)(v_c − v_b)/(v_b − v_a)`` and ``(F_b − F_c)(v_b − v_a)/(v_c − v_b)``.
+At the end of the phase the brackets are refined in the order of that bound, as long as it
+exceeds the largest load found so far (and within ``max_peak_steps`` increments), on a side path, which leaves the recorded steps (and so the readings at the output
 levels) untouched: from the state at the bracket's start the bracket is re-followed in four equal
 increments, the bracket shrinks to the two sub-steps around the highest one, and so on until the
 load changes by at most ``peak_tolerance`` × load between the highest converged state and both of
@@ -157,9 +159,9 @@ class PathSettings:
     peak_tolerance : float
         Relative load change across the final bracket of a refined load maximum (module docstring);
         0 disables the refinement (the peak is then the largest recorded load).
-    peak_margin : float
-        Load maxima whose sampled load is within this fraction of the largest recorded load of the
-        phase are refined.
+    max_peak_steps : int
+        Increments of all peak refinements of one phase (a cap on their cost; the peak found by
+        then is reported, ``Peak.resolved`` says whether it met the tolerance).
     max_peak_levels : int
         Bracket refinements per maximum (each re-follows the bracket in four increments and halves it).
     peak_newton_tolerance : float
@@ -191,7 +193,7 @@ class PathSettings:
     predictor: str = "secant"
     step_rule: str = "easy_steps"
     peak_tolerance: float = 1e-3
-    peak_margin: float = 0.05
+    max_peak_steps: int = 200
     max_peak_levels: int = 16
     peak_newton_tolerance: float = 1e-4
 
@@ -216,8 +218,8 @@ class PathSettings:
         if not 0 <= self.peak_tolerance < 0.1:
             raise ValueError(f"peak_tolerance (relative load change across a peak's bracket) must be in [0, 0.1); "
                              f"got {self.peak_tolerance}")
-        if not 0 <= self.peak_margin < 1:
-            raise ValueError(f"peak_margin must be in [0, 1); got {self.peak_margin}")
+        if not int(self.max_peak_steps) >= 0:
+            raise ValueError(f"max_peak_steps must be >= 0; got {self.max_peak_steps}")
 
     def to_dict(self):
         return dataclasses.asdict(self)
@@ -656,7 +658,7 @@ class PathFollower:
         relaxed_run = 0  # consecutive relaxed acceptances (at most two: no creeping at a limit point)
         first = len(res.path)  # index of the phase's first recorded step
         self._chain = []  # the phase's last converged normal steps (secant predictor, peak brackets)
-        self._brackets = []  # (sampled load, start snapshot, end path value) of load maxima
+        self._brackets = []  # (bound of the maximum, start snapshot, end path value) of load maxima
         for stop in stops:
             while (stop - value) * direction > 1e-12 * max(abs(stop), 1.0):
                 self._check_budget()
@@ -738,7 +740,9 @@ class PathFollower:
             return
         a, b, c = self._chain
         if b.load >= a.load and b.load > c.load:
-            self._brackets.append((b.load, a, c.value))
+            left, right = b.value - a.value, c.value - b.value
+            bound = b.load + max((b.load - a.load) * right / left, (b.load - c.load) * left / right)
+            self._brackets.append((bound, a, c.value))
 
     def _predict(self, phase, target):
         """Secant predictor (q, λ) for the increment to ``target``, or None (module docstring)."""
@@ -771,9 +775,10 @@ class PathFollower:
             peak.bracket = (float(res.path[first + k - 1]), float(res.path[first + k + 1]))
         end = self._snapshot(phase, self._path_value(phase, self.q, self.lam)) if len(res.path) > first else None
         candidates = sorted(self._brackets, key=lambda b: -b[0])
+        self._peak_budget = res.peak_steps + s.max_peak_steps
         try:
-            for sampled, start, stop in candidates:
-                if sampled < peak.load - s.peak_margin * abs(peak.load):
+            for bound, start, stop in candidates:
+                if bound <= peak.load or res.peak_steps >= self._peak_budget:
                     break
                 found = self._refine(phase, system, start, stop)
                 if found.load > peak.load or (found.load == peak.load and not peak.resolved):
@@ -801,7 +806,9 @@ class PathFollower:
             logger.debug("%s: peak bracket %s loads %s", phase.name, [p.value for p in points], loads)
             neighbours = [loads[j] for j in (k - 1, k + 1) if 0 <= j < len(points)]
             change = max(loads[k] - n for n in neighbours) / max(abs(loads[k]), 1e-300) if neighbours else np.inf
-            if loads[k] > best.load or (loads[k] == best.load and change < best.change):
+            # the highest state of the finest bracket, unless an earlier bracket's was higher by
+            # more than the tolerance (states at the same path value differ by the Newton tolerance)
+            if loads[k] >= best.load - s.peak_tolerance * abs(best.load):
                 best = Peak(phase.name, points[k].value, float(loads[k]), points[k].readings, change=float(change),
                             resolved=bool(change <= s.peak_tolerance), tolerance=s.peak_tolerance,
                             bracket=(points[max(k - 1, 0)].value, points[min(k + 1, len(points) - 1)].value),
@@ -829,6 +836,8 @@ class PathFollower:
             goal = start.value + j * h if j < parts else stop
             while abs(goal - value) > 1e-12 * max(abs(goal), 1.0):
                 self._check_budget()
+                if res.peak_steps >= self._peak_budget:
+                    return out
                 target = goal if inc >= abs(goal - value) * (1 - 1e-12) else value + np.sign(h) * inc
                 res.attempted_steps += 1
                 try:
