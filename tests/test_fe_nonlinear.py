@@ -367,13 +367,14 @@ def test_specimen_peaks_at_default_settings_match_their_closed_forms(spec, close
     """With the default levels and increments (no dense levels around the peak) the reported peak
     is the refined load maximum: A f_t (couplet) and A f_c (prism) within 0.5 % (default units: the
     joints are loaded uniformly to ~0.2 %); it lies between output levels, resolved to the stated
-    tolerance, and is at least the largest load at the levels."""
+    tolerance, and is at least the largest load at the levels (less the tolerance: a recorded
+    load carries the error of the looser force tolerance of the path, 1e-3)."""
     r = build_scenario(spec).run()
     assert r.status == CONVERGED
     assert r.peak_load == pytest.approx(closed_form, rel=0.005)
     peak = r.path.peaks[r.path.phase[-1]]
     assert peak.refined and peak.resolved and peak.change <= peak.tolerance <= 2e-3
-    assert r.peak_load >= np.nanmax(r.loads)
+    assert r.peak_load >= np.nanmax(r.loads) * (1 - peak.tolerance)
     assert not np.any(np.isclose(r.peak_displacement, r.load_levels, rtol=1e-9, atol=0))
 
 
@@ -429,7 +430,7 @@ def test_peak_refinement_leaves_the_readings_at_the_levels_unchanged():
     assert not plain.path.peaks.get("shear") or not plain.path.peaks["shear"].refined
     peak = refined.path.peaks["shear"]
     assert peak.refined and peak.change <= settings.peak_tolerance
-    assert refined.peak_load > plain.path.load.max()
+    assert refined.peak_load > plain.path.load.max()  # the triplet's maximum lies between recorded steps
     assert refined.path.peak_steps > 0 and plain.path.peak_steps == 0
 
 

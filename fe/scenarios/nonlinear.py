@@ -249,8 +249,8 @@ class NonlinearScenario(Scenario):
         peak_load = float(load[peak]) if peak is not None else float("nan")
         peak_displacement = float(disp[peak]) if peak is not None else float("nan")
         refined = getattr(path, "peaks", {}).get(control_phase)
-        if refined is not None and refined.load >= peak_load:
-            # the load maximum refined to the solver's peak_tolerance (fe.solvers.nonlinear)
+        if refined is not None:
+            # the load maximum refined to the solver's peak_tolerance (fe.solvers.nonlinear.Peak)
             peak_load, peak_displacement = refined.load, self.control_sign * refined.path
         u = None
         if field and path.displacements is not None:

@@ -40,18 +40,21 @@ J4D walls the secant predictor with ``"easy_steps"`` failed fewest increments an
 displacement control needs its detour.
 
 Peaks (``peak_tolerance``). In every displacement- or indirectly controlled phase a load maximum
-is bracketed by three consecutive converged steps (the middle one highest). If the load were
-concave in the bracket, its maximum could exceed the middle load by at most the larger of the two
-secant extrapolations ``(F_b − F_a)(v_c − v_b)/(v_b − v_a)`` and ``(F_b − F_c)(v_b − v_a)/(v_c − v_b)``.
-At the end of the phase the brackets are refined in the order of that bound, as long as it
-exceeds the largest load found so far (and within ``max_peak_steps`` increments), on a side path, which leaves the recorded steps (and so the readings at the output
-levels) untouched: from the state at the bracket's start the bracket is re-followed in four equal
-increments, the bracket shrinks to the two sub-steps around the highest one, and so on until the
-load changes by at most ``peak_tolerance`` × load between the highest converged state and both of
-its neighbours (or the bracket is narrower than the smallest increment). For a smooth maximum the
-true peak then exceeds the reported one by at most a quarter of that change (a parabola through
-equally spaced points), for a kink by at most the change. The result is
-``PathResult.peaks[phase]`` (:class:`Peak`).
+is bracketed by three consecutive converged steps a, b, c (b highest). Were the load concave
+there, its maximum could exceed F_b by at most the larger secant extrapolation,
+``(F_b − F_a)(v_c − v_b)/(v_b − v_a)`` or ``(F_b − F_c)(v_b − v_a)/(v_c − v_b)``. At the end of
+the phase the brackets are refined in the order of that bound while it exceeds the largest load
+found so far (at most ``max_peak_steps`` increments per phase), on a side path that leaves the
+recorded steps, and so the readings at the output levels, untouched: from the state at the
+bracket's start the bracket is re-followed in four equal increments (Newton to
+``peak_newton_tolerance``), the bracket shrinks to the two sub-steps around the highest state,
+and so on until the load changes by at most ``peak_tolerance`` × load between the highest state
+and both its neighbours (or the bracket is narrower than the smallest increment). For a smooth
+maximum the true peak then exceeds the reported one by at most a quarter of that change (a
+parabola through equally spaced points), at a kink by at most the change. A refined maximum
+replaces a recorded one unless lower by more than the tolerance (a recorded load carries the
+error of the looser ``tolerance``). The result is ``PathResult.peaks[phase]`` (:class:`Peak`);
+``Peak.resolved`` says whether the tolerance was met.
 
 References
 ----------
@@ -781,7 +784,10 @@ class PathFollower:
                 if bound <= peak.load or res.peak_steps >= self._peak_budget:
                     break
                 found = self._refine(phase, system, start, stop)
-                if found.load > peak.load or (found.load == peak.load and not peak.resolved):
+                # a refined maximum replaces a recorded one unless lower by more than the tolerance:
+                # recorded loads carry the error of the looser ``tolerance``
+                if found.load > peak.load or (not peak.refined and found.resolved
+                                              and found.load >= peak.load - s.peak_tolerance * abs(peak.load)):
                     peak = found
         except _Budget as b:
             logger.info("%s: peak refinement stopped (%s); the peak is the best found so far", phase.name, b)
