@@ -170,7 +170,8 @@ class PathSettings:
     peak_newton_tolerance : float
         Force tolerance (as ``tolerance``, which it replaces when smaller) of the increments of a
         peak refinement: the reaction of a state accepted at ``tolerance`` = 1e-3 is only known to
-        about 0.1 %, too coarse to resolve a peak to ``peak_tolerance``.
+        about 0.1 %, too coarse to resolve a peak to ``peak_tolerance``. Where an increment of the
+        refinement cannot reach it, the rest of that bracket uses ``tolerance``.
     """
 
     max_steps: int = 600
@@ -196,7 +197,7 @@ class PathSettings:
     predictor: str = "secant"
     step_rule: str = "easy_steps"
     peak_tolerance: float = 1e-3
-    max_peak_steps: int = 200
+    max_peak_steps: int = 64
     max_peak_levels: int = 16
     peak_newton_tolerance: float = 1e-4
 
@@ -806,12 +807,16 @@ class PathFollower:
         best = Peak(phase.name, start.value, start.load, start.readings, change=np.inf, resolved=False,
                     tolerance=s.peak_tolerance, bracket=(start.value, stop), refined=True)
         for _ in range(s.max_peak_levels):
-            points = [lo] + self._follow(phase, system, lo, hi, PEAK_SUBSTEPS)
+            followed = self._follow(phase, system, lo, hi, PEAK_SUBSTEPS)
+            points = [lo] + followed
+            complete = len(followed) == PEAK_SUBSTEPS
             loads = np.array([p.load for p in points])
             k = int(np.argmax(loads))
             logger.debug("%s: peak bracket %s loads %s", phase.name, [p.value for p in points], loads)
-            neighbours = [loads[j] for j in (k - 1, k + 1) if 0 <= j < len(points)]
-            change = max(loads[k] - n for n in neighbours) / max(abs(loads[k]), 1e-300) if neighbours else np.inf
+            # resolved only between two neighbours: a maximum at an end of the bracket may lie beyond
+            change = np.inf
+            if 0 < k < len(points) - 1:
+                change = max(loads[k] - loads[k - 1], loads[k] - loads[k + 1]) / max(abs(loads[k]), 1e-300)
             # the highest state of the finest bracket, unless an earlier bracket's was higher by
             # more than the tolerance (states at the same path value differ by the Newton tolerance)
             if loads[k] >= best.load - s.peak_tolerance * abs(best.load):
@@ -819,9 +824,13 @@ class PathFollower:
                             resolved=bool(change <= s.peak_tolerance), tolerance=s.peak_tolerance,
                             bracket=(points[max(k - 1, 0)].value, points[min(k + 1, len(points) - 1)].value),
                             refined=True)
-            if change <= s.peak_tolerance or len(points) < 2:
-                break
-            lo, hi = points[max(k - 1, 0)], points[min(k + 1, len(points) - 1)].value
+            if change <= s.peak_tolerance or len(points) < 2 or (k == len(points) - 1 and not complete):
+                break  # resolved, or the maximum is where the side path could not go on (a jump)
+            lo = points[max(k - 1, 0)]
+            if k == len(points) - 1:  # still rising at the bracket's end: extend it by one sub-step
+                hi = 2 * points[k].value - points[k - 1].value
+            else:
+                hi = points[k + 1].value
             if abs(hi - lo.value) < width_min:
                 break
         logger.debug("%s: peak %.6g at %.6g (change %.2e, resolved %s)", phase.name, best.load, best.path,
@@ -838,6 +847,7 @@ class PathFollower:
         h = (stop - start.value) / parts
         value = start.value
         inc, inc_min = abs(h), abs(phase.increment) * s.min_increment_fraction / parts
+        tight = min(s.tolerance, s.peak_newton_tolerance)
         for j in range(1, parts + 1):
             goal = start.value + j * h if j < parts else stop
             while abs(goal - value) > 1e-12 * max(abs(goal), 1.0):
@@ -848,8 +858,13 @@ class PathFollower:
                 res.attempted_steps += 1
                 try:
                     q, lam, upd, fint, its = self._increment(phase, *system, target, self._predict(phase, target),
-                                                             tolerance=min(s.tolerance, s.peak_newton_tolerance))
+                                                             tolerance=tight)
                 except SolverError:
+                    if tight < s.tolerance:
+                        # a point cycling at a kink of the return map may not reach the tighter
+                        # tolerance: go on with the path's own (the peak is then known to ~tolerance)
+                        tight = s.tolerance
+                        continue
                     inc *= s.cutback
                     if inc < inc_min:
                         return out
