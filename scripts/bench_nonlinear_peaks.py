@@ -65,7 +65,8 @@ def main(argv=None):
         for case in args.case:
             for spec in CASES[case]:
                 print(f"\n{spec}\n")
-                print("| step control | status | steps | failed | attempted | iterations | CPU s | peak kN | at mm | resolved |")
+                print("| step control | status | steps | failed | attempted | iterations | CPU s | "
+                      "peak kN | at mm | resolved |")
                 print("|---|---|---:|---:|---:|---:|---:|---:|---:|---|")
                 rows = [run(spec, "before"), run(spec, "now")] + ([run(spec, "now", 10)] if args.finer else [])
                 for r in rows:

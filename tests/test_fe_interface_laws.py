@@ -438,7 +438,8 @@ CORNER_PATHS = {
 }
 
 
-@pytest.mark.parametrize("variant", [{}, {"tanphir": 0.5, "tanpsi": 0.2}], ids=["set_A", "softening_friction_dilatancy"])
+@pytest.mark.parametrize("variant", [{}, {"tanphir": 0.5, "tanpsi": 0.2}],
+                         ids=["set_A", "softening_friction_dilatancy"])
 @pytest.mark.parametrize("name", sorted(CORNER_PATHS))
 def test_tension_shear_corner_agrees_with_a_sub_stepped_explicit_integration(name, variant):
     """Combined tension–shear paths through the corner of the composite law (Set A: tanφ =

@@ -728,7 +728,7 @@ class PathFollower:
         return True
 
     # ---------------------------------------------------------------- prediction and peaks
-    def _snapshot(self, phase, value):
+    def _snapshot(self, value):
         res = self.result
         return _Snapshot(self.q, self.lam, self.state, self.tangent, self.previous_state, value,
                          float(res.load[-1]), np.asarray(res.readings[-1]))
@@ -739,12 +739,12 @@ class PathFollower:
 
     def _chain_step(self, phase, value):
         """Keep the last three converged steps of the phase; note a bracketed load maximum."""
-        self._chain = (self._chain + [self._snapshot(phase, value)])[-3:]
+        self._chain = (self._chain + [self._snapshot(value)])[-3:]
         if phase.control == "load" or self.settings.peak_tolerance <= 0 or len(self._chain) < 3:
             return
         a, b, c = self._chain
-        if b.load >= a.load and b.load > c.load:
-            left, right = b.value - a.value, c.value - b.value
+        left, right = b.value - a.value, c.value - b.value
+        if b.load >= a.load and b.load > c.load and left * right > 0:
             bound = b.load + max((b.load - a.load) * right / left, (b.load - c.load) * left / right)
             self._brackets.append((bound, a, c.value))
 
@@ -777,7 +777,7 @@ class PathFollower:
             peak.change = float(max(loads[k] - loads[k - 1], loads[k] - loads[k + 1]) / max(abs(loads[k]), 1e-300))
             peak.resolved = peak.change <= s.peak_tolerance
             peak.bracket = (float(res.path[first + k - 1]), float(res.path[first + k + 1]))
-        end = self._snapshot(phase, self._path_value(phase, self.q, self.lam)) if len(res.path) > first else None
+        end = self._snapshot(self._path_value(phase, self.q, self.lam)) if len(res.path) > first else None
         candidates = sorted(self._brackets, key=lambda b: -b[0])
         self._peak_budget = res.peak_steps + s.max_peak_steps
         try:
