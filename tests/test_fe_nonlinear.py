@@ -456,3 +456,19 @@ def test_step_control_settings_are_validated():
         PathSettings(step_rule="fast")
     with pytest.raises(ValueError, match="peak_tolerance"):
         PathSettings(peak_tolerance=0.5)
+
+
+def test_peak_benchmark_script_imports_without_side_effects_and_runs_a_specimen():
+    """``scripts/bench_nonlinear_peaks.py`` (the before/after counts of docs/nonlinear.md) imports
+    without running and compares the two step controls on the couplet."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_peaks.py"
+    spec = importlib.util.spec_from_file_location("bench_nonlinear_peaks", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    before, now = (bench.run({"scenario": "couplet_tension"}, v) for v in ("before", "now"))
+    assert before["status"] == now["status"] == CONVERGED
+    assert before["resolved"] == "-" and now["resolved"] == "yes"
+    assert now["peak"] == pytest.approx(A * 0.25 / 1000, rel=0.005)
