@@ -197,7 +197,7 @@ class PathSettings:
     predictor: str = "secant"
     step_rule: str = "easy_steps"
     peak_tolerance: float = 1e-3
-    max_peak_steps: int = 64
+    max_peak_steps: int = 32
     max_peak_levels: int = 16
     peak_newton_tolerance: float = 1e-4
 
