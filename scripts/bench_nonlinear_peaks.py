@@ -1,7 +1,7 @@
 """Step control and exact peaks of the nonlinear solver (issue 30, deliverable 4): counts, not times.
 
 For each case (default: J4D on the default and the coarse Q8 2 × 1 mesh, both top conditions, and
-the three specimens at their defaults) it runs the scenario twice, with the step control before
+the three specimens at their defaults; also J6D and the diagonal panel on the coarse mesh) it runs the scenario twice, with the step control before
 issue 30 (``predictor = "tangent"``, ``step_rule = "easy_steps"``, no peak refinement) and with
 the current defaults (secant predictor, peaks refined to ``peak_tolerance``), and with
 ``--finer`` also with ten times finer increments. It prints a Markdown table per case: converged
@@ -10,7 +10,8 @@ refinements included), Newton iterations, process CPU time (``time.process_time`
 to one thread), the reported peak and its displacement, and whether the peak was resolved to the
 tolerance. The counts are the comparison; the CPU times are indicative on a shared machine.
 
-Usage: python scripts/bench_nonlinear_peaks.py [--case j4d|j4d-coarse|specimens ...] [--finer]
+Usage: python scripts/bench_nonlinear_peaks.py [--case j4d|j4d-coarse|j6d-coarse|diagonal-coarse|specimens ...]
+       [--finer]
 """
 
 import argparse
@@ -26,6 +27,9 @@ CASES = {
     "j4d": [{"scenario": "shear_compression_nl", "top": top} for top in ("fixed_vertical", "constant_force")],
     "j4d-coarse": [{"scenario": "shear_compression_nl", "top": top, "nx": 2, "ny": 1}
                    for top in ("fixed_vertical", "constant_force")],
+    "j6d-coarse": [{"scenario": "shear_compression_nl", "top": top, "nx": 2, "ny": 1, "precompression": 1.21}
+                   for top in ("fixed_vertical", "constant_force")],
+    "diagonal-coarse": [{"scenario": "diagonal_compression_nl", "nx": 2, "ny": 1}],
     "specimens": [{"scenario": "couplet_tension"}, {"scenario": "triplet_shear"}, {"scenario": "prism_compression"}],
 }
 
