@@ -10,12 +10,14 @@ from podkrig.diagnosis.candidates import (
     Location,
 )
 from podkrig.diagnosis.engine import Diagnosis, build_base_surrogate, diagnose
+from podkrig.diagnosis.settings import DiagnosisSettings
 
 __all__ = [
            "CANDIDATES",
            "DEFAULT_CANDIDATES",
            "Candidate",
            "Diagnosis",
+           "DiagnosisSettings",
            "EffectParameter",
            "FEContext",
            "Location",
