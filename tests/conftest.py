@@ -6,6 +6,14 @@ import logging
 import pytest
 
 from fe.scenarios import Scenario, build_scenario
+from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
+from podkrig.parameters import ParameterSpace
+
+#: the 9 × 9 displacement grid over the diagonal test's panel that the diagnosis tests add to its
+#: six gauges (mm)
+DIC_9X9 = {"kind": "dic", "x0": 65.0, "y0": 32.5, "x1": 1105.0, "y1": 1072.5, "nx": 9, "ny": 9}
+#: the joint stiffnesses the diagnosis tests leave free (N/mm³, log-uniform)
+JOINT_BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
 
 
 @pytest.fixture(scope="session")
@@ -18,6 +26,31 @@ def coarse_diagonal():
 def default_diagonal():
     """The diagonal compression test with its default (converged) mesh."""
     return build_scenario("diagonal_compression")
+
+
+@pytest.fixture(scope="session")
+def dic_diagonal():
+    """The diagonal test on the coarse mesh (2 × 1 Q8 per unit) with its six gauges and
+    :data:`DIC_9X9`."""
+    sensors = {g.name: g.to_dict() for g in DEFAULT_SENSORS}
+    sensors["DIC"] = dict(DIC_9X9)
+    return build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "sensors": sensors})
+
+
+@pytest.fixture(scope="session")
+def dic_diagonal_space(dic_diagonal):
+    """:data:`JOINT_BOUNDS` over :func:`dic_diagonal`; the other parameters at their defaults."""
+    return ParameterSpace.from_scenario(dic_diagonal, JOINT_BOUNDS)
+
+
+@pytest.fixture(scope="session")
+def dic_diagonal_surrogate(dic_diagonal, dic_diagonal_space):
+    """The diagnosis base surrogate of :func:`dic_diagonal` over :func:`dic_diagonal_space`: 64
+    Sobol' FE runs (seed 0), as ``diagnose`` builds it. Built once per session (per xdist worker)
+    and shared: read-only — a test that refits or changes it works on a ``copy.deepcopy``."""
+    from podkrig.diagnosis import build_base_surrogate
+
+    return build_base_surrogate(dic_diagonal, dic_diagonal_space, dic_diagonal.resolve(), 64, 0)
 
 
 class FECounter:

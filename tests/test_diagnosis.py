@@ -14,27 +14,23 @@ import pytest
 from numpy.testing import assert_allclose
 
 from fe import build_scenario
-from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from fe.supports import spring_supported_model, support_areas
 from diagnosis_trials import make_trial
 from podkrig.diagnosis import CANDIDATES, DiagnosisResult, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
 from podkrig.parameters import ParameterSpace
 
 BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
-DIC = {"kind": "dic", "x0": 65.0, "y0": 32.5, "x1": 1105.0, "y1": 1072.5, "nx": 9, "ny": 9}
-
-
-def _spec(**options):
-    sensors = {g.name: g.to_dict() for g in DEFAULT_SENSORS}
-    sensors["DIC"] = dict(DIC)
-    return {"scenario": "diagonal_compression", "nx": 2, "ny": 1, "sensors": sensors, **options}
 
 
 class Setup:
-    def __init__(self, spec):
-        self.scenario = build_scenario(spec)
-        self.space = ParameterSpace.from_scenario(self.scenario, BOUNDS)
-        self.surrogate = build_base_surrogate(self.scenario, self.space, self.scenario.resolve(), 64, 0)
+    """A scenario, its free parameters and its base surrogate (64 Sobol' FE runs, seed 0: as
+    ``diagnose`` builds it), built here when not given."""
+
+    def __init__(self, scenario, space, surrogate=None):
+        self.scenario, self.space = scenario, space
+        if surrogate is None:
+            surrogate = build_base_surrogate(scenario, space, scenario.resolve(), 64, 0)
+        self.surrogate = surrogate
 
     def diagnose(self, trial, seed=0):
         return diagnose(self.scenario, trial.measurement, trial.noise, self.space, DiagnosisSettings(seed=seed),
@@ -42,13 +38,16 @@ class Setup:
 
 
 @pytest.fixture(scope="module")
-def wall():
-    return Setup(_spec())
+def wall(dic_diagonal, dic_diagonal_space, dic_diagonal_surrogate):
+    """The coarse diagonal test with six gauges and a 9 × 9 grid, BOUNDS free, and its base
+    surrogate: built once per session (conftest), shared with the other diagnosis tests."""
+    return Setup(dic_diagonal, dic_diagonal_space, dic_diagonal_surrogate)
 
 
 @pytest.fixture(scope="module")
 def shear_wall():
-    return Setup({"scenario": "shear_compression", "nx": 2, "ny": 1})
+    scenario = build_scenario({"scenario": "shear_compression", "nx": 2, "ny": 1})
+    return Setup(scenario, ParameterSpace.from_scenario(scenario, BOUNDS))
 
 
 def _truth(rng):

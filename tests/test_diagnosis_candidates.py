@@ -29,7 +29,6 @@ from podkrig.diagnosis.nonlinear_runs import ELASTIC_SCALE, NonlinearTwin, readi
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
 
-WALL_BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
 JACK_BOUNDS = {"E_b": (2000.0, 30000.0, "log"), "kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
 DIC = {"kind": "dic", "x0": 65.0, "y0": 32.5, "x1": 1105.0, "y1": 1072.5, "nx": 9, "ny": 9}
 
@@ -41,10 +40,14 @@ def _wall_spec():
 
 
 class Setup:
-    def __init__(self, spec, bounds):
-        self.scenario = build_scenario(spec)
-        self.space = ParameterSpace.from_scenario(self.scenario, bounds)
-        self.surrogate = build_base_surrogate(self.scenario, self.space, self.scenario.resolve(), 64, 0)
+    """A scenario, its free parameters and its base surrogate (64 Sobol' FE runs, seed 0: as
+    ``diagnose`` builds it), built here when not given."""
+
+    def __init__(self, scenario, space, surrogate=None):
+        self.scenario, self.space = scenario, space
+        if surrogate is None:
+            surrogate = build_base_surrogate(scenario, space, scenario.resolve(), 64, 0)
+        self.surrogate = surrogate
 
     def diagnose(self, measurement, noise, candidates=None, seed=0, model_tolerance=None, **options):
         return diagnose(self.scenario, measurement, noise, self.space,
@@ -53,8 +56,10 @@ class Setup:
 
 
 @pytest.fixture(scope="module")
-def wall():
-    return Setup(_wall_spec(), WALL_BOUNDS)
+def wall(dic_diagonal, dic_diagonal_space, dic_diagonal_surrogate):
+    """:func:`_wall_spec` (the session's ``dic_diagonal``) with kN_bj and kV_bj free and its base
+    surrogate: built once per session (conftest), shared with the other diagnosis tests."""
+    return Setup(dic_diagonal, dic_diagonal_space, dic_diagonal_surrogate)
 
 
 @pytest.fixture(scope="module")
@@ -62,8 +67,9 @@ def jack():
     """The chisari flat-jack set-up (H, V1, V2) with its 18 gauges, the release and phases 1–2
     (20 steps) on a smaller panel (6 units × 18 courses, 1560 × 1170 mm: every gauge and slot
     inside, fewer joint segments to screen); Km fixed, so that jack efficiency is a candidate."""
-    return Setup({"scenario": "flat_jack", "phases": ["0b", "1", "2"], "layout": "L18", "n_courses": 18,
-                  "units_per_course": 6.0}, JACK_BOUNDS)
+    scenario = build_scenario({"scenario": "flat_jack", "phases": ["0b", "1", "2"], "layout": "L18", "n_courses": 18,
+                               "units_per_course": 6.0})
+    return Setup(scenario, ParameterSpace.from_scenario(scenario, JACK_BOUNDS))
 
 
 def _context(setup, values=None):

@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose
 
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
-from podkrig.diagnosis import CANDIDATES, DiagnosisResult, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
+from podkrig.diagnosis import CANDIDATES, DiagnosisResult, DiagnosisSettings, FEContext, diagnose
 from podkrig.online.model_error import discretisation_error, tolerance_error
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
@@ -35,8 +35,9 @@ def _spec(nx=2, ny=1, dic=True):
 
 
 @pytest.fixture(scope="module")
-def wall():
-    return build_scenario(_spec())
+def wall(dic_diagonal):
+    """``_spec()``: the session's coarse diagonal test with six gauges and a 9 × 9 grid (conftest)."""
+    return dic_diagonal
 
 
 def _location(ctx, name, key=None):
@@ -159,15 +160,15 @@ def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
 
 
 @pytest.mark.slow
-def test_clean_data_from_an_independent_discretisation_raise_at_most_one_alarm_in_20(wall):
+def test_clean_data_from_an_independent_discretisation_raise_at_most_one_alarm_in_20(
+        wall, dic_diagonal_space, dic_diagonal_surrogate):
     """The independent-code situation inside the project: data from Q4 elements on a mesh eight times
     finer than the model's (Q8 2 × 1 per unit), six gauges and a 9 × 9 grid, clean (no effect), 20
     noise realisations. With the model-form error estimated (the default) and the rigid-body
     motion of the grid removed (the default for DIC), at most one false alarm (the issue's target:
     ≤ 1 in 20)."""
     data_model = build_scenario({**_spec(16, 8), "element": "Q4"})
-    space = ParameterSpace.from_scenario(wall, BOUNDS)
-    surrogate = build_base_surrogate(wall, space, wall.resolve(), 64, 0)
+    space, surrogate = dic_diagonal_space, dic_diagonal_surrogate  # BOUNDS free, 64 Sobol' FE runs (seed 0)
     rng = np.random.default_rng(1818)
     alarms = []
     for k in range(20):
