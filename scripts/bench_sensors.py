@@ -57,6 +57,7 @@ from podkrig.sensors.criteria import (
 from podkrig.sensors.montecarlo import candidate_surrogate, interior_truths, monte_carlo
 from podkrig.sensors.placement import place_sensors
 from podkrig.sensors.sensitivity import candidate_sensitivities, model_sensitivities, prior_points
+from podkrig.sensors.settings import ComparisonSettings, PlacementSettings, SearchSettings
 
 BOUNDS = {"E_b": (5000.0, 20000.0), "kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log"), "r_hj": (0.1, 1.0)}
 FJ_BOUNDS = {"E_b": (5000.0, 16000.0), "kN_bj": (20.0, 200.0, "log"), "kV_bj": (10.0, 100.0, "log"),
@@ -82,6 +83,13 @@ class _CachedModel:
         return np.stack([self.cache[x.tobytes()] for x in X])
 
 
+def _settings(args):
+    """D-optimal placement of ``--k`` sensors over ``--points`` Sobol' points, ``--random`` random
+    layouts compared, ``--seed``."""
+    return PlacementSettings(search=SearchSettings(k=args.k, criterion="d", n_points=args.points),
+                             comparison=ComparisonSettings(n_random=args.random), seed=args.seed)
+
+
 def flat_jack(args):
     """L6 vs the chosen 6 vs L18 vs random 6-gauge layouts on the chisari flat-jack test."""
     spec = {**FJ_SPEC, "layout": "L6"}
@@ -99,8 +107,7 @@ def flat_jack(args):
     X = prior_points(space, args.points, args.seed)
     sens = model_sensitivities(model, full, X)
     t_sens = time.perf_counter() - t0
-    result = place_sensors(sc, space, cands, k=args.k, noise=noise, criterion="d", n_points=args.points,
-                           seed=args.seed, n_random=args.random, model=model)
+    result = place_sensors(sc, space, cands, _settings(args), noise=noise, model=model)
     wall = time.perf_counter() - t0
     assert result.candidates.names == full.names
     crit = LayoutCriterion(fisher_per_candidate(sens, noise), "d", UNIFORM_PRIOR_INFORMATION)
@@ -188,8 +195,7 @@ def main():
     cands = gauge_grid(sc.mesh, grid, grid, lengths=(100.0, 500.0))
     noise = SensorNoise(lvdt=0.002)
     t0, c0 = time.perf_counter(), time.process_time()
-    result = place_sensors(sc, space, cands, k=args.k, noise=noise, criterion="d", n_points=args.points,
-                           seed=args.seed, n_random=args.random)
+    result = place_sensors(sc, space, cands, _settings(args), noise=noise)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"\nchoose {args.k} of {len(result.candidates)} candidates ({len(cands)} grid gauges + 6 current), "
           f"{space.n_params} free parameters, D-optimal over {args.points} Sobol' points:")

@@ -9,6 +9,7 @@ from typer.testing import CliRunner
 from podkrig.cli import app
 from podkrig.cli._common import (
     KrigingCriterion,
+    PlacementCriterion,
     RegionMethod,
     RigidBody,
     SamplingMethod,
@@ -16,20 +17,38 @@ from podkrig.cli._common import (
     SurrogateBackend,
     Variogram,
 )
+from podkrig.config import choices
+from podkrig.offline.settings import Design, SamplingSettings
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.sensors.placement import SENSITIVITY_SOURCES
-from podkrig.study.settings import BACKENDS, CRITERIA, REGION_METHODS, SAMPLING_METHODS, VARIOGRAMS
+from podkrig.sensors.settings import SearchSettings
+from podkrig.study.settings import REGION_METHODS, StudyFile
+from podkrig.surrogate.settings import SurrogateSettings
 
 runner = CliRunner()
 
 
 @pytest.mark.parametrize(
-    "choices, words",
-    [(SamplingMethod, SAMPLING_METHODS), (Variogram, VARIOGRAMS), (KrigingCriterion, CRITERIA),
-     (RegionMethod, REGION_METHODS), (SurrogateBackend, BACKENDS), (RigidBody, RIGID_BODY_CHOICES)],
+    "enum, settings, field",
+    [(SamplingMethod, Design, "method"), (Variogram, SurrogateSettings, "variogram"),
+     (KrigingCriterion, SurrogateSettings, "criterion"), (SurrogateBackend, SurrogateSettings, "backend"),
+     (PlacementCriterion, SearchSettings, "criterion")],
 )
-def test_cli_choices_are_the_study_file_words(choices, words):
-    assert tuple(c.value for c in choices) == words
+def test_cli_choices_are_the_settings_choices(enum, settings, field):
+    assert tuple(c.value for c in enum) == choices(settings, field)
+
+
+def test_the_study_file_validates_into_the_stages_settings():
+    # the [sampling] and [surrogate] tables are the stages' own settings classes, so the study
+    # file, the CLI and the library offer the same words
+    hints = StudyFile.__pydantic_fields__
+    assert hints["sampling"].annotation is SamplingSettings
+    assert hints["surrogate"].annotation is SurrogateSettings
+
+
+@pytest.mark.parametrize("enum, words", [(RegionMethod, REGION_METHODS), (RigidBody, RIGID_BODY_CHOICES)])
+def test_cli_choices_are_the_study_file_words(enum, words):
+    assert tuple(c.value for c in enum) == words
 
 
 def test_sensitivity_sources_are_the_library_words():

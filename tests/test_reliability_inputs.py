@@ -18,6 +18,7 @@ from podkrig.cli._common import error_message
 from podkrig.exceptions import StoreInUseError
 from podkrig.limits import check_name, check_output_folder, check_region_samples
 from podkrig.offline.sampling import sobol
+from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
 from podkrig.online import measurement_csv
 from podkrig.online.measurement_csv import read_measurement_csv
@@ -53,7 +54,7 @@ def test_pipeline_never_deletes_a_store_another_run_is_writing(tmp_path, coarse_
     try:
         assert holder.stdout.readline().strip() == "open"
         before = path.read_bytes()  # as the holder left it (opening sets a superblock flag)
-        design = SimpleNamespace(n=8, seed=0, method="sobol")
+        design = Design(n=8, seed=0, method="sobol")
         with pytest.raises(StoreInUseError, match="in use"):
             _run_store(_run(), path, coarse_diagonal, space, design)
     finally:
@@ -67,7 +68,7 @@ def test_pipeline_never_deletes_a_store_another_run_is_writing(tmp_path, coarse_
 def test_pipeline_keeps_an_unusable_store_aside_and_says_so(tmp_path, coarse_diagonal, space, caplog):
     path = tmp_path / "train.h5"
     path.write_bytes(b"not a store, but someone's file")
-    design = SimpleNamespace(n=4, seed=0, method="sobol")
+    design = Design(n=4, seed=0, method="sobol")
     with caplog.at_level(logging.WARNING):
         summary, notes = _run_store(_run(), path, coarse_diagonal, space, design)
     kept = [p for p in tmp_path.iterdir() if p.name.startswith("train.unusable-")]

@@ -39,6 +39,7 @@ from podkrig.sensors.sensitivity import (
     model_sensitivities,
     prior_points,
 )
+from podkrig.sensors.settings import ComparisonSettings, PlacementSettings, SearchSettings
 from podkrig.study import load_study
 
 SMALL = {
@@ -47,6 +48,11 @@ SMALL = {
 }
 GRID = np.arange(20.0, 390.0, 40.0)
 BOUNDS = {"E_b": (5000, 20000), "kN_bj": (10, 1000, "log"), "kV_bj": (4, 400, "log"), "r_hj": (0.1, 1.0)}
+
+
+def _job(*, n_random=20, **search):
+    """Placement settings: the search's, and ``n_random`` random layouts to compare against."""
+    return PlacementSettings(search=SearchSettings(**search), comparison=ComparisonSettings(n_random=n_random))
 
 
 @pytest.fixture(scope="module")
@@ -225,8 +231,8 @@ def test_parameter_unidentifiable_with_one_layout_identifiable_with_the_chosen(s
     pins both (Monte-Carlo 95 % width < 0.25 of the box)."""
     space = ParameterSpace.from_scenario(scenario, {"E_b": (5000, 20000), "r_hj": (0.1, 1.0)})
     cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(50, 160))
-    result = place_sensors(scenario, space, cand, k=3, noise=SensorNoise(lvdt=0.0005), n_points=16,
-                           include_current=False, n_random=0, methods=("greedy",))
+    result = place_sensors(scenario, space, cand, _job(k=3, n_points=16, include_current=False, n_random=0,
+                                                       methods=("greedy",)), noise=SensorNoise(lvdt=0.0005))
     sens = candidate_sensitivities(scenario, space, result.candidates, prior_points(space, 32))
     sur = candidate_surrogate(sens)
     truth = space.from_unit(np.array([[0.5, 0.5]]))
@@ -239,7 +245,7 @@ def test_parameter_unidentifiable_with_one_layout_identifiable_with_the_chosen(s
 
 def test_place_sensors_spec_is_accepted_by_the_scenario_and_the_study(scenario, space, tmp_path):
     cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(80, 160))
-    result = place_sensors(scenario, space, cand, k=3, n_points=8, n_random=3, methods=("greedy",))
+    result = place_sensors(scenario, space, cand, _job(k=3, n_points=8, n_random=3, methods=("greedy",)))
     assert [s.label for s in result.scores][:2] == ["chosen", "current"] and len(result.scores) == 5
     text = spec_toml(result.spec())
     spec = ScenarioSpec.from_dict(tomllib.loads(text))
@@ -332,9 +338,9 @@ def test_place_sensors_through_a_batched_model_matches_the_exact_path(scenario, 
     the exact affine path, with criterion values within 1e-5 relative (difference truncation)."""
     spec = dict(SMALL, sensors={s.name: s.to_dict() for s in twenty.sensors})
     fe_model = FEModel(build_scenario(spec), space)
-    opts = dict(k=4, n_points=8, include_current=False, n_random=0, methods=("greedy",))
-    exact = place_sensors(scenario, space, twenty, **opts)
-    via_model = place_sensors(scenario, space, twenty, model=fe_model, **opts)
+    job = _job(k=4, n_points=8, include_current=False, n_random=0, methods=("greedy",))
+    exact = place_sensors(scenario, space, twenty, job)
+    via_model = place_sensors(scenario, space, twenty, job, model=fe_model)
     assert set(via_model.layout.indices) == set(exact.layout.indices)
     assert via_model.layout.value == pytest.approx(exact.layout.value, rel=1e-5)
 
@@ -342,9 +348,10 @@ def test_place_sensors_through_a_batched_model_matches_the_exact_path(scenario, 
 def test_current_sensor_in_a_forbidden_zone_is_scored_but_not_chosen(scenario, space):
     zone = Zone(150.0, 150.0, 250.0, 250.0)  # the current gauge C (100,100)→(290,290) crosses it
     cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(80, 160), forbidden=[zone])
-    free = place_sensors(scenario, space, cand, k=3, n_points=8, n_random=0, methods=("greedy",))
+    job = _job(k=3, n_points=8, n_random=0, methods=("greedy",))
+    free = place_sensors(scenario, space, cand, job)
     assert "C" in free.layout.names  # the best sensor when allowed
-    barred = place_sensors(scenario, space, cand, k=3, n_points=8, n_random=0, methods=("greedy",), forbidden=[zone])
+    barred = place_sensors(scenario, space, cand, job, forbidden=[zone])
     assert "C" not in barred.layout.names and barred.score("current").names == ("C",)
     assert barred.zones == (zone,)
 
@@ -367,7 +374,7 @@ def test_two_load_patterns_shear_compression_readings_match():
 
 def test_budget_through_place_sensors_prices_current_sensors_like_candidates(scenario, space):
     cand = gauge_grid(scenario.mesh, GRID, GRID, lengths=(80, 160), cost=2.5)
-    result = place_sensors(scenario, space, cand, budget=8.0, n_points=8, n_random=2, methods=("greedy",))
+    result = place_sensors(scenario, space, cand, _job(budget=8.0, n_points=8, n_random=2, methods=("greedy",)))
     assert result.candidates.cost[result.candidates.is_current].tolist() == [2.5]
     assert len(result.layout.indices) == 3 and result.candidates.cost[result.layout.indices].sum() <= 8.0
 
@@ -411,15 +418,15 @@ def test_fe_differences_stand_in_where_exact_sensitivities_cannot(tmp_path, capl
     x = np.array([[4000.0, 0.9]])
     np.testing.assert_allclose(model.predict(x)[0], sc.run({"E_b": 4000.0, "Km": 0.9}).readings.ravel(), rtol=1e-10, atol=1e-14)
     assert model.n_runs == 1
-    opts = dict(k=1, n_points=4, n_random=2, methods=("greedy",), include_current=False)
+    job = _job(k=1, n_points=4, n_random=2, methods=("greedy",), include_current=False)
     with pytest.raises(ExactSensitivitiesUnavailable, match="release = 'exact'"):
-        place_sensors(sc, with_km, cands, model="exact", **opts)
+        place_sensors(sc, with_km, cands, job, model="exact")
     with pytest.raises(ValueError, match="model must be a batched model or one of"):
-        place_sensors(sc, with_km, cands, model="surrogate", **opts)
+        place_sensors(sc, with_km, cands, job, model="surrogate")
     with caplog.at_level("WARNING", logger="podkrig.sensors.placement"):
-        auto = place_sensors(sc, with_km, cands, model="auto", **opts)
+        auto = place_sensors(sc, with_km, cands, job, model="auto")
     assert "differences of FE runs" in caplog.text
-    fe = place_sensors(sc, with_km, cands, model="fe", **opts)
+    fe = place_sensors(sc, with_km, cands, job, model="fe")
     assert auto.layout.names == fe.layout.names and len(fe.layout.names) == 1
 
     spec_file = tmp_path / "fj.json"

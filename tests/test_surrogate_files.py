@@ -157,12 +157,12 @@ def test_physical_box_is_exact():
 
 
 def test_one_default_exponent():
-    from podkrig.cli.surrogate import _templates
-    from podkrig.study.settings import SurrogateSettings
+    from podkrig.cli.surrogate import surrogate_settings
+    from podkrig.surrogate.settings import SurrogateSettings
 
     assert DEFAULT_BETA == "fit-shared" == OrdinaryKriging().beta
-    assert _templates(None, None, "podkrig", None, None, None, None)[1].beta == DEFAULT_BETA
-    assert SurrogateSettings.__dataclass_fields__["beta"].default == DEFAULT_BETA
+    assert surrogate_settings(None, None, "podkrig", None, None, None, None).templates()[1].beta == DEFAULT_BETA
+    assert SurrogateSettings().beta == DEFAULT_BETA
 
 
 # --- fitting on a snapshot store -----------------------------------------------------------------

@@ -1,7 +1,8 @@
 """Helpers shared by CLI commands: error reporting, logging set-up and the choices of options.
 
 Options with a fixed set of values are typed with the enumerations below, so ``--help`` lists
-the choices and a wrong value is refused by the command line parser (exit code 2) with the
+the choices (those of a stage's settings generated from the settings class, the words of the
+study file) and a wrong value is refused by the command line parser (exit code 2) with the
 allowed values. They are :class:`enum.StrEnum`, so a member compares equal to its text and
 library functions receive plain strings in effect.
 """
@@ -16,12 +17,17 @@ from enum import StrEnum
 import typer
 
 from fe.exceptions import FEError
+from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
+from podkrig.offline.settings import Design
+from podkrig.sensors.settings import SearchSettings
+from podkrig.surrogate.settings import SurrogateSettings
 
 __all__ = [
     "KrigingCriterion",
     "LinearSolver",
+    "PlacementCriterion",
     "RegionMethod",
     "ResponseFormat",
     "RigidBody",
@@ -38,35 +44,29 @@ __all__ = [
     "os_error_message",
     "parse_rigid_groups",
     "print_findings",
+    "settings_from_options",
     "user_errors",
 ]
 
-# The same words as the study file's (podkrig.study.settings; tests/test_cli_choices.py checks
-# they agree). Spelt out rather than imported: importing the study package (pydantic, the
-# pipeline) made `import podkrig.cli` take 4.4 s instead of 2.4 s (measured on the loaded machine).
+
+def _choices_enum(name, cls, field, doc):
+    """A :class:`enum.StrEnum` of the choices of settings field ``cls.field``
+    (:func:`podkrig.config.choices`): members named by the words with ``-`` as ``_``."""
+    members = StrEnum(name, {word.replace("-", "_"): word for word in choices(cls, field)})
+    members.__doc__ = doc
+    members.__module__ = __name__
+    return members
 
 
-class SamplingMethod(StrEnum):
-    """Sampling design of FE runs (``--sampling``); ``lhs-ese``: SMT's optimised LHS."""
-
-    sobol = "sobol"
-    lhs = "lhs"
-    random = "random"
-    lhs_ese = "lhs-ese"
-
-
-class Variogram(StrEnum):
-    """Semivariogram model of the kriging (``--variogram``)."""
-
-    exponential = "exponential"
-    power = "power"
-
-
-class KrigingCriterion(StrEnum):
-    """Hyperparameters by likelihood or by leave-one-out (``--criterion``)."""
-
-    ml = "ml"
-    loo = "loo"
+SamplingMethod = _choices_enum("SamplingMethod", Design, "method",
+                               "Sampling design of FE runs (``--sampling``); ``lhs-ese``: SMT's optimised LHS.")
+Variogram = _choices_enum("Variogram", SurrogateSettings, "variogram",
+                          "Semivariogram model of the kriging (``--variogram``).")
+KrigingCriterion = _choices_enum("KrigingCriterion", SurrogateSettings, "criterion",
+                                 "Hyperparameters by likelihood or by leave-one-out (``--criterion``).")
+SurrogateBackend = _choices_enum("SurrogateBackend", SurrogateSettings, "backend", "Surrogate backend (``--backend``).")
+PlacementCriterion = _choices_enum("PlacementCriterion", SearchSettings, "criterion",
+                                   "Criterion of the sensor layout (``podkrig sensors --criterion``).")
 
 
 class RegionMethod(StrEnum):
@@ -74,15 +74,6 @@ class RegionMethod(StrEnum):
 
     likelihood_ratio = "likelihood-ratio"
     noise_mc = "noise-mc"
-
-
-class SurrogateBackend(StrEnum):
-    """Surrogate backend (``--backend``)."""
-
-    podkrig = "podkrig"
-    smt_krg = "smt-krg"
-    smt_kpls = "smt-kpls"
-    sklearn_gpr = "sklearn-gpr"
 
 
 class SensitivitySource(StrEnum):
@@ -206,6 +197,40 @@ def user_errors():
             MemoryError) as e:
         typer.echo(f"error: {error_message(e)}", err=True)
         raise typer.Exit(code=2) from None
+
+
+def settings_from_options(cls, options):
+    """Settings ``cls`` built from command-line options, a wrong value named by its option.
+
+    Parameters
+    ----------
+    cls : settings class (:func:`podkrig.config.settings`)
+    options : dict of str to (str, object)
+        ``{field: (option, value)}``, e.g. ``{"modes": ("--modes", 4)}``; a value None is an option
+        not given (the field keeps its default).
+
+    Raises
+    ------
+    ValueError
+        ``OPTION VALUE: what is wrong; allowed: ...`` (the settings' own words and allowed values).
+    """
+    import pydantic
+
+    given = {k: v for k, (_, v) in options.items() if v is not None}
+    try:
+        return cls(**given)
+    except pydantic.ValidationError as e:
+        error = e.errors(include_url=False)[0]
+        ctx = error.get("ctx") or {}
+        if error["type"] == "settings":
+            key, what, allowed = (ctx["key"] or error["loc"] or ("",))[0], ctx["message"], ctx["allowed"]
+        else:
+            key, what = error["loc"][0], "out of range"
+            allowed = field_info(cls)[key]["allowed"]
+        option = options[key][0] if key in options else key
+        value = given.get(key)
+        raise ValueError(f"{option}{'' if value is None else f' {value!r}'}: {what}"
+                         + (f"; allowed: {allowed}" if allowed else "")) from None
 
 
 def number(value, digits=4):

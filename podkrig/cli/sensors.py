@@ -6,8 +6,20 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import SensitivitySource, configure_logging, user_errors
+from podkrig.cli._common import (
+    PlacementCriterion, SensitivitySource, configure_logging, settings_from_options, user_errors,
+)
 from podkrig.cli.simulate import load_spec, parse_assignment
+from podkrig.config import field_info
+from podkrig.sensors.criteria import SensorNoise
+from podkrig.sensors.settings import CandidateSettings, ComparisonSettings, PlacementSettings, SearchSettings
+
+#: the defaults of the settings, shown as the options' defaults
+_CANDIDATE = {k: f["default"] for k, f in field_info(CandidateSettings).items()}
+_SEARCH = {k: f["default"] for k, f in field_info(SearchSettings).items()}
+_COMPARISON = {k: f["default"] for k, f in field_info(ComparisonSettings).items()}
+_PLACEMENT = {k: f["default"] for k, f in field_info(PlacementSettings).items()}
+_NOISE = SensorNoise()
 
 
 def _read_candidates(path):
@@ -37,30 +49,33 @@ def register(app):
         budget: float = typer.Option(None, "--budget", help="Total cost budget instead of --k."),
         grid_x: str = typer.Option(None, "--grid-x", help="Gauge end-point grid along x, START:STOP:STEP mm."),
         grid_y: str = typer.Option(None, "--grid-y", help="Gauge end-point grid along y, START:STOP:STEP mm."),
-        length: str = typer.Option("50:400", "--length", help="Gauge length range MIN:MAX mm."),
-        orientation: list[float] = typer.Option([0.0, 45.0, 90.0, 135.0], "--orientation", help="Gauge direction, degrees from x (repeatable)."),
+        length: str = typer.Option(":".join(f"{v:g}" for v in _CANDIDATE["lengths"]), "--length",
+                                   help="Gauge length range MIN:MAX mm."),
+        orientation: list[float] = typer.Option(list(_CANDIDATE["orientations"]), "--orientation",
+                                                help="Gauge direction, degrees from x (repeatable)."),
         dic_x: str = typer.Option(None, "--dic-x", help="DIC point grid along x, START:STOP:STEP mm."),
         dic_y: str = typer.Option(None, "--dic-y", help="DIC point grid along y, START:STOP:STEP mm."),
         candidates_file: Path = typer.Option(None, "--candidates", help="User candidate list: TOML/JSON [sensors] table (optional cost per sensor)."),
-        noise_lvdt: float = typer.Option(0.002, "--noise-lvdt", help="σ of a gauge reading, mm."),
-        noise_dic: float = typer.Option(0.005, "--noise-dic", help="σ of a DIC displacement component, mm."),
+        noise_lvdt: float = typer.Option(_NOISE.lvdt, "--noise-lvdt", help="σ of a gauge reading, mm."),
+        noise_dic: float = typer.Option(_NOISE.dic, "--noise-dic", help="σ of a DIC displacement component, mm."),
         noise_rel: float = typer.Option(None, "--noise-rel", help="Relative noise δ instead (σ = δ |reading|)."),
-        cost_lvdt: float = typer.Option(1.0, "--cost-lvdt", help="Cost of one gauge."),
-        cost_dic: float = typer.Option(1.0, "--cost-dic", help="Cost of one DIC point."),
-        criterion: str = typer.Option("d", "--criterion", help="d, a, e or pod."),
+        cost_lvdt: float = typer.Option(_CANDIDATE["cost_lvdt"], "--cost-lvdt", help="Cost of one gauge."),
+        cost_dic: float = typer.Option(_CANDIDATE["cost_dic"], "--cost-dic", help="Cost of one DIC point."),
+        criterion: PlacementCriterion = typer.Option(PlacementCriterion(_SEARCH["criterion"]), "--criterion",
+                                                     help="Criterion of the layout (pod: POD modes of the readings)."),
         forbid: list[str] = typer.Option([], "--forbid", help="Forbidden zone X0:Y0:X1:Y1 mm (repeatable)."),
-        min_spacing: float = typer.Option(0.0, "--min-spacing", help="Smallest distance between chosen sensor centres, mm."),
+        min_spacing: float = typer.Option(_SEARCH["min_spacing"], "--min-spacing", help="Smallest distance between chosen sensor centres, mm."),
         must_include: list[str] = typer.Option([], "--must-include", help="Sensor name always chosen (repeatable)."),
-        no_current: bool = typer.Option(False, "--no-current", help="Do not add/score the scenario's current sensors."),
-        n_points: int = typer.Option(64, "--n-points", help="Sobol' points of the box the criteria average over."),
-        n_random: int = typer.Option(20, "--random", help="Random layouts to compare against."),
-        monte_carlo: int = typer.Option(0, "--monte-carlo", help="Noise realisations of the inversion check per layout (0: skip)."),
-        truths: int = typer.Option(1, "--truths", help="Truth points of the Monte-Carlo check."),
+        no_current: bool = typer.Option(not _SEARCH["include_current"], "--no-current", help="Do not add/score the scenario's current sensors."),
+        n_points: int = typer.Option(_SEARCH["n_points"], "--n-points", help="Sobol' points of the box the criteria average over."),
+        n_random: int = typer.Option(_COMPARISON["n_random"], "--random", help="Random layouts to compare against."),
+        monte_carlo: int = typer.Option(_COMPARISON["n_monte_carlo"], "--monte-carlo", help="Noise realisations of the inversion check per layout (0: skip)."),
+        truths: int = typer.Option(_COMPARISON["n_truths"], "--truths", help="Truth points of the Monte-Carlo check."),
         sensitivities: SensitivitySource = typer.Option(
             SensitivitySource.auto, "--sensitivities",
             help="exact: the affine FE model (one factorisation per point); fe: differences of FE runs (loads that "
                  "depend on the parameters, e.g. the flat jack's Km; nonlinear scenarios); auto: exact where possible."),
-        seed: int = typer.Option(0, "--seed"),
+        seed: int = typer.Option(_PLACEMENT["seed"], "--seed"),
         out: Path = typer.Option(Path("out/sensors"), "--out", help="Output folder."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
@@ -87,14 +102,7 @@ def register(app):
         from fe.scenarios import SCENARIOS, build_scenario
         from podkrig.parameters import ParameterSpace, parse_params
         from podkrig.reports.sensors import comparison_markdown, comparison_rows, plot_layout
-        from podkrig.sensors.candidates import (
-            Zone,
-            dic_points,
-            gauge_grid,
-            parse_range,
-            user_candidates,
-        )
-        from podkrig.sensors.criteria import SensorNoise
+        from podkrig.sensors.candidates import Zone
         from podkrig.sensors.placement import place_sensors, spec_toml
 
         with user_errors():
@@ -104,29 +112,26 @@ def register(app):
             space = ParameterSpace.from_scenario(sc, parse_params(param))
             fixed = dict(parse_assignment(t, "--fix") for t in fix)
             zones = [Zone.parse(t) for t in forbid]
-            parts = []
-            if (grid_x is None) != (grid_y is None):
-                raise ValueError("give both --grid-x and --grid-y (gauge end-point grid)")
-            if grid_x is not None:
-                lo, _, hi = length.partition(":")
-                try:
-                    lengths = (float(lo), float(hi))
-                except ValueError:
-                    raise ValueError(f"--length {length!r}: expected MIN:MAX in mm, e.g. 50:400") from None
-                parts.append(gauge_grid(sc.mesh, parse_range(grid_x, "--grid-x"), parse_range(grid_y, "--grid-y"),
-                                        lengths=lengths, orientations=orientation, forbidden=zones, cost=cost_lvdt))
-            if (dic_x is None) != (dic_y is None):
-                raise ValueError("give both --dic-x and --dic-y (DIC point grid)")
-            if dic_x is not None:
-                parts.append(dic_points(sc.mesh, parse_range(dic_x, "--dic-x"), parse_range(dic_y, "--dic-y"),
-                                        forbidden=zones, cost=cost_dic))
-            if candidates_file is not None:
-                parts.append(user_candidates(sc.mesh, _read_candidates(candidates_file), forbidden=zones, cost=cost_lvdt))
-            if not parts:
-                raise ValueError("no candidates: give --grid-x/--grid-y, --dic-x/--dic-y and/or --candidates FILE")
-            cands = parts[0]
-            for extra in parts[1:]:
-                cands = cands + extra
+            lo, _, hi = length.partition(":")
+            try:
+                lengths = (float(lo), float(hi))
+            except ValueError:
+                raise ValueError(f"--length {length!r}: expected MIN:MAX in mm, e.g. 50:400") from None
+            where = settings_from_options(CandidateSettings, {
+                "grid_x": ("--grid-x", grid_x), "grid_y": ("--grid-y", grid_y), "lengths": ("--length", lengths),
+                "orientations": ("--orientation", tuple(orientation)), "dic_x": ("--dic-x", dic_x),
+                "dic_y": ("--dic-y", dic_y), "cost_lvdt": ("--cost-lvdt", cost_lvdt), "cost_dic": ("--cost-dic", cost_dic)})
+            search = settings_from_options(SearchSettings, {
+                "k": ("--k", k), "budget": ("--budget", budget), "criterion": ("--criterion", criterion.value),
+                "n_points": ("--n-points", n_points), "must_include": ("--must-include", tuple(must_include)),
+                "min_spacing": ("--min-spacing", min_spacing), "include_current": ("--no-current", not no_current)})
+            comparison = settings_from_options(ComparisonSettings, {
+                "n_random": ("--random", n_random), "n_monte_carlo": ("--monte-carlo", monte_carlo),
+                "n_truths": ("--truths", truths)})
+            settings = settings_from_options(PlacementSettings, {
+                "search": ("", search), "comparison": ("", comparison), "seed": ("--seed", seed)})
+            user = None if candidates_file is None else _read_candidates(candidates_file)
+            cands = where.candidates(sc.mesh, user, forbidden=zones)
             noise = SensorNoise(lvdt=noise_lvdt, dic=noise_dic, relative=noise_rel)
             progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                                 console=Console(stderr=True))
@@ -140,12 +145,8 @@ def register(app):
                 progress.update(tasks[stage], completed=done, total=total)
 
             try:
-                result = place_sensors(
-                    sc, space, cands, k=k, budget=budget, noise=noise, criterion=criterion, fixed=fixed,
-                    n_points=n_points, seed=seed, must_include=tuple(must_include), min_spacing=min_spacing,
-                    include_current=not no_current, n_random=n_random, n_monte_carlo=monte_carlo,
-                    n_truths=truths, forbidden=zones, model=str(sensitivities), progress=report,
-                )
+                result = place_sensors(sc, space, cands, settings, noise=noise, fixed=fixed, forbidden=zones,
+                                       model=str(sensitivities), progress=report)
             finally:
                 progress.stop()
             out.mkdir(parents=True, exist_ok=True)
@@ -157,6 +158,7 @@ def register(app):
 
         console = Console()
         lay = result.layout
+        criterion = search.criterion
         console.print(f"{len(cands)} candidates ({len(result.candidates)} with the current sensors); "
                       f"criterion {criterion.upper()} averaged over {result.n_points} Sobol' points; "
                       f"sensitivities {result.sensitivity_seconds:.1f} s, search {lay.seconds:.2f} s "
@@ -173,7 +175,7 @@ def register(app):
         comp.add_column(f"Ψ_{criterion.upper()}", justify="right")
         for n in space.names:
             comp.add_column(f"lin. {n}", justify="right")
-        has_mc = monte_carlo > 0
+        has_mc = comparison.n_monte_carlo > 0
         if has_mc:
             for n in space.names:
                 comp.add_column(f"MC {n}", justify="right")

@@ -8,9 +8,13 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import SamplingMethod, TextFormat, configure_logging, confirm_large_job, user_errors
+from podkrig.cli._common import (
+    SamplingMethod, TextFormat, configure_logging, confirm_large_job, settings_from_options, user_errors,
+)
+from podkrig.config import field_info
 from podkrig.exceptions import StoreError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_rows, fe_job_estimate
+from podkrig.offline.settings import Design
 
 snapshots_app = typer.Typer(
     name="snapshots",
@@ -40,7 +44,8 @@ def run(
     seed: int = typer.Option(..., "--seed", help="Seed of the design (recorded in the store)."),
     scenario: str = typer.Option(None, "--scenario", help="Scenario name, e.g. diagonal_compression."),
     spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
-    sampling: SamplingMethod = typer.Option(SamplingMethod.sobol, "--sampling", help="Design: sobol, lhs, lhs-ese (SMT's optimised Latin hypercube) or random."),
+    sampling: SamplingMethod = typer.Option(SamplingMethod(field_info(Design)["method"]["default"]), "--sampling",
+                                            help="Design (lhs-ese: SMT's optimised Latin hypercube)."),
     workers: int = typer.Option(None, "--workers", help="Local worker processes; 1 runs in this process without Dask (default: one per core)."),
     scheduler: str = typer.Option(None, "--scheduler", help="Existing Dask scheduler, e.g. tcp://HOST:8786."),
     fields: bool = typer.Option(False, "--fields", help="Also store full displacement fields."),
@@ -71,8 +76,10 @@ def run(
     from fe.scenarios import build_scenario
     from fe.scenarios.nonlinear import NonlinearScenario
 
-    from podkrig.parameters import ParameterSpace, parse_params
+    from podkrig.offline.results import OfflineResult
     from podkrig.offline.runner import rows_to_run, run_snapshots
+    from podkrig.parameters import ParameterSpace, parse_params
+    from podkrig.reports.offline import rows_text
     from podkrig.offline.store import store_bytes_per_row
 
     with user_errors():
@@ -83,6 +90,8 @@ def run(
         space = ParameterSpace.from_scenario(sc, bounds)
         size = check_rows(n, store_bytes_per_row(space.n_params, len(sc.load_levels), len(sc.sensor_names),
                                                   sc.mesh.n_nodes, fields))
+        design = settings_from_options(Design, {"n": ("--n", n), "seed": ("--seed", seed),
+                                                "method": ("--sampling", sampling.value)})
         todo = rows_to_run(store, n, retry_failed)
         job = [(todo, sc.n_dofs, isinstance(sc, NonlinearScenario))]
         confirm_large_job(*fe_job_estimate(job, size if todo else 0), yes)
@@ -102,7 +111,7 @@ def run(
 
         try:
             summary = run_snapshots(
-                store, sc, space, n=n, seed=seed, sampling=sampling.value, fields=fields, workers=workers,
+                store, sc, space, **design.run_arguments(), fields=fields, workers=workers,
                 scheduler=scheduler, retry_failed=retry_failed, chunk_size=chunk_size, progress=report,
             )
         except KeyboardInterrupt:
@@ -110,15 +119,15 @@ def run(
             raise typer.Exit(code=130) from None
         finally:
             progress.stop()
+        result = OfflineResult.from_store(store, summary)
     rate = summary.snapshots_per_second
     typer.echo(
-        f"{summary.action} {store}: {summary.done} done, {summary.failed} failed, {summary.pending} pending "
-        f"of {summary.total} rows; ran {summary.ran} in {summary.seconds:.1f} s "
-        f"({rate if math.isfinite(rate) else 0:.1f} snapshots/s, {summary.executor})"
+        f"{summary.action} {store}: {rows_text(result)}; ran {summary.ran} in {summary.seconds:.1f} s "
+        f"({rate if math.isfinite(rate) else 0:.1f} snapshots/s, {result.executor})"
     )
-    if summary.failed:
+    if result.failed:
         typer.echo(
-            f"{summary.failed} rows failed: see 'podkrig snapshots info {store}'; rerun with --retry-failed "
+            f"{result.failed} rows failed: see 'podkrig snapshots info {store}'; rerun with --retry-failed "
             "to run them again", err=True,
         )
 

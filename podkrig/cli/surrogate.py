@@ -1,7 +1,6 @@
 """``podkrig surrogate``: build a POD-kriging surrogate from a snapshot store, validate it, refine it."""
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -9,16 +8,18 @@ import typer
 
 from fe.scenarios import build_scenario
 from podkrig.cli._common import (
-    KrigingCriterion, SurrogateBackend, TableFormat, Variogram, configure_logging, user_errors,
+    KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
+    settings_from_options, user_errors,
 )
-from podkrig.offline.sampling import METHODS
+from podkrig.config import field_info
+from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
 from podkrig.reports import surrogate as figs
-from podkrig.surrogate.backends import BACKENDS, DEFAULT_BACKEND, make_backend
-from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
-from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.kriging import OrdinaryKriging
+from podkrig.surrogate.podkriging import PODKriging, training_data
 from podkrig.surrogate.refine import refine_surrogate
+from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult
+from podkrig.surrogate.settings import BACKENDS, SurrogateSettings, fit_surrogate
 from podkrig.surrogate.validation import compare_settings, held_out_errors
 
 surrogate_app = typer.Typer(
@@ -28,30 +29,35 @@ surrogate_app = typer.Typer(
 )
 
 
+#: the defaults of the surrogate settings, shown in the options' help
+_DEFAULTS = {name: f["default"] for name, f in field_info(SurrogateSettings).items()}
+#: the options that set our kriging (a library backend fits its own hyperparameters)
+_KRIGING_OPTIONS = {"variogram": "--variogram", "beta": "--beta", "criterion": "--criterion", "nugget": "--nugget"}
+
+
 def _beta(text):
-    if text in ("fit", "fit-shared"):
-        return text
+    """``--beta``: a number, or a word of the settings ("fit", "fit-shared"; checked there)."""
+    if text is None:
+        return None
     try:
         return float(text)
     except ValueError:
-        raise ValueError(f"--beta must be a number in (0, 2], 'fit' or 'fit-shared'; got {text!r}") from None
+        return text
 
 
-def _templates(energy, modes, backend, variogram, beta, criterion, nugget):
-    if energy is not None and modes is not None:
-        raise ValueError("give either --energy or --modes, not both")
-    pod = POD(n_modes=modes) if modes is not None else POD(energy=DEFAULT_ENERGY if energy is None else energy)
-    if backend not in BACKENDS:
-        raise ValueError(f"--backend must be one of {', '.join(BACKENDS)}; got {backend!r}")
-    ours = {"variogram": variogram, "beta": beta, "criterion": criterion, "nugget": nugget}
+def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget):
+    """The :class:`~podkrig.surrogate.settings.SurrogateSettings` of ``podkrig surrogate build``'s
+    options (None: not given, the settings' default); a kriging option with another backend than
+    ours is refused, as that backend fits its own hyperparameters."""
+    ours = {"variogram": variogram, "beta": _beta(beta), "criterion": criterion, "nugget": nugget}
     if backend != "podkrig":
-        given = [f"--{k}" for k, v in ours.items() if v is not None]
+        given = [_KRIGING_OPTIONS[k] for k, v in ours.items() if v is not None]
         if given:
             raise ValueError(f"{', '.join(given)} set(s) the podkrig kriging; backend {backend!r} fits its own "
                              "hyperparameters: drop the option(s) or use --backend podkrig")
-        return pod, make_backend(backend)
-    return pod, OrdinaryKriging(variogram=variogram or "exponential", beta=_beta(beta or DEFAULT_BETA),
-                                criterion=criterion or "ml", nugget=0.0 if nugget is None else nugget)
+    options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend)}
+    options.update({k: (_KRIGING_OPTIONS[k], v) for k, v in ours.items()})
+    return settings_from_options(SurrogateSettings, options)
 
 
 def _describe(kriging):
@@ -69,34 +75,32 @@ def build(
     out: Path = typer.Option(..., "--out", help="Surrogate file to write (HDF5)."),
     energy: float = typer.Option(None, "--energy", help="Retained POD energy 1 - eps, e.g. 0.99999999 (default)."),
     modes: int = typer.Option(None, "--modes", help="Fixed number of POD modes (instead of --energy)."),
-    backend: SurrogateBackend = typer.Option(SurrogateBackend(DEFAULT_BACKEND), "--backend",
+    backend: SurrogateBackend = typer.Option(SurrogateBackend(_DEFAULTS["backend"]), "--backend",
                                 help=f"Regressor of the POD coefficients: {', '.join(BACKENDS)} "
                                      "(podkrig: ours; smt-krg/smt-kpls: SMT's KRG/KPLS per mode; "
                                      "sklearn-gpr: scikit-learn's GaussianProcessRegressor per mode)."),
-    variogram: Variogram = typer.Option(None, "--variogram", help="Semivariogram: exponential (default) or power (podkrig backend)."),
-    beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all; the default, {DEFAULT_BETA!r}) (podkrig backend)."),
-    criterion: KrigingCriterion = typer.Option(None, "--criterion", help="Hyperparameters by 'ml' (likelihood, default) or 'loo' (podkrig backend)."),
-    nugget: float = typer.Option(None, "--nugget", help="Nugget relative to the sill (default 0: exact interpolation) (podkrig backend)."),
+    variogram: Variogram = typer.Option(None, "--variogram", help=f"Semivariogram: {' or '.join(Variogram)} (default "
+                                                                  f"{_DEFAULTS['variogram']}) (podkrig backend)."),
+    beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all); default {_DEFAULTS['beta']!r} (podkrig backend)."),
+    criterion: KrigingCriterion = typer.Option(None, "--criterion", help=f"Hyperparameters by 'ml' (likelihood) or 'loo' (leave-one-out); default {_DEFAULTS['criterion']!r} (podkrig backend)."),
+    nugget: float = typer.Option(None, "--nugget", help=f"Nugget relative to the sill (default {_DEFAULTS['nugget']:g}: exact interpolation) (podkrig backend)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
-        pod, kriging = _templates(energy, modes, backend.value, variogram and variogram.value, beta,
-                                  criterion and criterion.value, nugget)
-        t0 = time.perf_counter()
+        settings = surrogate_settings(energy, modes, backend.value, variogram and variogram.value, beta,
+                                      criterion and criterion.value, nugget)
         with SnapshotStore.open(store) as s:
-            sur = fit_from_store(s, pod=pod, kriging=kriging, output="field" if field else "readings")
-        seconds = time.perf_counter() - t0
-        sur.provenance_["training_seconds"] = seconds
+            sur = fit_surrogate(s, settings, output="field" if field else "readings")
         sur.save(out)
-    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in sur.kriging_.beta_)}]; "
-              f"{sur.kriging_.fit_method_.describe()}" if sur.backend_ == "podkrig" else f"backend {sur.backend_}")
+    fit = SurrogateFitResult.from_surrogate(sur)
+    fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in fit.beta)}]; {sur.kriging_.fit_method_.describe()}"
+              if fit.beta is not None else f"backend {fit.backend}")
     typer.echo(
-        f"{out}: {len(sur.X_)} snapshots, {sur.n_modes_} POD modes "
-        f"(retained energy {sur.pod_.retained_energy_:.10f}), {fitted}, "
-        f"trained in {seconds:.2f} s"
+        f"{out}: {fit.n_train} snapshots, {fit.n_modes} POD modes (retained energy {fit.retained_energy:.10f}), "
+        f"{fitted}, trained in {fit.training_seconds:.2f} s"
     )
 
 
@@ -122,10 +126,8 @@ def validate(
             Xh, Yh = training_data(h, output)
             held_hash = h.content_hash()
         rep = held_out_errors(sur, Xh, Yh)
-        summary = rep.summary()
-        summary["held_out_store"] = str(held_out)
-        summary["held_out_content_hash"] = held_hash
-        summary["backend"] = sur.backend_
+        held = HeldOutResult.from_report(rep, backend=sur.backend_, held_out_store=str(held_out),
+                                         held_out_content_hash=held_hash)
         if report is not None:
             comparison = None
             src = sur.provenance_.get("source_store")
@@ -134,21 +136,21 @@ def validate(
                     X, Y = training_data(s, output)
                 settings = [{"beta": b} for b in (1.2, 1.5, 1.8, "fit", "fit-shared")] + [{"variogram": "power", "beta": 1.5}]
                 comparison = compare_settings(X, Y, Xh, Yh, settings, space=sur.space, pod=sur.pod)
-            _write_report(report, sur, rep, summary, comparison)
+            _write_report(report, sur, rep, held, comparison)
     if format == "json":
-        typer.echo(json.dumps(summary, indent=2))
+        typer.echo(json.dumps(held.to_dict(), indent=2))
         return
-    r, p = summary["rel_error"], summary["pod_error"]
+    r, p = held.rel_error, held.pod_error
     typer.echo(
-        f"{summary['n_held_out']} held-out runs, {summary['n_train']} training, {summary['n_modes']} modes: "
+        f"{held.n_held_out} held-out runs, {held.n_train} training, {held.n_modes} modes: "
         f"relative error median {r['median']:.3e}, p95 {r['p95']:.3e}, max {r['max']:.3e} (POD part median "
-        f"{p['median']:.3e}); {100 * summary['coverage_2sigma']:.1f} % of outputs within ±2σ"
-        + (f"; {summary['fit_description']}" if "fit_description" in summary else "")
+        f"{p['median']:.3e}); {100 * held.coverage_2sigma:.1f} % of outputs within ±2σ"
+        + (f"; {held.fit_description}" if held.fit_description is not None else "")
         + (f"; report {report / 'index.html'}" if report is not None else "")
     )
 
 
-def _write_report(directory, sur, rep, summary, comparison):
+def _write_report(directory, sur, rep, held, comparison):
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     prov = sur.provenance_
@@ -160,19 +162,22 @@ def _write_report(directory, sur, rep, summary, comparison):
     elif prov.get("output") == "field" and "scenario_spec" in prov:
         nodes = build_scenario(prov["scenario_spec"]).mesh.nodes
         figures.append(("First POD modes on the mesh", figs.plot_field_modes(sur.pod_, nodes, directory / "modes.png")))
+    extra = None
     if comparison:
         figures.append(("Held-out relative errors per semivariogram and exponent (cf. thesis Fig. 4.4)",
                         figs.plot_error_histograms(comparison, directory / "error_histograms.png")))
-        summary = dict(summary, comparison={k: float(np.median(v)) for k, v in comparison.items()})
+        extra = {"comparison": {k: float(np.median(v)) for k, v in comparison.items()}}
     figures.append(("Surrogate against FE on the held-out runs",
                     figs.plot_predicted_vs_fe(rep, directory / "predicted_vs_fe.png",
                                               unit=prov.get("reading_unit", "mm"))))
     notes = [
         f"training store: {prov.get('source_store', '?')} ({prov.get('source_content_hash', '?')})",
+        f"held-out store: {held.held_out_store} ({held.held_out_content_hash})",
         f"backend {sur.backend_}; " + _describe(sur.kriging_),
         f"package version {prov.get('package_version', '?')}",
     ]
-    figs.write_html(directory, "POD-kriging surrogate: held-out validation", summary, figures, notes)
+    figs.write_html(directory, "POD-kriging surrogate: held-out validation", SurrogateFitResult.from_surrogate(sur),
+                    held, figures, notes, extra)
 
 
 @surrogate_app.command("refine")
@@ -185,7 +190,8 @@ def refine(
     batch: int = typer.Option(8, "--batch", help="FE runs added per round."),
     candidates: int = typer.Option(4096, "--candidates", help="Size of the Sobol' candidate set."),
     seed: int = typer.Option(1, "--seed", help="Seed of the candidate set."),
-    sampling: str = typer.Option("sobol", "--sampling", help=f"Candidate design: {', '.join(METHODS)}."),
+    sampling: SamplingMethod = typer.Option(SamplingMethod(field_info(Design)["method"]["default"]), "--sampling",
+                                            help="Candidate design."),
     workers: int = typer.Option(1, "--workers", help="FE workers (1: in this process)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
@@ -194,7 +200,7 @@ def refine(
     with user_errors():
         result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
                                   batch=batch, n_candidates=candidates, seed=seed, workers=workers,
-                                  sampling=sampling)
+                                  sampling=sampling.value)
     hist = result["history"]
     typer.echo(
         f"{file}: {result['added']} FE runs added in {len(hist) - 1} rounds, held-out median relative error "

@@ -14,8 +14,12 @@ from pathlib import Path
 
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION, chi2_basis
+from podkrig.offline.results import OfflineResult
 from podkrig.reports.diagnosis import fitted_parameter_text
 from podkrig.reports.html import Page, fmt
+from podkrig.reports.offline import offline_table
+from podkrig.reports.surrogate import fit_tables, held_out_tables
+from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 
 #: report sections: (anchor, heading), in page order
 SECTIONS = (
@@ -291,46 +295,30 @@ def _study(page, study):
     ])
 
 
+def _store_result(record):
+    """The :class:`OfflineResult` of an offline stage's record (training, held-out or validation
+    model store), or None for another stage."""
+    kind = record.name.split(".")[0]
+    if kind in ("offline", "held_out"):
+        return OfflineResult.from_dict(record.result)
+    if kind == "validation_model":
+        return ValidationModelResult.from_dict(record.result).store
+    return None
+
+
 def _offline(page, stages):
-    rows = []
-    for r in stages.values():
-        if "done" not in r.result:
-            continue
-        x = r.result
-        rows.append([r.title, x["done"], x["failed"], x["total"], _num(x["fe_ms_per_run"], 3), x["n_dofs"],
-                     "cached" if r.cached else f"ran {r.fe_runs} FE runs"])
-    page.table(["stage", "done", "failed", "rows", "FE time per run (ms)", "dofs", "this run"], rows)
-    for r in stages.values():
-        for note in r.result.get("notes", []) if "done" in r.result else ():
-            page.paragraph(f"{r.title}: {note}", "meta")
+    offline_table(page, [(r.title, result, "cached" if r.cached else f"ran {r.fe_runs} FE runs")
+                         for r in stages.values() if (result := _store_result(r)) is not None])
 
 
 def _surrogate(page, study, r, folder=""):
-    regression = (", ".join(f"{b:.3g}" for b in r["beta"]) if "beta" in r
-                  else r.get("description", r.get("backend", "")))
-    page.table(["training snapshots", "POD modes", "retained energy (-)",
-                "β per mode (-)" if "beta" in r else "backend", "training time (s)"],
-               [[r["n_train"], r["n_modes"], f"{r['retained_energy']:.10f}", regression,
-                 _num(r["training_seconds"], 3)]])
+    fit_tables(page, SurrogateFitResult.from_dict(r))
     page.figure(f"{folder}energy.png", "POD energy decay: share of each mode and the energy left out (log scale).")
     page.figure(f"{folder}modes.png", "First POD modes of the readings: one line per gauge over the load levels.")
 
 
 def _held_out(page, r, folder=""):
-    page.paragraph(
-        "The surrogate against FE runs it was not trained on. Relative error per run: ‖ŷ − y‖ / ‖y‖ over all "
-        "readings; POD part: what the retained modes cannot represent; interpolation part: the kriging error."
-    )
-    page.table(["error (%)", "median", "95th percentile", "max"],
-               [[label] + [_pct(r[key][q]) for q in ("median", "p95", "max")]
-                for label, key in (("total", "rel_error"), ("POD truncation", "pod_error"),
-                                   ("interpolation", "interp_error"), ("leave-one-out (training)", "loo_error"))
-                if key in r])
-    page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
-               [[r["n_held_out"], _num(r["rms_abs_error_mm"], 3), _num(r["max_abs_error_mm"], 3),
-                 _pct(r["coverage_2sigma"])]])
-    if "fit_description" in r:
-        page.paragraph(f"Kriging: {r['fit_description']}.")
+    held_out_tables(page, HeldOutResult.from_dict(r))
     page.figure(f"{folder}predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
 
 
@@ -485,7 +473,7 @@ def _provenance(page, records):
     page.table(["stage", "this run", "time when run (s)", "FE runs when run", "finished", "input hash"],
                [[r.title, "cached" if r.cached else "ran", _num(r.manifest["seconds"], 3), r.manifest["fe_runs"],
                  r.manifest["finished"], r.manifest["input_hash"][:12]] for r in records])
-    notes = [f"{r.title}: {n}" for r in records if "done" not in r.result for n in r.result.get("notes", [])]
+    notes = [f"{r.title}: {n}" for r in records if _store_result(r) is None for n in r.result.get("notes", [])]
     for note in notes:
         page.paragraph(note, "meta")
     data = {r.name: {"result": r.result, "inputs": r.manifest["inputs"]} for r in records}

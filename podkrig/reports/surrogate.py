@@ -1,8 +1,12 @@
-"""Figures and a one-page HTML report of a POD-kriging surrogate and its held-out errors.
+"""Figures, tables and a one-page HTML report of a POD-kriging surrogate and its held-out errors.
 
 Presentation only: every function takes fitted objects or result dataclasses
-(:class:`~podkrig.validation.HeldOutReport`) and writes PNG files; nothing is computed here beyond
-reshaping for display. matplotlib is imported lazily with the non-interactive Agg backend.
+(:class:`~podkrig.surrogate.validation.HeldOutReport`,
+:class:`~podkrig.surrogate.results.SurrogateFitResult`,
+:class:`~podkrig.surrogate.results.HeldOutResult`) and writes PNG files or page sections; nothing
+is computed here beyond reshaping for display. :func:`fit_tables` and :func:`held_out_tables` are
+the one rendering of those results, on the study report and on ``podkrig surrogate validate
+--report`` alike. matplotlib is imported lazily with the non-interactive Agg backend.
 """
 
 import json
@@ -121,38 +125,78 @@ def plot_predicted_vs_fe(report, path, unit="mm"):
     return Path(path)
 
 
-def write_html(directory, title, summary, figures, notes=()):
-    """Write ``directory/index.html``: the summary numbers (with units) and the figures beside it.
+def _num(value, digits=4):
+    """A number for a table: ``digits`` significant digits, no exponent below 10⁶, an em dash for
+    a missing one."""
+    if value is None:
+        return "—"
+    text = fmt(value, digits)
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
+def _pct(value, digits=3):
+    return "—" if value is None or not np.isfinite(value) else f"{100 * value:.{digits}g}"
+
+
+def fit_tables(page, result):
+    """A surrogate fit (:class:`~podkrig.surrogate.results.SurrogateFitResult`) as a table on ``page``:
+    training snapshots, POD modes, retained energy, the exponents per mode (our kriging) or the
+    backend's description, training time."""
+    regression = (", ".join(f"{b:.3g}" for b in result.beta) if result.beta is not None
+                  else result.description or result.backend)
+    page.table(["training snapshots", "POD modes", "retained energy (-)",
+                "β per mode (-)" if result.beta is not None else "backend", "training time (s)"],
+               [[result.n_train, result.n_modes, f"{result.retained_energy:.10f}", regression,
+                 _num(result.training_seconds, 3)]])
+
+
+def held_out_tables(page, result):
+    """A held-out check (:class:`~podkrig.surrogate.results.HeldOutResult`) on ``page``: what the
+    errors mean, the relative errors (total, POD truncation, interpolation, leave-one-out) in %, the
+    absolute errors in mm and the ±2σ coverage, and how the kriging was trained."""
+    page.paragraph(
+        "The surrogate against FE runs it was not trained on. Relative error per run: ‖ŷ − y‖ / ‖y‖ over all "
+        "readings; POD part: what the retained modes cannot represent; interpolation part: the kriging error."
+    )
+    errors = (("total", result.rel_error), ("POD truncation", result.pod_error),
+              ("interpolation", result.interp_error), ("leave-one-out (training)", result.loo_error))
+    page.table(["error (%)", "median", "95th percentile", "max"],
+               [[label] + [_pct(e[q]) for q in ("median", "p95", "max")] for label, e in errors if e is not None])
+    page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
+               [[result.n_held_out, _num(result.rms_abs_error_mm, 3), _num(result.max_abs_error_mm, 3),
+                 _pct(result.coverage_2sigma)]])
+    if result.fit_description is not None:
+        page.paragraph(f"Kriging: {result.fit_description}.")
+
+
+def write_html(directory, title, fit, held, figures, notes=(), extra=None):
+    """Write ``directory/index.html`` of a surrogate's held-out check: its fit and its errors
+    (:func:`fit_tables`, :func:`held_out_tables`), the figures beside it, and the numbers as JSON.
 
     Parameters
     ----------
     directory : str or Path
         Created if missing; figures are referenced by file name.
     title : str
-    summary : dict
-        As :meth:`podkrig.validation.HeldOutReport.summary`, plus optional provenance keys.
+    fit : SurrogateFitResult
+    held : HeldOutResult
     figures : sequence of (caption, Path)
     notes : sequence of str
         Extra lines (e.g. settings, the source stores).
+    extra : dict, optional
+        More numbers for the JSON block (e.g. the median errors of other kriging settings).
 
     Returns
     -------
     Path of ``index.html``.
     """
     page = Page(title)
-    page.table(["quantity", "value"], [[k.replace("_", " "), fmt(v)] for k, v in summary.items() if not isinstance(v, (dict, list))])
-    page.paragraph(
-        "Relative errors are per held-out sample, ‖ŷ − y‖ / ‖y‖ over all outputs (dimensionless); "
-        "coverage is the share of held-out outputs (mm) within ±2σ of the prediction."
-    )
-    rows = [
-        [f"{key.replace('_', ' ')} (-)"] + [f"{summary[key][k]:.3e}" for k in ("median", "p95", "max")]
-        for key in ("rel_error", "pod_error", "interp_error", "loo_error") if key in summary
-    ]
-    page.table(["error", "median", "p95", "max"], rows)
+    fit_tables(page, fit)
+    held_out_tables(page, held)
     for note in notes:
         page.paragraph(note, "meta")
     for caption, path in figures:
         page.figure(Path(path).name, caption)
-    page.details("summary (JSON)", json.dumps(summary, indent=2, default=str))
+    data = {"surrogate": fit.to_dict(), "held_out": held.to_dict(), **(extra or {})}
+    page.details("numbers (JSON)", json.dumps(data, indent=2, default=str))
     return page.write(Path(directory) / "index.html")

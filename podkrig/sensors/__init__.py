@@ -7,5 +7,6 @@ as sharp as the noise allows (issue 16; thesis ch. 5; Chisari et al., Struct. Mu
 - :mod:`podkrig.sensors.criteria` — D-, A-, E-optimal and POD criteria over a Sobol' set of the box;
 - :mod:`podkrig.sensors.search` — greedy, QR pivoting and GA searches with constraints;
 - :mod:`podkrig.sensors.montecarlo` — the actual inversion repeated under noise on a layout;
+- :mod:`podkrig.sensors.settings` — the candidates', the search's and the comparison's settings;
 - :mod:`podkrig.sensors.placement` — the whole job (:func:`place_sensors`) and its result.
 """

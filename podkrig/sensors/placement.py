@@ -18,15 +18,13 @@ import numpy as np
 from fe.scenarios import ScenarioSpec
 from podkrig.sensors.candidates import current_candidates, user_candidates
 from podkrig.sensors.criteria import (
-    CRITERIA,
-    UNIFORM_PRIOR_INFORMATION,
     LayoutCriterion,
     SensorNoise,
     fisher_per_candidate,
     pod_per_candidate,
 )
 from podkrig.sensors.montecarlo import candidate_surrogate, interior_truths, monte_carlo
-from podkrig.sensors.search import METHODS, PlacementProblem, choose_layout
+from podkrig.sensors.search import PlacementProblem, choose_layout
 from podkrig.sensors.sensitivity import (
     CandidateFEModel,
     ExactSensitivitiesUnavailable,
@@ -34,6 +32,7 @@ from podkrig.sensors.sensitivity import (
     model_sensitivities,
     prior_points,
 )
+from podkrig.sensors.settings import PlacementSettings
 
 logger = logging.getLogger(__name__)
 
@@ -151,10 +150,8 @@ def random_layouts(problem, n, rng=0, max_tries=10_000):
     return np.array(out, dtype=np.intp).reshape(-1, len(problem.must_include) + problem.n_free)
 
 
-def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=None, criterion="d", fixed=None,
-                  n_points=64, seed=0, must_include=(), min_spacing=0.0, include_current=True,
-                  methods=METHODS, n_random=20, n_monte_carlo=0, n_truths=1, surrogate_points=None,
-                  prior_information=UNIFORM_PRIOR_INFORMATION, forbidden=(), model=None, progress=None):
+def place_sensors(scenario, space, candidates, settings=None, *, noise=None, fixed=None, forbidden=(), model=None,
+                  progress=None):
     """Choose the sensor layout that minimises the expected identification uncertainty.
 
     Parameters
@@ -164,37 +161,19 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     space : ParameterSpace
         Free parameters with bounds and scales.
     candidates : CandidateSet
-    k, budget
-        Number of sensors, or total cost budget (exactly one).
+        E.g. :meth:`CandidateSettings.candidates <podkrig.sensors.settings.CandidateSettings.candidates>`.
+    settings : PlacementSettings, optional
+        The search (``k`` or ``budget``, criterion, Sobol' points, sensors always chosen, spacing,
+        whether the scenario's current sensors are candidates — choosable, each costing the mean
+        cost of the candidates of its kind, else 1 — and scored, search starts, prior information),
+        the comparison (random layouts, Monte-Carlo realisations and truths, surrogate points) and
+        the seed of the Sobol' set, the GA, the random layouts and the Monte Carlo
+        (:mod:`podkrig.sensors.settings`). Default: :class:`PlacementSettings()`, which needs a
+        ``k`` or ``budget``.
     noise : SensorNoise, optional
         Default: LVDT σ = 2 µm, DIC σ = 5 µm.
-    criterion : {"d", "a", "e", "pod"}
     fixed : dict, optional
         Values of other scenario parameters.
-    n_points : int
-        Sobol' points of the box the criteria average over (a power of two).
-    seed : int
-        Seed of the Sobol' set, the GA, the random layouts and the Monte Carlo.
-    must_include : sequence of str
-        Candidate names always chosen.
-    min_spacing : float
-        Smallest distance between chosen sensor centres, mm.
-    include_current : bool
-        Append the scenario's current sensors as candidates (choosable; each costs the mean cost of
-        the candidates of its kind, else 1) and score the current layout.
-    methods : sequence of str
-        Search starts (see :func:`podkrig.sensors.search.choose_layout`).
-    n_random : int
-        Random layouts scored for comparison.
-    n_monte_carlo : int
-        Noise realisations per truth of the Monte-Carlo check (0: skip it).
-    n_truths : int
-        Truth points of the Monte-Carlo check (interior Sobol' points of the box).
-    surrogate_points : int, optional
-        Sobol' points of the candidate surrogate for the Monte Carlo (default: max(n_points, 128));
-        the criterion's points are reused when equal.
-    prior_information : float
-        ``1/s_0²`` of the prior information (see :mod:`podkrig.sensors.criteria`).
     forbidden : sequence of Zone
         Forbidden zones: current sensors inside or crossing one are scored but never chosen (build
         the candidates with the same zones).
@@ -216,8 +195,11 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     -------
     PlacementResult
     """
-    if criterion not in CRITERIA:
-        raise ValueError(f"criterion must be one of {CRITERIA}; got {criterion!r}")
+    settings = PlacementSettings() if settings is None else settings
+    search, comparison, seed = settings.search, settings.comparison, settings.seed
+    criterion, n_points, must_include = search.criterion, search.n_points, search.must_include
+    include_current, min_spacing = search.include_current, search.min_spacing
+    n_monte_carlo = comparison.n_monte_carlo
     noise = noise or SensorNoise()
     current_names = tuple(s.name for s in scenario.sensors)
     if include_current:
@@ -255,15 +237,15 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     if sens is None:
         sens = model_sensitivities(model, candidates, X, progress=stage("sensitivities"))
     F = fisher_per_candidate(sens, noise)
-    criteria = {kind: LayoutCriterion(F, kind, prior_information) for kind in ("d", "a", "e")}
+    criteria = {kind: LayoutCriterion(F, kind, search.prior_information) for kind in ("d", "a", "e")}
     criteria["pod"] = LayoutCriterion(pod_per_candidate(sens, noise)[0], "pod", 1.0)
     crit = criteria[criterion]
     must = candidates.index(must_include) if must_include else ()
     barred = [i for i in np.flatnonzero(candidates.is_current)
               if not _clear_of(candidates.sensors[i], forbidden, scenario.mesh)]
-    problem = PlacementProblem(crit, candidates, k=k, budget=budget, must_include=tuple(must), min_spacing=min_spacing,
-                               exclude=tuple(barred))
-    layout = choose_layout(problem, methods=methods, rng=seed)
+    problem = PlacementProblem(crit, candidates, k=search.k, budget=search.budget, must_include=tuple(must),
+                               min_spacing=min_spacing, exclude=tuple(barred))
+    layout = choose_layout(problem, methods=search.methods, rng=seed)
     contributions = crit.contributions(layout.indices)
 
     named = [("chosen", layout.indices)]
@@ -272,20 +254,20 @@ def place_sensors(scenario, space, candidates, *, k=None, budget=None, noise=Non
     # random layouts of the chosen size under the same constraints, from the new candidates only
     rproblem = PlacementProblem(crit, candidates, k=len(layout.indices), must_include=tuple(must),
                                 min_spacing=min_spacing, exclude=tuple(set(np.flatnonzero(candidates.is_current).tolist()) - set(must)))
-    named += [(f"random {i + 1}", L) for i, L in enumerate(random_layouts(rproblem, n_random, seed))]
+    named += [(f"random {i + 1}", L) for i, L in enumerate(random_layouts(rproblem, comparison.n_random, seed))]
 
     mc_sens = surrogate = truths = None
     if n_monte_carlo and model is not None and not fe_model:
-        mc_sens, surrogate, truths = sens, model, interior_truths(space, n_truths, seed + 2)
+        mc_sens, surrogate, truths = sens, model, interior_truths(space, comparison.n_truths, seed + 2)
     elif n_monte_carlo:
-        n_sur = surrogate_points or max(n_points, 128)
+        n_sur = comparison.surrogate_points or max(n_points, 128)
         if n_sur == n_points or fe_model:  # FE runs: the surrogate learns from the runs made already
             mc_sens = sens
         else:
             mc_sens = candidate_sensitivities(scenario, space, candidates, prior_points(space, n_sur, seed + 1),
                                               fixed=fixed, progress=stage("surrogate snapshots"))
         surrogate = candidate_surrogate(mc_sens)
-        truths = interior_truths(space, n_truths, seed + 2)
+        truths = interior_truths(space, comparison.n_truths, seed + 2)
     scores = []
     for i, (label, L) in enumerate(named):
         mc = None

@@ -1,6 +1,9 @@
 """Settings of a study file, declared once: types, ranges, allowed values and defaults.
 
-Each table of the study file is a frozen pydantic dataclass (:mod:`pydantic.dataclasses`, so
+The tables of the stages' own settings are the stages' classes (``[sampling]``:
+:class:`~podkrig.offline.settings.SamplingSettings`, ``[surrogate]``:
+:class:`~podkrig.surrogate.settings.SurrogateSettings`); the others are declared here. Each table
+of the study file is a frozen pydantic dataclass (:mod:`pydantic.dataclasses`, so
 :func:`dataclasses.asdict` and ``dataclasses.replace`` work on them as on plain dataclasses).
 A field states its type (strict: TOML's own types, no coercion from strings or booleans), its
 range or allowed values and, in ``json_schema_extra["allowed"]``, the words the checker
@@ -31,11 +34,15 @@ from pydantic import (
 from podkrig import limits
 from podkrig.config import Seed, finite as _finite, limit as _limit, settings as _settings, type_name
 from podkrig.config import allowed as _allowed, choice as _choice, settings_error as study_error
+from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
+from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
+from podkrig.offline.settings import training_rows as _training_rows
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
 from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.parameters import SCALES, ParameterSpace
+from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAMS, SurrogateSettings
 
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
@@ -44,97 +51,11 @@ __all__ = [
     "type_name",
 ]
 
-VARIOGRAMS = ("exponential", "power")
-CRITERIA = ("ml", "loo")
-BETA_MODES = ("fit", "fit-shared")
 REGION_METHODS = ("likelihood-ratio", "noise-mc")
-#: sampling designs; "lhs-ese" is SMT's optimised Latin hypercube (enhanced stochastic evolution)
-SAMPLING_METHODS = ("sobol", "lhs", "random", "lhs-ese")
-#: surrogate backends behind the one surrogate interface (issue 12, item 5)
-BACKENDS = ("podkrig", "smt-krg", "smt-kpls", "sklearn-gpr")
-
-#: FE runs of a design: at most limits.MAX_ROWS (the estimate at ~1 KiB per stored row)
-_ROWS_ALLOWED = f"an integer in [{{}}, {limits.MAX_ROWS}] (FE runs)"
-_rows = _limit(lambda n: limits.check_rows(n, 1024, "n"), _ROWS_ALLOWED.format(1))
-_training_rows = _limit(lambda n: limits.check_rows(n, 1024, "n"), _ROWS_ALLOWED.format(4))
-
-
-# ---------------------------------------------------------------------------------------------
-# sampling
-
-
-@_settings
-class Design:
-    """A seeded sampling design: ``n`` points by ``method`` with ``seed``."""
-
-    n: Annotated[StrictInt, _allowed(_ROWS_ALLOWED.format(1), ge=1), _rows]
-    seed: Seed
-    method: _choice(SAMPLING_METHODS) = "sobol"
-
-
-@_settings
-class TrainingDesign(Design):
-    """A design that trains a surrogate (training set, validation models): at least 4 points."""
-
-    n: Annotated[StrictInt, _allowed(_ROWS_ALLOWED.format(4), ge=4), _training_rows]
-
-
-@_settings
-class SamplingSettings:
-    """The ``[sampling]`` table: designs and where the FE runs go (``workers`` or ``scheduler``)."""
-
-    train: TrainingDesign
-    held_out: Design
-    workers: Annotated[StrictInt, _allowed(f"an integer in [1, {limits.MAX_WORKERS}] (FE processes; 1 runs them in "
-                                           "this process)", ge=1),
-                       _limit(limits.check_workers, f"an integer in [1, {limits.MAX_WORKERS}]")] | None = None
-    scheduler: Annotated[StrictStr, AfterValidator(lambda v: v if "://" in v else _raise()),
-                         _allowed("a Dask scheduler address such as 'tcp://10.0.0.5:8786'")] | None = None
-
-    def __post_init__(self):
-        if self.scheduler is not None and self.workers is not None:
-            raise study_error("give either workers (local processes) or scheduler (a Dask cluster), not both",
-                              "workers")
-        if self.scheduler is None and self.workers is None:
-            object.__setattr__(self, "workers", 1)
 
 
 def _raise():
     raise ValueError("out of range")
-
-
-# ---------------------------------------------------------------------------------------------
-# surrogate
-
-_BETA_ALLOWED = "a number in (0, 2] (below 2 for the power variogram), \"fit\" or \"fit-shared\""
-
-
-@_settings
-class SurrogateSettings:
-    """POD truncation (``energy`` or ``modes``), kriging settings (see ``podkrig surrogate build``)
-    and the surrogate ``backend``."""
-
-    energy: Annotated[StrictFloat, _allowed("a number in (0, 1], e.g. 0.99999999", gt=0, le=1)] | None = None
-    modes: Annotated[StrictInt, _allowed("an integer >= 1", ge=1)] | None = None
-    variogram: _choice(VARIOGRAMS) = "exponential"
-    beta: Annotated[Any, _allowed(_BETA_ALLOWED)] = "fit-shared"
-    criterion: _choice(CRITERIA) = "ml"
-    nugget: Annotated[StrictFloat, AfterValidator(_finite), _allowed("a number >= 0 (relative to the sill)", ge=0)] = 0.0
-    backend: _choice(BACKENDS) = "podkrig"
-
-    def __post_init__(self):
-        if self.energy is not None and self.modes is not None:
-            raise study_error("give either energy or modes, not both", "modes")
-        beta = self.beta
-        if isinstance(beta, str):
-            if beta not in BETA_MODES:
-                raise study_error(f"{beta!r} is not a known exponent setting", "beta", _BETA_ALLOWED)
-            return
-        if isinstance(beta, bool) or not isinstance(beta, int | float):
-            raise study_error(f"must be a number; got {type_name(beta)} {beta!r}", "beta", _BETA_ALLOWED)
-        if not (0 < beta <= 2 and (self.variogram != "power" or beta < 2)):
-            raise study_error(f"{beta!r} is out of range", "beta", _BETA_ALLOWED)
-        object.__setattr__(self, "beta", float(beta))
 
 
 # ---------------------------------------------------------------------------------------------

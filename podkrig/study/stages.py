@@ -37,7 +37,6 @@ the ``to_dict`` of their result objects and read upstream results back with ``fr
 import dataclasses
 import logging
 import shutil
-import time
 
 import numpy as np
 
@@ -48,6 +47,7 @@ from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.limits import fe_job_estimate
 from podkrig.offline.files import move_aside
+from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.invert import InverseResult, invert
@@ -69,10 +69,9 @@ from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
 from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256
-from podkrig.surrogate.backends import make_backend
-from podkrig.surrogate.kriging import OrdinaryKriging
-from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import DEFAULT_ENERGY, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.podkriging import PODKriging, training_data
+from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
+from podkrig.surrogate.settings import fit_surrogate
 from podkrig.surrogate.validation import held_out_errors
 
 logger = logging.getLogger(__name__)
@@ -139,7 +138,7 @@ def _run_store(run, path, spec, space, design):
     """Fill the store at ``path``: resume it, or build a new one next to a store that cannot be used
     (written for another design, damaged), which is kept under a timestamped name — never deleted.
     A store another run is filling is never touched (:class:`StoreInUseError` propagates)."""
-    kwargs = {"n": design.n, "seed": design.seed, "sampling": design.method}
+    kwargs = design.run_arguments()
     notes = []
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -157,21 +156,6 @@ def _run_store(run, path, spec, space, design):
     if summary.executor.startswith("serial:"):  # workers > 1 asked, the job too small for a cluster
         notes.append(summary.executor)
     return summary, notes
-
-
-def _store_result(path, summary, notes):
-    with SnapshotStore.open(path) as store:
-        wall = store.wall_times()
-        failures = [f"row {i}: {e}" for i, e in store.errors().items()][:5] if summary.failed else []
-        n_dofs = store.n_dofs
-    ran = wall[np.isfinite(wall)]
-    return {
-        "total": summary.total, "done": summary.done, "failed": summary.failed, "pending": summary.pending,
-        "executor": summary.executor, "n_dofs": n_dofs,
-        "fe_ms_per_run": float(1000 * ran.mean()) if len(ran) else None,
-        "fe_seconds_total": float(ran.sum()),
-        "failures": failures, "notes": notes,
-    }
 
 
 #: A sensor whose readings are this many times larger (or smaller) than in every FE run (of the
@@ -384,57 +368,29 @@ def _power_of_ten(r):
 
 
 def offline(run, test, name, title, filename, design):
-    """FE snapshots of a test's design into ``filename`` (training or held-out): the store's numbers."""
+    """FE snapshots of a test's design into ``filename`` (training or held-out):
+    :meth:`OfflineResult.to_dict`."""
     inputs = {"spec": test.spec.to_dict(), "space": test.space.to_dict(), "design": dataclasses.asdict(design)}
     filename = test.file(filename)
 
     def compute():
         path = run.out / filename
         summary, notes = _run_store(run, path, run.scenario(test), test.space, design)
-        return _store_result(path, summary, notes), [filename], summary.ran
+        return OfflineResult.from_store(path, summary, notes).to_dict(), [filename], summary.ran
 
     run.stage(test.stage(name), test.title(title), inputs, compute, total=design.n)
 
 
-def _templates(settings):
-    """POD and regression templates of the surrogate settings: ``[surrogate] backend`` chooses
-    ours (the kriging settings apply) or a library's (it fits its own hyperparameters)."""
-    pod = POD(n_modes=settings.modes) if settings.modes is not None else POD(energy=settings.energy or DEFAULT_ENERGY)
-    if settings.backend != "podkrig":
-        return pod, make_backend(settings.backend)
-    kriging = OrdinaryKriging(variogram=settings.variogram, beta=settings.beta, criterion=settings.criterion,
-                              nugget=settings.nugget)
-    return pod, kriging
-
-
 def _fit(store_path, settings, out_path):
-    """Fit and save a surrogate on a store; returns it and its training time (s)."""
-    pod, kriging = _templates(settings)
-    t0 = time.perf_counter()
+    """Fit and save a surrogate of ``settings`` on a store; returns it."""
     with SnapshotStore.open(store_path) as store:
-        sur = fit_from_store(store, pod=pod, kriging=kriging)
-    seconds = time.perf_counter() - t0
-    sur.provenance_["training_seconds"] = seconds
+        sur = fit_surrogate(store, settings)
     sur.save(out_path)
-    return sur, seconds
-
-
-def _surrogate_result(sur, seconds):
-    out = {
-        "n_train": len(sur.X_), "n_modes": int(sur.n_modes_),
-        "retained_energy": float(sur.pod_.retained_energy_),
-        "backend": sur.backend_,
-    }
-    if isinstance(sur.kriging_, OrdinaryKriging):
-        out["beta"] = [float(b) for b in sur.kriging_.beta_]
-    else:
-        out["description"] = sur.kriging_.describe()
-    out["training_seconds"] = seconds
-    return out
+    return sur
 
 
 def validation_model(run, model):
-    """Snapshots and surrogate of a validation scenario: the store's numbers and the surrogate's."""
+    """Snapshots and surrogate of a validation scenario: :meth:`ValidationModelResult.to_dict`."""
     study = run.study
     name = f"validation_model.{model.name}"
     store, surrogate = f"validation_{model.name}.h5", f"validation_{model.name}_surrogate.h5"
@@ -443,34 +399,35 @@ def validation_model(run, model):
 
     def compute():
         summary, notes = _run_store(run, run.out / store, model.spec, study.space, model.design)
-        result = _store_result(run.out / store, summary, notes)
-        sur, seconds = _fit(run.out / store, study.surrogate, run.out / surrogate)
-        result.update(scenario=model.spec.scenario, surrogate=_surrogate_result(sur, seconds))
-        return result, [store, surrogate], summary.ran
+        sur = _fit(run.out / store, study.surrogate, run.out / surrogate)
+        result = ValidationModelResult(OfflineResult.from_store(run.out / store, summary, notes), model.spec.scenario,
+                                       SurrogateFitResult.from_surrogate(sur))
+        return result.to_dict(), [store, surrogate], summary.ran
 
     run.stage(name, f"Validation model '{model.name}' (FE + surrogate)", inputs, compute, total=model.design.n)
 
 
 def surrogate(run, test):
-    """POD + kriging fit on a test's training store: sizes, retained energy, exponents, training time."""
+    """POD + kriging fit on a test's training store: :meth:`SurrogateFitResult.to_dict` (sizes, retained
+    energy, exponents, training time)."""
     settings = run.study.surrogate
     inputs = {"settings": dataclasses.asdict(settings), "train": run.outputs(test.stage("offline"))}
 
     def compute():
-        sur, seconds = _fit(run.out / test.file("train.h5"), settings, run.out / test.file("surrogate.h5"))
+        sur = _fit(run.out / test.file("train.h5"), settings, run.out / test.file("surrogate.h5"))
         prov = sur.provenance_
         surrogate_figures.plot_energy(sur.pod_, run.figure(test, "energy.png"))
         surrogate_figures.plot_reading_modes(sur.pod_, prov["sensor_names"], prov["load_levels"], prov["load_unit"],
                                              run.figure(test, "modes.png"))
         files = [test.file("surrogate.h5")] + [f"report/{test.file(f)}" for f in ("energy.png", "modes.png")]
-        return _surrogate_result(sur, seconds), files, 0
+        return SurrogateFitResult.from_surrogate(sur).to_dict(), files, 0
 
     run.stage(test.stage("surrogate"), test.title("Surrogate fit (POD + kriging)"), inputs, compute)
 
 
 def held_out_validation(run, test):
-    """A test's surrogate against its held-out FE runs: :meth:`HeldOutReport.summary` plus RMS and
-    max errors (mm)."""
+    """A test's surrogate against its held-out FE runs: :meth:`HeldOutResult.to_dict`
+    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm)."""
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
 
     def compute():
@@ -479,10 +436,7 @@ def held_out_validation(run, test):
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
         surrogate_figures.plot_predicted_vs_fe(rep, run.figure(test, "predicted_vs_fe.png"))
-        result = rep.summary()
-        result["rms_abs_error_mm"] = float(np.sqrt(np.mean((rep.Y_pred - rep.Y_true) ** 2)))
-        result["max_abs_error_mm"] = float(np.max(np.abs(rep.Y_pred - rep.Y_true)))
-        return result, [f"report/{test.file('predicted_vs_fe.png')}"], 0
+        return HeldOutResult.from_report(rep).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"], 0
 
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 

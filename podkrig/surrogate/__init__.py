@@ -7,7 +7,10 @@
 - :mod:`~podkrig.surrogate.backends` — selectable regressors of the POD coefficients: ours,
   SMT's KRG/KPLS, scikit-learn's GPR;
 - :mod:`~podkrig.surrogate.validation` — held-out and leave-one-out errors;
-- :mod:`~podkrig.surrogate.refine` — adaptive enrichment of the training design.
+- :mod:`~podkrig.surrogate.refine` — adaptive enrichment of the training design;
+- :mod:`~podkrig.surrogate.settings` — POD truncation, kriging and backend settings
+  (``[surrogate]``), and the fit from a store with them;
+- :mod:`~podkrig.surrogate.results` — the fit and the held-out check in numbers.
 """
 
 from podkrig.surrogate.backends import BACKENDS, make_backend

@@ -1,0 +1,107 @@
+"""Settings of the surrogate stage: POD truncation, the kriging of the POD coefficients and the
+backend that regresses them.
+
+Each field states its default and allowed values once (:mod:`podkrig.config`): the study file's
+``[surrogate]`` table validates into :class:`SurrogateSettings`, ``podkrig surrogate build`` builds
+one from its options and takes its ``--variogram``, ``--criterion`` and ``--backend`` choices from
+it, and both fit through :func:`fit_surrogate` (templates from :meth:`SurrogateSettings.templates`).
+A study's surrogate stage is cached by ``dataclasses.asdict`` of these settings.
+
+Examples
+--------
+>>> s = SurrogateSettings(modes=3, beta=1.5)
+>>> pod, kriging = s.templates()
+>>> pod.n_modes, kriging.beta, kriging.variogram
+(3, 1.5, 'exponential')
+>>> SurrogateSettings(backend="sklearn-gpr").templates()[1].backend
+'sklearn-gpr'
+"""
+
+import time
+from typing import Annotated, Any
+
+from pydantic import AfterValidator, StrictFloat, StrictInt
+
+from podkrig.config import allowed, choice, finite, settings, settings_error, type_name
+from podkrig.surrogate.backends import BACKENDS as _BACKEND_REGISTRY
+from podkrig.surrogate.backends import make_backend
+from podkrig.surrogate.kriging import DEFAULT_BETA, VARIOGRAMS as _VARIOGRAM_REGISTRY, OrdinaryKriging
+from podkrig.surrogate.kriging.ordinary import CRITERIA
+from podkrig.surrogate.pod import POD
+from podkrig.surrogate.podkriging import DEFAULT_ENERGY, fit_from_store
+
+__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "VARIOGRAMS", "SurrogateSettings", "fit_surrogate"]
+
+#: semivariogram models of the kriging (:mod:`podkrig.surrogate.kriging.variogram`)
+VARIOGRAMS = tuple(_VARIOGRAM_REGISTRY)
+#: fitted exponents: per mode, or on the first mode and shared by all
+BETA_MODES = ("fit", "fit-shared")
+#: surrogate backends behind the one surrogate interface (:mod:`podkrig.surrogate.backends`)
+BACKENDS = tuple(_BACKEND_REGISTRY)
+
+BETA_ALLOWED = "a number in (0, 2] (below 2 for the power variogram), \"fit\" or \"fit-shared\""
+
+
+@settings
+class SurrogateSettings:
+    """POD truncation (``energy`` or ``modes``; neither: energy 1 − 10⁻⁸), the kriging of the POD
+    coefficients (semivariogram, exponent β, hyperparameter criterion, nugget relative to the sill)
+    and the surrogate ``backend`` (another backend than ``"podkrig"`` fits its own hyperparameters:
+    the kriging settings do not apply to it)."""
+
+    energy: Annotated[StrictFloat, allowed("a number in (0, 1], e.g. 0.99999999", unit="-", gt=0, le=1)] | None = None
+    modes: Annotated[StrictInt, allowed("an integer >= 1", ge=1)] | None = None
+    variogram: choice(VARIOGRAMS) = "exponential"
+    beta: Annotated[Any, allowed(BETA_ALLOWED, unit="-")] = DEFAULT_BETA
+    criterion: choice(CRITERIA) = "ml"
+    nugget: Annotated[StrictFloat, AfterValidator(finite),
+                      allowed("a number >= 0 (relative to the sill)", unit="-", ge=0)] = 0.0
+    backend: choice(BACKENDS) = "podkrig"
+
+    def __post_init__(self):
+        if self.energy is not None and self.modes is not None:
+            raise settings_error("give either energy or modes, not both", "modes")
+        beta = self.beta
+        if isinstance(beta, str):
+            if beta not in BETA_MODES:
+                raise settings_error(f"{beta!r} is not a known exponent setting", "beta", BETA_ALLOWED)
+            return
+        if isinstance(beta, bool) or not isinstance(beta, int | float):
+            raise settings_error(f"must be a number; got {type_name(beta)} {beta!r}", "beta", BETA_ALLOWED)
+        if not (0 < beta <= 2 and (self.variogram != "power" or beta < 2)):
+            raise settings_error(f"{beta!r} is out of range", "beta", BETA_ALLOWED)
+        object.__setattr__(self, "beta", float(beta))
+
+    def templates(self):
+        """Unfitted POD and regression templates of these settings, as
+        :class:`~podkrig.surrogate.PODKriging` takes them: ``(POD, regressor)`` — our
+        :class:`~podkrig.surrogate.kriging.OrdinaryKriging` with the kriging settings, or the
+        ``backend``'s regressor with its own defaults."""
+        pod = POD(n_modes=self.modes) if self.modes is not None else POD(energy=self.energy or DEFAULT_ENERGY)
+        if self.backend != "podkrig":
+            return pod, make_backend(self.backend)
+        return pod, OrdinaryKriging(variogram=self.variogram, beta=self.beta, criterion=self.criterion,
+                                    nugget=self.nugget)
+
+
+def fit_surrogate(store, settings, output="readings"):
+    """Fit a surrogate of these settings on a snapshot store, timed.
+
+    Parameters
+    ----------
+    store : podkrig.offline.store.SnapshotStore
+        An open store (its finished rows train the surrogate).
+    settings : SurrogateSettings
+    output : {"readings", "field"}
+
+    Returns
+    -------
+    PODKriging
+        Fitted, with ``provenance_["training_seconds"]`` (s, wall time of the fit) beside the
+        store's provenance (:func:`~podkrig.surrogate.podkriging.fit_from_store`).
+    """
+    pod, regressor = settings.templates()
+    t0 = time.perf_counter()
+    sur = fit_from_store(store, pod=pod, kriging=regressor, output=output)
+    sur.provenance_["training_seconds"] = time.perf_counter() - t0
+    return sur
