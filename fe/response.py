@@ -63,6 +63,9 @@ class NonlinearResponse(Response):
         Control displacement at the peak load, mm.
     status : str
         ``converged``, ``not_converged`` or ``budget_exhausted``.
+    limit : str or None
+        With ``budget_exhausted``: the limit of the budget that ended the run (``"steps"``,
+        ``"iterations"``, ``"cpu"`` or ``"wall"``, see :data:`fe.solvers.nonlinear.LIMITS`).
     message : str
         Why the run stopped early ("" when it reached the last level).
     reached : float
@@ -78,6 +81,7 @@ class NonlinearResponse(Response):
     peak_load: float = float("nan")
     peak_displacement: float = float("nan")
     status: str = "converged"
+    limit: str | None = None
     message: str = ""
     reached: float = float("nan")
     extra: dict | None = None
@@ -90,7 +94,7 @@ class NonlinearResponse(Response):
     def summary(self):
         """Plain dict of the scalar results and the per-level loads (JSON-ready)."""
         return {
-            "status": self.status, "message": self.message, "reached": float(self.reached),
+            "status": self.status, "limit": self.limit, "message": self.message, "reached": float(self.reached),
             "peak_load": float(self.peak_load), "peak_displacement": float(self.peak_displacement),
             "force_unit": self.force_unit,
             "loads": [None if not np.isfinite(v) else float(v) for v in self.loads],

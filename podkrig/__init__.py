@@ -8,7 +8,8 @@ The public API, by stage (each name also lives in its stage's module)::
     from podkrig import ParameterSpace                                  # shared
     from podkrig import SnapshotStore, run_snapshots, sample            # offline
     from podkrig import PODKriging, fit_from_store, make_backend        # surrogate
-    from podkrig import (Measurement, NoiseModel, read_measurement_csv,  # online
+    from podkrig import read_measurement, load_surrogate, save_surrogate  # files (podkrig.io)
+    from podkrig import (Measurement, NoiseModel,                       # online
                          InverseProblem, JointProblem, SurrogateModel, FEModel, invert, fe_check,
                          invert_with_model_form_error,
                          likelihood_ratio_region, rvc, nested_analyses, sample_posterior,
@@ -22,6 +23,7 @@ its version; the stages pull numba, scipy, h5py and Dask, several seconds on a c
 """
 
 import importlib
+import sys
 from importlib.metadata import PackageNotFoundError, version
 
 try:
@@ -45,9 +47,12 @@ _PUBLIC = {
     "held_out_errors": "podkrig.surrogate.validation",
     "Measurement": "podkrig.online.measurement",
     "NoiseModel": "podkrig.online.measurement",
-    "read_measurement_csv": "podkrig.online.measurement_csv",
-    "read_measurement": "podkrig.online.measurement_csv",
-    "ImportSettings": "podkrig.online.measurement_csv",
+    "read_measurement_csv": "podkrig.io.measurement_log",
+    "write_measurement_csv": "podkrig.io.measurement_log",
+    "load_surrogate": "podkrig.io.surrogate_file",
+    "save_surrogate": "podkrig.io.surrogate_file",
+    "read_measurement": "podkrig.io.measurement_log",
+    "ImportSettings": "podkrig.io.measurement_log",
     "instrument_noise": "podkrig.online.measurement",
     "InverseProblem": "podkrig.online.problem",
     "JointProblem": "podkrig.online.joint",
@@ -87,3 +92,15 @@ def __getattr__(name):
 
 def __dir__():
     return __all__
+
+
+def _show_results_in_jupyter():
+    """In a running IPython (a notebook), show the online results as HTML tables
+    (:func:`podkrig.reports.jupyter.register_formatters`); elsewhere nothing is imported."""
+    ipython = sys.modules.get("IPython")
+    shell = ipython.get_ipython() if ipython is not None and hasattr(ipython, "get_ipython") else None
+    if shell is not None and hasattr(shell, "display_formatter"):
+        importlib.import_module("podkrig.reports.jupyter").register_formatters(shell)
+
+
+_show_results_in_jupyter()

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from fe.scenarios import build_scenario
+from podkrig.io.surrogate_file import load_surrogate
 from podkrig.online.invert import invert
 from podkrig.online.joint import JointProblem
 from podkrig.online.measurement import Measurement, instrument_noise
@@ -50,7 +51,7 @@ def run_example(out):
 
 def pseudo_experiments(out, study, n, rng_seed=100):
     tests = study.calibration_tests
-    models = {t.name: SurrogateModel(PODKriging.load(out / t.file("surrogate.h5"))) for t in tests}
+    models = {t.name: SurrogateModel(load_surrogate(out / t.file("surrogate.h5"))) for t in tests}
     clean = {t.name: build_scenario(t.spec).run({**t.fixed, **TRUTH}).readings for t in tests}
     rng = np.random.default_rng(rng_seed)
     inside = inside_box = 0

@@ -25,7 +25,7 @@ import numpy as np
 import openpyxl
 
 from fe.scenarios import build_scenario
-from podkrig.online.measurement_csv import ImportSettings, read_measurement
+from podkrig.io.measurement_log import ImportSettings, read_measurement
 
 SENSORS = ("D1", "D2", "U1", "BJ_V", "BJ_D", "HJ_H")
 LEVELS = (25.0, 50.0, 75.0, 100.0)

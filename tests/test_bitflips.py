@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from podkrig.exceptions import StoreError
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.sampling import sobol
 from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import ParameterSpace
@@ -49,7 +50,7 @@ def _load_store(path):
 
 
 def _load_surrogate(path, X):
-    sur = PODKriging.load(path)
+    sur = load_surrogate(path)
     mean, std = sur.predict(X, return_std=True)
     arrays = [v for obj in (sur, sur.pod_, sur.kriging_) for _, v in sorted(vars(obj).items())
               if isinstance(v, np.ndarray)]
@@ -108,7 +109,7 @@ def small_surrogate(tmp_path_factory):
     X = rng.uniform([10, 4], [1000, 400], size=(30, 2))
     Y = np.stack([np.outer([1, 2, 3], [1 / x[0], 1 / x[1], 1 / x[0] + 1 / x[1]]) for x in X])
     path = tmp_path_factory.mktemp("flip") / "surrogate.h5"
-    PODKriging().fit(X, Y).save(path)
+    save_surrogate(PODKriging().fit(X, Y), path)
     return path, X[:5]
 
 

@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 from fe.scenarios import build_scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement
-from podkrig.online.measurement_csv import write_measurement_csv
+from podkrig.io.measurement_log import write_measurement_csv
 
 runner = CliRunner()
 PARAMS = ["--param", "E_b=6000:18000", "--param", "kN_bj=30:300:log", "--param", "kV_bj=10:120:log", "--param", "r_hj=0.2:1.0"]

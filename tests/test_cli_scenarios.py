@@ -10,7 +10,7 @@ from fe.scenarios.catalogue import ScenarioDescription, describe_scenario
 from podkrig import __version__
 from podkrig.cli import app
 from podkrig.cli._common import print_findings
-from podkrig.online.findings import Finding
+from podkrig.reports.findings import FindingText
 
 runner = CliRunner()
 
@@ -104,7 +104,7 @@ def test_malformed_sensors_are_refused_with_the_accepted_forms(tmp_path):
 def test_advice_is_printed_literally():
     """Rich markup would eat "[fixed]" from "fix E_b from other tests ([fixed])"."""
     console = Console(record=True, width=200)
-    print_findings(console, [Finding("unidentified", "region", "E_b is not identified [see the region]",
-                                     "fix E_b from other tests ([fixed])")])
+    print_findings(console, [FindingText("unidentified", "region", "E_b is not identified [see the region]",
+                                         "fix E_b from other tests ([fixed])")])
     text = console.export_text()
     assert "([fixed])" in text and "[see the region]" in text and "warning:" in text

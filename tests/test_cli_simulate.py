@@ -63,7 +63,7 @@ def test_errors_are_one_line_with_exit_code_2(args, message):
 def test_csv_output_is_a_valid_measurement_file(tmp_path):
     """``simulate --format csv`` writes the measurement layout, so it can serve as pseudo-data."""
     from fe.scenarios import build_scenario
-    from podkrig.online.measurement_csv import read_measurement_csv
+    from podkrig.io.measurement_log import read_measurement_csv
 
     spec = tmp_path / "coarse.toml"
     spec.write_text('scenario = "diagonal_compression"\nnx = 2\nny = 1\n')

@@ -234,7 +234,7 @@ def test_cli_diagnose_json_and_report(tmp_path, wall):
     from typer.testing import CliRunner
 
     from podkrig.cli import app
-    from podkrig.online.measurement_csv import write_measurement_csv
+    from podkrig.io.measurement_log import write_measurement_csv
 
     rng = np.random.default_rng(3)
     trial = _strong_trial(wall, "gauge_fault", rng)

@@ -23,6 +23,38 @@ def test_default_panel_counts(element):
     assert mesh.check() == []
 
 
+@pytest.mark.parametrize("element", ["Q8", "Q4"])
+def test_base_joints_join_the_wall_to_two_beams_and_keep_the_walls_numbering(element):
+    """With ``base_joints`` the wall sits on a beam and under another, one course high and one
+    element across, joined by bed joints at y = 0 and y = H; the wall's nodes, quads and node
+    numbers are those of the plain wall, the beams' node sets hold every beam node, and the
+    outer-face sets move to the beams' faces."""
+    layout = dict(n_courses=3, units_per_course=2, nx=2, ny=1, element=element)
+    plain = brick_wall(BrickWallLayout(**layout))
+    mesh = brick_wall(BrickWallLayout(**layout, base_joints=True))
+    assert mesh.check() == []
+    assert_allclose(mesh.nodes[: plain.n_nodes], plain.nodes, rtol=0, atol=0)
+    assert np.array_equal(mesh.quads[: len(plain.quads)], plain.quads)
+    assert (mesh.width, mesh.height) == (plain.width, plain.height + 2 * 65.0)
+    bed = mesh.interfaces_of_kind("bed")
+    y = mesh.nodes[mesh.interfaces[:, 0], 1]
+    per_joint = 2 * 2  # two units of two elements each
+    assert np.count_nonzero(bed & (y == 0.0)) == np.count_nonzero(bed & (y == 195.0)) == per_joint
+    assert np.count_nonzero(bed) == np.count_nonzero(plain.interfaces_of_kind("bed")) + 2 * per_joint
+    assert len(mesh.interfaces) == len(plain.interfaces) + 2 * per_joint
+    bottom, top = mesh.node_sets["bottom_beam"], mesh.node_sets["top_beam"]
+    assert_allclose(mesh.nodes[bottom, 1].min(), -65.0) and np.all(mesh.nodes[bottom, 1] <= 0.0)
+    assert np.all(mesh.nodes[top, 1] >= 195.0) and mesh.nodes[top, 1].max() == 260.0
+    assert len(bottom) + len(top) == mesh.n_nodes - plain.n_nodes
+    assert set(mesh.node_sets["bottom"]) <= set(bottom) and set(mesh.node_sets["top"]) <= set(top)
+    beam_blocks = np.unique(mesh.quad_block[len(plain.quads):])
+    assert len(beam_blocks) == 2 and len(np.unique(mesh.block_unit)) == len(np.unique(plain.block_unit)) + 2
+    # face A below face B: the normal points from the bottom beam into the wall, from the wall into the top beam
+    a, b = mesh.interface_blocks[bed & ((y == 0.0) | (y == 195.0))].T
+    centre = 0.5 * (mesh.block_bounds[:, 1] + mesh.block_bounds[:, 3])
+    assert np.all(centre[b] > centre[a])
+
+
 def test_running_bond_course_layout():
     layout = BrickWallLayout()
     assert_allclose(layout.course_units(0), [[0, 260], [260, 520], [520, 780], [780, 1040], [1040, 1170]])

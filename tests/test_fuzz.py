@@ -27,7 +27,7 @@ from fe.exceptions import FEError
 from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
 from podkrig.cli import app
 from podkrig.exceptions import PodkrigError
-from podkrig.online.measurement_csv import ImportSettings, read_measurement, read_measurement_csv
+from podkrig.io.measurement_log import ImportSettings, read_measurement, read_measurement_csv
 from podkrig.study import load_study
 
 EXAMPLES = int(os.environ.get("PODKRIG_FUZZ_EXAMPLES", "150"))

@@ -20,6 +20,7 @@ from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.invert import FECheck, InverseResult, fe_check, invert
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.problem import InverseProblem
+from podkrig.reports.jupyter import inverse_result_html
 from tests.test_online_results import SIGMA, TRUTH, LinearModel, _problem
 from tests.test_problem import TwoBasinModel as TwoExactMinima
 from tests.test_problem import _zero_data
@@ -275,7 +276,7 @@ def test_inverse_result_shows_its_best_fit_and_chi2_in_jupyter():
     wrong count of free parameters or readings; the χ² row's numbers, dof or what the χ² includes;
     the FE-check row shown without a check, or missing with one; the misfit, evaluation count,
     seconds or residual convention missing from the caption."""
-    tables = _Tables(_hand_made_result()._repr_html_()).tables
+    tables = _Tables(inverse_result_html(_hand_made_result())).tables
     assert len(tables) == 2
     (cap, head, rows), (fit_cap, fit_head, fit_rows) = tables
     assert cap == "Inversion: 2 free parameters, 7 readings"
@@ -287,13 +288,13 @@ def test_inverse_result_shows_its_best_fit_and_chi2_in_jupyter():
     assert fit_cap == f"Misfit ω = 1.235; 321 evaluations in 1.23 s; residuals {RESIDUAL_CONVENTION}"
     # the basis read back from a dict wins; with an FE check its χ²/dof (noise only) gets a row
     check = FECheck(0.1, 2.0, 0.01, 1.23456, False)
-    (_, _, rows), (_, _, fit_rows) = _Tables(_hand_made_result(fe_check=check, basis="C_D = C_d",
-                                                               at_bound=())._repr_html_()).tables
+    (_, _, rows), (_, _, fit_rows) = _Tables(inverse_result_html(_hand_made_result(fe_check=check, basis="C_D = C_d",
+                                                                                   at_bound=()))).tables
     assert [r[3] for r in rows] == ["", ""]
     assert fit_rows == [["surrogate", "12.35", "4", "3.09", "C_D = C_d"],
                         ["FE check", "—", "4", "1.23", CHI2_BASIS["fe_check"]]]
     # a measurement summary without the reading count says so rather than failing
-    (cap, _, _), _ = _Tables(_hand_made_result(measurement={})._repr_html_()).tables
+    (cap, _, _), _ = _Tables(inverse_result_html(_hand_made_result(measurement={}))).tables
     assert cap == "Inversion: 2 free parameters, ? readings"
 
 

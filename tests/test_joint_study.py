@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from fe.scenarios import build_scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement
-from podkrig.online.measurement_csv import write_measurement_csv
+from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.study import load_study
 from podkrig.study.schema import StudyError
 

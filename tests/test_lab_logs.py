@@ -15,7 +15,7 @@ from fe import FEError
 from fe.scenarios import Scenario, build_scenario
 from podkrig.cli import app
 from podkrig.online.measurement import Measurement, NoiseModel, instrument_noise, level_weights
-from podkrig.online.measurement_csv import ImportSettings, read_measurement, split_header
+from podkrig.io.measurement_log import ImportSettings, read_measurement, split_header
 from podkrig.online.problem import FEModel, InverseProblem
 from podkrig.parameters import ParameterSpace
 from podkrig.study import load_study, stages

@@ -1,9 +1,10 @@
 """The layer contract and the absence of import cycles, checked on every CI run.
 
 The contracts themselves are in ``pyproject.toml`` (``[tool.importlinter]``): ``fe`` never imports
-``podkrig``; the stages import only downward (cli → study → reports → diagnosis → online →
-surrogate → offline → ga/parameters → exceptions); numerics never import the CLI, reports, study
-or plotting libraries.
+``podkrig``; the stages import only downward (cli → study → reports → io/diagnosis/sensors →
+online → surrogate → offline → ga/parameters → exceptions); numerics never import the CLI,
+reports, study, the file formats (``podkrig.io``) or plotting libraries, nor h5py, openpyxl or
+pint directly (the snapshot store excepted).
 """
 
 import pathlib

@@ -12,7 +12,7 @@ from podkrig.online.measurement import (
     instrument_noise,
     level_weights,
 )
-from podkrig.online.measurement_csv import read_measurement_csv, write_measurement_csv
+from podkrig.io.measurement_log import read_measurement_csv, write_measurement_csv
 
 SENSORS = ("D1", "D2", "U1")
 LEVELS = (25.0, 50.0, 75.0, 100.0)

@@ -1,4 +1,4 @@
-"""Reading laboratory logs (:mod:`podkrig.online.measurement_csv`), issue 12: every refusal names
+"""Reading laboratory logs (:mod:`podkrig.io.measurement_log`), issue 12: every refusal names
 the file, the row and the column and says what is allowed (whole messages compared, so a changed
 row number, column or hint is caught); the import notes tell the user exactly what was done; format
 detection (delimiter, decimal mark, units row, encodings), zeroing, averaging of repeats and the
@@ -15,9 +15,9 @@ import openpyxl
 import pytest
 from numpy.testing import assert_allclose
 
-from podkrig.online import measurement_csv
+from podkrig.io import measurement_log
 from podkrig.online.measurement import Measurement
-from podkrig.online.measurement_csv import (
+from podkrig.io.measurement_log import (
     ImportSettings,
     phase_label,
     read_measurement,
@@ -354,7 +354,7 @@ def test_size_limits_of_a_log(tmp_path, monkeypatch):
     """A log of exactly the size limit is read (blank lines after the data are no rows); one byte
     more is refused with the limit in MiB and what to do; a cell longer than 4096 characters is
     refused naming its row, and the csv module's own limit is restored afterwards."""
-    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", 2**20)
+    monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", 2**20)
     body = "load,D1\n10,1\n"
     m = _read(tmp_path, body + "\n" * (2**20 - len(body)))
     assert m.values.tolist() == [[1.0]]
@@ -399,17 +399,17 @@ def test_excel_sheets_numbers_and_limits(tmp_path, monkeypatch):
     with pytest.raises(ValueError) as info:
         read_measurement(bad, SENSORS, LEVELS, "kN", "affine")
     assert str(info.value) == f"{bad}, row 2, column 2 (D1): 'True' is not a number {HINT}"
-    monkeypatch.setattr(measurement_csv, "MAX_XLSX_ROWS", 3)
+    monkeypatch.setattr(measurement_log, "MAX_XLSX_ROWS", 3)
     assert read_measurement(p, SENSORS, LEVELS, "kN", "affine").n_obs == 2  # 3 rows: at the limit
     long = _workbook(tmp_path / "long.xlsx", {"s": [["load", "D1"], [10, 1], [20, 2], [30, 3]]})
     with pytest.raises(ValueError) as info:
         read_measurement(long, SENSORS, LEVELS, "kN", "affine")
     assert str(info.value) == f"{long}: more than 3 rows; thin the log"
-    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", p.stat().st_size - 1)
+    monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", p.stat().st_size - 1)
     with pytest.raises(ValueError) as info:
         read_measurement(p, SENSORS, LEVELS, "kN", "affine")
     assert str(info.value) == f"{p}: larger than 0 MiB"
-    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", p.stat().st_size)
+    monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", p.stat().st_size)
     assert read_measurement(p, SENSORS, LEVELS, "kN", "affine").n_obs == 2
 
 
@@ -557,7 +557,7 @@ def test_excel_damage_and_a_missing_openpyxl_are_explained(tmp_path, monkeypatch
         read_measurement(p, SENSORS, LEVELS, "kN", "affine")
     assert str(info.value).startswith(f"{p}: cannot read the Excel sheet (ParseError: unclosed token: line 1, column ")
     big = _write(tmp_path, b"x" * (2**21 + 1), "big.xlsx")  # refused on its size alone
-    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", 2**21)
+    monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", 2**21)
     with pytest.raises(ValueError) as info:
         read_measurement(big, SENSORS, LEVELS, "kN", "affine")
     assert str(info.value) == f"{big}: larger than 2 MiB"
@@ -570,11 +570,11 @@ def test_excel_damage_and_a_missing_openpyxl_are_explained(tmp_path, monkeypatch
 
 def test_the_unit_registry_is_built_on_first_use(monkeypatch):
     """pint's registry is built the first time a unit is converted (not at import) and then reused."""
-    monkeypatch.setattr(measurement_csv, "_UNITS", None)
+    monkeypatch.setattr(measurement_log, "_UNITS", None)
     assert unit_factor("µm", "mm", "w") == pytest.approx(1e-3, rel=1e-15)
-    registry = measurement_csv._UNITS
+    registry = measurement_log._UNITS
     assert registry is not None
-    assert unit_factor("cm", "mm", "w") == pytest.approx(10.0, rel=1e-15) and measurement_csv._UNITS is registry
+    assert unit_factor("cm", "mm", "w") == pytest.approx(10.0, rel=1e-15) and measurement_log._UNITS is registry
 
 
 def test_zero_at_a_load_is_read_exactly_or_interpolated(tmp_path):

@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose
 
 from podkrig.online.findings import (
     CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
-    identifiability_verdict, inversion_findings, offline_findings,
+    inversion_findings, is_identifiable, offline_findings,
 )
 from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert, rng_seed
 from podkrig.online.measurement import Measurement, NoiseModel
@@ -18,6 +18,7 @@ from podkrig.online.nested import NestedAnalysis, OverparamResult, information_c
 from podkrig.online.problem import InverseProblem, fix_from_scenario
 from podkrig.online.propagation import RVCResult, rvc
 from podkrig.online.region import Region, identifiability, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.reports.findings import FindingText, word
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.reports.inverse import write_inversion_report
 from podkrig.study.cache import Progress, StageCache
@@ -215,7 +216,7 @@ def test_rng_seed_draws_distinct_reproducible_seeds():
 
 
 def test_finding_fe_check_and_held_out_round_trips():
-    f = Finding("chi2-dof", "inversion", "χ²/dof = 5", "check the noise")
+    f = Finding("chi2-dof", "inversion", {"chi2_dof": 5.0}, test="shear")
     assert Finding.from_dict(_json_round(f.to_dict())) == f
     check = FECheck(0.1, 2.0, 0.01, 1.5, False, np.ones(3))
     assert FECheck.from_dict(_json_round(check.to_dict())).to_dict() == check.to_dict()
@@ -246,12 +247,8 @@ def test_chi2_warning_between_the_limit_and_far_beyond():
     """Fails if the χ²/dof threshold is raised (e.g. to 200): a fit with χ²/dof ≈ 9 must warn."""
     result = invert(_problem(scale=1.08), rng=0, population_size=20, generations=10, n_starts=2)
     assert CHI2_DOF_LIMIT < result.chi2_dof < 50
-    for context in ("cli", "study"):
-        found = inversion_findings(result, context=context)
-        assert [f.code for f in found] == ["chi2-dof"]
-        assert f"χ²/dof = {result.chi2_dof:.2f}" in found[0].message
-    assert "podkrig diagnose" in inversion_findings(result, context="cli")[0].remedy
-    assert "[diagnosis] enabled = true" in inversion_findings(result, context="study")[0].remedy
+    found = inversion_findings(result)
+    assert [f.code for f in found] == ["chi2-dof"] and found[0].values == {"chi2_dof": result.chi2_dof}
     consistent = invert(_problem(), rng=0, population_size=20, generations=10, n_starts=2)
     assert consistent.chi2_dof < CHI2_DOF_LIMIT and inversion_findings(consistent) == []
 
@@ -277,8 +274,7 @@ def test_unidentifiable_share_threshold(share, identified):
     assert verdict["a"]["identifiable"] and verdict["a"]["share"] == pytest.approx(0.1)
     assert verdict["k"]["share"] == pytest.approx(share)
     assert verdict["k"]["identifiable"] is identified
-    assert ("NOT pinned down" in verdict["k"]["message"]) is (not identified)
-    assert identifiability_verdict("k", intervals["k"], "-", share) == verdict["k"]
+    assert is_identifiable(share) is identified
 
 
 def test_unidentified_parameter_is_a_finding(solved):
@@ -287,9 +283,10 @@ def test_unidentified_parameter_is_a_finding(solved):
                   {"m1": (0.1, 1.9), "m2": region.intervals["m2"]}, region.names, region.units, region.n_evaluated,
                   region.seconds, identifiability({"m1": (0.1, 1.9), "m2": region.intervals["m2"]},
                                                   LinearModel.space))
-    found = inversion_findings(result, wide, context="cli")
+    found = inversion_findings(result, wide)
     assert [(f.code, f.section) for f in found] == [("unidentified", "region")]
-    assert "--fix m1=VALUE" in found[0].remedy and "MPa" in found[0].message
+    assert found[0].values["parameter"] == "m1" and found[0].values["unit"] == "MPa"
+    assert (found[0].values["low"], found[0].values["high"]) == (0.1, 1.9)
 
 
 # --- the multi-start polish --------------------------------------------------------------------
@@ -366,14 +363,17 @@ def test_stage_cache_reruns_a_stage_whose_output_changed_or_vanished(tmp_path):
     assert not record.cached and len(runs) == 3
 
 
-def test_finding_summary_form_and_the_default_level():
-    """Fails if the summary.json keys change or a finding read without a level is not a warning."""
-    f = Finding("fe-failed", "offline", "2 of 10 FE runs failed", "narrow the bounds", level="error")
-    assert f.to_dict() == {"code": "fe-failed", "level": "error", "section": "offline",
-                           "what": "2 of 10 FE runs failed", "what_to_do": "narrow the bounds"}
-    d = f.to_dict()
-    del d["level"]
-    assert Finding.from_dict(d).level == "warning"
+def test_finding_dict_forms_and_the_default_level():
+    """Fails if the summary.json keys of a worded finding change, or a finding (codes and values, or
+    words) read without a level is not a warning."""
+    f = Finding("fe-failed", "offline", {"stage": "train", "failed": 2, "total": 10, "failures": []}, level="error")
+    assert f.to_dict() == {"code": "fe-failed", "level": "error", "section": "offline", "values": f.values,
+                           "test": None}
+    text = word(f, "study")
+    assert set(text.to_dict()) == {"code", "level", "section", "what", "what_to_do"}
+    for cls, d in ((Finding, f.to_dict()), (FindingText, text.to_dict())):
+        del d["level"]
+        assert cls.from_dict(d).level == "warning"
     assert fe_check_ok(FE_CHECK_LIMIT) and not fe_check_ok(FE_CHECK_LIMIT * (1 + 1e-12))
 
 
@@ -384,7 +384,7 @@ def test_offline_held_out_and_diagnosis_findings_policy():
     assert offline_findings("train", {"failed": 0, "total": 10, "failures": []}) == []
     (f,) = offline_findings("train", {"failed": 2, "total": 10, "failures": ["run 3: singular", "run 7: singular"]})
     assert (f.code, f.section) == ("fe-failed", "offline")
-    assert f.message == "2 of 10 FE runs failed in stage 'train' (run 3: singular; run 7: singular)."
+    assert f.values == {"stage": "train", "failed": 2, "total": 10, "failures": ["run 3: singular", "run 7: singular"]}
 
     def held(median, rms, coverage):
         return {"rel_error": {"median": median}, "rms_abs_error_mm": rms, "coverage_2sigma": coverage}
@@ -392,25 +392,27 @@ def test_offline_held_out_and_diagnosis_findings_policy():
     ok = held(0.01, 0.002, COVERAGE_LIMIT)
     assert held_out_findings(ok, noise_rel=0.01) == [] and held_out_findings(ok) == []
     (f,) = held_out_findings(held(0.0125, 0.0, 0.95), noise_rel=0.01)
-    assert (f.code, f.section) == ("surrogate-error", "held-out")
-    assert "(1.25 %) exceeds the measurement noise (1 %)" in f.message and "train.n" in f.remedy
+    assert (f.code, f.section, f.values) == ("surrogate-error", "held-out", {"median_rel_error": 0.0125,
+                                                                             "noise_rel": 0.01})
     assert held_out_findings(held(0.5, 0.002, 0.95), noise_abs={"D1": 0.002, "D2": 0.01}) == []
     (f,) = held_out_findings(held(0.5, 0.003, 0.95), noise_abs={"D1": 0.002, "D2": 0.01})
-    assert "(0.003 mm) exceeds the measurement noise (σ = 0.002 mm)" in f.message
+    assert f.values == {"rms_abs_error_mm": 0.003, "sigma_mm": 0.002}
     assert [f.code for f in held_out_findings(held(0.5, 0.003, 0.7), noise_abs=0.002)] == [
         "surrogate-error", "surrogate-coverage"]
     (f,) = held_out_findings(held(0.0, 0.0, 0.7))
-    assert f.code == "surrogate-coverage" and "only 70 % of the held-out FE readings" in f.message
+    assert f.code == "surrogate-coverage" and f.values == {"coverage_2sigma": 0.7}
 
     assert diagnosis_findings({"verdict": "adequate"}) == []
     (f,) = diagnosis_findings({"verdict": "inadequate", "cause": None, "base": {"chi2_dof": 7.5}})
-    assert f.code == "diagnosis-unexplained" and "(χ²/dof = 7.50)" in f.message
+    assert f.code == "diagnosis-unexplained" and f.values == {"chi2_dof": 7.5}
     (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "a faulty sensor", "detail": {"location": "D2"},
                                "gain": {"chi2_dof_before": 9.0, "chi2_dof_after": 1.1}})
     assert (f.code, f.section) == ("diagnosis-cause", "diagnosis")
-    assert f.message.endswith("names a faulty sensor at D2 (χ²/dof 9.00 → 1.10 with it).")
+    assert f.values == {"causes": [{"cause": "a faulty sensor", "location": "D2"}], "chi2_dof_before": 9.0,
+                        "chi2_dof_after": 1.1}
     (f,) = diagnosis_findings({"verdict": "inadequate", "cause": "bond slip", "detail": None, "gain": None})
-    assert f.message.endswith("names bond slip.")
+    assert f.values == {"causes": [{"cause": "bond slip", "location": None}], "chi2_dof_before": None,
+                        "chi2_dof_after": None}
 
 
 def test_rvc_statistics_against_numpy_on_the_region_members(solved):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from fe.sensors import PointDisplacement
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.problem import (
     FEModel,
@@ -226,6 +227,44 @@ def test_load_response_and_load_unit_of_the_model_reach_the_measurement():
 
     assert InverseProblem(NewtonModel(), _data(model := LineModel(), TRUTH), noise).measurement_summary()["load_unit"] == "N"
     assert InverseProblem(model, _data(model, TRUTH), noise).measurement_summary()["load_unit"] == "kN"  # default
+
+
+class _PositionedLineModel(LineModel):
+    """The line model with point displacement sensors (as a DIC grid has), whose positions a
+    surrogate would rebuild its scenario to give: every look at them is counted."""
+
+    sensor_names = ("P1x", "P1y")
+    looked_at_sensors = 0
+
+    @property
+    def sensors(self):
+        type(self).looked_at_sensors += 1
+        return (PointDisplacement("P1x", (0.0, 0.0), "x"), PointDisplacement("P1y", (0.0, 0.0), "y"))
+
+
+def test_constructing_a_problem_only_checks_it_and_the_misfit_is_built_on_first_use():
+    """Constructing an inverse problem (and each copy made by ``dataclasses.replace``) checks the
+    parameter choice and the data against the model, and does nothing heavy: no model evaluation,
+    no sensor positions asked for (a surrogate rebuilds its scenario for them), no noise covariance.
+    Defect: work moved back into the constructor. The misfit is built once, on first use, and is
+    the same object afterwards; it builds its noise covariance when first evaluated; bad data are
+    still refused by the constructor."""
+    model = _PositionedLineModel()
+    _PositionedLineModel.looked_at_sensors = 0
+    data = Measurement(np.array([[0.1, 0.2], [0.2, 0.4]]), model.sensor_names, np.array([10.0, 20.0]))
+    problem = InverseProblem(model, data, NoiseModel(sigma=SIGMA), rigid_body="remove")
+    copy = problem.with_noisy_data(TRUTH, np.random.default_rng(0))  # evaluates the model once, at TRUTH
+    assert model.rows == [TRUTH.tolist()] and _PositionedLineModel.looked_at_sensors == 1  # the original's misfit
+    assert "misfit" not in vars(copy)
+    misfit = copy.misfit
+    assert _PositionedLineModel.looked_at_sensors == 2 and copy.misfit is misfit
+    assert copy.n_removed == 2 * 2  # x and y translations at each of 2 loads (no rotation from one point)
+    fresh = InverseProblem(model, data, NoiseModel(sigma=SIGMA), rigid_body="keep")
+    assert "_Cd" not in vars(fresh.misfit)  # the misfit builds its noise covariance on first evaluation
+    fresh.omega(TRUTH[None])
+    assert "_Cd" in vars(fresh.misfit)
+    with pytest.raises(ValueError, match=r"unknown sensor|P9x"):  # the data are still checked at once
+        InverseProblem(model, Measurement(np.zeros((2, 1)), ("P9x",), np.array([10.0, 20.0])), NoiseModel(sigma=SIGMA))
 
 
 def test_noisy_copy_keeps_its_provenance():

@@ -15,6 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from fe.exceptions import SolverError
 from fe.scenarios import Scenario
 from podkrig.cli import app
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.sampling import sample
 from podkrig.offline.store import SnapshotStore
@@ -80,10 +81,10 @@ def test_radius_follows_the_training_design():
     ({"sampling": "grid"}, "sampling must be one of sobol, .*; got 'grid'"),
 ])
 def test_setting_errors_name_the_value_before_any_file_is_read(tmp_path, settings, message):
-    """Bad settings are refused with the value and what is allowed, before the (missing) files are
-    opened."""
+    """Bad settings are refused with the value and what is allowed, before the surrogate is used or
+    the (missing) stores are opened."""
     with pytest.raises(ValueError, match=message):
-        refine_surrogate(tmp_path / "none.h5", tmp_path / "none.h5", tmp_path / "none.h5", **settings)
+        refine_surrogate(None, tmp_path / "none.h5", tmp_path / "none.h5", **settings)
 
 
 # ---------------------------------------------------------------- refinement
@@ -94,7 +95,7 @@ def stores(tmp_path_factory, coarse_diagonal):
     run_snapshots(d / "train.h5", coarse_diagonal, space, n=8, seed=0, workers=1, fields=True)
     run_snapshots(d / "held.h5", coarse_diagonal, space, n=4, seed=3, sampling="random", workers=1, fields=True)
     with SnapshotStore.open(d / "train.h5") as s:
-        fit_from_store(s).save(d / "sur.h5")
+        save_surrogate(fit_from_store(s), d / "sur.h5")
     return d
 
 
@@ -104,21 +105,26 @@ def _copies(stores, tmp_path):
     return tmp_path / "sur.h5", tmp_path / "train.h5", stores / "held.h5"
 
 
+def _refine(file, train, held, **settings):
+    """The summary of refining the surrogate of ``file`` and the refined surrogate."""
+    sur = refine_surrogate(load_surrogate(file), train, held, **settings)
+    return sur.provenance_["refinement"], sur
+
+
 def test_budget_stops_after_the_rounds_it_pays_for(stores, tmp_path, caplog):
     """Budget 3 in batches of 2 with an unreachable target: rounds add 2 then 1 (the rest of the
     budget), the third fit stops on the budget; the 3 runs are done rows of the store, the history
-    has one entry per fit (8, 10, 11 snapshots) and the file records it all."""
+    has one entry per fit (8, 10, 11 snapshots) and the refined surrogate records it all."""
     file, train, held = _copies(stores, tmp_path)
     with caplog.at_level(logging.INFO, logger="podkrig.surrogate.refine"):
-        out = refine_surrogate(file, train, held, target_error=1e-12, budget=3, batch=2, n_candidates=64)
+        out, sur = _refine(file, train, held, target_error=1e-12, budget=3, batch=2, n_candidates=64)
     assert out["added"] == 3 and out["stop_reason"] == "budget of 3 FE runs used"
     assert [h["n_train"] for h in out["history"]] == [8, 10, 11]
     assert all(0 < h["median"] <= h["p95"] for h in out["history"])
     with SnapshotStore.open(train) as s:
         assert s.counts()["done"] == 11 and s.n_rows == 11
-    sur = PODKriging.load(file)
     assert sur.provenance_["refinement"] == out
-    assert sur.X_.shape[0] == 11  # the file holds the final surrogate, of all 11 snapshots
+    assert sur.X_.shape[0] == 11  # the final surrogate, of all 11 snapshots
     logged = [r.getMessage() for r in caplog.records if r.name == "podkrig.surrogate.refine"]
     assert logged == [f"refine: {h['n_train']} snapshots, held-out median {h['median']:.3g}" for h in out["history"]]
 
@@ -127,7 +133,7 @@ def test_a_reached_target_adds_nothing(stores, tmp_path):
     """A target above the first fit's error stops at once: no FE run, the store unchanged, the
     reason names the target."""
     file, train, held = _copies(stores, tmp_path)
-    out = refine_surrogate(file, train, held, target_error=10.0, budget=4, batch=2, n_candidates=64)
+    out, sur = _refine(file, train, held, target_error=10.0, budget=4, batch=2, n_candidates=64)
     assert out["added"] == 0 and out["stop_reason"] == "target 10 reached" and len(out["history"]) == 1
     with SnapshotStore.open(train) as s:
         assert s.n_rows == 8
@@ -137,17 +143,17 @@ def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(s
     """Each round draws the candidate set with seed ``seed + round`` (design ``sampling``), scores
     it by the variance summed over the outputs of the surrogate fitted with the file's own
     settings (here the power variogram, 3 POD modes and the displacement field as output, none
-    of them a default; all kept in the final file) and appends
+    of them a default; all kept in the refined surrogate) and appends
     ``select_batch`` of it: the new store rows are exactly those points, in that order (the
     refinement is reproducible and resumable from the store)."""
     file, train, held = _copies(stores, tmp_path)
     with SnapshotStore.open(train) as s:
         template = fit_from_store(s, pod=POD(n_modes=3), kriging=OrdinaryKriging(variogram="power"), output="field")
         U0 = s.parameters(physical=False)
-    template.save(file)
+    save_surrogate(template, file)
     scores = []
     monkeypatch.setattr(refine, "select_batch", lambda U, score, *rest: scores.append(score) or select_batch(U, score, *rest))
-    out = refine_surrogate(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, seed=5,
+    out, sur = _refine(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, seed=5,
                            sampling="random")
     assert out["added"] == 2
     U_cand = sample("random", 32, 2, 5 + 1)
@@ -157,16 +163,15 @@ def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(s
     pick = select_batch(U_cand, np.sum(std**2, axis=1), U0, 2)
     with SnapshotStore.open(train) as s:
         assert_allclose(s.parameters(physical=False)[8:], U_cand[pick], rtol=0, atol=1e-12)
-    final = PODKriging.load(file)
-    assert final.kriging_.hyperparameters_.variogram == "power" and final.pod_.n_modes_ == 3
-    assert final.provenance_["output"] == "field"
-    assert final.predict_unit(U0[:1]).shape == template.predict_unit(U0[:1]).shape
+    assert sur.kriging_.hyperparameters_.variogram == "power" and sur.pod_.n_modes_ == 3
+    assert sur.provenance_["output"] == "field"
+    assert sur.predict_unit(U0[:1]).shape == template.predict_unit(U0[:1]).shape
 
 
 def test_a_zero_budget_only_reports_the_current_error(stores, tmp_path):
     """budget = 0 is allowed: one fit, its held-out error in the history, no FE run."""
     file, train, held = _copies(stores, tmp_path)
-    out = refine_surrogate(file, train, held, target_error=1e-12, budget=0, batch=1, n_candidates=1)
+    out, sur = _refine(file, train, held, target_error=1e-12, budget=0, batch=1, n_candidates=1)
     assert out["added"] == 0 and out["stop_reason"] == "budget of 0 FE runs used" and len(out["history"]) == 1
 
 
@@ -180,7 +185,7 @@ def test_failed_new_runs_are_kept_as_failed_rows_and_left_out_of_the_fit(stores,
     file, train, held = _copies(stores, tmp_path)
     monkeypatch.setattr(Scenario, "run", failing)
     with caplog.at_level(logging.WARNING, logger="podkrig.surrogate.refine"):
-        out = refine_surrogate(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32)
+        out, sur = _refine(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32)
     assert [h["n_train"] for h in out["history"]] == [8, 8] and out["added"] == 2
     assert [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING] == [
         "refine: 2 of 2 new FE runs failed (kept as failed rows)"]

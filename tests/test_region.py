@@ -18,6 +18,8 @@ from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.problem import InverseProblem
 from podkrig.online.region import Region, identifiability, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.parameters import Parameter, ParameterSpace
+from podkrig.reports.findings import identifiability_text
+from podkrig.reports.jupyter import region_html
 
 SIGMA = 0.01  # mm
 
@@ -266,7 +268,7 @@ def test_likelihood_ratio_region_names_the_bad_setting(kwargs, message):
 def test_identifiability_share_is_clipped_to_the_search_range():
     """Fails if an interval reaching past the search range is not clipped to it before its share is
     taken (the share is of the search range, at most 1), if the share is not taken in the
-    parameter's scaled (log) coordinate, or if the verdict does not name the parameter."""
+    parameter's scaled (log) coordinate, or if the verdict in words does not name the parameter."""
     space = ParameterSpace((Parameter("a", 0.0, 2.0, unit="MPa"), Parameter("k", 1.0, 100.0, "log")))
     verdict = identifiability({"a": (-1.0, 0.5), "k": (10.0, 1000.0)}, space)
     assert verdict["a"]["share"] == pytest.approx(0.25) and verdict["a"]["identifiable"]
@@ -274,8 +276,8 @@ def test_identifiability_share_is_clipped_to_the_search_range():
     wide = identifiability({"a": (-5.0, 5.0), "k": (0.1, 10.0)}, space)
     assert wide["a"]["share"] == 1.0 and not wide["a"]["identifiable"]
     assert wide["k"]["share"] == pytest.approx(0.5)
-    assert wide["a"]["message"].startswith("a is NOT pinned down by these data: values from -5 to 5 MPa "
-                                           "(100 % of its search range)")
+    text = identifiability_text("a", (-5.0, 5.0), "MPa", wide["a"])
+    assert "a is NOT pinned down" in text and "from -5 to 5 MPa (100 % of its search range)" in text
 
 
 def test_region_summary_keys_html_table_and_round_trip():
@@ -300,7 +302,7 @@ def test_region_summary_keys_html_table_and_round_trip():
         Region.from_dict(d, samples=region.samples[:2], omega=region.omega)
     with pytest.raises(ValueError, match="the region has 3 members; got 3 samples and 2 misfits"):
         Region.from_dict(d, samples=region.samples, omega=region.omega[:2])
-    page = region._repr_html_()
+    page = region_html(region)
     assert ("<caption style='text-align:left'><b>Region of equivalence (likelihood-ratio, 90 %): "
             "3 members of 4096 evaluations</b></caption>") in page
     assert ("<thead><tr><th>parameter</th><th>unit</th><th>low</th><th>high</th>"

@@ -20,8 +20,8 @@ from podkrig.limits import check_name, check_output_folder, check_region_samples
 from podkrig.offline.sampling import sobol
 from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
-from podkrig.online import measurement_csv
-from podkrig.online.measurement_csv import read_measurement_csv
+from podkrig.io import measurement_log
+from podkrig.io.measurement_log import read_measurement_csv
 from podkrig.parameters import ParameterSpace
 from podkrig.study.stages import _run_store
 
@@ -144,11 +144,11 @@ def test_bad_files_give_messages_with_the_file(tmp_path, monkeypatch):
     path = _csv(tmp_path, b"load,D1\n25,\xff\xfe\n", mode="b")
     with pytest.raises(ValueError, match=r"m\.csv, row 2, column 2 \(D1\): 'ÿþ' is not a number"):
         read_measurement_csv(path, SENSORS, LEVELS)
-    monkeypatch.setattr(measurement_csv, "MAX_FILE_BYTES", 2**20)  # the real bound (256 MiB) is slow to test
+    monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", 2**20)  # the real bound (256 MiB) is slow to test
     path = _csv(tmp_path, "load,D1\n25," + "1" * 200_000 + "\n")
     with pytest.raises(ValueError, match=r"m\.csv, row 2: malformed CSV"):
         read_measurement_csv(path, SENSORS, LEVELS)
-    path = _csv(tmp_path, b"load,D1\n" + b"25,1\n" * (measurement_csv.MAX_FILE_BYTES // 5 + 1), mode="b")
+    path = _csv(tmp_path, b"load,D1\n" + b"25,1\n" * (measurement_log.MAX_FILE_BYTES // 5 + 1), mode="b")
     with pytest.raises(ValueError, match="larger than 1 MiB"):
         read_measurement_csv(path, SENSORS, LEVELS)
     if Path("/dev/zero").exists():

@@ -113,7 +113,7 @@ def small_surrogate(tmp_path_factory):
     """A 16-run surrogate of the coarse diagonal test (E_b free) and noise-free data of it."""
     from fe.scenarios import build_scenario
     from podkrig.online.measurement import Measurement
-    from podkrig.online.measurement_csv import write_measurement_csv
+    from podkrig.io.measurement_log import write_measurement_csv
 
     d = tmp_path_factory.mktemp("limits_cli")
     spec = d / "spec.toml"

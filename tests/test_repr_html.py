@@ -1,9 +1,11 @@
-"""The HTML helpers behind the ``_repr_html_`` of the result objects (``podkrig/online/_repr.py``):
-numbers as a reader sees them, tables exactly (issue 12: mutation survivors)."""
+"""The HTML helpers behind the Jupyter display of the result objects (``podkrig/reports/jupyter.py``):
+numbers as a reader sees them, tables exactly (issue 12: mutation survivors), and the registration
+with IPython's HTML formatter."""
 
 import math
 
-from podkrig.online._repr import html_table, number
+from podkrig.reports import jupyter
+from podkrig.reports.jupyter import html_table, number
 
 
 def test_numbers_show_significant_digits_and_a_dash_when_missing():
@@ -24,3 +26,32 @@ def test_tables_are_exact_escaped_and_captioned_only_when_asked():
         "<tr><td>a&lt;b</td><td>1</td></tr><tr><td>c</td><td>d&amp;e</td></tr></tbody></table>")
     assert html_table(["x"], [], caption="Fit & region").startswith(
         "<table><caption style='text-align:left'><b>Fit &amp; region</b></caption><thead>")
+
+
+def test_a_running_ipython_shows_the_online_results_as_these_tables(monkeypatch):
+    """``import podkrig`` in a notebook registers, by type name, one HTML function per online result
+    with IPython's ``text/html`` formatter (a stand-in shell records the calls; IPython is not a
+    dependency); outside IPython nothing is registered."""
+    import importlib
+    import sys
+    import types
+
+    import podkrig
+
+    calls = []
+
+    class Formatter:
+        def for_type_by_name(self, module, name, function):
+            calls.append((module, name, function))
+
+    shell = types.SimpleNamespace(display_formatter=types.SimpleNamespace(formatters={"text/html": Formatter()}))
+    monkeypatch.setitem(sys.modules, "IPython", types.SimpleNamespace(get_ipython=lambda: shell))
+    importlib.reload(podkrig)
+    assert calls == [("podkrig.online.invert", "InverseResult", jupyter.inverse_result_html),
+                     ("podkrig.online.region", "Region", jupyter.region_html)]
+    for module, name, _ in calls:  # the names are real
+        assert getattr(importlib.import_module(module), name).__name__ == name
+    calls.clear()
+    monkeypatch.setitem(sys.modules, "IPython", types.SimpleNamespace(get_ipython=lambda: None))
+    importlib.reload(podkrig)
+    assert calls == []

@@ -17,9 +17,10 @@ from podkrig.cli import app
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.invert import InverseResult
 from podkrig.online.measurement import Measurement
-from podkrig.online.measurement_csv import write_measurement_csv
+from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.region import Region
 from podkrig.reports.figures import read_panels
+from podkrig.reports.jupyter import inverse_result_html, region_html
 from podkrig.reports.study import SECTIONS
 from podkrig.study import load_study, run_study
 
@@ -383,17 +384,19 @@ def test_study_with_a_library_backend(tmp_path):
 
 
 def test_results_show_in_jupyter(tiny):
-    """The study result, the inversion and the region render as HTML tables (Jupyter's
-    ``_repr_html_``): well-formed, with the numbers, what each χ² includes, and the figures inline."""
+    """The study result (its ``_repr_html_``), the inversion and the region (the Jupyter tables of
+    :mod:`podkrig.reports.jupyter`) render as HTML: well-formed, with the numbers, what each χ²
+    includes, and the figures inline."""
     study, out, _ = tiny
     result = run_study(load_study(study), out)  # every stage cached: seconds
     inv = InverseResult.from_dict(result.stage("inversion").result)
     with np.load(out / "region.npz") as f:
         region = Region.from_dict(result.stage("region").result, samples=f["samples"], omega=f["omega"])
-    for obj, words in ((result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION]),
-                       (inv, ["kN_bj", "N/mm³", f"{inv.chi2_dof:.3g}", "χ² includes"]),
-                       (region, ["kN_bj", "identified", f"{100 * region.confidence:.0f} %"])):
-        text = obj._repr_html_()
+    for obj, words, text in (
+            (result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION],
+             result._repr_html_()),
+            (inv, ["kN_bj", "N/mm³", f"{inv.chi2_dof:.3g}", "χ² includes"], inverse_result_html(inv)),
+            (region, ["kN_bj", "identified", f"{100 * region.confidence:.0f} %"], region_html(region))):
         page = _Page()
         page.feed(text)
         page.close()

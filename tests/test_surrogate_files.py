@@ -4,6 +4,7 @@ estimator, side-effect-free ``predict``, unit-cube prediction, and files of sche
 import copy
 import dataclasses
 import datetime
+import json
 import logging
 from pathlib import Path
 
@@ -13,13 +14,14 @@ import pytest
 from numpy.testing import assert_array_equal, assert_equal
 
 from podkrig.exceptions import NotFittedError, SchemaError, StoreError
+from podkrig.io.surrogate_file import SCHEMA_VERSION, load_surrogate, save_surrogate
 from podkrig.offline.sampling import sobol, uniform
 from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.surrogate.kriging import DEFAULT_BETA, KrigingHyperparameters, OrdinaryKriging
 from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import SCHEMA_VERSION, PODKriging, fit_from_store, training_data
+from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
 
 DATA = Path(__file__).parent / "data"
 SPACE = ParameterSpace((Parameter("E_b", 5000.0, 20000.0, unit="MPa"),
@@ -43,7 +45,7 @@ def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
     """The reference file was written by the code before this layout (see tests/data/README.md)."""
     with h5py.File(DATA / "surrogate_v1.h5") as f:
         assert (f.attrs["format"], int(f.attrs["schema_version"])) == ("podkrig.surrogate", 1)
-    sur = PODKriging.load(DATA / "surrogate_v1.h5")
+    sur = load_surrogate(DATA / "surrogate_v1.h5")
     expected = np.load(DATA / "surrogate_v1_expected.npz")
     mean, std = sur.predict(expected["X"], return_std=True, reshape=True)
     assert_array_equal(mean, expected["mean"])
@@ -53,10 +55,10 @@ def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
     # far below any accuracy that matters (the std itself is an estimate)
     np.testing.assert_allclose(std, expected["std"], rtol=1e-8, atol=0)
     assert sur.backend_ == "podkrig" and sur.kriging_.hyperparameters_.variogram == "exponential"
-    sur.save(tmp_path / "v2.h5")  # rewritten in today's schema, same predictions
+    save_surrogate(sur, tmp_path / "v2.h5")  # rewritten in today's schema, same predictions
     with h5py.File(tmp_path / "v2.h5") as f:
         assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 3 and f.attrs["backend"] == "podkrig"
-    again = PODKriging.load(tmp_path / "v2.h5")
+    again = load_surrogate(tmp_path / "v2.h5")
     assert_array_equal(again.predict(expected["X"], reshape=True), expected["mean"])
 
 
@@ -87,6 +89,20 @@ def test_kriging_persists_itself_bitwise(surrogate):
         OrdinaryKriging.from_arrays(arrays, {**attrs, "variogram": "power"}, kr.get_params())
 
 
+def test_surrogate_state_round_trips_as_arrays_without_a_file(surrogate):
+    """The surrogate exchanges its state as plain arrays and metadata (what the file format writes):
+    ``from_arrays(*to_arrays())`` predicts bitwise as the original in the same process, and the
+    metadata is JSON-able (the file stores it as JSON text)."""
+    arrays, attrs = surrogate.to_arrays()
+    assert set(arrays) == {"X", "U", "lower", "upper", "train_norm", "train_residual_norm", "pod", "kriging"}
+    json.dumps({k: attrs[k] for k in ("settings", "provenance", "parameter_space", "output_shape")})
+    back = PODKriging.from_arrays(arrays, attrs)
+    X = SPACE.from_unit(uniform(7, 3, seed=2))
+    for a, b in zip(back.predict(X, return_std=True), surrogate.predict(X, return_std=True)):
+        assert_equal(a, b)  # same process, same arrays: the same floating-point operations
+    assert back.backend_ == "podkrig" and back.space.to_dict() == SPACE.to_dict()
+
+
 def _state(obj):
     """Deep copy of ``vars(obj)``, podkrig objects inside as their own ``vars`` (compared by value)."""
     return {k: _state(v) if type(v).__module__.startswith("podkrig") else copy.deepcopy(v)
@@ -109,8 +125,8 @@ def test_predict_leaves_the_estimator_unchanged(use_numba):
 
 
 def test_surrogate_predict_and_predict_unit_leave_state_unchanged(surrogate, tmp_path):
-    surrogate.save(tmp_path / "s.h5")
-    for sur in (surrogate, PODKriging.load(tmp_path / "s.h5")):
+    save_surrogate(surrogate, tmp_path / "s.h5")
+    for sur in (surrogate, load_surrogate(tmp_path / "s.h5")):
         before, before_kr = _state(sur), _state(sur.kriging_)
         sur.predict(SPACE.from_unit(uniform(5, 3, seed=1)), return_std=True)
         sur.predict_unit(uniform(5, 3, seed=1), return_std=True)
@@ -259,8 +275,8 @@ def test_surrogate_file_describes_itself_to_a_reader_without_podkrig(tmp_path, s
     sur = copy.deepcopy(surrogate)
     sur.provenance_.update(zeta=np.float64(0.5), alpha=np.arange(3), count=np.int64(7), source=Path("a") / "b.h5")
     t0 = datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0)
-    sur.save(tmp_path / "a.h5")
-    sur.save(tmp_path / "b.h5")
+    save_surrogate(sur, tmp_path / "a.h5")
+    save_surrogate(sur, tmp_path / "b.h5")
     with h5py.File(tmp_path / "a.h5") as a, h5py.File(tmp_path / "b.h5") as b:
         saved = datetime.datetime.fromisoformat(a.attrs["saved"])
         assert t0 <= saved <= datetime.datetime.now(datetime.timezone.utc)
@@ -287,8 +303,8 @@ def test_kriging_settings_round_trip_through_the_file(tmp_path):
     ``ranges``) lost or not writable: a refit of the loaded surrogate would then use other settings."""
     X = SPACE.from_unit(sobol(16, 3, seed=0))
     kriging = OrdinaryKriging(beta=1.5, ranges=np.array([0.3, 0.5, 0.7]), range_bounds=(1e-3, 10.0))
-    PODKriging(kriging=kriging, space=SPACE).fit(X, snapshots(X)).save(tmp_path / "s.h5")
-    back = PODKriging.load(tmp_path / "s.h5").kriging.get_params()
+    save_surrogate(PODKriging(kriging=kriging, space=SPACE).fit(X, snapshots(X)), tmp_path / "s.h5")
+    back = load_surrogate(tmp_path / "s.h5").kriging.get_params()
     assert_array_equal(back.pop("ranges"), [0.3, 0.5, 0.7])
     assert back == {k: v for k, v in kriging.get_params().items() if k != "ranges"}
 
@@ -300,23 +316,23 @@ def _hdf5_with_attrs(path, **attrs):
 
 
 def test_every_refused_file_is_named_with_what_to_do(tmp_path, caplog):
-    """PODKriging.load refuses, with the file and the remedy in the whole message: a missing
+    """load_surrogate refuses, with the file and the remedy in the whole message: a missing
     file; a file that is not HDF5 (the integrity check reads it first and names a damaged
     surrogate file); an HDF5 file of another format; a surrogate of an unknown or missing schema
     version. A file without a checksum is read with a warning naming it."""
     missing = tmp_path / "missing.h5"
     with pytest.raises(StoreError) as raised:
-        PODKriging.load(missing)
+        load_surrogate(missing)
     assert str(raised.value) == f"no surrogate file at {missing}; build one with 'podkrig surrogate build'"
 
     text = tmp_path / "notes.h5"
     text.write_text("not HDF5")
     with pytest.raises(StoreError, match=rf"^{text} cannot be read: damaged surrogate file \("):
-        PODKriging.load(text)
+        load_surrogate(text)
 
     other = _hdf5_with_attrs(tmp_path / "other.h5", format="podkrig.snapshots")
-    with caplog.at_level("WARNING", logger="podkrig.surrogate.podkriging"), pytest.raises(StoreError) as raised:
-        PODKriging.load(other)
+    with caplog.at_level("WARNING", logger="podkrig.io.surrogate_file"), pytest.raises(StoreError) as raised:
+        load_surrogate(other)
     assert str(raised.value) == (f"{other} is not a podkrig surrogate (format 'podkrig.snapshots'); "
                                  "pass the file written by 'podkrig surrogate build'")
     assert [r.getMessage() for r in caplog.records] == [
@@ -326,13 +342,13 @@ def test_every_refused_file_is_named_with_what_to_do(tmp_path, caplog):
         attrs = {"format": "podkrig.surrogate"} | ({} if version is None else {"schema_version": version})
         future = _hdf5_with_attrs(tmp_path / f"schema_{version}.h5", **attrs)
         with pytest.raises(SchemaError) as raised:
-            PODKriging.load(future)
+            load_surrogate(future)
         assert str(raised.value) == (f"{future} has surrogate schema version {shown}; this podkrig reads 1, 2, 3; "
                                      "rebuild it")
 
     empty = _hdf5_with_attrs(tmp_path / "empty.h5", format="podkrig.surrogate", schema_version=SCHEMA_VERSION)
     with pytest.raises(StoreError, match=rf"^{empty} is a damaged surrogate file \(KeyError: .+\); rebuild it$"):
-        PODKriging.load(empty)
+        load_surrogate(empty)
 
 
 def test_another_backend_round_trips_through_the_file(tmp_path):
@@ -340,8 +356,8 @@ def test_another_backend_round_trips_through_the_file(tmp_path):
     predictions it had: the loader reads the backend the file records, not the default."""
     X = SPACE.from_unit(sobol(16, 3, seed=0))
     sur = PODKriging(pod=POD(n_modes=2), kriging=make_backend("sklearn-gpr"), space=SPACE).fit(X, snapshots(X))
-    sur.save(tmp_path / "gpr.h5")
-    back = PODKriging.load(tmp_path / "gpr.h5")
+    save_surrogate(sur, tmp_path / "gpr.h5")
+    back = load_surrogate(tmp_path / "gpr.h5")
     assert back.backend_ == sur.backend_ == "sklearn-gpr"
     assert back.pod_.method_ == sur.pod_.method_ in ("svd", "snapshots")  # the POD method it used
     Xp = SPACE.from_unit(uniform(5, 3, seed=2))
@@ -444,7 +460,7 @@ def test_defaults_the_log_line_and_use_before_fit(caplog):
     assert_array_equal(bare.U_, (X - X.min(axis=0)) / (X.max(axis=0) - X.min(axis=0)))
     assert bare.pod_.energy == 1 - 1e-8
     assert f"POD-kriging fitted: 16 samples, 12 outputs, {bare.pod_.n_modes_} modes" in caplog.messages
-    for use in (lambda s: s.predict(X), lambda s: s.n_modes_, lambda s: s.save("never.h5")):
+    for use in (lambda s: s.predict(X), lambda s: s.n_modes_, lambda s: save_surrogate(s, "never.h5")):
         with pytest.raises(NotFittedError) as raised:
             use(PODKriging())
         assert str(raised.value) == "this PODKriging instance is not fitted yet; call fit(X, Y) first"

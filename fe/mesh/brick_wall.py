@@ -57,6 +57,14 @@ class BrickWallLayout:
         half the spacing for ``x0 < x < x1`` through the whole wall (lines must run through every
         course to keep the bed-joint faces matching) and ``2 ny`` elements across the courses
         inside ``[y0, y1]``.
+    base_joints : bool
+        Lay the wall on a loading beam and cap it with another, each joined to the wall by a bed
+        joint (interfaces of kind ``"bed"`` at y = 0 and y = ``height``), as walls are built
+        between steel beams. Each beam is one block one course high (``unit_height``) spanning the
+        wall, on the wall's vertical node lines, one element across, and the last two units of
+        ``block_unit`` (bottom, then top). The beams' nodes are the node sets ``bottom_beam`` and
+        ``top_beam``: a scenario holds or ties all of them, so the beams are rigid. The wall's own
+        nodes and their numbers are those of the wall without beams (the beams' come after).
     """
 
     unit_length: float = 260.0
@@ -71,6 +79,7 @@ class BrickWallLayout:
     x_lines: tuple = ()
     cuts: tuple = ()
     refine: tuple = ()
+    base_joints: bool = False
 
     def __post_init__(self):
         for name in ("unit_length", "unit_height"):
@@ -219,7 +228,9 @@ def brick_wall(layout=BrickWallLayout()):
     Mesh
         With node sets ``bottom``, ``top``, ``left``, ``right``, ``bottom_left``,
         ``bottom_right``, ``top_left``, ``top_right`` and edge sets ``bottom``, ``top``,
-        ``left``, ``right``.
+        ``left``, ``right`` on the outer faces of the mesh (with ``base_joints``: the beams'
+        outer faces), plus ``bottom_beam`` and ``top_beam`` (every node of each beam) with
+        ``base_joints``.
     """
     quadratic = layout.element == "Q8"
     L, H = layout.unit_length, layout.unit_height
@@ -228,6 +239,7 @@ def brick_wall(layout=BrickWallLayout()):
     n_nodes = n_units = 0
     lines = layout.vertical_lines()
     regular = not (layout.x_lines or layout.cuts or layout.refine)
+    face_xs = {}  # element edges (x, mm) of the bottom and top courses' blocks, for the beams
     for course in range(layout.n_courses):
         y0, y1 = course * H, (course + 1) * H
         ys = np.linspace(y0, y1, layout.course_ny(course) + 1)
@@ -241,6 +253,8 @@ def brick_wall(layout=BrickWallLayout()):
                 if regular:  # the plain wall: nodes exactly as linspace over the block gives them
                     xs = np.linspace(bx0, bx1, len(xs))
                 xy, q, index = _block_grid(xs, ys, quadratic, regular)
+                if course in (0, layout.n_courses - 1):
+                    face_xs.setdefault(course, []).append(xs)
                 block = len(bounds)
                 nodes.append(xy)
                 quads.append(q + n_nodes)
@@ -250,11 +264,29 @@ def brick_wall(layout=BrickWallLayout()):
                 _collect_edges(edges, block, index + n_nodes, xy, n_nodes, quadratic)
                 n_nodes += len(xy)
             n_units += 1
+    beams = {}
+    if layout.base_joints:  # the loading beams: one block each, below and above the wall
+        for name, course, y0, y1 in (("bottom_beam", 0, -H, 0.0),
+                                     ("top_beam", layout.n_courses - 1, layout.height, layout.height + H)):
+            # on the adjacent course's element edges, bit for bit: the joint's faces coincide
+            xs = np.unique(np.concatenate(face_xs[course]))
+            xy, q, index = _block_grid(xs, np.array([y0, y1]), quadratic)
+            block = len(bounds)
+            nodes.append(xy)
+            quads.append(q + n_nodes)
+            quad_block.append(np.full(len(q), block))
+            block_unit.append(n_units)
+            bounds.append((0.0, y0, layout.width, y1))
+            _collect_edges(edges, block, index + n_nodes, xy, n_nodes, quadratic)
+            beams[name] = np.arange(n_nodes, n_nodes + len(xy))
+            n_nodes += len(xy)
+            n_units += 1
     nodes = np.vstack(nodes)
     quads = np.vstack(quads).astype(np.intp)
     block_unit = np.array(block_unit, np.intp)
     interfaces, kinds, pairs = _match_interfaces(edges, block_unit, quadratic)
     node_sets, edge_sets = _boundary_sets(nodes, edges, layout)
+    node_sets.update(beams)
     mesh = Mesh(
         nodes=nodes,
         element=layout.element,
@@ -332,21 +364,23 @@ def _match_interfaces(edges, block_unit, quadratic):
 
 
 def _boundary_sets(nodes, edges, layout):
-    """Named node sets and edge sets on the four faces of the wall."""
+    """Named node sets and edge sets on the four outer faces of the mesh (the wall's, or with
+    ``base_joints`` the beams' bottom and top faces)."""
     W, H = layout.width, layout.height
     tol = 1e-9 * max(W, H)
+    y_bottom, y_top = (-layout.unit_height, H + layout.unit_height) if layout.base_joints else (0.0, H)
     x, y = nodes[:, 0], nodes[:, 1]
     node_sets = {
-        "bottom": np.flatnonzero(abs(y) < tol),
-        "top": np.flatnonzero(abs(y - H) < tol),
+        "bottom": np.flatnonzero(abs(y - y_bottom) < tol),
+        "top": np.flatnonzero(abs(y - y_top) < tol),
         "left": np.flatnonzero(abs(x) < tol),
         "right": np.flatnonzero(abs(x - W) < tol),
     }
-    for v, yy in (("bottom", 0.0), ("top", H)):
+    for v, yy in (("bottom", y_bottom), ("top", y_top)):
         for h, xx in (("left", 0.0), ("right", W)):
             node_sets[f"{v}_{h}"] = np.flatnonzero((abs(x - xx) < tol) & (abs(y - yy) < tol))
     edge_sets = {}
-    for face, coord, value in (("bottom", 1, 0.0), ("top", 1, H), ("left", 0, 0.0), ("right", 0, W)):
+    for face, coord, value in (("bottom", 1, y_bottom), ("top", 1, y_top), ("left", 0, 0.0), ("right", 0, W)):
         rows = [
             (start, end, mid)
             for _, side, start, end, mid, p, q in edges

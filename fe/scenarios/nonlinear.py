@@ -63,8 +63,10 @@ class NonlinearOptions(WallOptions):
     eq. 2.4 surface, unit mid-planes keep the tension cut-off), the hyperbolic law's compressive
     ``hyperbolic_cap`` (``"none"``, the default; ``"ellipse"`` or ``"hyperbola"``: the INFERRED
     shapes of :mod:`fe.interfaces.hyperbolic`, with ``fc``, ``Cs``, ``Gfc``, ``kappa_p``),
-    the budget (``max_steps`` attempted increments, ``max_iterations`` per increment,
-    ``max_seconds`` wall time), the relative force ``tolerance``, and the interfaces'
+    the budget (``max_steps`` attempted increments, ``max_total_iterations`` Newton iterations,
+    ``max_cpu_seconds`` CPU time of the process; ``max_seconds`` is a generous wall-clock guard
+    against a hung run, not a budget: see :mod:`fe.solvers.nonlinear`), ``max_iterations`` per
+    increment before it is cut back, the relative force ``tolerance``, and the interfaces'
     ``integration`` rule (``"lobatto"``: Newton–Cotes at the node pairs, the default, recommended
     for interfaces because Gauss points with stiff dummy interfaces give traction oscillations,
     reference §4 [VMB15]; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness)."""
@@ -73,7 +75,9 @@ class NonlinearOptions(WallOptions):
     max_increment: float = 0.05
     max_steps: int = 600
     max_iterations: int = 12
-    max_seconds: float = 300.0
+    max_total_iterations: int = 30000
+    max_cpu_seconds: float = 300.0
+    max_seconds: float = 3600.0
     tolerance: float = 1e-3
     law: str = "composite"
     hyperbolic_cap: str = "none"
@@ -99,9 +103,17 @@ class NonlinearOptions(WallOptions):
 
     def path_settings(self, record_states=False):
         return PathSettings(max_steps=self.max_steps, max_iterations=self.max_iterations,
-                            max_total_iterations=50 * self.max_steps, max_seconds=self.max_seconds,
+                            max_total_iterations=self.max_total_iterations, max_cpu_seconds=self.max_cpu_seconds,
+                            max_seconds=self.max_seconds,
                             tolerance=self.tolerance, max_increment_fraction=self.max_increment / self.increment,
                             record_states=record_states)
+
+
+#: Stiffness defaults of the TU Eindhoven walls' "Set A" (Lourenço & Rots 1997, as used for J4D–J7D):
+#: units E_b = 16 700 MPa, ν = 0.15; bed joints kN = 82, kV = 36 N/mm³. With the strengths of
+#: :data:`STRENGTH_PARAMETERS` (also Set A) they are the one default set of the Eindhoven wall and the
+#: small specimens. Unit mid-planes keep the walls' 10⁵ N/mm³ (a moderate dummy stiffness).
+SET_A_STIFFNESS = {"E_b": 16700.0, "nu_b": 0.15, "kN_bj": 82.0, "kV_bj": 36.0}
 
 
 def nonlinear_parameters(defaults=None):
@@ -244,7 +256,7 @@ class NonlinearScenario(Scenario):
             readings, self.sensor_names, levels, self.load_unit, u, loads=loads, force_unit=self.force_unit,
             peak_load=float(load[peak]) if peak is not None else float("nan"),
             peak_displacement=float(disp[peak]) if peak is not None else float("nan"),
-            status=path.status, message=path.message,
+            status=path.status, limit=path.limit, message=path.message,
             reached=float(disp[-1]) if len(disp) else 0.0,
             extra=self.extra_outputs(path, at), path=path)
 

@@ -18,6 +18,11 @@ calibrated parameters are propagated through it (RVC).
 Default parameters are those identified for these walls in [1]_: E_b = 16 700 MPa, ν = 0.15,
 kN = 82 N/mm³, kV = 36 N/mm³.
 
+``base_joints`` (off here, on in the nonlinear ``shear_compression_nl``): lay the wall on a rigid
+beam and cap it with one, each joined to the wall by a bed joint (the walls as built; see
+:func:`wall_supports`). Off, this scenario is exactly the model it always was; the option lets the
+nonlinear twin of a linear wall (same options) and a study that wants the joints choose them.
+
 References
 ----------
 .. [1] P. B. Lourenço, J. G. Rots, Multisurface interface model for analysis of masonry
@@ -46,11 +51,35 @@ DEFAULT_SENSORS = (
 )
 
 
+def wall_supports(mesh, base_joints):
+    """Nodes held fixed (the bottom beam or the wall's bottom face) and nodes tied to the top beam's
+    u_x, u_y (every top-beam node, or the wall's top face) of a wall mesh, ``(bottom, top)``.
+
+    With ``base_joints`` the mesh has beam blocks joined to the wall by bed joints
+    (:class:`~fe.mesh.BrickWallLayout` ``base_joints``); holding or tying *every* node of a beam
+    makes it rigid. Without, the wall's faces are clamped and tied directly.
+    """
+    if base_joints:
+        return mesh.node_sets["bottom_beam"], mesh.node_sets["top_beam"]
+    return mesh.node_sets["bottom"], mesh.node_sets["top"]
+
+
+def default_sensors(mesh, base_joints):
+    """:data:`DEFAULT_SENSORS`; with base joints ``top_ux`` moves from the wall's top face (then a
+    joint, where the displacement jumps) to mid-height of the top beam, which it then reads."""
+    if not base_joints or "top_beam" not in mesh.node_sets:
+        return DEFAULT_SENSORS
+    y = float(mesh.nodes[mesh.node_sets["top_beam"], 1].mean())
+    return tuple(PointDisplacement(s.name, (s.point[0], y), s.component) if s.name == "top_ux" else s
+                 for s in DEFAULT_SENSORS)
+
+
 @dataclass(frozen=True)
 class ShearCompressionOptions(WallOptions):
     """Options of the shear–compression scenario: those of
     :class:`~fe.scenarios.masonry.WallOptions` with the TU Eindhoven wall's geometry, plus the
-    vertical ``precompression`` (MPa); load levels are horizontal forces (kN)."""
+    vertical ``precompression`` (MPa) and ``base_joints`` (bed joints between the wall and rigid
+    bottom and top beams; off); load levels are horizontal forces (kN)."""
 
     unit_length: float = 220.0
     unit_height: float = 62.0
@@ -58,6 +87,7 @@ class ShearCompressionOptions(WallOptions):
     thickness: float = 100.0
     load_levels: tuple = (10.0, 20.0, 30.0, 40.0)
     precompression: float = 0.30
+    base_joints: bool = False
 
     def __post_init__(self):
         super().__post_init__()
@@ -78,7 +108,7 @@ class ShearCompression(Scenario):
     def _build(self):
         o = self.options
         self.mesh = mesh = wall_mesh(o)
-        bottom, top = mesh.node_sets["bottom"], mesh.node_sets["top"]
+        bottom, top = wall_supports(mesh, o.base_joints)
         fixed = np.concatenate([2 * bottom, 2 * bottom + 1])
         self.supported_nodes, self.tie_groups = bottom, [2 * top, 2 * top + 1]
         transform = constraint_transform(mesh.n_dofs, fixed, ties=self.tie_groups)
@@ -86,7 +116,7 @@ class ShearCompression(Scenario):
         patterns[2 * top[0] + 1, 0] = -o.precompression * mesh.width * o.thickness  # N on the beam
         patterns[2 * top[0], 1] = 1.0  # unit horizontal force on the beam, N
         if o.sensors is None:
-            self.sensors = DEFAULT_SENSORS
+            self.sensors = default_sensors(mesh, o.base_joints)
         else:
             self.sensors = tuple(sensor_from_dict(k, v) for k, v in o.sensors.items())
         self.model = LinearModel(

@@ -22,8 +22,15 @@ Every iteration re-evaluates the interface law from the last converged state (no
 updated before a step converges). Newton steps are damped by a backtracking line search on the
 residual norm; a step that does not converge within ``max_iterations`` (or whose local return
 fails, or whose residual grows a million-fold) is cut back; easy steps grow the increment. Every
-run ends within its :class:`PathSettings` budget (attempted steps, total iterations, wall time) with
-a status and the converged part of the path.
+run ends within its :class:`PathSettings` budget with a status and the converged part of the path.
+
+The budget counts what a run costs, not how busy the machine is: attempted increments
+(``max_steps``), Newton iterations (``max_total_iterations``) and the CPU time of the process
+(``max_cpu_seconds``, :func:`time.process_time`: every thread of the process, e.g. the sparse
+solver's, so a run is charged its own work whatever else competes for the cores). A wall-clock
+limit (``max_seconds``, generous by default) remains only as a guard against a hung run. A run that
+stops on its budget has the status ``budget_exhausted`` and names the limit that ended it in
+``PathResult.limit`` (:data:`LIMITS`).
 """
 
 import dataclasses
@@ -41,6 +48,10 @@ CONVERGED = "converged"
 NOT_CONVERGED = "not_converged"
 BUDGET = "budget_exhausted"
 
+#: The limits of a run's budget, in the order they are checked (``PathResult.limit``): attempted
+#: increments, Newton iterations, process CPU time, and the wall-clock hang guard.
+LIMITS = ("steps", "iterations", "cpu", "wall")
+
 
 @dataclass(frozen=True)
 class PathSettings:
@@ -53,8 +64,15 @@ class PathSettings:
     max_iterations : int
         Newton iterations per increment before it is cut back.
     max_total_iterations : int
+        Newton iterations over the whole run (the iteration budget).
+    max_cpu_seconds : float
+        CPU-time budget of the run, s: :func:`time.process_time` of the process (all its threads)
+        since the run started; ``0`` ends a run before its first increment. What a run costs in
+        CPU does not grow with the load of the machine the way its wall time does.
     max_seconds : float
-        Wall-time budget of the run, s.
+        Wall-clock limit of the run, s: a guard against a hung run only, generous by default
+        (12 × the default CPU budget, so that a run ends on its CPU budget first even when it
+        gets a twelfth of a core). Budgets belong in ``max_cpu_seconds`` and the counts.
     tolerance : float
         Convergence: ``‖r_free‖ ≤ tolerance · max(‖f_int‖, ‖f_ext‖)``. 1e-3 by default: with 1e-4
         the J4D wall cycles between crack states near 1.8 mm (the residual floor of a point at a
@@ -93,7 +111,8 @@ class PathSettings:
     max_steps: int = 600
     max_iterations: int = 12
     max_total_iterations: int = 6000
-    max_seconds: float = 300.0
+    max_cpu_seconds: float = 300.0
+    max_seconds: float = 3600.0
     tolerance: float = 1e-3
     line_search: bool = True
     growth: float = 1.5
@@ -114,8 +133,10 @@ class PathSettings:
         for name in ("max_steps", "max_iterations", "max_total_iterations"):
             if not int(getattr(self, name)) >= 1:
                 raise ValueError(f"{name} must be >= 1; got {getattr(self, name)}")
+        if not self.max_cpu_seconds >= 0:
+            raise ValueError(f"max_cpu_seconds (CPU-time budget) must be >= 0 s; got {self.max_cpu_seconds}")
         if not self.max_seconds > 0:
-            raise ValueError(f"max_seconds must be > 0 s; got {self.max_seconds}")
+            raise ValueError(f"max_seconds (wall-clock hang guard) must be > 0 s; got {self.max_seconds}")
         if not 0 < self.tolerance < 1:
             raise ValueError(f"tolerance must be in (0, 1); got {self.tolerance}")
         if not (self.growth >= 1 and 0 < self.cutback < 1):
@@ -202,11 +223,17 @@ class PathResult:
         With ``record_states``: ``opening``, ``slip``, ``kappa2``, ``work`` per integration point.
     status : str
         ``converged``, ``not_converged`` or ``budget_exhausted``.
+    limit : str or None
+        With ``budget_exhausted``: the limit that ended the run, one of :data:`LIMITS`
+        (``"steps"``, ``"iterations"``, ``"cpu"``, ``"wall"``); None otherwise.
     message : str
     total_iterations, attempted_steps : int
     relaxed_steps : list of (int, float)
         Steps accepted with a relative residual above ``tolerance`` (index, relative residual).
     seconds : float
+        Wall time of the run, s.
+    cpu_seconds : float
+        CPU time of the process during the run, s (what ``max_cpu_seconds`` counts).
     settings : dict
     """
 
@@ -220,11 +247,13 @@ class PathResult:
     states: list | None = None
     displacements: list | None = None
     status: str = CONVERGED
+    limit: str | None = None
     message: str = ""
     total_iterations: int = 0
     attempted_steps: int = 0
     relaxed_steps: list = field(default_factory=list)
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
     settings: dict = field(default_factory=dict)
 
     def finish(self, n_channels):
@@ -242,15 +271,19 @@ class PathResult:
 
     def to_dict(self):
         return {
-            "status": self.status, "message": self.message, "steps": int(len(self.path)),
+            "status": self.status, "limit": self.limit, "message": self.message, "steps": int(len(self.path)),
             "attempted_steps": self.attempted_steps, "total_iterations": self.total_iterations,
             "relaxed_steps": [[int(i), float(r)] for i, r in self.relaxed_steps],
-            "seconds": self.seconds, "settings": self.settings,
+            "seconds": self.seconds, "cpu_seconds": self.cpu_seconds, "settings": self.settings,
         }
 
 
 class _Budget(Exception):
-    pass
+    """The run's budget is spent; ``limit`` is one of :data:`LIMITS`."""
+
+    def __init__(self, message, limit):
+        super().__init__(message)
+        self.limit = limit
 
 
 class _NotConverged(SolverError):
@@ -283,6 +316,7 @@ class PathFollower:
         self.previous_state = None  # interface state one converged step earlier
         self.result = PathResult(settings=settings.to_dict(), states=[] if settings.record_states else None)
         self._t0 = time.perf_counter()
+        self._cpu0 = time.process_time()
 
     # ---------------------------------------------------------------- evaluation
     def _evaluate(self, q, state0):
@@ -293,13 +327,17 @@ class PathFollower:
         return upd, data, fint
 
     def _check_budget(self):
+        """Raise :class:`_Budget` naming the first spent limit, in the order of :data:`LIMITS`
+        (the counts first: when several are spent at once the reproducible one is named)."""
         s, r = self.settings, self.result
-        if time.perf_counter() - self._t0 > s.max_seconds:
-            raise _Budget(f"wall-time budget of {s.max_seconds:g} s exhausted")
-        if r.total_iterations >= s.max_total_iterations:
-            raise _Budget(f"iteration budget of {s.max_total_iterations} exhausted")
         if r.attempted_steps >= s.max_steps:
-            raise _Budget(f"step budget of {s.max_steps} exhausted")
+            raise _Budget(f"step budget of {s.max_steps} exhausted", "steps")
+        if r.total_iterations >= s.max_total_iterations:
+            raise _Budget(f"iteration budget of {s.max_total_iterations} exhausted", "iterations")
+        if time.process_time() - self._cpu0 >= s.max_cpu_seconds:
+            raise _Budget(f"CPU-time budget of {s.max_cpu_seconds:g} s exhausted", "cpu")
+        if time.perf_counter() - self._t0 > s.max_seconds:
+            raise _Budget(f"wall-clock limit of {s.max_seconds:g} s (hang guard) exhausted", "wall")
 
     # ---------------------------------------------------------------- one increment
     def _increment(self, phase, fixed, positions, diag, target):
@@ -430,12 +468,14 @@ class PathFollower:
                 if not self._phase(phase):
                     break
         except _Budget as b:
-            res.status = BUDGET
+            res.status, res.limit = BUDGET, b.limit
             where = f"{res.phase[-1]} at {res.path[-1]:.6g}" if res.path else "before the first step"
             res.message = f"{b}; the path reached {where}"
         res.seconds = time.perf_counter() - self._t0
-        logger.info("path: %s after %d steps, %d iterations, %.2f s", res.status, len(res.path),
-                    res.total_iterations, res.seconds)
+        res.cpu_seconds = time.process_time() - self._cpu0
+        logger.info("path: %s%s after %d steps, %d iterations, %.2f s CPU, %.2f s wall", res.status,
+                    f" ({res.limit})" if res.limit else "", len(res.path), res.total_iterations, res.cpu_seconds,
+                    res.seconds)
         return res.finish(len(self.model.channel_names))
 
     def _phase(self, phase):

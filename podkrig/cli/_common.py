@@ -241,9 +241,10 @@ def number(value, digits=4):
 
 
 def print_findings(console, findings):
-    """Print each finding (:class:`~podkrig.online.findings.Finding`) as ``warning: MESSAGE`` and
-    ``what to do: REMEDY`` on a rich ``console``, the texts literally: rich markup would take a
-    bracketed word such as ``[fixed]`` (a study-file table) for a style tag and drop it."""
+    """Print each finding in words (:class:`~podkrig.reports.findings.FindingText`) as
+    ``warning: MESSAGE`` and ``what to do: REMEDY`` on a rich ``console``, the texts literally: rich
+    markup would take a bracketed word such as ``[fixed]`` (a study-file table) for a style tag and
+    drop it."""
     from rich.markup import escape  # rich is imported by the caller's console already
 
     for f in findings:

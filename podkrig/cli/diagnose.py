@@ -53,7 +53,7 @@ def register(app):
             from fe.scenarios import build_scenario
 
             from podkrig.diagnosis import diagnose as run_diagnosis
-            from podkrig.online.measurement_csv import read_measurement
+            from podkrig.io.measurement_log import read_measurement
             from podkrig.parameters import ParameterSpace, parse_params
 
             if format not in ("text", "json"):

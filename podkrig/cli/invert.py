@@ -24,17 +24,19 @@ from podkrig.cli._common import (
     user_errors,
 )
 from podkrig.cli.simulate import parse_assignment
+from podkrig.io.surrogate_file import load_surrogate
 from podkrig.limits import check_region_samples
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
 from podkrig.online.invert import InverseResult, invert, invert_with_model_form_error
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.online.measurement_csv import REPEATS, ImportSettings, read_measurement, zero_phase
+from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
 from podkrig.online.posterior import sample_posterior
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc as rvc_of
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.reports.findings import words
 from podkrig.reports.inverse import write_inversion_report
 from podkrig.surrogate.podkriging import PODKriging
 
@@ -101,7 +103,7 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
 
     ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``,
     ``rigid_groups``: see :class:`~podkrig.online.problem.InverseProblem`."""
-    model = SurrogateModel(PODKriging.load(surrogate_path))
+    model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
                                    model.load_response, import_settings)
     noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names)
@@ -179,8 +181,8 @@ def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mc
     if mcmc_steps:
         posterior = sample_posterior(problem, result.x, n_steps=mcmc_steps, confidence=confidence, rng=seed)
     m = problem.measurement
-    findings = measurement_findings(m.check_summary(model.sensor_names, problem.noise), context="cli")
-    findings += inversion_findings(result, region, context="cli")
+    findings = words(measurement_findings(m.check_summary(model.sensor_names, problem.noise))
+                     + inversion_findings(result, region), "cli")
     return Inversion(result, region, posterior, findings, time.perf_counter() - t0)
 
 
@@ -288,7 +290,7 @@ def register(app):
             best = out.result.parameters
             results = {"calibration": rvc_of(out.region, model, fixed=problem.fixed, outputs=list(output) or None, rng=seed)}
             for path in validation:
-                vmodel = SurrogateModel(PODKriging.load(path))
+                vmodel = SurrogateModel(load_surrogate(path))
                 fixed = {n: best[n] for n in vmodel.space.names if n not in problem.free and n in best}
                 for p in vmodel.space.parameters:
                     if p.name not in problem.free and p.name not in fixed:
@@ -331,7 +333,7 @@ def register(app):
                 return build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, [",".join(free)], [])[0]
 
             # a validation model's parameters that an analysis does not free take the calibration's values
-            vals = {Path(p).stem: (SurrogateModel(PODKriging.load(p)), {}) for p in validation}
+            vals = {Path(p).stem: (SurrogateModel(load_surrogate(p)), {}) for p in validation}
             rows = nested_analyses(make, free_sets, confidence=confidence, rng=seed, validation=vals or None)
         if format == "json":
             typer.echo(json.dumps(rows.to_dict()["analyses"], indent=2))

@@ -37,12 +37,12 @@ def register(app):
         from podkrig.online.problem import SurrogateModel
         from podkrig.online.sensitivity import NEGLIGIBLE_TOTAL_INDEX, misfit_sensitivity, reading_sensitivity
         from podkrig.reports.sensitivity import plot_sensitivity
-        from podkrig.surrogate.podkriging import PODKriging
+        from podkrig.io.surrogate_file import load_surrogate
 
         with user_errors():
             free_names = tuple(x.strip() for item in free for x in item.split(",") if x.strip()) or None
             fixed = dict(parse_assignment(t, "--fix") for t in fix)
-            model = SurrogateModel(PODKriging.load(surrogate))
+            model = SurrogateModel(load_surrogate(surrogate))
             options = {"n": n, "seed": seed, "confidence": confidence}
             readings = reading_sensitivity(model, free=free_names, fixed=fixed, **options)
             misfit = None

@@ -12,11 +12,12 @@ from podkrig.cli._common import (
     settings_from_options, user_errors,
 )
 from podkrig.config import field_info
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
 from podkrig.reports import surrogate as figs
 from podkrig.surrogate.kriging import OrdinaryKriging
-from podkrig.surrogate.podkriging import PODKriging, training_data
+from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.refine import refine_surrogate
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult
 from podkrig.surrogate.settings import BACKENDS, SurrogateSettings, fit_surrogate
@@ -94,7 +95,7 @@ def build(
                                       criterion and criterion.value, nugget)
         with SnapshotStore.open(store) as s:
             sur = fit_surrogate(s, settings, output="field" if field else "readings")
-        sur.save(out)
+        save_surrogate(sur, out)
     fit = SurrogateFitResult.from_surrogate(sur)
     fitted = (f"beta per mode [{', '.join(f'{b:.3g}' for b in fit.beta)}]; {sur.kriging_.fit_method_.describe()}"
               if fit.beta is not None else f"backend {fit.backend}")
@@ -120,7 +121,7 @@ def validate(
     with user_errors():
         if format not in ("table", "json"):
             raise ValueError(f"--format must be table or json; got {format!r}")
-        sur = PODKriging.load(file)
+        sur = load_surrogate(file)
         output = sur.provenance_.get("output", "readings")
         with SnapshotStore.open(held_out) as h:
             Xh, Yh = training_data(h, output)
@@ -198,9 +199,11 @@ def refine(
     """Add FE runs where the surrogate is least certain until --target-error or --budget is reached."""
     configure_logging(verbose)
     with user_errors():
-        result = refine_surrogate(file, store, held_out, target_error=target_error, budget=budget,
-                                  batch=batch, n_candidates=candidates, seed=seed, workers=workers,
-                                  sampling=sampling.value)
+        sur = refine_surrogate(load_surrogate(file), store, held_out, target_error=target_error, budget=budget,
+                               batch=batch, n_candidates=candidates, seed=seed, workers=workers,
+                               sampling=sampling.value)
+        save_surrogate(sur, file)
+    result = sur.provenance_["refinement"]
     hist = result["history"]
     typer.echo(
         f"{file}: {result['added']} FE runs added in {len(hist) - 1} rounds, held-out median relative error "

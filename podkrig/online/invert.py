@@ -19,7 +19,6 @@ from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
-from podkrig.online._repr import html_table, number
 from podkrig.online.findings import RESIDUAL_CONVENTION, at_bound, chi2_basis, fe_check_ok
 from podkrig.online.model_error import discretisation_error, tolerance_error
 
@@ -143,21 +142,6 @@ class InverseResult:
     def free_parameters(self):
         """The free parameters at the optimum, ``{name: value}`` physical units."""
         return {n: float(v) for n, v in zip(self.free, self.x)}
-
-    def _repr_html_(self):
-        """The best fit and its χ² (with what it includes) as HTML tables, for Jupyter."""
-        params = html_table(["parameter", "unit", "best fit", "on a bound"],
-                            [[n, u, number(float(v), 6), "yes" if n in self.at_bound else ""]
-                             for n, u, v in zip(self.free, self.units, self.x)],
-                            caption=f"Inversion: {len(self.free)} free parameters, {self.measurement.get('n_obs', '?')} "
-                                    f"readings")
-        rows = [["surrogate", number(self.chi2, 4), self.dof, number(self.chi2_dof, 3), self.chi2_basis]]
-        if self.fe_check is not None:
-            rows.append(["FE check", "—", self.dof, number(self.fe_check.chi2_dof_fe, 3), chi2_basis("fe_check")])
-        fit = html_table(["model", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"], rows,
-                         caption=f"Misfit ω = {number(self.misfit)}; {self.n_evaluations} evaluations in "
-                                 f"{self.seconds:.2f} s; residuals {RESIDUAL_CONVENTION}")
-        return params + fit
 
     def predicted(self):
         """Model prediction at the observed entries, ``(n_loads_obs, n_sensors_obs)`` mm, and its std

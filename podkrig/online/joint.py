@@ -20,6 +20,7 @@ equivalence serve the tests together; :meth:`JointProblem.parts` gives each test
 residuals, χ²/dof and FE check.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,13 @@ class JointProblem(UnitCubeLeastSquares):
     def __post_init__(self):
         if not self.problems:
             raise ValueError("a joint calibration needs at least one test")
+        object.__setattr__(self, "problems", dict(self.problems))  # a copy: the tests are fixed
+        self._parameters  # a shared parameter with two search ranges is refused here
+
+    @functools.cached_property
+    def _parameters(self):
+        """The joint free parameters, name → :class:`~podkrig.parameters.Parameter`, in order of
+        first appearance; a shared parameter must have one search range."""
         params, origin = {}, {}
         for test, problem in self.problems.items():
             for p in problem.free_space.parameters:
@@ -65,12 +73,19 @@ class JointProblem(UnitCubeLeastSquares):
                         f"shared parameter {p.name} has the search range [{q.lower:g}, {q.upper:g}] {q.unit} "
                         f"({q.scale}) in test {origin[p.name]!r} but [{p.lower:g}, {p.upper:g}] {p.unit} ({p.scale}) in "
                         f"test {test!r}: a shared parameter has one range; give the same bounds and scale")
-        free = tuple(params)
-        object.__setattr__(self, "problems", dict(self.problems))
-        object.__setattr__(self, "free", free)
-        object.__setattr__(self, "free_space", ParameterSpace(tuple(params.values())))
-        object.__setattr__(self, "columns", {t: np.array([free.index(n) for n in p.free])
-                                             for t, p in self.problems.items()})
+        return params
+
+    @functools.cached_property
+    def free(self):
+        return tuple(self._parameters)
+
+    @functools.cached_property
+    def free_space(self):
+        return ParameterSpace(tuple(self._parameters.values()))
+
+    @functools.cached_property
+    def columns(self):
+        return {t: np.array([self.free.index(n) for n in p.free]) for t, p in self.problems.items()}
 
     @property
     def n_free(self):

@@ -1,5 +1,5 @@
 """Measured responses, how a model is evaluated at them, and their noise model (no file reading
-here; see :mod:`podkrig.online.measurement_csv`).
+here; see :mod:`podkrig.io.measurement_log`).
 
 A :class:`Measurement` holds measured readings ``(n_loads, n_sensors)`` in mm for a subset of a
 scenario's sensors, at any measured loads (a lab log: 10.03, 10.41 … kN); a missing reading is

@@ -24,6 +24,7 @@ One :class:`Misfit` serves the GA (a population ``(n, d)`` at a time), a local l
 polish (:meth:`Misfit.whitened_residuals`) and MCMC (``-ω`` is the log-posterior up to a constant).
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,33 +72,63 @@ class Misfit:
     form_error: np.ndarray | None = None
 
     def __post_init__(self):
+        # checks of the arguments only; the data vector, the observation operator, the covariances
+        # and the prior's factor (a dense n_obs x n_obs matrix, its eigenvalues for a full noise
+        # covariance) are built on first use (cached properties)
         if self.kind not in ("gaussian", "relative"):
             raise ValueError(f"misfit kind must be 'gaussian' or 'relative'; got {self.kind!r}")
         if (self.prior_mean is None) != (self.prior_cov is None):
             raise ValueError("a Gaussian prior needs both prior_mean and prior_cov")
-        object.__setattr__(self, "_d", self.measurement.data)
-        Cd = self.noise.covariance_matrix(self.measurement)
-        object.__setattr__(self, "_noise_sd", np.sqrt(np.diag(Cd)))
+        n = len(self._d)
         if self.form_error is not None:
             e = np.asarray(self.form_error, dtype=float)
-            if e.shape != (len(self._d),) or not np.all(np.isfinite(e)) or np.any(e < 0):
-                raise ValueError(f"form_error must be {len(self._d)} finite standard deviations ≥ 0 (mm), one per "
+            if e.shape != (n,) or not np.all(np.isfinite(e)) or np.any(e < 0):
+                raise ValueError(f"form_error must be {n} finite standard deviations ≥ 0 (mm), one per "
                                  f"observed entry; got shape {e.shape}")
-            Cd = Cd + np.diag(e**2)
-        object.__setattr__(self, "_Cd", Cd)
-        object.__setattr__(self, "_sd", np.sqrt(np.diag(self._Cd)))
+        if self.observation.n_obs != n:
+            raise ValueError(f"the observation gives {self.observation.n_obs} entries; the measurement has {n}")
+        if self.rigid_body is not None and self.rigid_body.n_obs != n:
+            raise ValueError(f"the rigid-body modes are for {self.rigid_body.n_obs} entries; the measurement has {n}")
+
+    @functools.cached_property
+    def _d(self):
+        """The observed data vector ``d_obs``, ``(n_obs,)`` mm."""
+        return self.measurement.data
+
+    @functools.cached_property
+    def observation(self):
+        """The :class:`ObservationOperator` of ``output_indices``."""
         op = self.output_indices
-        if not isinstance(op, ObservationOperator):
-            op = ObservationOperator.from_indices(op)
-        object.__setattr__(self, "observation", op)
-        if op.n_obs != len(self._d):
-            raise ValueError(f"the observation gives {op.n_obs} entries; the measurement has {len(self._d)}")
-        object.__setattr__(self, "_identity_indices",
-                            op.exact and bool(np.array_equal(op.indices, np.arange(op.n_obs))))
-        if self.rigid_body is not None and self.rigid_body.n_obs != len(self._d):
-            raise ValueError(f"the rigid-body modes are for {self.rigid_body.n_obs} entries; the measurement has {len(self._d)}")
-        if self.prior_cov is not None:
-            object.__setattr__(self, "_prior_chol", np.linalg.cholesky(np.asarray(self.prior_cov, float)))
+        return op if isinstance(op, ObservationOperator) else ObservationOperator.from_indices(op)
+
+    @functools.cached_property
+    def _identity_indices(self):
+        op = self.observation
+        return op.exact and bool(np.array_equal(op.indices, np.arange(op.n_obs)))
+
+    @functools.cached_property
+    def _noise_cov(self):
+        """``C_d`` of the noise model, ``(n_obs, n_obs)`` mm²."""
+        return self.noise.covariance_matrix(self.measurement)
+
+    @functools.cached_property
+    def _Cd(self):
+        """``C_d`` plus ``diag(form_error²)``, ``(n_obs, n_obs)`` mm²."""
+        if self.form_error is None:
+            return self._noise_cov
+        return self._noise_cov + np.diag(np.asarray(self.form_error, dtype=float) ** 2)
+
+    @functools.cached_property
+    def _noise_sd(self):
+        return np.sqrt(np.diag(self._noise_cov))
+
+    @functools.cached_property
+    def _sd(self):
+        return np.sqrt(np.diag(self._Cd))
+
+    @functools.cached_property
+    def _prior_chol(self):
+        return np.linalg.cholesky(np.asarray(self.prior_cov, float))
 
     @property
     def n_obs(self):

@@ -174,6 +174,12 @@ class InverseProblem(UnitCubeLeastSquares):
         The FE model's own model-form (discretisation) error of each observed entry
         (:mod:`podkrig.online.model_error`), added to ``C_D`` as ``diag(e²)`` (thesis eq. 2.10);
         None: none. :func:`~podkrig.online.invert.invert_with_model_form_error` estimates it.
+
+    Notes
+    -----
+    Constructing a problem checks the parameter choice and that the model can be evaluated at the
+    measured sensors and loads, and nothing more; the misfit (noise covariance, rigid-body modes,
+    which may rebuild the scenario for its sensor positions) is built when first used.
     """
 
     model: object
@@ -212,37 +218,73 @@ class InverseProblem(UnitCubeLeastSquares):
                     f"fixed value {n} = {v:g} {p.unit} lies outside the model's trained range "
                     f"[{p.lower:g}, {p.upper:g}] {p.unit}"
                 )
-        object.__setattr__(self, "free", free)
-        object.__setattr__(self, "free_space", ParameterSpace(tuple(space.parameters[names.index(n)] for n in free)))
-        index = np.array([names.index(n) for n in free])
+        object.__setattr__(self, "free", free)  # normalised: None means every parameter
+        # data the model cannot be evaluated at (a sensor or load it does not have) are refused
+        # here; the observation operator is an index map, cheap to build
+        self.observation
+
+    # the derived state is built on first use: constructing a problem (and each copy made by
+    # dataclasses.replace, e.g. a noisy copy) only checks its arguments; the misfit may need the
+    # sensor positions of the scenario (rigid-body removal), which a surrogate rebuilds from its spec
+
+    @functools.cached_property
+    def free_space(self):
+        """The free parameters' :class:`~podkrig.parameters.ParameterSpace` (the search box)."""
+        space = self.model.space
+        return ParameterSpace(tuple(space.parameters[space.names.index(n)] for n in self.free))
+
+    @functools.cached_property
+    def _index(self):
+        """Positions of the free parameters in the model's parameter vector."""
+        return np.array([self.model.space.names.index(n) for n in self.free])
+
+    @functools.cached_property
+    def _template(self):
+        """A full physical parameter vector with the fixed values in place (zeros where free)."""
+        names = list(self.model.space.names)
         template = np.zeros(len(names))
         for n, v in self.fixed.items():
             template[names.index(n)] = v
-        object.__setattr__(self, "_index", index)
-        object.__setattr__(self, "_template", template)
-        observation = self.measurement.observation(self.model.sensor_names, self.model.load_levels,
-                                                   getattr(self.model, "load_response", "discrete"),
-                                                   getattr(self.model, "load_unit", ""))
+        return template
+
+    @functools.cached_property
+    def _template_unit(self):
+        """:attr:`_template` in the model's unit coordinates (the fixed parameters scaled once)."""
+        return unit_template(self.model.space, self._index, self.fixed)
+
+    @functools.cached_property
+    def observation(self):
+        """How the observed entries follow from the model's output
+        (:meth:`~podkrig.online.measurement.Measurement.observation`)."""
+        return self.measurement.observation(self.model.sensor_names, self.model.load_levels,
+                                            getattr(self.model, "load_response", "discrete"),
+                                            getattr(self.model, "load_unit", ""))
+
+    @functools.cached_property
+    def misfit(self):
+        """The :class:`~podkrig.online.misfit.Misfit` ω(m) at physical free parameters."""
         rigid = self.rigid_body
         if not (rigid is None or isinstance(rigid, RigidBodyModes)):
             rigid = (rigid_body_modes(self.measurement, absolute_displacements(_model_sensors(self.model, rigid)),
                                       rigid, self.rigid_groups)
                      if may_remove(self.measurement.sensor_names, rigid, self.rigid_groups) else None)
-        misfit = Misfit(
-            self._predict, self.measurement, self.noise, observation, self.prior_mean, self.prior_cov,
+        return Misfit(
+            self._predict, self.measurement, self.noise, self.observation, self.prior_mean, self.prior_cov,
             kind=self.kind, model_error=self.model_error, rigid_body=rigid,
             form_error=None if self.model_form_error is None else self.model_form_error.std,
         )
-        object.__setattr__(self, "misfit", misfit)
-        # unit-cube path (GA, polish, region, posterior): the free space is made of the model's own
-        # parameters, so free unit coordinates are the model's unit coordinates; a model with
-        # ``predict_unit`` (the surrogate) then gets them without a round trip through physical
-        # units, and the fixed parameters are scaled once, here
-        unit_misfit = None
+
+    @functools.cached_property
+    def _unit_misfit(self):
+        """The misfit at unit-cube coordinates of the free space, or None.
+
+        The free space is made of the model's own parameters, so free unit coordinates are the
+        model's unit coordinates: a model with ``predict_unit`` (the surrogate) gets them without a
+        round trip through physical units. None for a model without it, or with a prior (the prior
+        is over physical values)."""
         if hasattr(self.model, "predict_unit") and self.prior_mean is None:
-            object.__setattr__(self, "_template_unit", unit_template(space, index, self.fixed))
-            unit_misfit = dataclasses.replace(misfit, model=self._predict_unit)
-        object.__setattr__(self, "_unit_misfit", unit_misfit)
+            return dataclasses.replace(self.misfit, model=self._predict_unit)
+        return None
 
     @property
     def n_free(self):

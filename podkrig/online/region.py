@@ -12,8 +12,8 @@ whose misfit is statistically indistinguishable from the best fit. Two construct
   intervals).
 
 Per-parameter intervals are the projections of the region on each axis; :func:`identifiability`
-judges each by the share of its search range it spans (the threshold and wording are the
-findings policy's, :mod:`podkrig.online.findings`).
+judges each by the share of its search range it spans (the threshold is the findings policy's,
+:mod:`podkrig.online.findings`; the words are :func:`podkrig.reports.findings.identifiability_text`).
 """
 
 import logging
@@ -26,14 +26,13 @@ from scipy import stats
 from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.limits import check_confidence, check_region_samples
-from podkrig.online._repr import html_table, number
-from podkrig.online.findings import UNIDENTIFIABLE_SHARE, identifiability_verdict
+from podkrig.online.findings import UNIDENTIFIABLE_SHARE, is_identifiable
 
 logger = logging.getLogger(__name__)
 
 
 def identifiability(intervals, space):
-    """Per parameter: share of the search range its interval spans, and a verdict in words.
+    """Per parameter: share of the search range its interval spans, and whether it is identified.
 
     Parameters
     ----------
@@ -45,14 +44,14 @@ def identifiability(intervals, space):
     Returns
     -------
     dict of str to dict
-        ``{"share": float, "identifiable": bool, "message": str}``; identifiable when the share
-        is at most :data:`~podkrig.online.findings.UNIDENTIFIABLE_SHARE`.
+        ``{"share": float, "identifiable": bool}``; identifiable when the share is at most
+        :data:`~podkrig.online.findings.UNIDENTIFIABLE_SHARE`.
     """
     names = list(space.names)
     bounds = np.array([[intervals[n][k] for n in names] for k in (0, 1)])
     U = np.clip(space.to_unit(bounds), 0.0, 1.0)
-    return {name: identifiability_verdict(name, intervals[name], space.units[j], float(U[1, j] - U[0, j]))
-            for j, name in enumerate(names)}
+    shares = {name: float(U[1, j] - U[0, j]) for j, name in enumerate(names)}
+    return {name: {"share": share, "identifiable": is_identifiable(share)} for name, share in shares.items()}
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,16 +89,6 @@ class Region:
     n_evaluated: int
     seconds: float
     identifiability: dict
-
-    def _repr_html_(self):
-        """The intervals and their identifiability as an HTML table, for Jupyter."""
-        rows = [[n, u, number(float(self.intervals[n][0])), number(float(self.intervals[n][1])),
-                 f"{100 * self.identifiability[n]['share']:.0f}",
-                 "yes" if self.identifiability[n]["identifiable"] else "NO"]
-                for n, u in zip(self.names, self.units)]
-        return html_table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows,
-                          caption=f"Region of equivalence ({self.method}, {100 * self.confidence:.0f} %): "
-                                  f"{len(self.samples)} members of {self.n_evaluated} evaluations")
 
     def to_dict(self, *, members=False):
         """JSON-able summary: ``method``, ``confidence``, ``threshold``, ``intervals``, ``names``,

@@ -48,6 +48,7 @@ of the point sensors the user groups; ``"remove"`` also puts the other point dis
 sensors into one group; ``"keep"`` removes nothing.
 """
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -112,35 +113,65 @@ class RigidBodyModes:
     lengths: np.ndarray
 
     def __post_init__(self):
-        block = np.asarray(self.block, dtype=np.intp)
-        modes = np.asarray(self.modes, dtype=float)
-        n_blocks = len(self.labels)
-        basis = np.zeros_like(modes)
-        rank = np.zeros(n_blocks, dtype=np.intp)
-        for b in range(n_blocks):
-            rows = np.flatnonzero(block == b)
-            A, s, _ = np.linalg.svd(modes[rows], full_matrices=False)
+        object.__setattr__(self, "block", np.asarray(self.block, dtype=np.intp))
+        object.__setattr__(self, "modes", np.asarray(self.modes, dtype=float))
+        object.__setattr__(self, "labels", tuple(self.labels))
+        object.__setattr__(self, "lengths", np.asarray(self.lengths, dtype=float))
+
+    # the derived state (one SVD per block, sparse maps) is built on first use
+
+    @functools.cached_property
+    def _orthonormal(self):
+        """``(basis, rank)``: each block's orthonormal basis of its columns of ``R`` and its rank."""
+        basis = np.zeros_like(self.modes)
+        rank = np.zeros(len(self.labels), dtype=np.intp)
+        for b in range(len(self.labels)):
+            rows = np.flatnonzero(self.block == b)
+            A, s, _ = np.linalg.svd(self.modes[rows], full_matrices=False)
             r = int(np.sum(s > _RANK_RTOL * s[0])) if len(s) and s[0] > 0 else 0
             basis[rows, :r] = A[:, :r]
             rank[b] = r
-        touched = block >= 0
-        indicator = sp.csr_matrix((np.ones(int(touched.sum())), (block[touched], np.flatnonzero(touched))),
-                                  shape=(n_blocks, len(block)))
-        object.__setattr__(self, "block", block)
-        object.__setattr__(self, "modes", modes)
-        object.__setattr__(self, "labels", tuple(self.labels))
-        object.__setattr__(self, "lengths", np.asarray(self.lengths, dtype=float))
-        object.__setattr__(self, "basis", basis)
-        object.__setattr__(self, "rank", rank)
-        object.__setattr__(self, "_indicator", indicator)
-        object.__setattr__(self, "_pad", np.arange(3)[None, :] >= rank[:, None])  # (n_blocks, 3) absent columns
-        # reading i → its block's 9 entries of U_i U_iᵀ and 3 of U_i (whiten_diagonal)
-        idx = np.flatnonzero(touched)
-        for name, width, values in (("_outer", 9, (basis[idx, :, None] * basis[idx, None, :]).reshape(-1, 9)),
-                                    ("_rows", 3, basis[idx])):
-            cols = block[idx, None] * width + np.arange(width)[None, :]
-            object.__setattr__(self, name, sp.csr_matrix(
-                (values.ravel(), (np.repeat(idx, width), cols.ravel())), shape=(len(block), n_blocks * width)))
+        return basis, rank
+
+    @property
+    def basis(self):
+        """Each block's rows an orthonormal basis of its columns of ``R``, ``(n_obs, 3)``."""
+        return self._orthonormal[0]
+
+    @property
+    def rank(self):
+        """Rank of each block's modes, ``(n_blocks,)``."""
+        return self._orthonormal[1]
+
+    @functools.cached_property
+    def _indicator(self):
+        """``(n_blocks, n_obs)`` sparse: 1 where an entry belongs to a block."""
+        touched = self.block >= 0
+        return sp.csr_matrix((np.ones(int(touched.sum())), (self.block[touched], np.flatnonzero(touched))),
+                             shape=(len(self.labels), len(self.block)))
+
+    @functools.cached_property
+    def _pad(self):
+        """``(n_blocks, 3)``: the columns a block of rank < 3 does not have."""
+        return np.arange(3)[None, :] >= self.rank[:, None]
+
+    def _block_map(self, width, values):
+        """Sparse ``(n_obs, n_blocks * width)``: reading i → ``values[i]`` in its block's ``width`` columns."""
+        idx = np.flatnonzero(self.block >= 0)
+        cols = self.block[idx, None] * width + np.arange(width)[None, :]
+        return sp.csr_matrix((values.ravel(), (np.repeat(idx, width), cols.ravel())),
+                             shape=(len(self.block), len(self.labels) * width))
+
+    @functools.cached_property
+    def _outer(self):
+        """Reading i → its block's 9 entries of ``U_i U_iᵀ`` (:meth:`whiten_diagonal`)."""
+        basis = self.basis[self.block >= 0]
+        return self._block_map(9, (basis[:, :, None] * basis[:, None, :]).reshape(-1, 9))
+
+    @functools.cached_property
+    def _rows(self):
+        """Reading i → its 3 entries of ``U_i`` (:meth:`whiten_diagonal`)."""
+        return self._block_map(3, self.basis[self.block >= 0])
 
     @property
     def n_obs(self):

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings
+from podkrig.reports.findings import identifiability_text, words
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 from podkrig.reports.html import Page, fmt
@@ -167,14 +168,15 @@ def write_inversion_report(out_dir, result, region, *, posterior=None, rvc_resul
     posterior : podkrig.online.posterior.Posterior, optional
     rvc_results : dict of str to RVCResult, optional
         Model name → :func:`podkrig.online.propagation.rvc` result (with its values).
-    findings : list of Finding, optional
-        Default: :func:`podkrig.online.findings.inversion_findings` of ``result`` and ``region``.
+    findings : list of FindingText, optional
+        Default: :func:`podkrig.online.findings.inversion_findings` of ``result`` and ``region``,
+        worded for the command line (:func:`podkrig.reports.findings.words`).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     problem = result.problem
     if findings is None:
-        findings = inversion_findings(result, region, context="cli")
+        findings = words(inversion_findings(result, region), "cli")
     page = Page("podkrig inversion report")
     page.paragraph(
         f"Data: {problem.measurement.source} ({problem.n_obs} readings: sensors {', '.join(problem.measurement.sensor_names)}"
@@ -191,7 +193,7 @@ def write_inversion_report(out_dir, result, region, *, posterior=None, rvc_resul
     rows = []
     for j, name in enumerate(problem.free):
         lo, hi = region.intervals[name]
-        verdict = region.identifiability[name]["message"]
+        verdict = identifiability_text(name, (lo, hi), units[name], region.identifiability[name])
         post = f"[{fmt(posterior.intervals[name][0])}, {fmt(posterior.intervals[name][1])}]" if posterior else "—"
         rows.append([f"{name} ({units[name]})", fmt(result.x[j]), f"[{fmt(lo)}, {fmt(hi)}]", post, verdict])
     page.table(["parameter (unit)", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",

@@ -75,8 +75,9 @@ def write_study_report(path, study, records, warnings):
     study : podkrig.study.Study
     records : sequence of podkrig.study.pipeline.StageRecord
         Every stage of the run, in order.
-    warnings : sequence of Finding
-        The study's findings (:func:`podkrig.study.pipeline.study_findings`).
+    warnings : sequence of FindingText
+        The study's findings in words (:func:`podkrig.reports.findings.words` of
+        :func:`podkrig.study.pipeline.study_findings`).
     """
     stages = {r.name: r for r in records}
     res = {name: r.result for name, r in stages.items()}

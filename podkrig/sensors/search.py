@@ -28,6 +28,7 @@ References
 .. [3] V. V. Fedorov, *Theory of Optimal Experiments*, Academic Press (1972).
 """
 
+import functools
 import logging
 import time
 import warnings
@@ -102,8 +103,13 @@ class PlacementProblem:
                 raise ValueError(f"the required sensors cost {cost[list(must)].sum():g}, over the budget {self.budget:g}")
             n_free = int(min(len(self.allowed), np.floor(spare / cost[self.allowed].min() + 1e-9)))
         object.__setattr__(self, "n_free", n_free)
+
+    @functools.cached_property
+    def _distance(self):
+        """Distances between the candidates' centres, ``(n_candidates, n_candidates)`` mm: built on
+        first use (only a spacing constraint needs it; 200 MB for 5 000 candidates)."""
         centres = self.candidates.centres
-        object.__setattr__(self, "_distance", np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1)))
+        return np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1))
 
     def full(self, free):
         """Free slots ``(n, n_free)`` → layouts ``(n, n_must + n_free)``."""

@@ -2,7 +2,7 @@
 
 The stages are in :mod:`podkrig.study.stages`, the cache engine (manifests, input hashes,
 output checks) in :mod:`podkrig.study.cache`, and which results deserve a warning is the
-findings policy of :mod:`podkrig.online.findings`. A stage whose manifest has the same input
+findings policy of :mod:`podkrig.online.findings` (worded by :mod:`podkrig.reports.findings`). A stage whose manifest has the same input
 hash and whose files are unchanged is *cached*: it is not run again. So a rerun with nothing
 changed does no FE work, and a new measurement file reruns only the online stages (inversion,
 region, RVC, diagnosis). An interrupted FE stage resumes from its store (finished rows are kept);
@@ -29,6 +29,7 @@ from podkrig.online.findings import (
     sensitivity_findings,
 )
 from podkrig.online.invert import InverseResult
+from podkrig.reports.findings import words
 from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
 from podkrig.study.cache import Progress, StageRecord, now, write_json
@@ -45,9 +46,10 @@ class StudyResult:
         The output folder.
     stages : tuple of StageRecord
         In the order they ran.
-    warnings : list of Finding
+    warnings : list of FindingText
         Every warning of the study in plain words, in stage order (the findings policy,
-        :mod:`podkrig.online.findings`; ``section`` is the report section it belongs to).
+        :mod:`podkrig.online.findings`, worded for a study by :mod:`podkrig.reports.findings`;
+        ``section`` is the report section it belongs to).
     report : Path
         ``out/report/index.html``.
     seconds : float
@@ -140,7 +142,7 @@ def run_study(study, out, *, progress=None, confirm=None):
     if study.diagnosis.enabled:
         for test in tests:
             stages.diagnosis(run, test)
-    found = study_findings(run)
+    found = words(study_findings(run), "study", diagnosis_enabled=study.diagnosis.enabled)
     report = write_study_report(run.figures / "index.html", study, run.records, found)
     write_json(run.out / "summary.json", {
         "study": str(study.path), "name": study.name, "podkrig": __version__, "finished": now(),
@@ -154,13 +156,14 @@ def run_study(study, out, *, progress=None, confirm=None):
 
 def study_findings(run):
     """Every finding of the study, in stage order (:mod:`podkrig.online.findings`), from the
-    stage manifests (so cached stages give the same findings). In a joint calibration each test's
-    findings name the test."""
+    stage manifests (so cached stages give the same findings), as codes and values
+    (:class:`~podkrig.online.findings.Finding`). In a joint calibration each test's findings name
+    the test."""
     study = run.study
     tests = study.calibration_tests
     found = []
     for t in tests:
-        found += _named(t, measurement_findings(run.manifest(t.stage("measurement"))["result"], context="study"))
+        found += _named(t, measurement_findings(run.manifest(t.stage("measurement"))["result"]))
     for record in run.records:
         if "failed" in record.result:  # the FE stages
             found += offline_findings(record.title, record.result)
@@ -169,13 +172,12 @@ def study_findings(run):
         found += _named(t, held_out_findings(run.manifest(t.stage("held_out_validation"))["result"],
                                              noise_rel=noise_rel, noise_abs=noise_abs))
     if study.sensitivity.enabled:
-        found += sensitivity_findings(run.manifest("sensitivity")["result"], context="study")
+        found += sensitivity_findings(run.manifest("sensitivity")["result"])
     result = InverseResult.from_dict(run.manifest("inversion")["result"])
     region = stages.load_region(run)
-    found += inversion_findings(result, region, context="study", diagnosis_enabled=study.diagnosis.enabled)
+    found += inversion_findings(result, region)
     for t in tests if study.tests else ():
-        found += _named(t, inversion_findings(result.tests[t.name], context="study",
-                                              diagnosis_enabled=study.diagnosis.enabled, per_test=True))
+        found += _named(t, inversion_findings(result.tests[t.name], per_test=True))
     if study.diagnosis.enabled:
         for t in tests:
             found += _named(t, diagnosis_findings(run.manifest(t.stage("diagnosis"))["result"]))
@@ -183,10 +185,10 @@ def study_findings(run):
 
 
 def _named(test, findings):
-    """``findings`` of one test of a joint calibration, their messages prefixed with the test's name."""
+    """``findings`` of one test of a joint calibration, naming the test (their words begin with it)."""
     if test.name is None:
         return findings
-    return [dataclasses.replace(f, message=f"test {test.name}: {f.message}") for f in findings]
+    return [dataclasses.replace(f, test=test.name) for f in findings]
 
 
 __all__ = ["Progress", "StageRecord", "StudyResult", "run_study", "study_findings"]

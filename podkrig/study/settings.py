@@ -38,7 +38,7 @@ from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
 from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
 from podkrig.offline.settings import training_rows as _training_rows
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.online.measurement_csv import REPEATS, ImportSettings, zero_phase
+from podkrig.io.measurement_log import REPEATS, ImportSettings, zero_phase
 from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.parameters import SCALES, ParameterSpace
@@ -174,7 +174,7 @@ class MeasurementSettings:
     Noise: ``noise_abs`` σ_res in mm (one for all sensors, or one per sensor) and/or ``noise_rel``
     δ, combined as σ_i² = σ_res,i² + (δ d_i)²; or ``instrument`` (one name, or one per sensor) with
     the typical σ_res and δ of :data:`~podkrig.online.measurement.INSTRUMENTS`. Reading: see
-    :class:`~podkrig.online.measurement_csv.ImportSettings`. ``range_check`` stops a study whose
+    :class:`~podkrig.io.measurement_log.ImportSettings`. ``range_check`` stops a study whose
     readings lie far outside every FE run of the probe (before the training snapshots) and of the
     training design (a unit or sign error); false also skips the probe runs. ``rigid_body``:
     removal of the rigid-body motion of absolute displacement readings from data and model
@@ -222,7 +222,7 @@ class MeasurementSettings:
             raise study_error("a comma cannot be both the delimiter and the decimal mark", "decimal")
 
     def import_settings(self):
-        """The :class:`~podkrig.online.measurement_csv.ImportSettings` of these settings."""
+        """The :class:`~podkrig.io.measurement_log.ImportSettings` of these settings."""
         return ImportSettings(load_column=self.load_column, repeats=self.repeats, load_tolerance=self.load_tolerance,
                               zero=self.zero, phase_column=self.phase_column, load_range=self.load_range,
                               delimiter=self.delimiter,

@@ -45,6 +45,7 @@ from fe.scenarios.nonlinear import NonlinearScenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
+from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.limits import fe_job_estimate
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
@@ -52,7 +53,7 @@ from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.invert import InverseResult, invert
 from podkrig.online.joint import JointProblem
-from podkrig.online.measurement_csv import read_measurement
+from podkrig.io.measurement_log import read_measurement
 from podkrig.online.model_error import ModelError, discretisation_error, tolerance_error
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.propagation import rvc
@@ -69,7 +70,7 @@ from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
 from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256
-from podkrig.surrogate.podkriging import PODKriging, training_data
+from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 from podkrig.surrogate.settings import fit_surrogate
 from podkrig.surrogate.validation import held_out_errors
@@ -385,7 +386,7 @@ def _fit(store_path, settings, out_path):
     """Fit and save a surrogate of ``settings`` on a store; returns it."""
     with SnapshotStore.open(store_path) as store:
         sur = fit_surrogate(store, settings)
-    sur.save(out_path)
+    save_surrogate(sur, out_path)
     return sur
 
 
@@ -431,7 +432,7 @@ def held_out_validation(run, test):
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
 
     def compute():
-        sur = PODKriging.load(run.out / test.file("surrogate.h5"))
+        sur = load_surrogate(run.out / test.file("surrogate.h5"))
         with SnapshotStore.open(run.out / test.file("held_out.h5")) as store:
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
@@ -445,7 +446,7 @@ def _problem(run, test, form_error=True):
     """The inverse problem of one test on its surrogate: (problem, model); with ``form_error``, the
     test's ``[measurement] model_form_error`` in C_D (a fixed ε, or the estimate of the
     ``model_form_error`` stage)."""
-    model = SurrogateModel(PODKriging.load(run.out / test.file("surrogate.h5")))
+    model = SurrogateModel(load_surrogate(run.out / test.file("surrogate.h5")))
     data, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
                                          model.load_response)
     free, fixed = fix_from_scenario(model)
@@ -647,10 +648,10 @@ def rvc_stage(run):
         seed = study.inversion.seed
         results = {}
         for t in tests:
-            model = SurrogateModel(PODKriging.load(run.out / t.file("surrogate.h5")))
+            model = SurrogateModel(load_surrogate(run.out / t.file("surrogate.h5")))
             results[t.stage("calibration")] = rvc(found, model, fixed=t.fixed, rng=seed)
         for m in study.validation:
-            model = SurrogateModel(PODKriging.load(run.out / f"validation_{m.name}_surrogate.h5"))
+            model = SurrogateModel(load_surrogate(run.out / f"validation_{m.name}_surrogate.h5"))
             results[m.name] = rvc(found, model, outputs=list(m.outputs) if m.outputs else None, rng=seed)
         inverse_figures.plot_rvc(results, run.figures / "rvc.png")
         return {"models": {k: v.to_dict() for k, v in results.items()}}, ["report/rvc.png"], 0

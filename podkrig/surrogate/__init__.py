@@ -2,8 +2,8 @@
 
 - :mod:`~podkrig.surrogate.pod` — proper orthogonal decomposition (thesis ch. 4);
 - :mod:`~podkrig.surrogate.kriging` — ordinary kriging with exponential-family semivariograms;
-- :mod:`~podkrig.surrogate.podkriging` — the POD-kriging surrogate, its file format and training
-  from a store;
+- :mod:`~podkrig.surrogate.podkriging` — the POD-kriging surrogate and its training from a store
+  (its file: :mod:`podkrig.io.surrogate_file`);
 - :mod:`~podkrig.surrogate.backends` — selectable regressors of the POD coefficients: ours,
   SMT's KRG/KPLS, scikit-learn's GPR;
 - :mod:`~podkrig.surrogate.validation` — held-out and leave-one-out errors;

@@ -189,6 +189,41 @@ class POD:
                     method, n, m, rank, k, energy_curve[k - 1])
         return self
 
+    # ------------------------------------------------------------------ state exchange
+    _ARRAYS = ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_")
+
+    def to_arrays(self):
+        """The fitted basis as named arrays and scalar attributes (for a file format; no pickle).
+
+        Returns
+        -------
+        arrays : dict of str to ndarray
+            ``mean`` ``(n_outputs,)``, ``modes`` ``(n_modes, n_outputs)``, ``singular_values``,
+            ``energy``, ``residual_variance`` ``(n_outputs,)``.
+        attrs : dict
+            ``method`` (str), ``n_samples`` (int).
+        """
+        self._check_fitted()
+        return ({name.rstrip("_"): getattr(self, name) for name in self._ARRAYS},
+                {"method": self.method_, "n_samples": self.n_samples_})
+
+    @classmethod
+    def from_arrays(cls, arrays, attrs, params):
+        """A fitted POD from :meth:`to_arrays` output and its settings ``params`` (:meth:`get_params`).
+
+        Raises
+        ------
+        KeyError
+            A missing array or attribute.
+        """
+        pod = cls(**params)
+        for name in cls._ARRAYS:
+            setattr(pod, name, np.asarray(arrays[name.rstrip("_")]))
+        pod.method_ = str(attrs["method"])
+        pod.n_samples_ = int(attrs["n_samples"])
+        pod.n_modes_, pod.n_outputs_ = pod.modes_.shape
+        return pod
+
     def _check_fitted(self):
         if not hasattr(self, "modes_"):
             raise NotFittedError("this POD instance is not fitted yet; call fit(Y) first")

@@ -28,17 +28,15 @@ References
 """
 
 import datetime
-import json
 import logging
 import warnings
 from pathlib import Path
 
-import h5py
 import numpy as np
 
-from podkrig import __version__, h5integrity
+from podkrig import __version__
 from podkrig.parallel import one_blas_thread
-from podkrig.exceptions import NotFittedError, SchemaError, StoreError
+from podkrig.exceptions import NotFittedError
 from podkrig.parameters import ParameterSpace
 from podkrig.surrogate.backends import backend_from_arrays, backend_name, backend_version
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -46,13 +44,6 @@ from podkrig.surrogate.pod import POD
 
 logger = logging.getLogger(__name__)
 
-FORMAT = "podkrig.surrogate"
-# 2: the backend is recorded (attrs "backend", "backend_version"); 3: the kriging group records how
-# its hyperparameters were fitted (attr "fit_method", dataset "subset_index") and, after a subset
-# fit, leaves out the factors "L" and "Q" (rebuilt at load), which schema-2 readers require;
-# 1 and 2 are still read (as exact fits)
-SCHEMA_VERSION = 3
-READABLE_SCHEMAS = (1, 2, 3)
 DEFAULT_ENERGY = 1 - 1e-8
 
 
@@ -341,132 +332,83 @@ class PODKriging:
             var = (S.reshape(len(U), -1) ** 2) @ (self.pod_.modes_**2) + self.residual_variance_
         return Y.reshape(shape), np.sqrt(var).reshape(shape)
 
-    # ------------------------------------------------------------------ persistence
-    def save(self, path):
-        """Write the fitted surrogate to an HDF5 file (no pickle), with its provenance.
+    # ------------------------------------------------------------------ state exchange
+    def to_arrays(self):
+        """The fitted state as named arrays and plain metadata, for a file format (no pickle).
 
-        Parameters
-        ----------
-        path : str or Path
-            Written atomically (temporary file, then renamed).
+        :func:`podkrig.io.surrogate_file.save_surrogate` writes it to HDF5; :meth:`from_arrays`
+        rebuilds the surrogate from it, with bitwise identical predictions.
+
+        Returns
+        -------
+        arrays : dict
+            ``X`` ``(n_samples, n_params)`` physical units, ``U`` its unit-cube coordinates,
+            ``lower``, ``upper`` ``(n_params,)``, ``train_norm``, ``train_residual_norm``
+            ``(n_samples,)``; ``pod`` and ``kriging``: the arrays of :meth:`POD.to_arrays` and of
+            the backend's ``to_arrays``.
+        attrs : dict
+            ``settings`` (``{"pod": ..., "kriging": ...}``, the templates' settings, JSON-able),
+            ``provenance`` (dict), ``parameter_space`` (:meth:`ParameterSpace.to_dict` or None),
+            ``output_shape`` (list), ``backend``, ``backend_version`` (str); ``pod`` and
+            ``kriging``: the attributes of those parts.
         """
         self._check_fitted()
-        path = Path(path)
-        tmp = path.with_name(f".{path.name}.tmp")
-        pod, kr = self.pod_, self.kriging_
+        kr = self.kriging_
         settings = {
-            "pod": pod.get_params(),
+            "pod": self.pod_.get_params(),
             "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
                         for k, v in kr.get_params().items()},
         }
-        arrays, attrs = kr.to_arrays()
-        try:
-            with h5py.File(tmp, "w") as f:
-                f.attrs["format"] = FORMAT
-                f.attrs["schema_version"] = SCHEMA_VERSION
-                f.attrs["settings"] = json.dumps(settings, sort_keys=True)
-                f.attrs["provenance"] = json.dumps(self.provenance_, sort_keys=True, default=_jsonable)
-                f.attrs["parameter_space"] = json.dumps(self.space.to_dict() if self.space is not None else None)
-                f.attrs["output_shape"] = json.dumps(list(self.output_shape_))
-                f.attrs["saved"] = _now()
-                f.attrs["package_version"] = __version__
-                f.attrs["backend"] = self.backend_
-                f.attrs["backend_version"] = backend_version(kr)
-                f.create_dataset("X", data=self.X_).attrs["unit"] = "physical parameter units"
-                f.create_dataset("U", data=self.U_)
-                f.create_dataset("lower", data=self.lower_)
-                f.create_dataset("upper", data=self.upper_)
-                f.create_dataset("train_norm", data=self.train_norm_)
-                f.create_dataset("train_residual_norm", data=self.train_residual_norm_)
-                g = f.create_group("pod")
-                g.attrs["method"] = pod.method_
-                g.attrs["n_samples"] = pod.n_samples_
-                for name in ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_"):
-                    g.create_dataset(name.rstrip("_"), data=getattr(pod, name))
-                g = f.create_group("kriging")
-                g.attrs.update(attrs)
-                for name, data in arrays.items():
-                    g.create_dataset(name, data=data)
-            h5integrity.seal(tmp)
-            tmp.replace(path)
-        finally:
-            tmp.unlink(missing_ok=True)
+        pod_arrays, pod_attrs = self.pod_.to_arrays()
+        kr_arrays, kr_attrs = kr.to_arrays()
+        arrays = {"X": self.X_, "U": self.U_, "lower": self.lower_, "upper": self.upper_,
+                  "train_norm": self.train_norm_, "train_residual_norm": self.train_residual_norm_,
+                  "pod": pod_arrays, "kriging": kr_arrays}
+        attrs = {"settings": settings, "provenance": self.provenance_,
+                 "parameter_space": self.space.to_dict() if self.space is not None else None,
+                 "output_shape": list(self.output_shape_), "backend": self.backend_,
+                 "backend_version": backend_version(kr), "pod": pod_attrs, "kriging": kr_attrs}
+        return arrays, attrs
 
     @classmethod
-    def load(cls, path):
-        """Read a surrogate written by :meth:`save`; predictions are bitwise identical.
+    def from_arrays(cls, arrays, attrs):
+        """A fitted surrogate from :meth:`to_arrays` output; predictions are bitwise identical.
 
-        Reads schema 3, the files of schema 2 (written before the fit method was recorded: exact
-        fits) and of schema 1 (written before the backend was recorded; always ``"podkrig"``),
-        whose kriging group has the same arrays.
+        Parameters
+        ----------
+        arrays, attrs : mapping
+            As :meth:`to_arrays` returns them (array values may be any array_like). ``backend``
+            may be missing (then ``"podkrig"``), and the kriging part may lack what older
+            surrogates did not record (the backend's ``from_arrays`` says what).
 
         Raises
         ------
-        StoreError
-            Missing, unreadable or non-surrogate file.
-        SchemaError
-            Unknown schema version.
+        KeyError, ValueError, TypeError
+            A missing or inconsistent entry.
         """
-        path = Path(path)
-        if not path.is_file():
-            raise StoreError(f"no surrogate file at {path}; build one with 'podkrig surrogate build'")
-        if not h5integrity.verify(path, "surrogate"):
-            logger.warning("%s has no checksum (written by an older podkrig): damage cannot be detected; rebuild it", path)
-        try:
-            f = h5py.File(path, "r")
-        except OSError as e:
-            raise StoreError(f"{path} cannot be read as HDF5 ({e}); rebuild the surrogate") from e
-        with f:
-            if f.attrs.get("format") != FORMAT:
-                raise StoreError(f"{path} is not a podkrig surrogate (format {f.attrs.get('format')!r}); "
-                                 "pass the file written by 'podkrig surrogate build'")
-            version = f.attrs.get("schema_version")
-            version = int(version) if isinstance(version, (int, np.integer)) else version  # 99, not np.int64(99)
-            if version not in READABLE_SCHEMAS:
-                raise SchemaError(f"{path} has surrogate schema version {version!r}; "
-                                  f"this podkrig reads {', '.join(map(str, READABLE_SCHEMAS))}; rebuild it")
-            try:
-                settings = json.loads(f.attrs["settings"])
-                space = json.loads(f.attrs["parameter_space"])
-                kr_settings = dict(settings["kriging"])
-                if isinstance(kr_settings.get("range_bounds"), list):
-                    kr_settings["range_bounds"] = tuple(kr_settings["range_bounds"])
-                backend = str(f.attrs.get("backend", "podkrig"))  # schema 1: always ours
-                g = f["kriging"]
-                kr = backend_from_arrays(backend, g, dict(g.attrs), kr_settings)
-                sur = cls(pod=POD(**settings["pod"]), kriging=_clone(kr),
-                          space=ParameterSpace.from_dict(space) if space is not None else None)
-                pod = _clone(sur.pod)
-                g = f["pod"]
-                for name in ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_"):
-                    setattr(pod, name, g[name.rstrip("_")][...])
-                pod.method_ = str(g.attrs["method"])
-                pod.n_samples_ = int(g.attrs["n_samples"])
-                pod.n_modes_, pod.n_outputs_ = pod.modes_.shape
-                sur.pod_, sur.kriging_, sur.backend_ = pod, kr, backend
-                sur.X_, sur.U_ = f["X"][...], f["U"][...]
-                sur.lower_, sur.upper_ = f["lower"][...], f["upper"][...]
-                sur.train_norm_ = f["train_norm"][...]
-                sur.train_residual_norm_ = f["train_residual_norm"][...]
-                sur.output_shape_ = tuple(json.loads(f.attrs["output_shape"]))
-                sur.residual_variance_ = pod.residual_variance_
-                sur.n_features_in_ = sur.X_.shape[1]
-                sur.provenance_ = json.loads(f.attrs["provenance"])
-            except (KeyError, ValueError, TypeError) as e:
-                raise StoreError(f"{path} is a damaged surrogate file ({type(e).__name__}: {e}); rebuild it") from e
+        settings, space = attrs["settings"], attrs["parameter_space"]
+        kr_settings = dict(settings["kriging"])
+        if isinstance(kr_settings.get("range_bounds"), list):
+            kr_settings["range_bounds"] = tuple(kr_settings["range_bounds"])
+        backend = str(attrs.get("backend", "podkrig"))
+        kr = backend_from_arrays(backend, arrays["kriging"], attrs["kriging"], kr_settings)
+        sur = cls(pod=POD(**settings["pod"]), kriging=_clone(kr),
+                  space=ParameterSpace.from_dict(space) if space is not None else None)
+        sur.pod_ = POD.from_arrays(arrays["pod"], attrs["pod"], sur.pod.get_params())
+        sur.kriging_, sur.backend_ = kr, backend
+        sur.X_, sur.U_ = np.asarray(arrays["X"]), np.asarray(arrays["U"])
+        sur.lower_, sur.upper_ = np.asarray(arrays["lower"]), np.asarray(arrays["upper"])
+        sur.train_norm_ = np.asarray(arrays["train_norm"])
+        sur.train_residual_norm_ = np.asarray(arrays["train_residual_norm"])
+        sur.output_shape_ = tuple(attrs["output_shape"])
+        sur.residual_variance_ = sur.pod_.residual_variance_
+        sur.n_features_in_ = sur.X_.shape[1]
+        sur.provenance_ = dict(attrs["provenance"])
         return sur
 
 
 def _now():
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-
-
-def _jsonable(v):
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, (np.integer, np.floating)):
-        return v.item()
-    return str(v)
 
 
 def training_data(store, output="readings"):

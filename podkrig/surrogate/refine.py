@@ -19,7 +19,7 @@ from scipy.spatial import cKDTree
 from podkrig.offline.runner import run_pending
 from podkrig.offline.sampling import METHODS, sample
 from podkrig.offline.store import SnapshotStore
-from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
+from podkrig.surrogate.podkriging import fit_from_store, training_data
 from podkrig.surrogate.validation import held_out_errors
 
 logger = logging.getLogger(__name__)
@@ -56,14 +56,15 @@ def select_batch(U_candidates, score, U_train, k):
     return np.array(chosen, dtype=int)
 
 
-def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, batch=8, n_candidates=4096,
+def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=64, batch=8, n_candidates=4096,
                      seed=1, workers=1, sampling="sobol"):
     """Enrich the training store until the held-out median error or the FE budget is reached.
 
     Parameters
     ----------
-    file : str or Path
-        Surrogate file; its settings are reused and it is rewritten with the final surrogate.
+    surrogate : PODKriging
+        The surrogate to refine: its settings (POD, regressor, output) are reused; it is left
+        unchanged.
     store : str or Path
         Training snapshot store (appended to).
     held_out : str or Path
@@ -86,9 +87,9 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
 
     Returns
     -------
-    dict
-        ``added`` (FE runs), ``history`` (per round: ``n_train``, ``median``, ``p95``),
-        ``stop_reason``.
+    PODKriging
+        Fitted on the final store, with ``provenance_["refinement"]``: ``added`` (FE runs),
+        ``history`` (per round: ``n_train``, ``median``, ``p95``), ``stop_reason``.
     """
     for name, v, least in (("budget", budget, 0), ("batch", batch, 1), ("n_candidates", n_candidates, 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
@@ -97,8 +98,8 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
         raise ValueError(f"target_error must be > 0; got {target_error!r}")
     if sampling not in METHODS:
         raise ValueError(f"sampling must be one of {', '.join(METHODS)}; got {sampling!r}")
-    file, store, held_out = Path(file), Path(store), Path(held_out)
-    template = PODKriging.load(file)
+    store, held_out = Path(store), Path(held_out)
+    template = surrogate
     output = template.provenance_.get("output", "readings")
     with SnapshotStore.open(held_out) as h:
         Xh, Yh = training_data(h, output)
@@ -129,5 +130,4 @@ def refine_surrogate(file, store, held_out, *, target_error=0.005, budget=64, ba
             logger.warning("refine: %d of %d new FE runs failed (kept as failed rows)", summary_run.failed_now,
                            len(pick))
     sur.provenance_["refinement"] = {"added": added, "history": history, "stop_reason": reason}
-    sur.save(file)
-    return {"added": added, "history": history, "stop_reason": reason}
+    return sur

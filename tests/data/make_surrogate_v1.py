@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from podkrig.io.surrogate_file import save_surrogate
 from podkrig.offline.sampling import sobol, uniform
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -37,7 +38,7 @@ if __name__ == "__main__":
     X = SPACE.from_unit(sobol(24, 3, seed=0, skip=8))
     sur = PODKriging(pod=POD(energy=1 - 1e-10), kriging=OrdinaryKriging(beta="fit"), space=SPACE).fit(X, snapshots(X))
     sur.provenance_.update({"note": "reference file of tests/test_surrogate_files.py"})
-    sur.save(out / "surrogate_v1.h5")
+    save_surrogate(sur, out / "surrogate_v1.h5")
     Xp = SPACE.from_unit(uniform(16, 3, seed=5))
     mean, std = sur.predict(Xp, return_std=True, reshape=True)
     np.savez(out / "surrogate_v1_expected.npz", X=Xp, mean=mean, std=std)

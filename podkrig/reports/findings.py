@@ -1,0 +1,264 @@
+"""The words of every finding: what was found, in plain words with its numbers, and what to do.
+
+The numerics judge (:mod:`podkrig.online.findings`: a :class:`~podkrig.online.findings.Finding`
+is a code, a section and its values); this module is the one place that words each code. Remedies
+name the user's next step in their own context: a command-line option for ``context="cli"``
+(``podkrig invert``), a study-file setting for ``context="study"`` (``podkrig run``, the study
+report and ``summary.json``).
+
+Example
+-------
+>>> from podkrig.online.findings import Finding
+>>> text = word(Finding("chi2-dof", "inversion", {"chi2_dof": 3.5}), "study", diagnosis_enabled=True)
+>>> text.message
+'χ²/dof = 3.50: the calibrated model does not reproduce the data within the stated noise.'
+>>> text.remedy
+'check the noise level; if it is right, a physical effect is missing from the model: the model diagnosis below names it.'
+"""
+
+from dataclasses import dataclass
+
+CONTEXTS = ("cli", "study")
+
+
+@dataclass(frozen=True)
+class FindingText:
+    """A finding in plain words.
+
+    Attributes
+    ----------
+    code : str
+        The finding's stable code (:mod:`podkrig.online.findings`).
+    section : str
+        Report section it belongs to.
+    message : str
+        What was found, with the numbers and their units.
+    remedy : str
+        What to do about it.
+    level : str
+        ``"warning"`` (every finding today).
+    """
+
+    code: str
+    section: str
+    message: str
+    remedy: str
+    level: str = "warning"
+
+    def to_dict(self):
+        """``{"code", "level", "section", "what", "what_to_do"}`` (the ``summary.json`` form)."""
+        return {"code": self.code, "level": self.level, "section": self.section, "what": self.message,
+                "what_to_do": self.remedy}
+
+    @classmethod
+    def from_dict(cls, d):
+        return cls(d["code"], d["section"], d["what"], d["what_to_do"], d.get("level", "warning"))
+
+
+def number(value):
+    """4 significant digits without an exponent below 10⁶ (``15934``, not ``1.593e+04``): both ends
+    of an interval read alike."""
+    text = f"{value:.4g}"
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
+def _unit(unit):
+    """`` unit`` to append to a number, or nothing for a dimensionless one."""
+    return f" {unit}" if unit and unit != "-" else ""
+
+
+def identifiability_text(name, interval, unit, verdict):
+    """The verdict on one parameter in words, e.g. ``"E_b is identified: [9876, 15934] MPa spans
+    25 % of its search range"``.
+
+    Parameters
+    ----------
+    name : str
+    interval : (float, float)
+        Its equivalence interval, physical units.
+    unit : str
+    verdict : dict
+        ``{"share", "identifiable"}`` of :func:`podkrig.online.region.identifiability`.
+    """
+    lo, hi = interval
+    share = verdict["share"]
+    unit = unit if unit != "-" else ""
+    msg = (
+        f"{name} is identified: [{number(lo)}, {number(hi)}] {unit} spans {100 * share:.0f} % of its search range"
+        if verdict["identifiable"] else
+        f"{name} is NOT pinned down by these data: values from {number(lo)} to {number(hi)} {unit} "
+        f"({100 * share:.0f} % of its search range) fit equally well; fix it from other tests, "
+        "add sensors sensitive to it, or report it as unidentified"
+    )
+    return msg.replace("  ", " ")
+
+
+# ------------------------------------------------------------------------------ one function per code
+# each takes (values, context, diagnosis_enabled) and returns (message, remedy)
+
+
+def _fe_check(v, context, diagnosis_enabled):
+    return (f"at the optimum the surrogate differs from the FE model by up to {v['max_diff_over_noise']:.2f}× the "
+            f"noise ({v['max_abs_diff_mm']:.3g} mm): the identification is limited by the surrogate, not by the data.",
+            "refine the surrogate near the optimum ('podkrig surrogate refine', or more snapshots in a narrower box) "
+            "and invert again." if context == "cli" else
+            "add training snapshots or narrow the bounds around the identified values, and run again.")
+
+
+def _at_bound(v, context, diagnosis_enabled):
+    name = v["parameter"]
+    return (f"the best fit of {name} ({v['value']:.4g}{_unit(v['unit'])}) lies on a bound of its search range: "
+            "the data may prefer a value outside it.",
+            f"widen the range of {name} in the snapshot design (--param) and build the surrogate again."
+            if context == "cli" else f"widen the bounds of {name} in [parameters] and run again.")
+
+
+def _chi2_dof(v, context, diagnosis_enabled):
+    if context == "cli":
+        then = "(run 'podkrig diagnose')."
+    elif diagnosis_enabled:
+        then = "the model diagnosis below names it."
+    else:
+        then = "switch on the model diagnosis ([diagnosis] enabled = true) to name it."
+    return (f"χ²/dof = {v['chi2_dof']:.2f}: the calibrated model does not reproduce the data within the stated "
+            "noise.",
+            "check the noise level; if it is right, a physical effect is missing from the model"
+            + (" " if context == "cli" else ": ") + then)
+
+
+def _unidentified(v, context, diagnosis_enabled):
+    name = v["parameter"]
+    how = f"--fix {name}=VALUE" if context == "cli" else "[fixed]"
+    return (f"{name} is not pinned down by these data: values from {number(v['low'])} to {number(v['high'])}"
+            f"{_unit(v['unit'])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
+            f"fix {name} from other tests ({how})"
+            + ("" if context == "cli" else " or calibrate jointly with a test that informs it ([[test]] tables)")
+            + ", add sensors sensitive to it, or report it as unidentified.")
+
+
+def _insensitive(v, context, diagnosis_enabled):
+    name = v["parameter"]
+    return (f"no reading and not the misfit is sensitive to {name}: its total Sobol' index stays below "
+            f"{v['threshold']:g} over the search box, so these data cannot inform it.",
+            f"fix {name} from other tests or the literature ({'--fix' if context == 'cli' else '[fixed]'}) before "
+            "the inversion, or add a test or sensors that respond to it.")
+
+
+def _fe_failed(v, context, diagnosis_enabled):
+    return (f"{v['failed']} of {v['total']} FE runs failed in stage '{v['stage']}' ({'; '.join(v['failures'])}).",
+            "the surrogate was trained without them; read the errors (e.g. a parameter range that makes the "
+            "model singular) and narrow the bounds, or inspect the store with 'podkrig snapshots info'.")
+
+
+def _measurement_columns(v, context, diagnosis_enabled):
+    parts = []
+    if v.get("not_used"):
+        parts.append(f"sensor(s) of the model without a column, not used: {', '.join(v['not_used'])}")
+    if v.get("ignored"):
+        parts.append(f"column(s) that name no sensor, ignored: {', '.join(v['ignored'])}")
+    return ("; ".join(parts) + ".",
+            "nothing if intended; otherwise name each column as the sensor it reads (see 'podkrig scenarios "
+            "NAME' for the sensor names).")
+
+
+def _noise_below_floor(v, context, diagnosis_enabled):
+    listed = ", ".join(f"{k} {1000 * s:.3g} µm" for k, s in v["sigma_mm"].items())
+    return (f"the noise model gives σ below {1000 * v['sigma_floor_mm']:g} µm for {listed}: no laboratory instrument "
+            "reads that finely (an LVDT or dial gauge resolves about 1 µm, DIC 2.5–5 µm), so the region of "
+            "equivalence is optimistic.",
+            "give a resolution floor: --noise-abs 0.001 with --noise-rel, or --instrument lvdt" if context == "cli"
+            else "give a resolution floor in [measurement]: noise_abs = 0.001 (mm) with noise_rel, or "
+            "instrument = \"lvdt\".")
+
+
+def _surrogate_error(v, context, diagnosis_enabled):
+    if "median_rel_error" in v:
+        what = (f"the surrogate's median error on the held-out FE runs ({100 * v['median_rel_error']:.2f} %) "
+                f"exceeds the measurement noise ({100 * v['noise_rel']:g} %)")
+    else:
+        what = (f"the surrogate's RMS error on the held-out FE runs ({v['rms_abs_error_mm']:.3g} mm) exceeds the "
+                f"measurement noise (σ = {v['sigma_mm']:g} mm)")
+    return (what + ": the identification is limited by the surrogate.",
+            "add training snapshots ([sampling] train.n, e.g. double it) or narrow the parameter bounds, and run "
+            "again.")
+
+
+def _surrogate_coverage(v, context, diagnosis_enabled):
+    return (f"only {100 * v['coverage_2sigma']:.0f} % of the held-out FE readings lie within ±2σ of the "
+            "surrogate: its error bars are too narrow, so the region of equivalence may be too small.",
+            "add training snapshots, or set a small [surrogate] nugget (e.g. 1e-6).")
+
+
+def _diagnosis_unexplained(v, context, diagnosis_enabled):
+    return (f"the calibrated model does not explain the data (χ²/dof = {v['chi2_dof']:.2f}) and no candidate cause "
+            "in the library explains the residual.",
+            "check the noise level and the measurement file; read the residual pattern in the diagnosis report "
+            "for an effect outside the library (nonlinearity, another test set-up).")
+
+
+def _diagnosis_cause(v, context, diagnosis_enabled):
+    causes = v["causes"]
+    named = " and then ".join(c["cause"] + (f" at {c['location']}" if c["location"] else "") for c in causes)
+    gain = (f" (χ²/dof {v['chi2_dof_before']:.2f} → {v['chi2_dof_after']:.2f} with "
+            f"{'it' if len(causes) == 1 else 'them'})" if v.get("chi2_dof_before") is not None else "")
+    effect = "a physical effect" if len(causes) == 1 else f"{len(causes)} physical effects"
+    return (f"the calibrated model leaves out {effect}: the diagnosis names {named}{gain}.",
+            "read the diagnosis report; add the effect to the model (or repair the named sensor or set-up) "
+            "and calibrate again: the parameters identified without it are biased.")
+
+
+#: code → the function that words it
+WORDS = {
+    "fe-check": _fe_check,
+    "at-bound": _at_bound,
+    "chi2-dof": _chi2_dof,
+    "unidentified": _unidentified,
+    "insensitive": _insensitive,
+    "fe-failed": _fe_failed,
+    "measurement-columns": _measurement_columns,
+    "noise-below-floor": _noise_below_floor,
+    "surrogate-error": _surrogate_error,
+    "surrogate-coverage": _surrogate_coverage,
+    "diagnosis-unexplained": _diagnosis_unexplained,
+    "diagnosis-cause": _diagnosis_cause,
+}
+
+
+def word(finding, context="cli", *, diagnosis_enabled=False):
+    """A finding in plain words, with the remedy for ``context``.
+
+    Parameters
+    ----------
+    finding : Finding
+    context : {"cli", "study"}
+        Where the remedies point: command-line options or study-file settings.
+    diagnosis_enabled : bool
+        (study) whether the study runs the model diagnosis, which names a missing effect.
+
+    Returns
+    -------
+    FindingText
+        A finding of one test of a joint calibration (``finding.test``) has its message prefixed
+        with ``test NAME:``.
+
+    Raises
+    ------
+    ValueError
+        An unknown context or code.
+    """
+    if context not in CONTEXTS:
+        raise ValueError(f"context must be one of {CONTEXTS}; got {context!r}")
+    if finding.code not in WORDS:
+        raise ValueError(f"no words for finding code {finding.code!r}; known codes: {', '.join(WORDS)}")
+    message, remedy = WORDS[finding.code](finding.values, context, diagnosis_enabled)
+    if finding.test is not None:
+        message = f"test {finding.test}: {message}"
+    return FindingText(finding.code, finding.section, message, remedy, finding.level)
+
+
+def words(findings, context="cli", *, diagnosis_enabled=False):
+    """:func:`word` for each finding, in order (a list of :class:`FindingText`)."""
+    return [word(f, context, diagnosis_enabled=diagnosis_enabled) for f in findings]
+
+
+__all__ = ["CONTEXTS", "WORDS", "FindingText", "identifiability_text", "number", "word", "words"]

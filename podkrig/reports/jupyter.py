@@ -1,0 +1,83 @@
+"""HTML tables of the online results for Jupyter: the best fit and its χ², the region of equivalence.
+
+The result objects of the numerics draw nothing and write no HTML; this module renders them, and
+:func:`register_formatters` tells a running IPython to show an
+:class:`~podkrig.online.invert.InverseResult` or a :class:`~podkrig.online.region.Region` as these
+tables instead of the dataclass ``repr``. ``import podkrig`` in a notebook registers them (by
+type name: nothing is imported until a result is shown); ``%load_ext podkrig.reports.jupyter``
+does the same explicitly.
+"""
+
+import html
+import math
+
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
+
+#: (module, class name) → name of the function of this module that renders it
+FORMATTERS = {
+    ("podkrig.online.invert", "InverseResult"): "inverse_result_html",
+    ("podkrig.online.region", "Region"): "region_html",
+}
+
+
+def number(value, digits=4):
+    """``value`` with ``digits`` significant digits; an em dash for None or a non-finite one."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    return f"{value:.{digits}g}" if isinstance(value, float) else str(value)
+
+
+def html_table(header, rows, caption=None):
+    """An HTML table: ``header`` cells, ``rows`` of cells (every cell escaped)."""
+    e = html.escape
+    cap = f"<caption style='text-align:left'><b>{e(caption)}</b></caption>" if caption else ""
+    head = "".join(f"<th>{e(str(h))}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{e(str(c))}</td>" for c in row) + "</tr>" for row in rows)
+    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def inverse_result_html(result):
+    """The best fit and its χ² (with what it includes) of an
+    :class:`~podkrig.online.invert.InverseResult` as two HTML tables."""
+    params = html_table(["parameter", "unit", "best fit", "on a bound"],
+                        [[n, u, number(float(v), 6), "yes" if n in result.at_bound else ""]
+                         for n, u, v in zip(result.free, result.units, result.x)],
+                        caption=f"Inversion: {len(result.free)} free parameters, "
+                                f"{result.measurement.get('n_obs', '?')} readings")
+    rows = [["surrogate", number(result.chi2, 4), result.dof, number(result.chi2_dof, 3), result.chi2_basis]]
+    if result.fe_check is not None:
+        rows.append(["FE check", "—", result.dof, number(result.fe_check.chi2_dof_fe, 3), chi2_basis("fe_check")])
+    fit = html_table(["model", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"], rows,
+                     caption=f"Misfit ω = {number(result.misfit)}; {result.n_evaluations} evaluations in "
+                             f"{result.seconds:.2f} s; residuals {RESIDUAL_CONVENTION}")
+    return params + fit
+
+
+def region_html(region):
+    """The intervals and their identifiability of a :class:`~podkrig.online.region.Region` as an
+    HTML table."""
+    rows = [[n, u, number(float(region.intervals[n][0])), number(float(region.intervals[n][1])),
+             f"{100 * region.identifiability[n]['share']:.0f}",
+             "yes" if region.identifiability[n]["identifiable"] else "NO"]
+            for n, u in zip(region.names, region.units)]
+    return html_table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows,
+                      caption=f"Region of equivalence ({region.method}, {100 * region.confidence:.0f} %): "
+                              f"{len(region.samples)} members of {region.n_evaluated} evaluations")
+
+
+def register_formatters(ipython):
+    """Show the online results as the tables of this module in ``ipython`` (a running
+    ``InteractiveShell``): its ``text/html`` formatter gets one function per type, registered by
+    type name (:data:`FORMATTERS`)."""
+    formatter = ipython.display_formatter.formatters["text/html"]
+    for (module, name), function in FORMATTERS.items():
+        formatter.for_type_by_name(module, name, globals()[function])
+
+
+def load_ipython_extension(ipython):
+    """``%load_ext podkrig.reports.jupyter``: :func:`register_formatters`."""
+    register_formatters(ipython)
+
+
+__all__ = ["FORMATTERS", "html_table", "inverse_result_html", "load_ipython_extension", "number", "region_html",
+           "register_formatters"]
