@@ -1,5 +1,6 @@
 """Shared pytest fixtures."""
 
+import contextlib
 import logging
 
 import pytest
@@ -38,6 +39,19 @@ def fe_counter(monkeypatch):
     """Start counting FE runs at any point of a test: ``counter = fe_counter()``, then
     ``counter.calls``."""
     return lambda: FECounter(monkeypatch)
+
+
+@contextlib.contextmanager
+def _counting_fe_runs():
+    with pytest.MonkeyPatch.context() as monkeypatch:
+        yield FECounter(monkeypatch)
+
+
+@pytest.fixture(scope="session")
+def count_fe_runs():
+    """Count FE runs inside a block, in a fixture shared by several tests (a module-scoped run
+    that tests check in turn): ``with count_fe_runs() as counter: ...``, then ``counter.calls``."""
+    return _counting_fe_runs
 
 
 @pytest.fixture(autouse=True)

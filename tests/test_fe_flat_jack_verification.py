@@ -25,6 +25,14 @@ def _fe(size, nx, ny):
     return build_scenario(homogeneous_slot_spec(size, nx, ny, 2 * A, gauge_offsets=OFFSETS)).run().readings[0]
 
 
+def test_coarse_mesh_reads_a_few_percent_below_jaeger_cook():
+    """The fast lane's case of the convergence test below: on the coarse mesh (2×1 Q8 per unit,
+    h = a/2 near the slot) every pin reads 3.7 … 5.0 % below the closed form (measured): below, as
+    a displacement FE model is too stiff; tolerance 0 … −7 %, the coarse error plus a margin."""
+    error = _fe(10, 2, 1) / _jaeger_cook(OFFSETS) - 1
+    assert np.all((error < 0) & (error > -0.07)), error
+
+
 @pytest.mark.slow
 def test_homogeneous_limit_converges_to_jaeger_cook():
     """Panel 10× the slot length. Measured (scripts/verify_flat_jack.py): −3.7 … −5.0 % at 2×1 Q8

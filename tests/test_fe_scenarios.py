@@ -86,17 +86,6 @@ def test_response_shape_and_field(coarse_diagonal):
     assert np.all(r.field[:, coarse_diagonal.mesh.node_sets["bottom_left"]] == 0)
 
 
-def test_docstring_examples_run():
-    import doctest
-
-    import importlib
-
-    for name in ("fe", "fe.mesh.brick_wall"):
-        module = importlib.import_module(name)
-        result = doctest.testmod(module)
-        assert result.attempted > 0 and result.failed == 0
-
-
 #: readings at the last load level of the linear scenarios with their default specs, computed on
 #: main at b11aacd (before the base joints of the nonlinear walls touched the mesher)
 LINEAR_READINGS = {

@@ -141,6 +141,22 @@ def test_solver_backends_agree(coarse_diagonal):
         assert_allclose(r, results[0], rtol=1e-9)
 
 
+def test_pardiso_finds_mkl_once(coarse_diagonal, monkeypatch):
+    """After one PARDISO solver, later ones load MKL from the path found then: no library search
+    (``find_library``, a recursive glob of the environment: 0.12 s of CPU) per FE model."""
+    wrapper = pytest.importorskip("pypardiso.pardiso_wrapper")
+    from fe.solvers.linear import PardisoSolver
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("MKL searched for again")
+
+    PardisoSolver(np.array([0, 1]), np.array([0]), 1)  # the first may search
+    monkeypatch.setattr(wrapper, "find_library", no_search)
+    monkeypatch.setattr(wrapper.glob, "glob", no_search)
+    sc = build_scenario(coarse_diagonal.spec, solver="pardiso")
+    assert_allclose(sc.run({"r_hj": 0.4}).readings, coarse_diagonal.run({"r_hj": 0.4}).readings, rtol=1e-9)
+
+
 def test_elastic_parameters_are_jointly_identifiable(default_diagonal):
     """Normalised sensitivities ∂ln r/∂ln m of all readings to (E_b, kN_bj, kV_bj, r_hj): full rank,
     condition number below 10 (the short gauges are what make it so; D1 and D2 alone give rank 2)."""

@@ -5,6 +5,7 @@ study-file errors of the joint form."""
 
 import json
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -69,10 +70,19 @@ def _measured(path, scenario, r_hj, seed):
     write_measurement_csv(path, Measurement(noisy, sc.sensor_names, sc.load_levels))
 
 
-def _write(folder, text=JOINT):
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """The two tests' pseudo-measured files, made once (two FE runs) for every study of this module."""
+    d = tmp_path_factory.mktemp("measured")
+    _measured(d / "diagonal.csv", "diagonal_compression", 0.6, 0)
+    _measured(d / "shear.csv", "shear_compression", 0.45, 1)
+    return d
+
+
+def _write(folder, measured, text=JOINT):
     (folder / "study.toml").write_text(text)
-    _measured(folder / "diagonal.csv", "diagonal_compression", 0.6, 0)
-    _measured(folder / "shear.csv", "shear_compression", 0.45, 1)
+    for name in ("diagonal.csv", "shear.csv"):
+        shutil.copyfile(measured / name, folder / name)
     return folder / "study.toml"
 
 
@@ -83,9 +93,9 @@ def _run(study, out):
 
 
 @pytest.fixture(scope="module")
-def joint(tmp_path_factory):
+def joint(tmp_path_factory, measured):
     d = tmp_path_factory.mktemp("joint")
-    study = _write(d)
+    study = _write(d, measured)
     out = d / "out"
     return study, out, _run(study, out)
 
@@ -159,25 +169,25 @@ def test_joint_report_has_each_tests_sections_and_figures(joint):
     (lambda s: s.replace("[fixed]\nE_b = 11000.0", "[fixed]\nE_b = 11000.0\nsigma0 = 0.3"),
      r"fixed\.sigma0: is a parameter of none of the tests' scenarios"),
 ])
-def test_joint_study_file_mistakes_are_named(tmp_path, edit, message):
+def test_joint_study_file_mistakes_are_named(tmp_path, measured, edit, message):
     """Each names the file, the key (tests numbered from 1, as written) and what is wrong."""
-    study = _write(tmp_path, edit(JOINT))
+    study = _write(tmp_path, measured, edit(JOINT))
     with pytest.raises(StudyError, match=message):
         load_study(study)
 
 
-def test_a_study_without_scenario_or_tests_names_both_forms(tmp_path):
+def test_a_study_without_scenario_or_tests_names_both_forms(tmp_path, measured):
     text = JOINT[: JOINT.index("[[test]]")]
-    study = _write(tmp_path, text)
+    study = _write(tmp_path, measured, text)
     with pytest.raises(StudyError, match=r"missing key 'scenario'.*\[\[test\]\] tables"):
         load_study(study)
 
 
-def test_sensitivity_settings_are_checked(tmp_path):
-    study = _write(tmp_path, JOINT + "\n[sensitivity]\nn = 1000\n")
+def test_sensitivity_settings_are_checked(tmp_path, measured):
+    study = _write(tmp_path, measured, JOINT + "\n[sensitivity]\nn = 1000\n")
     with pytest.raises(StudyError, match=r"sensitivity\.n: 1000 is out of range; allowed: a power of two"):
         load_study(study)
-    study = _write(tmp_path, JOINT + "\n[sensitivity]\nenabled = false\n")
+    study = _write(tmp_path, measured, JOINT + "\n[sensitivity]\nenabled = false\n")
     assert load_study(study).sensitivity.enabled is False
 
 

@@ -132,20 +132,37 @@ def test_rerun_with_nothing_changed_does_no_fe_work(tiny, fe_counter):
     assert {k: v["finished"] for k, v in after.items()} == {k: v["finished"] for k, v in before.items()}
 
 
-def test_new_measurement_reruns_only_the_online_stages(tiny, tmp_path, fe_counter):
+def _scale_first_gauge(path, factor):
+    """Scale the first reading column of a measurement file: data the model cannot explain."""
+    lines = path.read_text().splitlines()
+    lines[1:] = [",".join([c.split(",")[0]] + [f"{factor * float(v):.8g}" if j == 0 else v
+                                               for j, v in enumerate(c.split(",")[1:])]) for c in lines[1:]]
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture(scope="module")
+def new_measurement(tiny, tmp_path_factory, count_fe_runs):
+    """A copy of the tiny study and its cache, rerun with a new measurement file: another noise
+    realisation whose first gauge is scaled by 1.3 (data the model cannot explain). One rerun for
+    two checks: which stages rerun, and the report's warning. (folder, stages before, stages
+    after, FE runs of the rerun)."""
     study, _, _ = tiny
-    # a copy of the study and its cache, with another noise realisation in the measurement file
-    d = tmp_path / "copy"
+    d = tmp_path_factory.mktemp("new_measurement") / "copy"
     shutil.copytree(study.parent, d)
     before = _stages(d / "out")
     _measured(d / "measured.csv", seed=1)
-    counter = fe_counter()
-    _run(d / "study.toml", d / "out")
-    after = _stages(d / "out")
+    _scale_first_gauge(d / "measured.csv", 1.3)
+    with count_fe_runs() as counter:
+        _run(d / "study.toml", d / "out")
+    return d, before, _stages(d / "out"), counter.calls
+
+
+def test_new_measurement_reruns_only_the_online_stages(new_measurement):
+    _, before, after, calls = new_measurement
     rerun = {k for k in after if after[k]["finished"] != before[k]["finished"] or after[k]["input_hash"] != before[k]["input_hash"]}
     assert rerun == {"measurement", "sensitivity", "inversion", "region", "rvc", "diagnosis"}  # the check does no FE work
     # FE work only in the online stages: the check at the new optimum and the diagnosis' refits
-    assert 1 <= counter.calls <= after["inversion"]["fe_runs"] + after["diagnosis"]["fe_runs"]
+    assert 1 <= calls <= after["inversion"]["fe_runs"] + after["diagnosis"]["fe_runs"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -324,16 +341,9 @@ def test_report_figures_and_words_agree(tiny):
         assert "Nothing significant" in diag_page
 
 
-def test_report_warning_in_plain_words(tiny, tmp_path):
+def test_report_warning_in_plain_words(new_measurement):
     """Data the model cannot explain (a scaled gauge) raises a χ²/dof warning with what to do."""
-    study, _, _ = tiny
-    d = tmp_path / "bad"
-    shutil.copytree(study.parent, d)
-    lines = (d / "measured.csv").read_text().splitlines()
-    lines[1:] = [",".join([c.split(",")[0]] + [f"{1.3 * float(v):.8g}" if j == 0 else v
-                                               for j, v in enumerate(c.split(",")[1:])]) for c in lines[1:]]
-    (d / "measured.csv").write_text("\n".join(lines) + "\n")
-    _run(d / "study.toml", d / "out")
+    d, _, _, _ = new_measurement
     source = (d / "out" / "report" / "index.html").read_text()
     assert "does not reproduce the data within the stated noise" in source
     assert "What to do:" in source

@@ -32,11 +32,11 @@ Example
 -------
 >>> from fe.scenarios import build_scenario
 >>> from podkrig.parameters import ParameterSpace
->>> from podkrig.runner import run_snapshots
+>>> from podkrig.offline.runner import run_snapshots
 >>> sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
 >>> space = ParameterSpace.from_scenario(sc, {"kN_bj": (10, 1000, "log")})
->>> summary = run_snapshots("snapshots/demo.h5", sc, space, n=16, seed=0, workers=1)  # doctest: +SKIP
->>> summary.done                                                                     # doctest: +SKIP
+>>> summary = run_snapshots("snapshots/demo.h5", sc, space, n=16, seed=0, workers=1)
+>>> summary.done
 16
 
 Why one module of ~650 lines (half documentation): the resumable run loop and its two executors

@@ -20,7 +20,7 @@ from an integer ``seed`` (recorded by the snapshot store); map it to physical va
 
 Example
 -------
->>> from podkrig.sampling import sobol
+>>> from podkrig.offline.sampling import sobol
 >>> U = sobol(8, 3, seed=1)
 >>> U.shape
 (8, 3)

@@ -55,9 +55,17 @@ atomic publication, moving aside, disk space) are in :mod:`podkrig.offline.files
 
 Example
 -------
->>> with SnapshotStore.open("snapshots/panel.h5") as store:      # doctest: +SKIP
+>>> from fe.scenarios import build_scenario
+>>> from podkrig.offline.runner import run_snapshots
+>>> from podkrig.parameters import ParameterSpace
+>>> sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+>>> space = ParameterSpace.from_scenario(sc, {"kN_bj": (10, 1000, "log")})
+>>> _ = run_snapshots("snapshots/panel.h5", sc, space, n=8, seed=0, workers=1)
+>>> with SnapshotStore.open("snapshots/panel.h5") as store:
 ...     Y = store.snapshot_matrix()      # (n_done, n_loads * n_sensors), mm
 ...     X = store.parameters()           # (n_done, n_params), physical units
+>>> Y.shape, X.shape
+((8, 24), (8, 1))
 
 References
 ----------

@@ -9,8 +9,8 @@ inputs (:mod:`podkrig.study.pipeline`), and writes one HTML report.
 Example
 -------
 >>> from podkrig.study import load_study, run_study
->>> study = load_study("examples/diagonal_compression.toml")             # doctest: +SKIP
->>> result = run_study(study, "out/demo")                                  # doctest: +SKIP
+>>> study = load_study("examples/diagonal_compression.toml")
+>>> result = run_study(study, "out/demo")       # the demo, about a minute  # doctest: +SKIP
 >>> result.stage("region").result["intervals"]["kN_bj"]                    # doctest: +SKIP
 [68.27..., 71.61...]
 """

@@ -59,8 +59,8 @@ File layout (units: N, mm, MPa; interface stiffness N/mm³; loads in the scenari
 
 Example
 -------
->>> study = load_study("examples/diagonal_compression.toml")      # doctest: +SKIP
->>> study.space.names                                               # doctest: +SKIP
+>>> study = load_study("examples/diagonal_compression.toml")
+>>> study.space.names
 ('E_b', 'kN_bj', 'kV_bj', 'r_hj')
 """
 

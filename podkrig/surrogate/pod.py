@@ -9,7 +9,7 @@ coefficients of snapshots are ``(Y - mean_) @ modes_.T`` and the reconstruction 
 Example
 -------
 >>> import numpy as np
->>> from podkrig.pod import POD
+>>> from podkrig.surrogate.pod import POD
 >>> rng = np.random.default_rng(0)
 >>> Y = rng.random((20, 3)) @ rng.random((3, 50))        # rank-3 data, 20 snapshots of 50 outputs
 >>> pod = POD(energy=1 - 1e-12).fit(Y)

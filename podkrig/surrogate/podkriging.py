@@ -9,8 +9,8 @@ Example
 -------
 >>> import numpy as np
 >>> from podkrig.surrogate import PODKriging
->>> from podkrig.pod import POD
->>> from podkrig.kriging import OrdinaryKriging
+>>> from podkrig.surrogate.pod import POD
+>>> from podkrig.surrogate.kriging import OrdinaryKriging
 >>> rng = np.random.default_rng(0)
 >>> X = rng.uniform([10, 4], [1000, 400], size=(40, 2))
 >>> Y = np.stack([np.outer([1, 2, 3], [1 / x[0], 1 / x[1], 1 / x[0] + 1 / x[1]]) for x in X])
