@@ -11,10 +11,11 @@ The public API, by stage (each name also lives in its stage's module)::
     from podkrig import read_measurement, load_surrogate, save_surrogate  # files (podkrig.io)
     from podkrig import (Measurement, NoiseModel,                       # online
                          InverseProblem, JointProblem, SurrogateModel, FEModel, invert, fe_check,
-                         invert_with_model_form_error,
-                         likelihood_ratio_region, rvc, nested_analyses, sample_posterior,
+                         calibrate, CalibrationResult, CalibrationSettings, InversionSettings,
+                         RegionSettings, NoiseSettings, likelihood_ratio_region, rvc, nested_analyses, sample_posterior,
                          reading_sensitivity, misfit_sensitivity)
-    from podkrig import diagnose, place_sensors                         # diagnosis, test design
+    from podkrig import diagnose, DiagnosisResult, DiagnosisSettings    # diagnosis
+    from podkrig import place_sensors                                   # test design
     from podkrig import load_study, run_study                           # studies
     from podkrig import minimize, GeneticAlgorithm, GAOptions           # the GA
 
@@ -61,7 +62,14 @@ _PUBLIC = {
     "fix_from_scenario": "podkrig.online.problem",
     "invert": "podkrig.online.invert",
     "fe_check": "podkrig.online.invert",
-    "invert_with_model_form_error": "podkrig.online.invert",
+    "calibrate": "podkrig.online.calibrate",
+    "CalibrationResult": "podkrig.online.calibrate",
+    "CalibrationSettings": "podkrig.online.settings",
+    "InversionSettings": "podkrig.online.settings",
+    "RegionSettings": "podkrig.online.settings",
+    "NoiseSettings": "podkrig.online.settings",
+    "DiagnosisResult": "podkrig.diagnosis.results",
+    "DiagnosisSettings": "podkrig.diagnosis.settings",
     "likelihood_ratio_region": "podkrig.online.region",
     "noise_monte_carlo_region": "podkrig.online.region",
     "rvc": "podkrig.online.propagation",

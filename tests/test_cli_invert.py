@@ -46,20 +46,21 @@ def test_invert_json_and_report(surrogates):
     report = d / "report"
     out = json.loads(_ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01,
                           "--report", report, "--format", "json", "--region-samples", 16384, "--mcmc-steps", 600]))
-    assert set(out) >= {"parameters", "intervals", "chi2_dof", "misfit", "n_evaluations", "seconds", "fe_check"}
+    assert set(out) >= {"inversion", "region", "posterior", "rvc", "findings", "warnings", "settings", "seconds"}
+    inv = out["inversion"]
     for name, value in truth.items():
-        lo, hi = out["intervals"][name]
-        assert lo <= out["parameters"][name] <= hi
+        lo, hi = out["region"]["intervals"][name]
+        assert lo <= inv["parameters"][name] <= hi
     # the FE check: the surrogate (64 snapshots) is within the 1 % noise of the FE model at the optimum,
     # and max |FE − surrogate| / (its ratio to σ) is one of the σ_i = 0.01 |d_i| of the data
-    fe = out["fe_check"]
+    fe = inv["fe_check"]
     assert fe["ok"] and 0 < fe["max_diff_over_noise"] <= 1 and 0 < fe["rel_diff"] < 1e-2
     d = np.abs(np.loadtxt(data, delimiter=",", skiprows=1)[:, 1:])
     assert 0.01 * d.min() * 0.999 <= fe["max_abs_diff"] / fe["max_diff_over_noise"] <= 0.01 * d.max() * 1.001
     # a purely relative 1 % noise gives the ~1 µm U1 gauge σ ≈ 0.01 µm: flagged as below any instrument
     # (issue 14); nothing else is found
-    assert "posterior" in out and [f["code"] for f in out["findings"]] == ["noise-below-floor"]
-    assert "U1" in out["findings"][0]["what"]
+    assert out["posterior"] is not None and [f["code"] for f in out["findings"]] == ["noise-below-floor"]
+    assert "U1" in out["findings"][0]["values"]["sigma_mm"] and "U1" in out["warnings"][0]["what"]
     html = (report / "index.html").read_text()
     for fig in ("fit.png", "residuals.png", "region.png", "ga_history.png", "ga_parameters.png"):
         assert (report / fig).stat().st_size > 1000 and fig in html
@@ -105,10 +106,12 @@ def test_invert_warns_when_the_noise_is_understated(surrogates):
     args = ["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.003, "--region-samples", 4096,
             "--no-fe-check"]
     out = json.loads(_ok([*args, "--format", "json"]))
-    assert 2 < out["chi2_dof"] < 100
-    chi2 = [f for f in out["findings"] if f["code"] == "chi2-dof"]
-    assert len(chi2) == 1 and f"χ²/dof = {out['chi2_dof']:.2f}" in chi2[0]["what"]
-    assert chi2[0]["what"] in out["warnings"] and "podkrig diagnose" in chi2[0]["what_to_do"]
+    chi2_dof = out["inversion"]["chi2_dof"]
+    assert 2 < chi2_dof < 100
+    assert [f["code"] for f in out["warnings"]] == [f["code"] for f in out["findings"]]
+    chi2 = [f for f in out["warnings"] if f["code"] == "chi2-dof"]
+    assert len(chi2) == 1 and f"χ²/dof = {chi2_dof:.2f}" in chi2[0]["what"]
+    assert "podkrig diagnose" in chi2[0]["what_to_do"]
     text = _ok(args)
     assert "does not reproduce the data within the stated noise" in " ".join(text.split())  # wrapped by the terminal
 
@@ -117,10 +120,12 @@ def test_invert_noise_monte_carlo_region(surrogates):
     sur, data, truth, _ = surrogates
     out = json.loads(_ok(["invert", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01, "--fix", "E_b=11000",
                           "--region-method", "noise-mc", "--no-fe-check", "--format", "json"]))
-    assert set(out["parameters"]) == {"kN_bj", "kV_bj", "r_hj"} and out["fixed"] == {"E_b": 11000.0}
-    for name in out["parameters"]:
-        lo, hi = out["intervals"][name]
-        assert lo < out["parameters"][name] < hi
+    inv = out["inversion"]
+    assert set(inv["parameters"]) == {"kN_bj", "kV_bj", "r_hj"} and inv["fixed"] == {"E_b": 11000.0}
+    assert out["region"]["method"] == "noise-mc"
+    for name in inv["parameters"]:
+        lo, hi = out["region"]["intervals"][name]
+        assert lo < inv["parameters"][name] < hi
 
 
 @pytest.mark.parametrize(
@@ -128,7 +133,7 @@ def test_invert_noise_monte_carlo_region(surrogates):
     [
         (["--noise-rel", "0.01", "--instrument", "lvdt"], "give one noise model"),
         ([], "give one noise model"),
-        (["--instrument", "laser"], "--instrument 'laser': known instruments are lvdt, dial_gauge, dic"),
+        (["--instrument", "laser"], "--instrument 'laser'"),
         (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end': expected first, none or a load"),
         (["--noise-rel", "0.01", "--zero", "end of shear"], "zero = 'end of shear' needs a phase column 'phase'"),
         (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
@@ -179,14 +184,17 @@ def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(su
                                             sc.sensor_names, sc.load_levels))
     common = ["invert", sur["diagonal_compression"], "--data", fine, "--noise-rel", 0.002, "--format", "json",
               "--region-samples", 16384]
-    plain = json.loads(_ok(common))
-    assert plain["chi2_dof"] > 10 and plain["model_form_error"] is None
-    assert max(abs(plain["parameters"][n] / truth[n] - 1) for n in truth) > 0.3
-    out = json.loads(_ok(common + ["--model-form-error", "estimated"]))
+    plain = json.loads(_ok(common))["inversion"]
+    assert plain["chi2_dof"] > 10 and "model_form_error" not in plain["measurement"]
+    out = json.loads(_ok(common + ["--model-form-error", "estimated"]))["inversion"]
     for name, value in truth.items():
         assert abs(out["parameters"][name] / value - 1) < 0.05, (name, out["parameters"][name])
+    # noise alone is pulled far off (0.2–0.4 in the worst parameter, with the optimiser's path on
+    # this machine or another): at least three times the error left with the estimate
+    error = {k: max(abs(r["parameters"][n] / truth[n] - 1) for n in truth) for k, r in (("plain", plain), ("mfe", out))}
+    assert error["plain"] > 3 * error["mfe"], error
     assert out["chi2_dof"] < 2
-    mfe = out["model_form_error"]
+    mfe = out["measurement"]["model_form_error"]
     assert mfe["method"] == "two meshes" and mfe["mesh"] == "Q8 2×1 and 4×2 per unit" and mfe["rate"] == 0.8
     assert 0.002 < mfe["median_relative"] < 0.2
     assert "FE model-form error" in out["chi2_basis"] and "two meshes" in out["chi2_basis"]
@@ -194,8 +202,9 @@ def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(su
     # same optimum, far from the data it does not fit within the noise alone
     assert out["fe_check"]["chi2_dof_fe"] > 10 * out["chi2_dof"]
     # a fixed tolerance instead: ε = 1 % of each reading
-    fixed = json.loads(_ok(common + ["--model-form-error", "0.01"]))
-    assert fixed["model_form_error"]["method"] == "tolerance" and fixed["model_form_error"]["tolerance"] == 0.01
+    fixed = json.loads(_ok(common + ["--model-form-error", "0.01"]))["inversion"]
+    mfe = fixed["measurement"]["model_form_error"]
+    assert mfe["method"] == "tolerance" and mfe["tolerance"] == 0.01
     assert "ε = 1 % of each reading" in fixed["chi2_basis"]
 
 

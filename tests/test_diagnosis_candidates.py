@@ -20,6 +20,7 @@ from fe.scenarios.flat_jack import homogeneous_slot_spec
 from podkrig.diagnosis import (
     CANDIDATES,
     DEFAULT_CANDIDATES,
+    DiagnosisSettings,
     FEContext,
     build_base_surrogate,
     diagnose,
@@ -45,9 +46,10 @@ class Setup:
         self.space = ParameterSpace.from_scenario(self.scenario, bounds)
         self.surrogate = build_base_surrogate(self.scenario, self.space, self.scenario.resolve(), 64, 0)
 
-    def diagnose(self, measurement, noise, candidates=None, seed=0, **options):
-        return diagnose(self.scenario, measurement, noise, self.space, surrogate=self.surrogate,
-                        candidates=candidates, rng=seed, **options)
+    def diagnose(self, measurement, noise, candidates=None, seed=0, model_tolerance=None, **options):
+        return diagnose(self.scenario, measurement, noise, self.space,
+                        DiagnosisSettings(seed=seed, model_tolerance=model_tolerance), surrogate=self.surrogate,
+                        candidates=candidates, **options)
 
 
 @pytest.fixture(scope="module")

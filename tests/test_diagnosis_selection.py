@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose
 
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
-from podkrig.diagnosis import CANDIDATES, Diagnosis, FEContext, build_base_surrogate, diagnose
+from podkrig.diagnosis import CANDIDATES, DiagnosisResult, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
 from podkrig.online.model_error import discretisation_error, tolerance_error
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
@@ -139,7 +139,8 @@ def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
     rng = np.random.default_rng(18)
     sigma = 0.002
     m = Measurement(R + sigma * rng.standard_normal(R.shape), wall.sensor_names, wall.load_levels, "two effects")
-    d = diagnose(wall, m, NoiseModel(sigma=sigma), space, model_tolerance=0.0, rng=1, rigid_body="keep")
+    d = diagnose(wall, m, NoiseModel(sigma=sigma), space, DiagnosisSettings(seed=1, model_tolerance=0.0),
+                 rigid_body="keep")
     assert d.verdict == "inadequate"
     named = {c.name: c.value for c in d.causes}
     assert set(named) == {"unit_stiffness", "head_joint_stiffness"}, [s.to_dict() for s in d.steps]
@@ -153,7 +154,7 @@ def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
     assert [c["cause"] for c in out["causes"]] == [s.score.name for s in d.steps]
     assert [s["cause"] for s in out["gain"]["steps"]] == [c.name for c in d.causes]
     full = json.loads(json.dumps(d.to_dict(state=True)))
-    back = Diagnosis.from_dict(full, scenario=wall)
+    back = DiagnosisResult.from_dict(full, scenario=wall)
     assert back.to_dict(state=True) == full
 
 
@@ -175,7 +176,7 @@ def test_clean_data_from_an_independent_discretisation_raise_at_most_one_alarm_i
         R = data_model.run(truth).readings
         sigma = max(0.01 * float(np.max(np.abs(R))), 1e-3)
         m = Measurement(R + sigma * rng.standard_normal(R.shape), wall.sensor_names, wall.load_levels, "Q4 data")
-        d = diagnose(wall, m, NoiseModel(sigma=sigma), space, surrogate=surrogate, rng=k)
+        d = diagnose(wall, m, NoiseModel(sigma=sigma), space, DiagnosisSettings(seed=k), surrogate=surrogate)
         if d.verdict != "adequate":
             alarms.append((k, [c.name for c in d.causes], round(d.base.chi2_dof, 2)))
     assert len(alarms) <= 1, alarms

@@ -282,7 +282,7 @@ def test_fuzz_study_measurement_blocks(entries):
         study = load_study(path)
         m = study.measurement
         read_measurement(m.file, ("D1", "D2"), (25.0, 50.0), "kN", "affine", m.import_settings())
-        m.noise_model(("D1",))
+        m.noise.noise_model(("D1",))
 
     _own_error_or_success(load_and_read)
 

@@ -1,5 +1,5 @@
 """A joint calibration study (``[[test]]`` tables, issue 19 item 3) end to end on coarse meshes:
-per-test stages and files, one inversion and region over the shared parameters, a per-test
+per-test stages and files, one calibration over the shared parameters, a per-test
 nuisance parameter, per-test χ²/dof, FE checks and diagnoses, the cache, the report, and the
 study-file errors of the joint form."""
 
@@ -105,16 +105,17 @@ def test_joint_study_runs_each_test_and_fits_them_together(joint):
     stages = {p.stem: json.loads(p.read_text()) for p in (out / "stages").glob("*.json")}
     per_test = {f"{s}.{t}" for t in ("diagonal", "shear")
                 for s in ("measurement", "probe", "offline", "held_out", "surrogate", "held_out_validation", "diagnosis")}
-    assert set(stages) == per_test | {"sensitivity", "inversion", "region", "rvc"}
+    assert set(stages) == per_test | {"sensitivity", "calibration"}
     sens = stages["sensitivity"]["result"]
     assert set(sens["readings"]) == {"diagonal", "shear"} and sens["misfit"]["parameters"] == ["kN_bj", "kV_bj", "r_hj"]
     assert sens["readings"]["diagonal"]["parameters"] == ["kN_bj", "kV_bj"]
     assert stages["offline.diagonal"]["fe_runs"] == 16 and stages["offline.shear"]["fe_runs"] == 24  # its own design
-    assert stages["inversion"]["fe_runs"] == 2  # one FE check per test
+    assert stages["calibration"]["fe_runs"] == 2  # one FE check per test
     for t in ("diagonal", "shear"):
         assert (out / t / "train.h5").is_file() and (out / t / "surrogate.h5").is_file()
     summary = json.loads((out / "summary.json").read_text())
-    inv = summary["stages"]["inversion"]
+    calibration = summary["stages"]["calibration"]
+    inv = calibration["inversion"]
     assert set(inv["parameters"]) == {"kN_bj", "kV_bj", "r_hj"}  # shared, then the shear test's own
     assert set(inv["tests"]["diagonal"]["parameters"]) == {"kN_bj", "kV_bj"}
     assert set(inv["tests"]["shear"]["parameters"]) == {"kN_bj", "kV_bj", "r_hj"}
@@ -124,11 +125,11 @@ def test_joint_study_runs_each_test_and_fits_them_together(joint):
     assert inv["chi2"] == pytest.approx(sum(inv["tests"][t]["chi2"] for t in ("diagonal", "shear")), rel=1e-9)
     for t in ("diagonal", "shear"):
         assert inv["tests"][t]["fe_check"] is not None
-    region = summary["stages"]["region"]
+    region = calibration["region"]
     assert region["names"] == ["kN_bj", "kV_bj", "r_hj"]
     for name, (lo, hi) in region["intervals"].items():
         assert lo <= inv["parameters"][name] <= hi
-    assert set(summary["stages"]["rvc"]["models"]) == {"calibration.diagonal", "calibration.shear"}
+    assert set(calibration["rvc"]) == {"calibration.diagonal", "calibration.shear"}
     assert "test diagonal:" in text and "test shear:" in text  # the CLI's χ²/dof and checks, per test
 
 

@@ -8,16 +8,19 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from podkrig._qmc import rng_seed
+from podkrig.online.calibrate import calibrate
 from podkrig.online.findings import (
     CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
     inversion_findings, is_identifiable, offline_findings,
 )
-from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert, rng_seed
+from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.nested import NestedAnalysis, OverparamResult, information_criteria, nested_analyses
 from podkrig.online.problem import InverseProblem, fix_from_scenario
 from podkrig.online.propagation import RVCResult, rvc
 from podkrig.online.region import Region, identifiability, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.online.settings import CalibrationSettings, InversionSettings, RegionSettings
 from podkrig.reports.findings import FindingText, word
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.reports.inverse import write_inversion_report
@@ -255,10 +258,10 @@ def test_chi2_warning_between_the_limit_and_far_beyond():
 
 def test_report_shows_the_chi2_warning(tmp_path):
     """Fails if the report's χ²/dof warning threshold is raised (the report applies the policy)."""
-    problem = _problem(scale=1.08)
-    result = invert(problem, rng=0, population_size=20, generations=10, n_starts=2)
-    region = likelihood_ratio_region(problem, result.x, n_samples=2**10, rng=0)
-    page = write_inversion_report(tmp_path, result, region).read_text(encoding="utf-8")
+    settings = CalibrationSettings(inversion=InversionSettings(population_size=20, generations=10, n_starts=2),
+                                   region=RegionSettings(samples=2**10), fe_check=False)
+    calibration = calibrate(_problem(scale=1.08), settings)
+    page = write_inversion_report(tmp_path, calibration).read_text(encoding="utf-8")
     assert "does not reproduce the data within the stated noise" in page and "podkrig diagnose" in page
     assert page.count("does not reproduce the data") == 1  # said once, not by two policies
 

@@ -329,7 +329,7 @@ def test_noise_monte_carlo_region_is_its_seeded_refits():
     X, n_eval = _noisy_refits(problem, x_best, 20, 7)
     assert_allclose(mc.samples, X, rtol=0)
     assert mc.n_evaluated == n_eval
-    assert (mc.method, mc.confidence, mc.names, mc.units) == ("noise-monte-carlo", 0.9, ("m1", "m2"), ("MPa", "-"))
+    assert (mc.method, mc.confidence, mc.names, mc.units) == ("noise-mc", 0.9, ("m1", "m2"), ("MPa", "-"))
     assert np.isnan(mc.threshold) and mc.omega.shape == (20,) and np.isnan(mc.omega).all()
     assert mc.identifiability == identifiability(mc.intervals, problem.free_space)
     assert 0 < mc.seconds <= wall

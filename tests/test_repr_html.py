@@ -47,7 +47,8 @@ def test_a_running_ipython_shows_the_online_results_as_these_tables(monkeypatch)
     shell = types.SimpleNamespace(display_formatter=types.SimpleNamespace(formatters={"text/html": Formatter()}))
     monkeypatch.setitem(sys.modules, "IPython", types.SimpleNamespace(get_ipython=lambda: shell))
     importlib.reload(podkrig)
-    assert calls == [("podkrig.online.invert", "InverseResult", jupyter.inverse_result_html),
+    assert calls == [("podkrig.online.calibrate", "CalibrationResult", jupyter.calibration_html),
+                     ("podkrig.online.invert", "InverseResult", jupyter.inverse_result_html),
                      ("podkrig.online.region", "Region", jupyter.region_html)]
     for module, name, _ in calls:  # the names are real
         assert getattr(importlib.import_module(module), name).__name__ == name

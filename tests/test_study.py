@@ -15,10 +15,8 @@ from typer.testing import CliRunner
 from fe.scenarios import build_scenario
 from podkrig.cli import app
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
-from podkrig.online.invert import InverseResult
 from podkrig.online.measurement import Measurement
 from podkrig.io.measurement_log import write_measurement_csv
-from podkrig.online.region import Region
 from podkrig.reports.figures import read_panels
 from podkrig.reports.jupyter import inverse_result_html, region_html
 from podkrig.reports.study import SECTIONS
@@ -107,19 +105,22 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     assert "identified parameters" in text and "report:" in text and "FE runs" in text
     stages = _stages(out)
     assert set(stages) == {"measurement", "probe", "offline", "held_out", "validation_model.shear", "surrogate",
-                           "held_out_validation", "sensitivity", "inversion", "region", "rvc", "diagnosis"}
+                           "held_out_validation", "sensitivity", "calibration", "diagnosis"}
     assert stages["probe"]["fe_runs"] == 5  # the centre, and each of the 2 parameters at its bounds
     assert stages["offline"]["fe_runs"] == 16 and stages["held_out"]["fe_runs"] == 4
-    assert stages["validation_model.shear"]["fe_runs"] == 8 and stages["inversion"]["fe_runs"] == 1
+    assert stages["validation_model.shear"]["fe_runs"] == 8 and stages["calibration"]["fe_runs"] == 1
     for m in stages.values():  # every output file is recorded with its hash
         for rel, sha in m["outputs"].items():
             assert (out / rel).is_file() and len(sha) == 64
     summary = json.loads((out / "summary.json").read_text())
-    params = summary["stages"]["inversion"]["parameters"]
+    calibration = summary["stages"]["calibration"]
+    params = calibration["inversion"]["parameters"]
     assert set(params) == {"kN_bj", "kV_bj"}
-    for name, (lo, hi) in summary["stages"]["region"]["intervals"].items():
+    for name, (lo, hi) in calibration["region"]["intervals"].items():
         assert lo <= params[name] <= hi
-    assert summary["stages"]["rvc"]["models"]["shear"]["outputs"] == ["top_ux@40", "D1@40"]
+    assert calibration["rvc"]["shear"]["outputs"] == ["top_ux@40", "D1@40"]
+    with np.load(out / "region.npz") as f:
+        assert len(f["samples"]) == calibration["region"]["n_members"]
 
 
 def test_rerun_with_nothing_changed_does_no_fe_work(tiny, fe_counter):
@@ -160,9 +161,9 @@ def new_measurement(tiny, tmp_path_factory, count_fe_runs):
 def test_new_measurement_reruns_only_the_online_stages(new_measurement):
     _, before, after, calls = new_measurement
     rerun = {k for k in after if after[k]["finished"] != before[k]["finished"] or after[k]["input_hash"] != before[k]["input_hash"]}
-    assert rerun == {"measurement", "sensitivity", "inversion", "region", "rvc", "diagnosis"}  # the check does no FE work
+    assert rerun == {"measurement", "sensitivity", "calibration", "diagnosis"}  # the check does no FE work
     # FE work only in the online stages: the check at the new optimum and the diagnosis' refits
-    assert 1 <= calls <= after["inversion"]["fe_runs"] + after["diagnosis"]["fe_runs"]
+    assert 1 <= calls <= after["calibration"]["fe_runs"] + after["diagnosis"]["fe_runs"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -321,9 +322,9 @@ def test_report_figures_and_words_agree(tiny):
     for basis in (CHI2_BASIS["surrogate"], CHI2_BASIS["fe_check"], CHI2_BASIS["diagnosis"]):
         assert basis in study_page, basis
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))["stages"]
-    assert summary["inversion"]["residual_convention"] == RESIDUAL_CONVENTION
+    assert summary["calibration"]["inversion"]["residual_convention"] == RESIDUAL_CONVENTION
     assert summary["diagnosis"]["residual_convention"] == RESIDUAL_CONVENTION
-    assert summary["inversion"]["chi2_basis"] == CHI2_BASIS["surrogate"]
+    assert summary["calibration"]["inversion"]["chi2_basis"] == CHI2_BASIS["surrogate"]
     assert summary["diagnosis"]["adequacy"]["basis"].startswith(CHI2_BASIS["diagnosis"])
     assert "estimated per reading from two meshes" in summary["diagnosis"]["adequacy"]["basis"]
     # the CLI prints the three χ²/dof with their bases too
@@ -350,10 +351,10 @@ def test_report_warning_in_plain_words(new_measurement):
 
 
 def test_study_estimates_the_model_form_error_when_asked(tiny, tmp_path, fe_counter):
-    """``[measurement] model_form_error = "estimated"``: one stage more (two FE runs, the coarse and the
-    twice-refined mesh at a first optimum), its estimate in C_D of the inversion and the region (a
-    wider region than with noise alone: more variance per reading), nothing offline rerun; a
-    fixed ε is taken as given, without the stage."""
+    """``[measurement] model_form_error = "estimated"``: two FE runs more in the calibration (the
+    coarse and the twice-refined mesh at a first optimum), its estimate in C_D of the inversion and
+    the region (a wider region than with noise alone: more variance per reading), nothing offline
+    rerun; a fixed ε is taken as given, without FE runs."""
     study, out0, _ = tiny
     d = tmp_path / "copy"
     shutil.copytree(study.parent, d)
@@ -361,20 +362,22 @@ def test_study_estimates_the_model_form_error_when_asked(tiny, tmp_path, fe_coun
     counter = fe_counter()
     _run(d / "study.toml", d / "out")
     stages = _stages(d / "out")
-    assert stages["model_form_error"]["fe_runs"] == 2
-    assert counter.calls <= 2 + stages["inversion"]["fe_runs"] + stages["diagnosis"]["fe_runs"]
-    estimate = stages["model_form_error"]["result"]["None"]
+    assert stages["calibration"]["fe_runs"] == 2 + 1  # the two meshes, and the FE check
+    assert counter.calls <= stages["calibration"]["fe_runs"] + stages["diagnosis"]["fe_runs"]
+    calibration = stages["calibration"]["result"]
+    estimate = calibration["model_form_errors"]["calibration"]
     assert estimate["method"] == "two meshes" and estimate["mesh"] == "Q8 2×1 and 4×2 per unit"
-    inv = stages["inversion"]["result"]
-    assert inv["measurement"]["model_form_error"]["median_relative"] == estimate["median_relative"]
+    inv = calibration["inversion"]
+    assert inv["measurement"]["model_form_error"]["mesh"] == estimate["mesh"]
+    assert len(estimate["std_mm"]) == inv["measurement"]["n_obs"] and min(estimate["std_mm"]) >= 0
     assert "FE model-form error" in inv["chi2_basis"]
     plain = _stages(out0)
-    width = {k: np.log(hi / lo) for k, (lo, hi) in stages["region"]["result"]["intervals"].items()}
-    width0 = {k: np.log(hi / lo) for k, (lo, hi) in plain["region"]["result"]["intervals"].items()}
+    width = {k: np.log(hi / lo) for k, (lo, hi) in calibration["region"]["intervals"].items()}
+    width0 = {k: np.log(hi / lo) for k, (lo, hi) in plain["calibration"]["result"]["region"]["intervals"].items()}
     assert all(width[k] > width0[k] for k in width)
     (d / "study.toml").write_text(TINY.replace("noise_rel = 0.01", "noise_rel = 0.01\nmodel_form_error = 0.02"))
     _run(d / "study.toml", d / "out")
-    inv = _stages(d / "out")["inversion"]["result"]
+    inv = _stages(d / "out")["calibration"]["result"]["inversion"]
     assert "ε = 2 % of each reading" in inv["chi2_basis"] and inv["measurement"]["model_form_error"]["tolerance"] == 0.02
 
 
@@ -389,7 +392,7 @@ def test_study_with_a_library_backend(tmp_path):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     sur = summary["stages"]["surrogate"]
     assert sur["backend"] == "sklearn-gpr" and "beta" not in sur and "scikit-learn" in sur["description"]
-    assert summary["stages"]["inversion"]["chi2_dof"] < 5
+    assert summary["stages"]["calibration"]["inversion"]["chi2_dof"] < 5
     assert "sklearn-gpr" in (tmp_path / "out" / "report" / "index.html").read_text()
 
 
@@ -399,9 +402,7 @@ def test_results_show_in_jupyter(tiny):
     includes, and the figures inline."""
     study, out, _ = tiny
     result = run_study(load_study(study), out)  # every stage cached: seconds
-    inv = InverseResult.from_dict(result.stage("inversion").result)
-    with np.load(out / "region.npz") as f:
-        region = Region.from_dict(result.stage("region").result, samples=f["samples"], omega=f["omega"])
+    inv, region = result.calibration.inversion, result.calibration.region
     for obj, words, text in (
             (result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION],
              result._repr_html_()),

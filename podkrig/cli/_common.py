@@ -21,6 +21,8 @@ from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
 from podkrig.offline.settings import Design
+from podkrig.online.rigid_body import RIGID_BODY_CHOICES
+from podkrig.online.settings import RegionSettings
 from podkrig.sensors.settings import SearchSettings
 from podkrig.surrogate.settings import SurrogateSettings
 
@@ -49,13 +51,18 @@ __all__ = [
 ]
 
 
-def _choices_enum(name, cls, field, doc):
-    """A :class:`enum.StrEnum` of the choices of settings field ``cls.field``
-    (:func:`podkrig.config.choices`): members named by the words with ``-`` as ``_``."""
-    members = StrEnum(name, {word.replace("-", "_"): word for word in choices(cls, field)})
+def _words_enum(name, words, doc):
+    """A :class:`enum.StrEnum` of ``words``: members named by the words with ``-`` as ``_``."""
+    members = StrEnum(name, {word.replace("-", "_"): word for word in words})
     members.__doc__ = doc
     members.__module__ = __name__
     return members
+
+
+def _choices_enum(name, cls, field, doc):
+    """A :class:`enum.StrEnum` of the choices of settings field ``cls.field``
+    (:func:`podkrig.config.choices`): members named by the words with ``-`` as ``_``."""
+    return _words_enum(name, choices(cls, field), doc)
 
 
 SamplingMethod = _choices_enum("SamplingMethod", Design, "method",
@@ -69,11 +76,8 @@ PlacementCriterion = _choices_enum("PlacementCriterion", SearchSettings, "criter
                                    "Criterion of the sensor layout (``podkrig sensors --criterion``).")
 
 
-class RegionMethod(StrEnum):
-    """Region of equivalence method (``--region-method``)."""
-
-    likelihood_ratio = "likelihood-ratio"
-    noise_mc = "noise-mc"
+RegionMethod = _choices_enum("RegionMethod", RegionSettings, "method",
+                             "Region of equivalence method (``--region-method``).")
 
 
 class SensitivitySource(StrEnum):
@@ -93,13 +97,10 @@ class LinearSolver(StrEnum):
     superlu = "superlu"
 
 
-class RigidBody(StrEnum):
-    """Removal of the rigid-body motion of absolute displacement readings (``--rigid-body``; the
-    study file's ``[measurement] rigid_body``, :data:`podkrig.online.rigid_body.RIGID_BODY_CHOICES`)."""
-
-    auto = "auto"
-    remove = "remove"
-    keep = "keep"
+#: removal of the rigid-body motion of absolute displacement readings (``--rigid-body``; the study
+#: file's ``[measurement] rigid_body``)
+RigidBody = _words_enum("RigidBody", RIGID_BODY_CHOICES, "Removal of the rigid-body motion of absolute displacement "
+                        "readings (``--rigid-body``).")
 
 
 #: help of ``--rigid-body`` and ``--rigid-group`` (invert, diagnose)

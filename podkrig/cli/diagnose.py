@@ -14,10 +14,15 @@ from podkrig.cli._common import (
     TextFormat,
     configure_logging,
     parse_rigid_groups,
+    settings_from_options,
     user_errors,
 )
 from podkrig.cli.invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
 from podkrig.cli.simulate import load_spec, parse_assignment
+from podkrig.config import field_info
+from podkrig.diagnosis.settings import DiagnosisSettings
+
+_DIAGNOSIS = field_info(DiagnosisSettings)
 
 
 def register(app):
@@ -32,15 +37,19 @@ def register(app):
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
         candidates: str = typer.Option(None, "--candidates", help="Comma-separated candidate causes (default: all but nonlinearity_onset, which costs 10-20 nonlinear runs)."),
-        alpha: float = typer.Option(0.01, "--alpha", help="Significance level of the tests (multiplicity-corrected)."),
+        alpha: float = typer.Option(_DIAGNOSIS["alpha"]["default"], "--alpha",
+                                    help="Significance level of the tests (multiplicity-corrected)."),
         model_tolerance: float = typer.Option(
-            None, "--model-tolerance", help="A fixed relative model-form tolerance added to the noise (0.01 = 1 % of "
-            "each reading), instead of the default: each reading's discretisation error estimated from a mesh refined twice."),
-        max_causes: int = typer.Option(3, "--max-causes", min=1, help="Most causes named in turn (forward selection)."),
+            _DIAGNOSIS["model_tolerance"]["default"], "--model-tolerance",
+            help="A fixed relative model-form tolerance added to the noise (0.01 = 1 % of each reading), instead of "
+                 "the default: each reading's discretisation error estimated from a mesh refined twice."),
+        max_causes: int = typer.Option(_DIAGNOSIS["max_causes"]["default"], "--max-causes",
+                                       help="Most causes named in turn (forward selection)."),
         rigid_body: RigidBody = typer.Option(RigidBody.auto, "--rigid-body", help=RIGID_BODY_HELP),
         rigid_group: list[str] = typer.Option([], "--rigid-group", help=RIGID_GROUP_HELP),
-        seed: int = typer.Option(0, "--seed", help="Seed of the surrogate design and the GA."),
-        n_train: int = typer.Option(64, "--n-train", help="FE snapshots of the base surrogate."),
+        seed: int = typer.Option(_DIAGNOSIS["seed"]["default"], "--seed", help="Seed of the surrogate design and the GA."),
+        n_train: int = typer.Option(_DIAGNOSIS["n_train"]["default"], "--n-train",
+                                    help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
         format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output: text or json."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -58,6 +67,10 @@ def register(app):
 
             if format not in ("text", "json"):
                 raise ValueError(f"--format must be text or json; got {format!r}")
+            settings = settings_from_options(DiagnosisSettings, {
+                "seed": ("--seed", seed), "max_causes": ("--max-causes", max_causes), "alpha": ("--alpha", float(alpha)),
+                "model_tolerance": ("--model-tolerance", None if model_tolerance is None else float(model_tolerance)),
+                "n_train": ("--n-train", n_train)})
             sc = build_scenario(load_spec(scenario, spec))
             space = ParameterSpace.from_scenario(sc, parse_params(param))
             fixed = dict(parse_assignment(t, "--set") for t in set_)
@@ -68,9 +81,8 @@ def register(app):
             noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names)
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
             with _progress() as progress:
-                result = run_diagnosis(sc, measurement, noise, space, fixed=fixed, candidates=names, alpha=alpha,
-                                       model_tolerance=model_tolerance, max_causes=max_causes, rng=seed,
-                                       n_train=n_train, progress=progress, rigid_body=str(rigid_body),
+                result = run_diagnosis(sc, measurement, noise, space, settings, fixed=fixed, candidates=names,
+                                       progress=progress, rigid_body=str(rigid_body),
                                        rigid_groups=parse_rigid_groups(rigid_group))
             out = result.to_dict()
             if report is not None:

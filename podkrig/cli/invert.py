@@ -1,8 +1,6 @@
 """``podkrig invert`` and ``podkrig rvc``: identify parameters from measured data, with uncertainty."""
 
 import json
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,38 +19,40 @@ from podkrig.cli._common import (
     parse_rigid_groups,
     number,
     print_findings,
+    settings_from_options,
     user_errors,
 )
 from podkrig.cli.simulate import parse_assignment
+from podkrig.config import field_info
+from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.io.surrogate_file import load_surrogate
 from podkrig.limits import check_region_samples
-from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings, measurement_findings
-from podkrig.online.invert import InverseResult, invert, invert_with_model_form_error
-from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
-from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
+from podkrig.online.calibrate import calibrate
+from podkrig.online.findings import chi2_basis
+from podkrig.online.measurement import INSTRUMENTS, NoiseModel
 from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
-from podkrig.online.posterior import sample_posterior
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
-from podkrig.online.propagation import rvc as rvc_of
-from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
+from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
 from podkrig.reports.findings import words
 from podkrig.reports.inverse import write_inversion_report
-from podkrig.surrogate.podkriging import PODKriging
+
+_CALIBRATION = field_info(CalibrationSettings)
+_REGION = field_info(RegionSettings)
+_GA = field_info(InversionSettings)
+_SEED = _GA["seed"]["default"]
 
 
 def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None):
-    """Build the NoiseModel from the CLI options: --noise-abs (σ_res) and/or --noise-rel (δ), combined
-    as σ² = σ_res² + (δ d)²; or --noise-cov; or --instrument (needs the measured ``sensor_names``)."""
+    """The NoiseModel of the CLI options and the noise in words: --noise-abs (σ_res) and/or
+    --noise-rel (δ), combined as σ² = σ_res² + (δ d)², or --instrument (needs the measured
+    ``sensor_names``) — :class:`~podkrig.online.settings.NoiseSettings` — or --noise-cov (a full
+    covariance, mm²)."""
     given = [bool(noise_abs) or noise_rel is not None, noise_cov is not None, instrument is not None]
     if sum(given) != 1:
         raise ValueError("give one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor) and/or "
                          "--noise-rel DELTA, or --noise-cov FILE, or --instrument "
                          + "|".join(INSTRUMENTS))
-    if instrument is not None:
-        if instrument not in INSTRUMENTS:
-            raise ValueError(f"--instrument {instrument!r}: known instruments are {', '.join(INSTRUMENTS)}")
-        return instrument_noise(instrument, sensor_names), INSTRUMENTS[instrument]["text"]
     if noise_cov is not None:
         try:
             C = np.loadtxt(noise_cov, delimiter=",", ndmin=2)
@@ -68,8 +68,29 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
                 raise ValueError(f"--noise-abs {noise_abs[0]!r}: expected a number (mm) or NAME=SIGMA") from None
         else:
             sigma = dict(parse_assignment(t, "--noise-abs") for t in noise_abs)
-    noise = NoiseModel(sigma=sigma, delta=noise_rel)
-    return noise, noise.describe()
+    noise = settings_from_options(NoiseSettings, {"noise_abs": ("--noise-abs", sigma), "noise_rel": ("--noise-rel", noise_rel),
+                                                  "instrument": ("--instrument", instrument)})
+    return noise.noise_model(sensor_names), noise.describe()
+
+
+def calibration_settings(*, seed=_SEED, population_size=_GA["population_size"]["default"],
+                         generations=_GA["generations"]["default"], n_starts=_GA["n_starts"]["default"],
+                         confidence=_CALIBRATION["confidence"]["default"], region_method=_REGION["method"]["default"], region_samples=_REGION["samples"]["default"],
+                         fe_check=_CALIBRATION["fe_check"]["default"], mcmc_steps=_CALIBRATION["mcmc_steps"]["default"],
+                         model_form_error="none"):
+    """The :class:`~podkrig.online.settings.CalibrationSettings` of the CLI options (a refused value
+    names its option)."""
+    check_region_samples(region_samples)
+    form_error = parse_model_form_error(model_form_error)
+    inversion = settings_from_options(InversionSettings, {
+        "seed": ("--seed", seed), "population_size": ("--population-size", population_size),
+        "generations": ("--generations", generations), "n_starts": ("--n-starts", n_starts)})
+    region = settings_from_options(RegionSettings, {"method": ("--region-method", str(region_method)),
+                                                    "samples": ("--region-samples", region_samples)})
+    return settings_from_options(CalibrationSettings, {
+        "inversion": ("", inversion), "region": ("", region), "confidence": ("--confidence", float(confidence)),
+        "fe_check": ("--fe-check", fe_check), "mcmc_steps": ("--mcmc-steps", mcmc_steps),
+        "model_form_error": ("--model-form-error", "none" if form_error is None else form_error)})
 
 
 def parse_load_range(text):
@@ -118,74 +139,6 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
     return problem, model, noise_text
 
 
-@dataclass(frozen=True, eq=False)
-class Inversion:
-    """What ``podkrig invert`` found: the inversion (with its FE check), the region, the posterior
-    (or None) and the findings, with the wall time of it all (s)."""
-
-    result: InverseResult
-    region: Region
-    posterior: object
-    findings: list
-    seconds: float
-
-    def to_dict(self):
-        """The JSON of ``podkrig invert --format json``."""
-        r, region = self.result, self.region
-        d = {
-            "parameters": r.free_parameters,
-            "fixed": {k: float(v) for k, v in r.problem.fixed.items()},
-            "intervals": region.to_dict()["intervals"],
-            "confidence": region.confidence,
-            "chi2_dof": r.chi2_dof,
-            "chi2_basis": r.chi2_basis,
-            "model_form_error": r.measurement.get("model_form_error"),
-            "residual_convention": RESIDUAL_CONVENTION,
-            "misfit": r.misfit,
-            "n_evaluations": r.n_evaluations,
-            "seconds": self.seconds,
-            "inversion_seconds": r.seconds,
-            "fe_check": None if r.fe_check is None else r.fe_check.to_dict(),
-            "identifiability": region.identifiability,
-            "warnings": [f.message for f in self.findings],
-            "findings": [f.to_dict() for f in self.findings],
-        }
-        if self.posterior is not None:
-            p = self.posterior
-            d["posterior"] = {"intervals": {k: list(v) for k, v in p.intervals.items()}, "median": p.median,
-                              "converged": p.converged, "effective_samples": p.effective_samples}
-        return d
-
-
-def run_inversion(problem, model, *, seed, confidence, n_region, fe_check_on, mcmc_steps, region_method="likelihood-ratio",
-                  model_form_error=None):
-    """Inversion + region + identifiability + FE check (+ MCMC) + findings: an :class:`Inversion`;
-    ``model_form_error`` (None, "estimated" or ε) as
-    :func:`~podkrig.online.invert.invert_with_model_form_error` takes it (the region and the
-    posterior then use the problem with it)."""
-    if region_method not in ("likelihood-ratio", "noise-mc"):
-        raise ValueError(f"--region-method must be likelihood-ratio or noise-mc; got {region_method!r}")
-    t0 = time.perf_counter()
-    if model_form_error is None:
-        result = invert(problem, rng=seed)
-    else:
-        result = invert_with_model_form_error(problem, model.scenario(), model_form_error, rng=seed)
-        problem = result.problem
-    if region_method == "noise-mc":
-        region = noise_monte_carlo_region(problem, result.x, confidence=confidence, rng=seed)
-    else:
-        region = likelihood_ratio_region(problem, result.x, confidence=confidence, n_samples=n_region, rng=seed)
-    if fe_check_on:
-        result = result.with_fe_check(model.scenario())
-    posterior = None
-    if mcmc_steps:
-        posterior = sample_posterior(problem, result.x, n_steps=mcmc_steps, confidence=confidence, rng=seed)
-    m = problem.measurement
-    findings = words(measurement_findings(m.check_summary(model.sensor_names, problem.noise))
-                     + inversion_findings(result, region), "cli")
-    return Inversion(result, region, posterior, findings, time.perf_counter() - t0)
-
-
 MODEL_FORM_ERROR_HELP = ("The FE model's own discretisation error in C_D (thesis eq. 2.10): none (default), "
                          "estimated (per reading from the scenario's mesh refined twice, at a first optimum; "
                          "then inverted again) or a relative tolerance, e.g. 0.01 for 1 % of each reading.")
@@ -193,6 +146,9 @@ _NOISE_ABS = typer.Option([], "--noise-abs", help="Absolute noise (resolution fl
                           "or NAME=SIGMA per sensor (repeatable); with --noise-rel: σ² = σ_res² + (δ d)².")
 _NOISE_REL = typer.Option(None, "--noise-rel", help="Relative noise δ (σ_i = δ |d_i|, or combined with --noise-abs).")
 _NOISE_COV = typer.Option(None, "--noise-cov", help="Noise covariance matrix (CSV, mm², load-major order of the data).")
+_SEED_OPTION = typer.Option(_SEED, "--seed", help="Seed of the GA, the region sampling, the posterior and the RVC.")
+_CONFIDENCE_OPTION = typer.Option(_CALIBRATION["confidence"]["default"], "--confidence",
+                                  help="Confidence of the region of equivalence (and of the posterior's intervals).")
 _INSTRUMENT = typer.Option(None, "--instrument", help="Noise of a typical instrument for every sensor: "
                            + ", ".join(INSTRUMENTS) + " (σ² = σ_res² + (δ d)², values in the docs).")
 
@@ -226,13 +182,22 @@ def register(app):
         model_form_error: str = typer.Option("none", "--model-form-error", help=MODEL_FORM_ERROR_HELP),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
-        seed: int = typer.Option(0, "--seed", help="Seed of the GA and of the region sampling."),
-        confidence: float = typer.Option(0.95, "--confidence", help="Confidence of the region of equivalence."),
-        region_samples: int = typer.Option(2**17, "--region-samples", help="Surrogate evaluations per region sampling round."),
-        region_method: RegionMethod = typer.Option(RegionMethod.likelihood_ratio, "--region-method",
-                                          help="Region of equivalence: likelihood-ratio (χ² bound) or noise-mc (re-identify noisy copies)."),
-        mcmc_steps: int = typer.Option(0, "--mcmc-steps", help="Also sample the Bayesian posterior by MCMC (steps; 0 = off)."),
-        fe_check: bool = typer.Option(True, "--fe-check/--no-fe-check", help="Run the FE model once at the optimum."),
+        seed: int = _SEED_OPTION,
+        population_size: int = typer.Option(_GA["population_size"]["default"], "--population-size",
+                                            help="GA population size."),
+        generations: int = typer.Option(_GA["generations"]["default"], "--generations", help="GA generations."),
+        n_starts: int = typer.Option(_GA["n_starts"]["default"], "--n-starts",
+                                     help="Least-squares polishes (from the GA's best and a Sobol' screen)."),
+        confidence: float = _CONFIDENCE_OPTION,
+        region_samples: int = typer.Option(_REGION["samples"]["default"], "--region-samples",
+                                           help="Surrogate evaluations per region sampling round."),
+        region_method: RegionMethod = typer.Option(_REGION["method"]["default"], "--region-method",
+                                                   help="Region of equivalence: likelihood-ratio (χ² bound) or noise-mc "
+                                                        "(re-identify noisy copies)."),
+        mcmc_steps: int = typer.Option(_CALIBRATION["mcmc_steps"]["default"], "--mcmc-steps",
+                                       help="Also sample the Bayesian posterior by MCMC (steps; 0 = off)."),
+        fe_check: bool = typer.Option(_CALIBRATION["fe_check"]["default"], "--fe-check/--no-fe-check",
+                                      help="Run the FE model once at the optimum."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Identify the free parameters from measured readings against a surrogate."""
@@ -240,28 +205,26 @@ def register(app):
         with user_errors():
             if format not in ("table", "json"):
                 raise ValueError(f"--format must be table or json; got {format!r}")
-            if not 0 < confidence < 1:
-                raise ValueError(f"--confidence must be in (0, 1); got {confidence}")
-            check_region_samples(region_samples)
-            form_error = parse_model_form_error(model_form_error)
+            settings = calibration_settings(seed=seed, population_size=population_size, generations=generations,
+                                            n_starts=n_starts, confidence=confidence, region_method=region_method,
+                                            region_samples=region_samples, fe_check=fe_check, mcmc_steps=mcmc_steps,
+                                            model_form_error=model_form_error)
             if repeats not in REPEATS:
                 raise ValueError(f"--repeats must be one of {', '.join(REPEATS)}; got {repeats!r}")
-            settings = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
+            reading = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
                                       zero=parse_zero(zero), phase_column=phase_column,
                                       load_range=parse_load_range(load_range),
                                       delimiter={"tab": "\t", "\\t": "\t"}.get(delimiter, delimiter),
                                       decimal=decimal, sheet=sheet)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
-                                                       settings, instrument, rigid_body=rigid_body,
+                                                       reading, instrument, rigid_body=rigid_body,
                                                        rigid_groups=parse_rigid_groups(rigid_group))
-            out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=region_samples,
-                                fe_check_on=fe_check, mcmc_steps=mcmc_steps, region_method=region_method,
-                                model_form_error=form_error)
+            out = calibrate(problem, settings)
             if report is not None:
-                write_inversion_report(report, out.result, out.region, posterior=out.posterior, load_unit=model.load_unit,
-                                       noise_text=noise_text, findings=out.findings)
+                write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text, rvc=False)
         if format == "json":
-            typer.echo(json.dumps(out.to_dict(), indent=2))
+            typer.echo(json.dumps({**out.to_dict(), "warnings": [t.to_dict() for t in words(out.findings, "cli")]},
+                                  indent=2))
             return
         _print_table(out, report)
 
@@ -278,27 +241,20 @@ def register(app):
         fix: list[str] = typer.Option([], "--fix"),
         report: Path = typer.Option(None, "--report"),
         format: TableFormat = typer.Option(TableFormat.table, "--format"),
-        seed: int = typer.Option(0, "--seed"),
-        confidence: float = typer.Option(0.95, "--confidence"),
+        seed: int = _SEED_OPTION,
+        confidence: float = _CONFIDENCE_OPTION,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Response variability (RVC) of the calibration and validation models over the region of equivalence."""
         configure_logging(verbose)
         with user_errors():
+            settings = calibration_settings(seed=seed, confidence=confidence, fe_check=False)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
-            out = run_inversion(problem, model, seed=seed, confidence=confidence, n_region=2**17, fe_check_on=False, mcmc_steps=0)
-            best = out.result.parameters
-            results = {"calibration": rvc_of(out.region, model, fixed=problem.fixed, outputs=list(output) or None, rng=seed)}
-            for path in validation:
-                vmodel = SurrogateModel(load_surrogate(path))
-                fixed = {n: best[n] for n in vmodel.space.names if n not in problem.free and n in best}
-                for p in vmodel.space.parameters:
-                    if p.name not in problem.free and p.name not in fixed:
-                        raise ValueError(f"validation surrogate {path} varies {p.name!r}, which the calibration neither identifies nor fixes")
-                results[Path(path).stem] = rvc_of(out.region, vmodel, fixed=fixed, rng=seed)
+            models = {Path(path).stem: (SurrogateModel(load_surrogate(path)), None) for path in validation}
+            out = calibrate(problem, settings, validation=models, outputs=list(output) or None)
+            results = out.rvc
             if report is not None:
-                write_inversion_report(report, out.result, out.region, rvc_results=results, load_unit=model.load_unit,
-                                       noise_text=noise_text, findings=out.findings)
+                write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text)
         if format == "json":
             typer.echo(json.dumps({k: v.to_dict() for k, v in results.items()}, indent=2))
             return
@@ -320,8 +276,8 @@ def register(app):
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
         format: TableFormat = typer.Option(TableFormat.table, "--format"),
-        seed: int = typer.Option(0, "--seed"),
-        confidence: float = typer.Option(0.95, "--confidence"),
+        seed: int = _SEED_OPTION,
+        confidence: float = _CONFIDENCE_OPTION,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Nested analyses: compare sets of free parameters by misfit, AIC/BIC, interval widths and validation RVC."""
@@ -334,7 +290,9 @@ def register(app):
 
             # a validation model's parameters that an analysis does not free take the calibration's values
             vals = {Path(p).stem: (SurrogateModel(load_surrogate(p)), {}) for p in validation}
-            rows = nested_analyses(make, free_sets, confidence=confidence, rng=seed, validation=vals or None)
+            settings = calibration_settings(seed=seed, confidence=confidence)
+            rows = nested_analyses(make, free_sets, confidence=settings.confidence, rng=settings.inversion.seed,
+                                   validation=vals or None)
         if format == "json":
             typer.echo(json.dumps(rows.to_dict()["analyses"], indent=2))
             return
@@ -349,23 +307,32 @@ def register(app):
     return invert, rvc, overparam
 
 
-def _print_table(out, report):
-    r, region = out.result, out.region
+def parameters_table(calibration, title):
+    """The identified parameters of a calibration as a rich table (best fit, region of
+    equivalence, identified) — the terminal view of ``podkrig invert`` and ``podkrig run``."""
+    r, region = calibration.inversion, calibration.region
     units = dict(zip(r.free, r.units))
-    table = Table(title=escape(f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, "
-                               f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: {r.chi2_basis}"))
-    for col in ("parameter", "best fit", f"{100 * region.confidence:.0f} % region of equivalence", "identified"):
+    table = Table(title=escape(title))
+    for col in ("parameter", "unit", "best fit", f"{100 * region.confidence:.0f} % region of equivalence",
+                "identified"):
         table.add_column(col, justify="right")
     for j, name in enumerate(r.free):
         lo, hi = region.intervals[name]
-        unit = units[name] if units[name] != "-" else ""
-        table.add_row(name, f"{number(r.x[j], 5)} {unit}", escape(f"[{number(lo)}, {number(hi)}] {unit}"), "yes" if region.identifiability[name]["identifiable"] else "NO")
+        table.add_row(name, units[name], number(r.x[j], 5), escape(f"[{number(lo)}, {number(hi)}]"),
+                      "yes" if region.identifiability[name]["identifiable"] else "NO")
+    return table
+
+
+def _print_table(out, report):
+    r = out.inversion
     console = Console()
-    console.print(table)
+    console.print(parameters_table(out, f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, "
+                                        f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: "
+                                        f"{r.chi2_basis}"))
     if r.fe_check is not None:
         console.print(escape(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
                              f"({r.fe_check.max_diff_over_noise:.2f}× the noise); χ²/dof of the FE model = "
                              f"{r.fe_check.chi2_dof_fe:.3g} ({chi2_basis('fe_check')})"))
-    print_findings(console, out.findings)
+    print_findings(console, words(out.findings, "cli"))
     if report is not None:
         console.print(escape(f"report: {report / 'index.html'}"))

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import configure_logging, confirm_large_job, number, print_findings, user_errors
+from podkrig.cli._common import configure_logging, confirm_large_job, print_findings, user_errors
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_name, check_output_folder
 
 DEMO_STUDY = "diagonal_compression.toml"
@@ -96,23 +96,15 @@ def _print_summary(result):
     from rich.markup import escape
     from rich.table import Table
 
+    from podkrig.cli.invert import parameters_table
     from podkrig.online.findings import RESIDUAL_CONVENTION
     from podkrig.reports.study import chi2_rows
 
     console = Console()
-    inv = result.stage("inversion").result
-    region = result.stage("region").result
-    table = Table(title=escape(f"{result.study.name}: identified parameters (χ²/dof of the surrogate fit = "
-                               f"{inv['chi2_dof']:.3g})"))
-    for col in ("parameter", "unit", "best fit", f"{100 * region['confidence']:.0f} % region of equivalence",
-                "identified"):
-        table.add_column(col, justify="right")
-    for name in region["names"]:
-        lo, hi = region["intervals"][name]
-        unit = inv["units"][name]
-        table.add_row(name, unit, number(inv["parameters"][name], 5), escape(f"[{number(lo)}, {number(hi)}]"),
-                      "yes" if region["identifiability"][name]["identifiable"] else "NO")
-    console.print(table)
+    calibration = result.calibration
+    inv = calibration.inversion
+    console.print(parameters_table(calibration, f"{result.study.name}: identified parameters (χ²/dof of the surrogate "
+                                                f"fit = {inv.chi2_dof:.3g})"))
     numbers = Table(title="checks")
     for col in ("quantity", "value"):
         numbers.add_column(col, justify="right")
@@ -121,12 +113,12 @@ def _print_summary(result):
         label = "" if t.name is None else f"test {t.name}: "
         held = result.stage(t.stage("held_out_validation")).result
         numbers.add_row(f"{label}surrogate median error on held-out FE runs", f"{100 * held['rel_error']['median']:.3g} %")
-        fe = (inv if t.name is None else inv["tests"][t.name])["fe_check"]
+        fe = calibration.tests[t.name].fe_check
         if fe is not None:
-            numbers.add_row(f"{label}max |FE − surrogate| at the best fit", f"{fe['max_abs_diff']:.3g} mm "
-                                                                            f"({fe['max_diff_over_noise']:.2f} σ)")
-    for model, r in result.stage("rvc").result["models"].items():
-        numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r['cv']):.3g} %")
+            numbers.add_row(f"{label}max |FE − surrogate| at the best fit", f"{fe.max_abs_diff:.3g} mm "
+                                                                            f"({fe.max_diff_over_noise:.2f} σ)")
+    for model, r in calibration.rvc.items():
+        numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r.cv):.3g} %")
     if study.diagnosis.enabled:
         for t in study.calibration_tests:
             d = result.stage(t.stage("diagnosis")).result
@@ -137,7 +129,7 @@ def _print_summary(result):
                               f"{RESIDUAL_CONVENTION}"))
     for col, justify in (("model", "right"), ("χ²/dof", "right"), ("χ² includes", "left")):
         fits.add_column(col, justify=justify)
-    for model, value, basis, _ in chi2_rows({r.name: r.result for r in result.stages}):
+    for model, value, basis, _ in chi2_rows(calibration, result.diagnoses()):
         fits.add_row(escape(model), value, escape(basis))
     console.print(fits)
     stages = Table(title="stages")

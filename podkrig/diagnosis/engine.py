@@ -46,23 +46,22 @@ from scipy import linalg, optimize, stats
 
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, DEFAULT_CANDIDATES, FEContext
-from podkrig.online.model_error import (
-    DEFAULT_RATE,
-    FALLBACK_TOLERANCE,
-    discretisation_error,
-    tolerance_error,
-)
+from podkrig.diagnosis.settings import DiagnosisSettings
+from podkrig.online.calibrate import model_form_error
+from podkrig.online.model_error import DEFAULT_RATE, FALLBACK_TOLERANCE
 from podkrig.diagnosis.results import (
     CHI2_ALPHA_SHARE,
     Alternative,
     CandidateScore,
     Cause,
-    Diagnosis,
+    DiagnosisResult,
     Fit,
     Step,
 )
+from podkrig._qmc import rng_seed
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
+from podkrig.online.settings import InversionSettings
 from podkrig.online.problem import InverseProblem, SurrogateModel
 from podkrig.online.rigid_body import project_out, rigid_body_modes
 from podkrig.surrogate.kriging import OrdinaryKriging
@@ -79,10 +78,11 @@ MIN_EFFECT = 2.0
 _EXACT_VISIBILITY = 20
 
 
-def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
+def build_base_surrogate(scenario, space, values, n_train=64, rng=0):
     """A POD-kriging surrogate of the scenario's readings over ``space`` (others at ``values``):
-    ``n_train`` Sobol' FE runs, exponent fitted on the dominant mode (``beta="fit-shared"``)."""
-    X = space.from_unit(sobol(n_train, space.n_params, seed))
+    ``n_train`` Sobol' FE runs, exponent fitted on the dominant mode (``beta="fit-shared"``);
+    ``rng`` (int or Generator) scrambles the Sobol' design: an integer is its seed."""
+    X = space.from_unit(sobol(n_train, space.n_params, rng_seed(rng)))
     Y = np.stack([scenario.run({**values, **space.as_params(x)}).readings for x in X])
     sur = PODKriging(kriging=OrdinaryKriging(beta="fit-shared"), space=space).fit(X, Y)
     sur.provenance_.update({  # what an inversion model needs to know (as fit_from_store records it)
@@ -170,9 +170,8 @@ def data_covariance(measurement, noise, model_error=None):
     return C
 
 
-def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None, candidates=None, alpha=0.01,
-             model_tolerance=None, model_error_rate=DEFAULT_RATE, max_causes=3, rng=0, n_train=64,
-             refit_locations=3, progress=None, rigid_body="auto", rigid_groups=None):
+def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, surrogate=None, candidates=None,
+             model_error_rate=DEFAULT_RATE, refit_locations=3, progress=None, rigid_body="auto", rigid_groups=None):
     """Diagnose a calibrated FE model against measured data, naming missing causes in turn.
 
     Parameters
@@ -184,33 +183,29 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     noise : NoiseModel
     space : ParameterSpace
         The base model's free parameters with bounds and scales.
+    settings : DiagnosisSettings, optional
+        ``alpha``: significance level of the (multiplicity-corrected) candidate tests (the χ² test
+        runs at ``alpha * CHI2_ALPHA_SHARE``); ``model_tolerance``: a fixed relative model-form
+        tolerance ε, ``C_T = diag((ε d)²)`` (thesis eq. 2.10), the user's override — by default
+        (None) each reading's model-form error is *estimated* from the scenario on a mesh refined
+        twice at the calibrated values (:func:`podkrig.online.calibrate.model_form_error`);
+        ``max_causes``: most causes named in turn (forward selection: each round refits the base
+        parameters with the causes already found and adds the most significant candidate, until
+        nothing is significant or the model is adequate); ``seed``: of the surrogate design and the
+        GA; ``n_train``: Sobol' FE runs of the base surrogate when none is given. Default:
+        ``DiagnosisSettings()``.
     fixed : dict of str to float, optional
         Values of non-free parameters that differ from the scenario's defaults.
     surrogate : PODKriging, optional
         A surrogate of the scenario's readings over ``space``, with its provenance (from
         :func:`build_base_surrogate` or a store; built here when not given:
-        ``n_train`` Sobol' FE runs, about a second for the default test).
+        ``settings.n_train`` Sobol' FE runs, about a second for the default test).
     candidates : sequence of str, optional
         Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default:
         :data:`~podkrig.diagnosis.candidates.DEFAULT_CANDIDATES`, all but ``nonlinearity_onset``,
         whose strength scan costs 10–20 nonlinear runs).
-    alpha : float
-        Significance level of the (multiplicity-corrected) candidate tests; the χ² test runs at
-        ``alpha * CHI2_ALPHA_SHARE``.
-    model_tolerance : float, optional
-        A fixed relative model-form tolerance ε, ``C_T = diag((ε d)²)`` (thesis eq. 2.10): the
-        user's override. By default (None) the model-form error of each reading is *estimated*: the
-        scenario is run again on a mesh refined twice in each direction at the calibrated values,
-        and the difference, scaled by Richardson's factor, is the standard deviation of that
-        reading's discretisation error (:func:`podkrig.online.model_error.discretisation_error`).
     model_error_rate : float
-        Convergence rate p assumed by that Richardson factor ``2^p / (2^p − 1)``.
-    max_causes : int
-        Most causes named in turn (forward selection: each round refits the base parameters with
-        the causes already found and adds the most significant candidate, until nothing is
-        significant or the model is adequate).
-    rng : int
-        Seed of the surrogate design and the GA.
+        Convergence rate p assumed by the Richardson factor ``2^p / (2^p − 1)`` of the estimate.
     refit_locations : int
         Locations per candidate refitted with the FE model after screening.
     progress : callable, optional
@@ -224,7 +219,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
 
     Returns
     -------
-    Diagnosis
+    DiagnosisResult
     """
     if not measurement.complete or measurement.reference_load is not None:
         raise ValueError(f"{measurement.source}: the diagnosis needs every sensor read at each load level (no "
@@ -235,12 +230,8 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     unknown = [n for n in names if n not in CANDIDATES]
     if unknown:
         raise ValueError(f"unknown candidate cause(s) {unknown}; known: {list(CANDIDATES)}")
-    if not 0 < alpha < 0.5:
-        raise ValueError(f"alpha must be in (0, 0.5); got {alpha}")
-    if model_tolerance is not None and not 0 <= model_tolerance < 0.5:
-        raise ValueError(f"model_tolerance must be in [0, 0.5) (a relative tolerance); got {model_tolerance}")
-    if int(max_causes) < 1:
-        raise ValueError(f"max_causes must be at least 1; got {max_causes}")
+    settings = DiagnosisSettings() if settings is None else settings
+    alpha, max_causes, rng = settings.alpha, settings.max_causes, settings.seed
     values0 = scenario.resolve(fixed)
     ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)))
     rigid = rigid_body_modes(measurement, absolute_displacements(scenario.sensors), rigid_body, rigid_groups)
@@ -248,22 +239,16 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     # 1. base calibration: surrogate first, FE last (with the model-form error at the surrogate's optimum)
     say("calibration", 0, 4)
     if surrogate is None:
-        surrogate = build_base_surrogate(scenario, space, values0, n_train=n_train, seed=rng)
-        ctx.n_runs += n_train
+        surrogate = build_base_surrogate(scenario, space, values0, n_train=settings.n_train, rng=rng)
+        ctx.n_runs += settings.n_train
     say("calibration", 1, 4)
     problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
-    inv = invert(problem, rng=rng)
+    inv = invert(problem, **InversionSettings(seed=rng).options())
     say("calibration", 2, 4)
-    if model_tolerance is None:
-        try:
-            model_error = discretisation_error(scenario, {**values0, **dict(zip(space.names, map(float, inv.x)))},
-                                               measurement, rate=model_error_rate, rigid_body=rigid)
-            ctx.n_runs += 2
-        except ValueError as e:
-            logger.warning("%s; using a model-form tolerance of %g %%", e, 100 * FALLBACK_TOLERANCE)
-            model_error = tolerance_error(measurement, FALLBACK_TOLERANCE, note=str(e))
-    else:
-        model_error = tolerance_error(measurement, model_tolerance)
+    asked = "estimated" if settings.model_tolerance is None else settings.model_tolerance
+    model_error = model_form_error(scenario, {**values0, **dict(zip(space.names, map(float, inv.x)))}, measurement,
+                                   asked, rigid_body=rigid, rate=model_error_rate, fallback=FALLBACK_TOLERANCE)
+    ctx.n_runs += 2 if model_error.method == "two meshes" else 0
     error_std = model_error.std
     say("calibration", 3, 4)
     fitter = _Fitter(ctx, space, measurement, noise, np.arange(measurement.n_obs), error_std, rigid)
@@ -308,7 +293,7 @@ def diagnose(scenario, measurement, noise, space, *, fixed=None, surrogate=None,
     seconds = time.perf_counter() - t_start
     causes = [t[0].name for t in terms]
     logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, causes, seconds, ctx.n_runs)
-    return Diagnosis(
+    return DiagnosisResult(
         scenario=scenario, measurement=measurement, noise_std=noise_std, alpha=alpha, base=base,
         extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=causes[0] if causes else None,
         best=best, alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,

@@ -15,12 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from podkrig._qmc import scrambled_sobol
+from podkrig._qmc import rng_seed, scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
 from podkrig.online.findings import RESIDUAL_CONVENTION, at_bound, chi2_basis, fe_check_ok
-from podkrig.online.model_error import discretisation_error, tolerance_error
+from podkrig.online.settings import GA
 
 logger = logging.getLogger(__name__)
 
@@ -73,8 +73,7 @@ class InverseResult:
     x : ndarray of shape (n_free,)
         Best free parameters, physical units.
     parameters : dict of str to float
-        Every model parameter at the optimum (free and fixed); only the free ones for a result
-        read back with :meth:`from_dict`.
+        Every model parameter at the optimum (free and fixed).
     misfit : float
         ω(m*) (thesis eq. 2.13).
     chi2 : float
@@ -167,12 +166,13 @@ class InverseResult:
         return dataclasses.replace(self, tests={**self.tests, name: result})
 
     def to_dict(self):
-        """JSON-able numbers: ``x``, ``parameters`` (free), ``units``, ``at_bound``, ``misfit``,
+        """JSON-able numbers: ``x``, ``parameters`` (free), ``fixed``, ``units``, ``at_bound``, ``misfit``,
         ``chi2``, ``dof``, ``chi2_dof``, ``chi2_basis`` (what the χ² includes),
         ``residual_convention``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
         return {
             "x": self.x.tolist(),
             "parameters": self.free_parameters,
+            "fixed": {n: float(v) for n, v in self.parameters.items() if n not in self.free},
             "units": dict(zip(self.free, self.units)),
             "at_bound": list(self.at_bound),
             "misfit": self.misfit, "chi2": self.chi2, "dof": self.dof, "chi2_dof": self.chi2_dof,
@@ -188,7 +188,8 @@ class InverseResult:
         """Read back :meth:`to_dict` (``problem`` and ``ga`` may be attached again)."""
         free = tuple(d["parameters"])
         return cls(
-            np.asarray(d["x"], dtype=float), dict(d["parameters"]), float(d["misfit"]), float(d["chi2"]),
+            np.asarray(d["x"], dtype=float), {**d.get("fixed", {}), **d["parameters"]}, float(d["misfit"]),
+            float(d["chi2"]),
             int(d["dof"]), int(d["n_evaluations"]), float(d["seconds"]), free, tuple(d["units"][n] for n in free),
             tuple(d["at_bound"]), dict(d["measurement"]), problem, ga,
             None if d.get("fe_check") is None else FECheck.from_dict(d["fe_check"]), d.get("chi2_basis"),
@@ -208,7 +209,8 @@ class InverseResult:
                    ga, tests=tests)
 
 
-def invert(problem, *, rng=0, population_size=100, generations=100, polish=True, n_starts=6, **ga_options):
+def invert(problem, *, rng=0, population_size=GA["population_size"], generations=GA["generations"], polish=True,
+           n_starts=GA["n_starts"], **ga_options):
     """Identify the free parameters: GA on ω(m), then least-squares polishes.
 
     Parameters
@@ -254,42 +256,6 @@ def invert(problem, *, rng=0, population_size=100, generations=100, polish=True,
     return result
 
 
-def invert_with_model_form_error(problem, scenario, model_form_error, *, rng=0, **options):
-    """:func:`invert` with the FE model's model-form error in ``C_D`` (thesis eq. 2.10).
-
-    Parameters
-    ----------
-    problem : InverseProblem
-        Without a model-form error.
-    scenario : fe.Scenario
-        The scenario the model stands for (its mesh options ``nx``, ``ny`` are refined).
-    model_form_error : None, "estimated" or float
-        As :func:`~podkrig.online.model_error.parse_model_form_error` returns it: None inverts
-        ``problem`` as it is; ``"estimated"`` inverts once, estimates each reading's
-        discretisation error at that optimum from the scenario on a mesh refined twice
-        (:func:`~podkrig.online.model_error.discretisation_error`, rigid motion removed as the
-        problem removes it) and inverts again with it; a float ε inverts once with ``e_i = ε |d_i|``.
-    rng, **options
-        As :func:`invert` (the same seed for both inversions).
-
-    Returns
-    -------
-    InverseResult
-        Its :attr:`~InverseResult.problem` carries the model-form error (for the region and the
-        posterior); :attr:`~InverseResult.chi2_basis` and ``measurement["model_form_error"]`` say
-        what it was.
-    """
-    if model_form_error is None:
-        return invert(problem, rng=rng, **options)
-    if model_form_error == "estimated":
-        first = invert(problem, rng=rng, **options)
-        error = discretisation_error(scenario, first.parameters, problem.measurement,
-                                     rigid_body=problem.misfit.rigid_body, observation=problem.misfit.observation)
-    else:
-        error = tolerance_error(problem.measurement, float(model_form_error))
-    return invert(dataclasses.replace(problem, model_form_error=error), rng=rng, **options)
-
-
 def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
     """Least-squares polishes from the GA's best and from distinct points of a Sobol' screen;
     returns the best point and the updated evaluation count."""
@@ -308,13 +274,6 @@ def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
         if omega_pol < best_omega:
             x, best_omega = space.from_unit(u_pol[None])[0], omega_pol
     return x, n_eval
-
-
-def rng_seed(rng):
-    """An integer seed derived from ``rng`` (int or Generator) for a scrambled Sobol' engine."""
-    if isinstance(rng, np.random.Generator):
-        return int(rng.integers(2**31))
-    return rng
 
 
 def _distinct_starts(U, omega, k, min_distance=0.15):
@@ -368,4 +327,4 @@ def fe_check(result, scenario, response=None):
     )
 
 
-__all__ = ["FECheck", "InverseResult", "fe_check", "invert", "invert_with_model_form_error", "rng_seed"]
+__all__ = ["FECheck", "InverseResult", "fe_check", "invert"]

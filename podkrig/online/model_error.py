@@ -15,7 +15,7 @@ readings are. :func:`tolerance_error` is the user's fixed override, ``e_i = ε |
 
 The diagnosis always adds ``C_T = diag(e²)`` to the noise; the inversion does when asked
 (``podkrig invert --model-form-error estimated`` or ``ε``; :func:`parse_model_form_error`,
-:func:`podkrig.online.invert.invert_with_model_form_error`).
+:func:`podkrig.online.calibrate.calibrate`).
 """
 
 from dataclasses import dataclass

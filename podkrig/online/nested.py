@@ -1,7 +1,8 @@
 """Overparameterisation: nested analyses with growing sets of free parameters (thesis ch. 5).
 
-Each analysis frees a set of parameters, identifies them, samples their region of equivalence and
-(optionally) propagates it to validation models. Misfit alone always improves when a parameter is
+Each analysis frees a set of parameters and calibrates them
+(:func:`~podkrig.online.calibrate.calibrate`: identify, sample the region of equivalence and,
+optionally, propagate it to validation models; no FE check). Misfit alone always improves when a parameter is
 freed; the information criteria (AIC, BIC), the identifiability verdicts and the validation RVC
 tell whether the extra parameter is supported by the data.
 """
@@ -10,9 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from podkrig.online.invert import invert
-from podkrig.online.propagation import rvc
-from podkrig.online.region import likelihood_ratio_region
+from podkrig.online.calibrate import calibrate
+from podkrig.online.settings import CONFIDENCE, CalibrationSettings, InversionSettings, RegionSettings
 
 
 def information_criteria(result):
@@ -99,7 +99,7 @@ class OverparamResult:
         return cls(tuple(NestedAnalysis.from_dict(a) for a in d["analyses"]))
 
 
-def nested_analyses(make_problem, free_sets, *, confidence=0.95, rng=0, validation=None, n_samples=2**16):
+def nested_analyses(make_problem, free_sets, *, confidence=CONFIDENCE, rng=0, validation=None, n_samples=2**16):
     """Compare nested sets of free parameters (thesis ch. 5, analyses 0–5).
 
     Parameters
@@ -107,26 +107,27 @@ def nested_analyses(make_problem, free_sets, *, confidence=0.95, rng=0, validati
     make_problem : callable
         ``make_problem(free) -> InverseProblem`` for a tuple of free names.
     free_sets : sequence of sequence of str
+    confidence, rng, n_samples
+        The region's confidence, the seed of every analysis and the region's samples per round
+        (:class:`~podkrig.online.settings.CalibrationSettings`).
     validation : dict of str to (model, fixed), optional
         Validation models for RVC; a validation model's parameters that an analysis does not
-        free take the calibration's values.
+        free take the calibration's values (then ``fixed``).
 
     Returns
     -------
     OverparamResult
     """
+    settings = CalibrationSettings(inversion=InversionSettings(seed=rng), region=RegionSettings(samples=n_samples),
+                                   confidence=confidence, fe_check=False)
+    models = {name: (model, None, fixed) for name, (model, fixed) in (validation or {}).items()}
     analyses = []
     for free in free_sets:
-        problem = make_problem(tuple(free))
-        result = invert(problem, rng=rng)
-        region = likelihood_ratio_region(problem, result.x, confidence=confidence, rng=rng, n_samples=n_samples)
+        one = calibrate(make_problem(tuple(free)), settings, validation=models, check_measurement=False,
+                        calibration_rvc=False)
+        result, region = one.inversion, one.region
         ic = information_criteria(result)
-        spread = None
-        if validation:
-            spread = {}
-            for name, (model, fixed) in validation.items():
-                fx = {**fixed, **{k: v for k, v in result.parameters.items() if k not in free and k in model.space.names}}
-                spread[name] = float(np.max(rvc(region, model, fixed=fx, rng=rng).cv))
+        spread = {name: float(np.max(r.cv)) for name, r in one.rvc.items()} if validation else None
         analyses.append(NestedAnalysis(
             tuple(free), {n: result.parameters[n] for n in free}, result.misfit, result.chi2_dof, ic["aic"], ic["bic"],
             region.intervals, region.identifiability, spread))

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig.parallel import one_blas_thread
+from podkrig.online.settings import CONFIDENCE
 
 logger = logging.getLogger(__name__)
 
@@ -60,6 +61,30 @@ class Posterior:
     n_steps: int
     seconds: float
 
+    def to_dict(self, *, members=False):
+        """JSON-able summary (without the samples unless ``members``)."""
+        d = {"names": list(self.names), "confidence": self.confidence,
+             "intervals": {k: list(v) for k, v in self.intervals.items()}, "median": dict(self.median),
+             "autocorr_time": np.asarray(self.autocorr_time, dtype=float).tolist(),
+             "effective_samples": self.effective_samples, "acceptance": self.acceptance,
+             "r_hat": np.asarray(self.r_hat, dtype=float).tolist(), "converged": self.converged,
+             "n_steps": self.n_steps, "seconds": self.seconds}
+        if members:
+            d["samples"] = self.samples.tolist()
+        return d
+
+    @classmethod
+    def from_dict(cls, d, *, samples=None):
+        """Read back :meth:`to_dict`; the samples from ``d``, from ``samples``, or none (an empty
+        array)."""
+        if samples is None:
+            samples = d.get("samples", np.empty((0, len(d["names"]))))
+        return cls(np.asarray(samples, dtype=float), tuple(d["names"]), float(d["confidence"]),
+                   {k: (float(v[0]), float(v[1])) for k, v in d["intervals"].items()},
+                   {k: float(v) for k, v in d["median"].items()}, np.asarray(d["autocorr_time"], dtype=float),
+                   float(d["effective_samples"]), float(d["acceptance"]), np.asarray(d["r_hat"], dtype=float),
+                   bool(d["converged"]), int(d["n_steps"]), float(d["seconds"]))
+
 
 def _split_r_hat(chain):
     """Split-R̂ of a chain ``(n_steps, n_walkers, n_free)`` (Gelman et al., BDA3, §11.4)."""
@@ -72,7 +97,7 @@ def _split_r_hat(chain):
     return np.sqrt(var / np.maximum(W, 1e-300))
 
 
-def sample_posterior(problem, x_start, *, n_walkers=32, n_steps=3000, burn=None, confidence=0.95, rng=0):
+def sample_posterior(problem, x_start, *, n_walkers=32, n_steps=3000, burn=None, confidence=CONFIDENCE, rng=0):
     """Sample exp(−ω(m)) over the free parameters' box.
 
     Parameters

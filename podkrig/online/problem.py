@@ -173,7 +173,7 @@ class InverseProblem(UnitCubeLeastSquares):
     model_form_error : ModelError, optional
         The FE model's own model-form (discretisation) error of each observed entry
         (:mod:`podkrig.online.model_error`), added to ``C_D`` as ``diag(e²)`` (thesis eq. 2.10);
-        None: none. :func:`~podkrig.online.invert.invert_with_model_form_error` estimates it.
+        None: none. :func:`~podkrig.online.calibrate.calibrate` estimates it.
 
     Notes
     -----

@@ -27,6 +27,7 @@ from podkrig._qmc import scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.limits import check_confidence, check_region_samples
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, is_identifiable
+from podkrig.online.settings import CONFIDENCE, REGION_SAMPLES
 
 logger = logging.getLogger(__name__)
 
@@ -60,7 +61,7 @@ class Region:
 
     Attributes
     ----------
-    method : {"likelihood-ratio", "noise-monte-carlo"}
+    method : {"likelihood-ratio", "noise-mc"}
     confidence : float
     samples : ndarray of shape (n_members, n_free)
         Members of the region, physical units.
@@ -120,7 +121,8 @@ class Region:
                    {k: dict(v) for k, v in d["identifiability"].items()})
 
 
-def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17, rng=0, max_grow=6, batch=2**16,
+def likelihood_ratio_region(problem, x_best, *, confidence=CONFIDENCE, n_samples=REGION_SAMPLES, rng=0, max_grow=6,
+                            batch=2**16,
                             freeze_model_error=True):
     """Region of equivalence by the likelihood-ratio (χ²) bound, sampled densely.
 
@@ -197,7 +199,7 @@ def likelihood_ratio_region(problem, x_best, *, confidence=0.95, n_samples=2**17
                   tuple(space.units), n_eval, time.perf_counter() - t0, identifiability(intervals, space))
 
 
-def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=0.95, rng=0):
+def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=CONFIDENCE, rng=0):
     """Region of equivalence by noise Monte Carlo: re-identify from noisy copies of g(m*).
 
     Each copy adds Gaussian noise with the data covariance to the best-fit prediction and is
@@ -220,7 +222,7 @@ def noise_monte_carlo_region(problem, x_best, *, n_realisations=200, confidence=
     q = np.percentile(X, [a, 100 - a], axis=0)
     space = problem.free_space
     intervals = {n: (float(q[0, j]), float(q[1, j])) for j, n in enumerate(space.names)}
-    return Region("noise-monte-carlo", confidence, X, np.full(len(X), np.nan), float("nan"), intervals,
+    return Region("noise-mc", confidence, X, np.full(len(X), np.nan), float("nan"), intervals,
                   tuple(space.names), tuple(space.units), n_eval, time.perf_counter() - t0,
                   identifiability(intervals, space))
 

@@ -77,6 +77,10 @@ class Page:
         """A figure already saved beside the page (``filename`` relative to the page)."""
         self._parts.append(f'<figure><img src="{_e(filename)}" alt="{_e(caption)}"><figcaption>{_e(caption)}</figcaption></figure>')
 
+    def markup(self):
+        """The page's body so far, as an HTML fragment."""
+        return "\n".join(self._parts)
+
     def write(self, path):
         """Write the page to ``path`` (its folder is created); returns the path."""
         path = Path(path)

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis, inversion_findings
-from podkrig.reports.findings import identifiability_text, words
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
+from podkrig.reports.findings import words
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 from podkrig.reports.html import Page, fmt
@@ -155,101 +155,195 @@ def plot_rvc(rvc_results, path):
     return path
 
 
-def write_inversion_report(out_dir, result, region, *, posterior=None, rvc_results=None, load_unit="kN", noise_text="",
-                           findings=None):
-    """Write ``out_dir/index.html`` with the figures of an inversion; returns the page path.
+def _unit(unit):
+    return "-" if not unit else unit
+
+
+def _num(value, digits=4):
+    """A number for a table: ``digits`` significant digits, no exponent below 10⁶, an em dash for a
+    missing or non-finite one."""
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return "—"
+    text = fmt(value, digits)
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
+# --------------------------------------------------------------------------------------------
+# the renderers of a calibration (CalibrationResult), shared by the inversion report of the CLI
+# and the study report: each writes one part on a Page, from the result objects alone
+
+
+def render_parameters(page, calibration, caption="Identified parameters"):
+    """The identified parameters: best fit, region of equivalence, identified or not, share of the
+    search range, and the MCMC credible interval when there is a posterior."""
+    inv, region, posterior = calibration.inversion, calibration.region, calibration.posterior
+    units = dict(zip(inv.free, inv.units))
+    rows = []
+    for j, name in enumerate(inv.free):
+        lo, hi = region.intervals[name]
+        ident = region.identifiability[name]
+        row = [name, _unit(units[name]), _num(float(inv.x[j])), f"[{_num(lo)}, {_num(hi)}]",
+               "yes" if ident["identifiable"] else "NO", f"{100 * ident['share']:.0f}"]
+        if posterior is not None:
+            row.append(f"[{_num(posterior.intervals[name][0])}, {_num(posterior.intervals[name][1])}]")
+        rows.append(row)
+    page.table(["parameter", "unit", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",
+                "identified", "share of search range (%)"]
+               + (["MCMC credible interval"] if posterior is not None else []), rows, caption=caption)
+
+
+def render_joint(page, inv):
+    """A joint calibration's fit: the shared and per-test parameters, and each test's share of the
+    misfit."""
+    units = dict(zip(inv.free, inv.units))
+    page.paragraph("One set of parameters fitted to every test at once: the misfit is the sum of the tests' "
+                   "misfits (thesis eq. 2.13 per test, independent noise between tests).")
+    page.table(["parameter", "unit", "best fit", "tests that depend on it"],
+               [[n, _unit(units[n]), _num(v), ", ".join(t for t, one in inv.tests.items() if n in one.free)]
+                for n, v in inv.free_parameters.items()])
+    page.table(["test", "readings", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"],
+               [[name, one.measurement["n_obs"], _num(one.chi2), one.dof, _num(one.chi2_dof, 3), one.chi2_basis]
+                for name, one in inv.tests.items()]
+               + [["all tests", inv.measurement["n_obs"], _num(inv.chi2), inv.dof, _num(inv.chi2_dof, 3),
+                   inv.chi2_basis]],
+               caption="Each test's share of the joint fit")
+
+
+def render_fit(page, inv, folder="", deformed=False):
+    """One test's fit: its data, its parameters, misfit and χ² (with what C_D includes), the FE
+    check at the optimum, and the fit and residual figures (``folder``: where they are, relative
+    to the page), with the deformed specimen when ``deformed``."""
+    m = inv.measurement
+    page.paragraph(
+        f"Data: {m['file']} ({m['n_obs']} readings: gauges {', '.join(m['sensors'])} at "
+        f"{', '.join(f'{v:g}' for v in m['load_levels'])} {m['load_unit']})."
+    )
+    units = dict(zip(inv.free, inv.units))
+    page.table(["parameter", "unit", "best fit"], [[n, _unit(units[n]), _num(v)] for n, v in inv.free_parameters.items()])
+    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "χ² includes", "surrogate evaluations",
+                "time (s)"],
+               [[_num(inv.misfit), _num(inv.chi2), inv.dof, _num(inv.chi2_dof, 3), inv.chi2_basis, inv.n_evaluations,
+                 _num(inv.seconds, 3)]])
+    fe = inv.fe_check
+    if fe is not None:
+        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
+                    "χ²/dof of the FE model (-)", "χ² includes"],
+                   [[_num(fe.max_abs_diff, 3), _num(fe.max_diff_over_noise, 3), _num(fe.rel_diff, 3),
+                     _num(fe.chi2_dof_fe, 3), chi2_basis("fe_check")]],
+                   caption="FE check at the best fit")
+        if fe.ok:
+            page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
+    page.figure(f"{folder}fit.png", "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: "
+                                    "reading (mm) across, load up, one panel per gauge.")
+    page.figure(f"{folder}residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best "
+                                          "fit, per gauge and load level, with their colour scale (-).")
+    if deformed:
+        page.figure(f"{folder}deformed.png", "FE model at the best fit, last load level: left the deformed mesh "
+                                             "(magnified, with a length and a displacement scale bar), right the "
+                                             "displacement magnitude |u| (mm).")
+
+
+def render_ga(page):
+    """The GA's figures (``ga_history.png``, ``ga_parameters.png``)."""
+    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics "
+                                  "(thesis Fig. 3.17).")
+    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, "
+                                     "coloured by generation (log axes for log-sampled parameters; thesis Fig. 3.23).")
+
+
+def render_region(page, region, posterior=None):
+    """The region of equivalence: how it was built, its per-parameter intervals and identifiability,
+    its figure (``region.png``), and the posterior's convergence when there is one."""
+    page.paragraph(
+        f"Parameter vectors whose misfit is statistically indistinguishable from the best fit "
+        f"({region.method}, confidence {100 * region.confidence:.0f} %; {len(region.samples)} members of "
+        f"{region.n_evaluated} surrogate evaluations, {region.seconds:.2f} s)."
+    )
+    rows = []
+    for j, name in enumerate(region.names):
+        lo, hi = region.intervals[name]
+        ident = region.identifiability[name]
+        rows.append([name, _unit(region.units[j]), _num(lo), _num(hi), f"{100 * ident['share']:.0f}",
+                     "yes" if ident["identifiable"] else "NO"])
+    page.table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows)
+    page.figure("region.png", "2-D projections of the region of equivalence, with the best fit (star)"
+                + (" and MCMC posterior samples." if posterior is not None else "."))
+    if posterior is not None:
+        page.table(["MCMC steps", "acceptance (-)", "max autocorrelation time (steps)", "effective samples",
+                    "max R̂ (-)", "converged"],
+                   [[posterior.n_steps, fmt(posterior.acceptance), fmt(float(np.max(posterior.autocorr_time))),
+                     fmt(posterior.effective_samples), fmt(float(np.max(posterior.r_hat))),
+                     "yes" if posterior.converged else "NO"]])
+        if not posterior.converged:
+            page.warning("the MCMC chains have not converged (chain shorter than 50 autocorrelation times or R̂ ≥ "
+                         "1.05).", "sample longer before reading the credible intervals.")
+
+
+def render_rvc(page, rvc_results, intro=""):
+    """The response variability of each model over the region: per output its mean, range, CV and
+    (max − min)/mean, and the figure (``rvc.png``)."""
+    page.paragraph(
+        "How much the predictions of the calibration model and of the validation models vary over the region of "
+        "equivalence: a small coefficient of variation (CV) means the calibration pins down what these tests show."
+        + intro)
+    rows = []
+    for model, x in rvc_results.items():
+        for k, out in enumerate(x.outputs):
+            rows.append([model, out, _num(float(x.mean[k])), _num(float(x.min[k])), _num(float(x.max[k])),
+                         _pct(x.cv[k]), _pct(x.range_ratio[k])])
+    page.table(["model", "output (sensor@load)", "mean (mm)", "min (mm)", "max (mm)", "CV (%)", "(max − min)/mean (%)"],
+               rows)
+    page.figure("rvc.png", "Spread of each output over the region of equivalence, relative to its mean.")
+
+
+def _pct(value, digits=3):
+    return "—" if value is None or not np.isfinite(value) else f"{100 * value:.{digits}g}"
+
+
+def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="", rvc=True):
+    """Write ``out_dir/index.html`` with the figures of a calibration; returns the page path.
 
     Parameters
     ----------
     out_dir : Path
-    result : podkrig.online.invert.InverseResult
-        With its problem (and its FE check when one was run).
-    region : podkrig.online.region.Region
-    posterior : podkrig.online.posterior.Posterior, optional
-    rvc_results : dict of str to RVCResult, optional
-        Model name → :func:`podkrig.online.propagation.rvc` result (with its values).
-    findings : list of FindingText, optional
-        Default: :func:`podkrig.online.findings.inversion_findings` of ``result`` and ``region``,
-        worded for the command line (:func:`podkrig.reports.findings.words`).
+    calibration : podkrig.online.calibrate.CalibrationResult
+        As :func:`~podkrig.online.calibrate.calibrate` returned it (its inversion with its
+        problem, the region with its members, the RVC results with their values).
+    load_unit : str
+    noise_text : str
+        The noise model in words.
+    rvc : bool
+        Show the RVC section.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    result, region, posterior = calibration.inversion, calibration.region, calibration.posterior
     problem = result.problem
-    if findings is None:
-        findings = words(inversion_findings(result, region), "cli")
     page = Page("podkrig inversion report")
     page.paragraph(
-        f"Data: {problem.measurement.source} ({problem.n_obs} readings: sensors {', '.join(problem.measurement.sensor_names)}"
-        f" at {', '.join(f'{v:g}' for v in problem.measurement.load_levels)} {load_unit}); noise: {noise_text}. "
-        f"Free parameters: {', '.join(problem.free)}; fixed: "
+        f"Noise: {noise_text}. Free parameters: {', '.join(problem.free)}; fixed: "
         + (", ".join(f"{k} = {v:g}" for k, v in problem.fixed.items()) or "none") + ".",
         "meta",
     )
-    for f in findings:
+    for f in words(calibration.findings, "cli"):
         page.warning(f.message, f.remedy)
-
     page.heading("Identified parameters")
-    units = dict(zip(problem.free_space.names, problem.free_space.units))
-    rows = []
-    for j, name in enumerate(problem.free):
-        lo, hi = region.intervals[name]
-        verdict = identifiability_text(name, (lo, hi), units[name], region.identifiability[name])
-        post = f"[{fmt(posterior.intervals[name][0])}, {fmt(posterior.intervals[name][1])}]" if posterior else "—"
-        rows.append([f"{name} ({units[name]})", fmt(result.x[j]), f"[{fmt(lo)}, {fmt(hi)}]", post, verdict])
-    page.table(["parameter (unit)", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",
-                "MCMC credible interval", "verdict"], rows)
-    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "χ² includes", "evaluations", "seconds (s)"],
-               [[fmt(result.misfit), fmt(result.chi2), result.dof, fmt(result.chi2_dof), result.chi2_basis,
-                 result.n_evaluations, fmt(result.seconds, 3)]])
-
+    render_parameters(page, calibration)
     page.heading("Fit to the measurements")
-    page.figure(Path(plot_fit(result, out / "fit.png", load_unit=load_unit)).name,
-                "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: reading (mm) "
-                "across, load up, one panel per sensor.")
-    page.figure(Path(plot_residuals(result, out / "residuals.png", load_unit=load_unit)).name,
-                f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, per sensor and load "
-                "level, with their colour scale.")
-
-    fe = result.fe_check
-    if fe is not None:
-        page.heading("FE check at the optimum")
-        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
-                    "χ²/dof of the FE model (-)", "χ² includes"],
-                   [[fmt(fe.max_abs_diff), fmt(fe.max_diff_over_noise), fmt(fe.rel_diff), fmt(fe.chi2_dof_fe),
-                     chi2_basis("fe_check")]])
-        if fe.ok:
-            page.success("The surrogate agrees with the FE model at the optimum within the measurement noise.")
-
+    plot_fit(result, out / "fit.png", load_unit=load_unit)
+    plot_residuals(result, out / "residuals.png", load_unit=load_unit)
+    render_fit(page, result)
     page.heading("Region of equivalence")
-    page.paragraph(
-        f"Parameter vectors whose misfit is statistically indistinguishable from the best fit "
-        f"(ω − ω* ≤ ½ χ²_{len(problem.free)}({region.confidence:.2f}); {region.n_evaluated} surrogate evaluations, "
-        f"{len(region.samples)} members, {region.seconds:.2f} s)."
-    )
-    page.figure(Path(plot_region(region, out / "region.png", best=result.x, posterior=posterior, space=problem.free_space)).name,
-                "2-D projections of the region of equivalence" + (" with MCMC posterior samples" if posterior else "") + ".")
-    if posterior is not None:
-        page.table(["MCMC steps", "acceptance (-)", "max autocorrelation time (steps)", "effective samples", "max R̂ (-)", "converged"],
-                   [[posterior.n_steps, fmt(posterior.acceptance), fmt(float(np.max(posterior.autocorr_time))),
-                     fmt(posterior.effective_samples), fmt(float(np.max(posterior.r_hat))), "yes" if posterior.converged else "NO"]])
-        if not posterior.converged:
-            page.warning("the MCMC chains have not converged (chain shorter than 50 autocorrelation times or R̂ ≥ 1.05).",
-                         "run longer (--mcmc-steps) before reading the credible intervals.")
-
-    if rvc_results:
+    plot_region(region, out / "region.png", best=result.x, posterior=posterior, space=problem.free_space)
+    render_region(page, region, posterior)
+    if rvc:
         page.heading("Response variability (RVC)")
-        rows = []
-        for model_name, res in rvc_results.items():
-            for k, o in enumerate(res.outputs):
-                rows.append([model_name, o, fmt(res.mean[k]), fmt(100 * res.cv[k], 3), fmt(100 * res.range_ratio[k], 3)])
-        page.table(["model", "output", "mean (mm)", "CV (%)", "(max − min)/mean (%)"], rows)
-        page.figure(Path(plot_rvc(rvc_results, out / "rvc.png")).name, "Spread of the outputs over the region of equivalence.")
-
+        plot_rvc(calibration.rvc, out / "rvc.png")
+        render_rvc(page, calibration.rvc)
     page.heading("Genetic algorithm")
-    page.figure(Path(plot_ga_history(result.ga, out / "ga_history.png")).name,
-                "Every evaluated individual's misfit by generation, and population statistics (thesis Fig. 3.17).")
-    page.figure(Path(plot_ga_parameters(result.ga, out / "ga_parameters.png", problem.free_space)).name,
-                "Parameter values of evaluated individuals against misfit (thesis Fig. 3.23).")
+    plot_ga_history(result.ga, out / "ga_history.png")
+    plot_ga_parameters(result.ga, out / "ga_parameters.png", problem.free_space)
+    render_ga(page)
     return page.write(out / "index.html")
 
 

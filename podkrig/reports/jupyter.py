@@ -2,6 +2,7 @@
 
 The result objects of the numerics draw nothing and write no HTML; this module renders them, and
 :func:`register_formatters` tells a running IPython to show an
+:class:`~podkrig.online.calibrate.CalibrationResult`, an
 :class:`~podkrig.online.invert.InverseResult` or a :class:`~podkrig.online.region.Region` as these
 tables instead of the dataclass ``repr``. ``import podkrig`` in a notebook registers them (by
 type name: nothing is imported until a result is shown); ``%load_ext podkrig.reports.jupyter``
@@ -15,6 +16,7 @@ from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 
 #: (module, class name) → name of the function of this module that renders it
 FORMATTERS = {
+    ("podkrig.online.calibrate", "CalibrationResult"): "calibration_html",
     ("podkrig.online.invert", "InverseResult"): "inverse_result_html",
     ("podkrig.online.region", "Region"): "region_html",
 }
@@ -53,6 +55,21 @@ def inverse_result_html(result):
     return params + fit
 
 
+def calibration_html(calibration):
+    """A :class:`~podkrig.online.calibrate.CalibrationResult`: the identified parameters with their
+    region (:func:`podkrig.reports.inverse.render_parameters`, as in the reports), the fit's χ²
+    and the findings in words."""
+    from podkrig.reports.findings import words
+    from podkrig.reports.html import Page
+    from podkrig.reports.inverse import render_parameters
+
+    page = Page("calibration")
+    render_parameters(page, calibration)
+    for f in words(calibration.findings, "cli"):
+        page.warning(f.message, f.remedy)
+    return page.markup() + inverse_result_html(calibration.inversion)
+
+
 def region_html(region):
     """The intervals and their identifiability of a :class:`~podkrig.online.region.Region` as an
     HTML table."""
@@ -79,5 +96,5 @@ def load_ipython_extension(ipython):
     register_formatters(ipython)
 
 
-__all__ = ["FORMATTERS", "html_table", "inverse_result_html", "load_ipython_extension", "number", "region_html",
+__all__ = ["FORMATTERS", "calibration_html", "html_table", "inverse_result_html", "load_ipython_extension", "number", "region_html",
            "register_formatters"]

@@ -2,8 +2,10 @@
 words with what to do about them, and the figures the stages drew beside the page.
 
 Presentation only: :func:`write_study_report` reads the stage manifests of
-:func:`podkrig.study.run_study` (their JSON results) and the study settings; it computes nothing
-and draws nothing (the figures are stage outputs, already in the report folder).
+:func:`podkrig.study.run_study` (their JSON results), the calibration as its result object
+(:class:`~podkrig.online.calibrate.CalibrationResult`, rendered by the same functions as the
+inversion report of ``podkrig invert``: :mod:`podkrig.reports.inverse`) and the study settings;
+it computes nothing and draws nothing (the figures are stage outputs, already in the report folder).
 """
 
 import base64
@@ -13,10 +15,11 @@ import math
 from pathlib import Path
 
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
-from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION, chi2_basis
+from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
 from podkrig.reports.diagnosis import fitted_parameter_text
 from podkrig.reports.html import Page, fmt
+from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
 from podkrig.reports.surrogate import fit_tables, held_out_tables
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
@@ -65,7 +68,7 @@ def _finite(obj):
     return obj
 
 
-def write_study_report(path, study, records, warnings):
+def write_study_report(path, study, records, calibration, warnings):
     """Write the study report page; returns its path.
 
     Parameters
@@ -75,6 +78,8 @@ def write_study_report(path, study, records, warnings):
     study : podkrig.study.Study
     records : sequence of podkrig.study.pipeline.StageRecord
         Every stage of the run, in order.
+    calibration : podkrig.online.calibrate.CalibrationResult
+        The calibration stage's result, read back (with the region's members).
     warnings : sequence of FindingText
         The study's findings in words (:func:`podkrig.reports.findings.words` of
         :func:`podkrig.study.pipeline.study_findings`).
@@ -97,7 +102,7 @@ def write_study_report(path, study, records, warnings):
         for w in by_section.get(anchor, ()):
             page.warning(w.message, w.remedy)
 
-    _summary(page, study, res, warnings)
+    _summary(page, study, res, calibration, warnings)
     section("study")
     _study(page, study)
     section("offline")
@@ -113,21 +118,19 @@ def write_study_report(path, study, records, warnings):
     section("sensitivity")
     _sensitivity(page, study, res.get("sensitivity"))
     section("inversion")
-    inv = res["inversion"]
+    inv = calibration.inversion
     if study.tests:
-        _joint_inversion(page, inv)
-    outputs = stages["inversion"].manifest["outputs"]
+        render_joint(page, inv)
+    outputs = stages["calibration"].manifest["outputs"]
     for t in tests:
         _test_heading(page, t)
-        _inversion(page, inv if t.name is None else inv["tests"][t.name],
-                   f"report/{t.file('deformed.png')}" in outputs, t.file(""))
-    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics.")
-    page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, "
-                                     "coloured by generation (log axes for log-sampled parameters).")
+        render_fit(page, calibration.tests[t.name], t.file(""), f"report/{t.file('deformed.png')}" in outputs)
+    render_ga(page)
     section("region")
-    _region(page, res["region"])
+    render_region(page, calibration.region, calibration.posterior)
     section("rvc")
-    _rvc(page, study, res["rvc"])
+    render_rvc(page, calibration.rvc, "" if study.validation else " No validation model is configured: add a "
+               "[[validation]] table to propagate the calibration to another test.")
     section("diagnosis")
     _diagnosis_intro(page)
     for t in tests:
@@ -138,22 +141,18 @@ def write_study_report(path, study, records, warnings):
     return page.write(path)
 
 
-def study_summary_html(name, res, warnings, report, figures):
+def study_summary_html(name, calibration, diagnoses, warnings, report, figures):
     """An HTML fragment summarising a study (Jupyter's view of a StudyResult): the identified
-    parameters with their region, every χ²/dof with its model and covariance, the warnings, and
-    ``figures`` of the report folder inline (base64 PNG)."""
+    parameters with their region (:func:`~podkrig.reports.inverse.render_parameters`), every
+    χ²/dof with its model and covariance, the warnings, and ``figures`` of the report folder
+    inline (base64 PNG). ``diagnoses``: test name → the diagnosis result dict (None when off)."""
     e = html.escape
-    inv, region = res["inversion"], res["region"]
-    rows = "".join(
-        f"<tr><td>{e(n)}</td><td>{e(_unit(inv['units'][n]))}</td><td>{_num(inv['parameters'][n])}</td>"
-        f"<td>[{_num(region['intervals'][n][0])}, {_num(region['intervals'][n][1])}]</td>"
-        f"<td>{'yes' if region['identifiability'][n]['identifiable'] else 'NO'}</td></tr>" for n in region["names"])
-    parts = [f"<h3>podkrig study: {e(name)}</h3>",
-             ("<table><thead><tr><th>parameter</th><th>unit</th><th>best fit</th>"
-              f"<th>region of equivalence ({100 * region['confidence']:.0f} %)</th><th>identified</th></tr></thead>"
-              f"<tbody>{rows}</tbody></table>"),
+    page = Page(name)
+    render_parameters(page, calibration, caption=None)
+    parts = [f"<h3>podkrig study: {e(name)}</h3>", page.markup(),
              "<table><thead><tr><th>χ²/dof of</th><th>value</th><th>χ² includes</th></tr></thead><tbody>"
-             + "".join(f"<tr><td>{e(m)}</td><td>{v}</td><td>{e(b)}</td></tr>" for m, v, b, _ in chi2_rows(res))
+             + "".join(f"<tr><td>{e(m)}</td><td>{v}</td><td>{e(b)}</td></tr>"
+                       for m, v, b, _ in chi2_rows(calibration, diagnoses))
              + "</tbody></table>",
              f"<p>Residuals {e(RESIDUAL_CONVENTION)}. Full report: <code>{e(str(report))}</code></p>"]
     parts += [f"<p><b>warning:</b> {e(w.message)}<br><b>what to do:</b> {e(w.remedy)}</p>" for w in warnings]
@@ -165,33 +164,26 @@ def study_summary_html(name, res, warnings, report, figures):
     return "\n".join(parts)
 
 
-def _summary(page, study, res, warnings):
+def _summary(page, study, res, calibration, warnings):
     page.heading("Summary", anchor="summary")
-    inv, region = res["inversion"], res["region"]
-    rows = []
-    for name in region["names"]:
-        lo, hi = region["intervals"][name]
-        ident = region["identifiability"][name]
-        rows.append([name, _unit(inv["units"][name]), _num(inv["parameters"][name]), f"[{_num(lo)}, {_num(hi)}]",
-                     "yes" if ident["identifiable"] else "NO", f"{100 * ident['share']:.0f}"])
-    page.table(["parameter", "unit", "best fit",
-                f"region of equivalence ({100 * region['confidence']:.0f} %)", "identified",
-                "share of search range (%)"], rows, caption="Identified parameters")
-    numbers = [[f"χ²/dof, {model} (-)", value, f"{basis}; {note}"] for model, value, basis, note in chi2_rows(res)]
+    render_parameters(page, calibration)
+    diagnoses = {t.name: res.get(t.stage("diagnosis")) for t in study.calibration_tests}
+    numbers = [[f"χ²/dof, {model} (-)", value, f"{basis}; {note}"]
+               for model, value, basis, note in chi2_rows(calibration, diagnoses)]
     for t in study.calibration_tests:
         label = "" if t.name is None else f"test {t.name}: "
         held = res[t.stage("held_out_validation")]
-        fe = (inv if t.name is None else inv["tests"][t.name])["fe_check"]
+        fe = calibration.tests[t.name].fe_check
         numbers += [
             [f"{label}surrogate median error on held-out FE runs (%)", _pct(held["rel_error"]["median"]),
              f"{held['n_held_out']} runs, {held['n_train']} training snapshots, {held['n_modes']} POD modes"],
             [f"{label}max |FE − surrogate| at the best fit / noise σ (-)",
-             _num(fe["max_diff_over_noise"], 3) if fe else "—",
+             _num(fe.max_diff_over_noise, 3) if fe else "—",
              "below 1: the surrogate is as good as the data there" if fe else "FE check switched off"],
         ]
-    for model, r in res["rvc"]["models"].items():
-        numbers.append([f"largest output CV over the region, {model} (%)", _pct(max(r["cv"])),
-                        f"{len(r['outputs'])} outputs, {r['n_samples']} members of the region"])
+    for model, r in calibration.rvc.items():
+        numbers.append([f"largest output CV over the region, {model} (%)", _pct(float(max(r.cv))),
+                        f"{len(r.outputs)} outputs, {r.n_samples} members of the region"])
     page.table(["quantity", "value", "note"], numbers, caption="Key numbers")
     page.paragraph("Each χ²/dof is about 1 when its model explains the data within what its C_D allows; they differ "
                    "because they compare different models (surrogate or FE, fitted by the inversion or refitted by "
@@ -206,29 +198,29 @@ def _summary(page, study, res, warnings):
                      "the measurements within the noise, and every free parameter is identified.")
 
 
-def chi2_rows(res):
+def chi2_rows(calibration, diagnoses=None):
     """The χ²/dof of a study, each with its model and what its covariance includes: rows of
     (model, value text, basis, note) for the inversion (surrogate), the FE check and the
-    diagnosis's FE refit, those that ran — in a joint calibration, the joint inversion and then
-    each test's rows."""
-    inv = res["inversion"]
-    rows = [("inversion (surrogate)" + (", all tests" if "tests" in inv else ""), _num(inv["chi2_dof"], 3),
-             inv.get("chi2_basis", CHI2_BASIS["surrogate"]), f"dof = {inv['dof']}; the number the inversion minimised")]
-    if "tests" not in inv:
-        return rows + _test_chi2_rows(inv, res.get("diagnosis"), "")
-    for name, one in inv["tests"].items():
-        rows.append((f"test {name}: inversion (surrogate)", _num(one["chi2_dof"], 3),
-                     one.get("chi2_basis", CHI2_BASIS["surrogate"]),
-                     f"dof = {one['dof']} (its readings − the free parameters it depends on)"))
-        rows += _test_chi2_rows(one, res.get(f"diagnosis.{name}"), f"test {name}: ")
+    diagnosis's FE refit (``diagnoses``: test name → its result dict, or None), those that ran —
+    in a joint calibration, the joint inversion and then each test's rows."""
+    inv = calibration.inversion
+    diagnoses = diagnoses or {}
+    rows = [("inversion (surrogate)" + (", all tests" if inv.tests else ""), _num(inv.chi2_dof, 3), inv.chi2_basis,
+             f"dof = {inv.dof}; the number the inversion minimised")]
+    if not inv.tests:
+        return rows + _test_chi2_rows(inv, diagnoses.get(None), "")
+    for name, one in inv.tests.items():
+        rows.append((f"test {name}: inversion (surrogate)", _num(one.chi2_dof, 3), one.chi2_basis,
+                     f"dof = {one.dof} (its readings − the free parameters it depends on)"))
+        rows += _test_chi2_rows(one, diagnoses.get(name), f"test {name}: ")
     return rows
 
 
 def _test_chi2_rows(inv, d, label):
     rows = []
-    fe = inv["fe_check"]
+    fe = inv.fe_check
     if fe is not None:
-        rows.append((f"{label}FE check", _num(fe["chi2_dof_fe"], 3), fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"]),
+        rows.append((f"{label}FE check", _num(fe.chi2_dof_fe, 3), chi2_basis("fe_check"),
                      "no surrogate error: only the FE model against the data"))
     if d is not None:
         a = d["adequacy"]
@@ -241,22 +233,6 @@ def _test_heading(page, test):
     """A sub-heading naming the test of a joint calibration (nothing for a single-test study)."""
     if test.name is not None:
         page.heading(f"Test {test.name} ({test.spec.scenario})", level=3)
-
-
-def _joint_inversion(page, inv):
-    """The joint fit: the shared and per-test parameters, and each test's share of the misfit."""
-    page.paragraph("One set of parameters fitted to every test at once: the misfit is the sum of the tests' "
-                   "misfits (thesis eq. 2.13 per test, independent noise between tests).")
-    page.table(["parameter", "unit", "best fit", "tests that depend on it"],
-               [[n, _unit(inv["units"][n]), _num(v),
-                 ", ".join(t for t, one in inv["tests"].items() if n in one["parameters"])]
-                for n, v in inv["parameters"].items() if n in inv["units"]])
-    page.table(["test", "readings", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"],
-               [[name, one["measurement"]["n_obs"], _num(one["chi2"]), one["dof"], _num(one["chi2_dof"], 3),
-                 one.get("chi2_basis", CHI2_BASIS["surrogate"])] for name, one in inv["tests"].items()]
-               + [["all tests", inv["measurement"]["n_obs"], _num(inv["chi2"]), inv["dof"], _num(inv["chi2_dof"], 3),
-                   inv.get("chi2_basis", CHI2_BASIS["surrogate"])]],
-               caption="Each test's share of the joint fit")
 
 
 def _study(page, study):
@@ -276,7 +252,7 @@ def _study(page, study):
         if fixed:
             page.table(["fixed parameter", "value"], [[k, _num(v)] for k, v in fixed.items()])
         m = t.measurement
-        page.table(["setting", "value"], [["measurement", f"{m.file.name} ({m.file})"], ["noise model", m.noise_text()]])
+        page.table(["setting", "value"], [["measurement", f"{m.file.name} ({m.file})"], ["noise model", m.noise.describe()]])
         label = "" if t.name is None else f" ({t.name})"
         designs += [[f"training{label}", t.train.n, t.train.method, t.train.seed],
                     [f"held-out{label}", t.held_out.n, t.held_out.method, t.held_out.seed]]
@@ -323,36 +299,6 @@ def _held_out(page, r, folder=""):
     page.figure(f"{folder}predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
 
 
-def _inversion(page, r, deformed, folder=""):
-    m = r["measurement"]
-    page.paragraph(
-        f"Data: {m['file']} ({m['n_obs']} readings: gauges {', '.join(m['sensors'])} at "
-        f"{', '.join(f'{v:g}' for v in m['load_levels'])} {m['load_unit']})."
-    )
-    page.table(["parameter", "unit", "best fit"],
-               [[n, _unit(r["units"][n]), _num(v)] for n, v in r["parameters"].items()])
-    page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "χ² includes", "surrogate evaluations",
-                "time (s)"],
-               [[_num(r["misfit"]), _num(r["chi2"]), r["dof"], _num(r["chi2_dof"], 3),
-                 r.get("chi2_basis", CHI2_BASIS["surrogate"]), r["n_evaluations"], _num(r["seconds"], 3)]])
-    fe = r["fe_check"]
-    if fe is not None:
-        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
-                    "χ²/dof of the FE model (-)", "χ² includes"],
-                   [[_num(fe["max_abs_diff"], 3), _num(fe["max_diff_over_noise"], 3), _num(fe["rel_diff"], 3),
-                     _num(fe["chi2_dof_fe"], 3), fe.get("chi2_dof_fe_basis", CHI2_BASIS["fe_check"])]],
-                   caption="FE check at the best fit")
-        if fe["ok"]:
-            page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
-    page.figure(f"{folder}fit.png", "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: reading "
-                           "(mm) across, load up, one panel per gauge.")
-    page.figure(f"{folder}residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best fit, "
-                                 "per gauge and load level, with their colour scale (-).")
-    if deformed:
-        page.figure(f"{folder}deformed.png", "FE model at the best fit, last load level: left the deformed mesh (magnified, with a "
-                                    "length and a displacement scale bar), right the displacement magnitude |u| (mm).")
-
-
 def _sensitivity(page, study, r):
     page.paragraph("Variance-based (Sobol') indices over the search box, on the surrogate: the share of an output's "
                    "variance a parameter explains alone (first order) and with its interactions (total). A parameter "
@@ -383,38 +329,6 @@ def _sensitivity(page, study, r):
                     + ("" if study.tests else " and the misfit's total index")
                     + ", with bootstrap intervals and the fixing threshold. Right: the total index of every reading and "
                     "parameter, with its colour scale (-).")
-
-
-def _region(page, r):
-    page.paragraph(
-        f"Parameter vectors whose misfit is statistically indistinguishable from the best fit "
-        f"({r['method']}, confidence {100 * r['confidence']:.0f} %; {r['n_members']} members of "
-        f"{r['n_evaluated']} surrogate evaluations, {r['seconds']:.2f} s)."
-    )
-    rows = []
-    for j, name in enumerate(r["names"]):
-        lo, hi = r["intervals"][name]
-        rows.append([name, _unit(r["units"][j]), _num(lo), _num(hi), f"{100 * r['identifiability'][name]['share']:.0f}",
-                     "yes" if r["identifiability"][name]["identifiable"] else "NO"])
-    page.table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows)
-    page.figure("region.png", "2-D projections of the region of equivalence, with the best fit (star).")
-
-
-def _rvc(page, study, r):
-    page.paragraph(
-        "How much the predictions of the calibration model and of the validation models vary over the region of "
-        "equivalence: a small coefficient of variation (CV) means the calibration pins down what these tests show."
-        + ("" if study.validation else " No validation model is configured: add a [[validation]] table to propagate "
-                                       "the calibration to another test.")
-    )
-    rows = []
-    for model, x in r["models"].items():
-        for k, out in enumerate(x["outputs"]):
-            rows.append([model, out, _num(x["mean"][k]), _num(x["min"][k]), _num(x["max"][k]), _pct(x["cv"][k]),
-                         _pct(x["range_ratio"][k])])
-    page.table(["model", "output (sensor@load)", "mean (mm)", "min (mm)", "max (mm)", "CV (%)", "(max − min)/mean (%)"],
-               rows)
-    page.figure("rvc.png", "Spread of each output over the region of equivalence, relative to its mean.")
 
 
 def _diagnosis_intro(page):

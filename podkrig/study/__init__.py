@@ -2,8 +2,9 @@
 
 :func:`load_study` reads and validates a study file (:mod:`podkrig.study.schema`, against the
 declarations of :mod:`podkrig.study.settings`);
-:func:`run_study` runs its stages — offline FE snapshots, surrogate, held-out validation,
-inversion, region of equivalence, RVC (and model diagnosis) — caching each by a hash of its
+:func:`run_study` runs its stages — offline FE snapshots, surrogate, held-out validation, the
+calibration (:func:`podkrig.online.calibrate.calibrate`: inversion, FE check, region of
+equivalence, RVC), sensitivity (and model diagnosis) — caching each by a hash of its
 inputs (:mod:`podkrig.study.pipeline`), and writes one HTML report.
 
 Example
@@ -11,8 +12,8 @@ Example
 >>> from podkrig.study import load_study, run_study
 >>> study = load_study("examples/diagonal_compression.toml")
 >>> result = run_study(study, "out/demo")       # the demo, about a minute  # doctest: +SKIP
->>> result.stage("region").result["intervals"]["kN_bj"]                    # doctest: +SKIP
-[68.27..., 71.61...]
+>>> result.calibration.region.intervals["kN_bj"]                           # doctest: +SKIP
+(52.08..., 189.33...)
 """
 
 from podkrig.study.pipeline import Progress, StageRecord, StudyResult, run_study

@@ -4,8 +4,8 @@ The stages are in :mod:`podkrig.study.stages`, the cache engine (manifests, inpu
 output checks) in :mod:`podkrig.study.cache`, and which results deserve a warning is the
 findings policy of :mod:`podkrig.online.findings` (worded by :mod:`podkrig.reports.findings`). A stage whose manifest has the same input
 hash and whose files are unchanged is *cached*: it is not run again. So a rerun with nothing
-changed does no FE work, and a new measurement file reruns only the online stages (inversion,
-region, RVC, diagnosis). An interrupted FE stage resumes from its store (finished rows are kept);
+changed does no FE work, and a new measurement file reruns only the online stages (calibration,
+sensitivity, diagnosis). An interrupted FE stage resumes from its store (finished rows are kept);
 a store written for another design is rebuilt.
 
 Finally the report ``DIR/report/index.html`` is written from the manifests (always; it is cheap)
@@ -17,18 +17,19 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from podkrig import __version__
+from podkrig.online.calibrate import CalibrationResult
 from podkrig.online.findings import (
     CHI2_BASIS,
     RESIDUAL_CONVENTION,
     diagnosis_findings,
     held_out_findings,
-    inversion_findings,
     measurement_findings,
     offline_findings,
     sensitivity_findings,
 )
-from podkrig.online.invert import InverseResult
 from podkrig.reports.findings import words
 from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
@@ -78,11 +79,24 @@ class StudyResult:
     #: report figures shown inline by :meth:`_repr_html_`, in this order (those that exist)
     INLINE_FIGURES = ("fit.png", "residuals.png", "region.png", "deformed.png")
 
+    @property
+    def calibration(self):
+        """The calibration (:class:`~podkrig.online.calibrate.CalibrationResult`), read back from its
+        manifest and ``region.npz``."""
+        with np.load(self.out / "region.npz") as f:
+            return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"],
+                                               omega=f["omega"])
+
+    def diagnoses(self):
+        """Each test's diagnosis result dict (None when the diagnosis is off), by test name."""
+        results = {r.name: r.result for r in self.stages}
+        return {t.name: results.get(t.stage("diagnosis")) for t in self.study.calibration_tests}
+
     def _repr_html_(self):
         """The study's identified parameters, its χ²/dof with what each includes, its warnings and
         the main figures (inline PNG), for Jupyter; the full report is ``self.report``."""
-        return study_summary_html(self.study.name, {r.name: r.result for r in self.stages}, self.warnings,
-                                  self.report, self.INLINE_FIGURES)
+        return study_summary_html(self.study.name, self.calibration, self.diagnoses(), self.warnings, self.report,
+                                  self.INLINE_FIGURES)
 
 
 def run_study(study, out, *, progress=None, confirm=None):
@@ -133,17 +147,15 @@ def run_study(study, out, *, progress=None, confirm=None):
     for test in tests:
         stages.surrogate(run, test)
         stages.held_out_validation(run, test)
-    stages.model_form_error(run)  # only when a test asks for it estimated
-    if study.sensitivity.enabled:
+    stages.calibration(run)
+    if study.sensitivity.enabled:  # with the calibration's model-form error
         stages.sensitivity(run)
-    stages.inversion(run)
-    stages.region(run)
-    stages.rvc_stage(run)
     if study.diagnosis.enabled:
         for test in tests:
             stages.diagnosis(run, test)
-    found = words(study_findings(run), "study", diagnosis_enabled=study.diagnosis.enabled)
-    report = write_study_report(run.figures / "index.html", study, run.records, found)
+    calibration = stages.load_calibration(run)
+    found = words(study_findings(run, calibration), "study", diagnosis_enabled=study.diagnosis.enabled)
+    report = write_study_report(run.figures / "index.html", study, run.records, calibration, found)
     write_json(run.out / "summary.json", {
         "study": str(study.path), "name": study.name, "podkrig": __version__, "finished": now(),
         "conventions": {"residuals": RESIDUAL_CONVENTION, "chi2": CHI2_BASIS},
@@ -154,11 +166,11 @@ def run_study(study, out, *, progress=None, confirm=None):
     return StudyResult(study, run.out, tuple(run.records), found, report, time.perf_counter() - t0)
 
 
-def study_findings(run):
+def study_findings(run, calibration):
     """Every finding of the study, in stage order (:mod:`podkrig.online.findings`), from the
-    stage manifests (so cached stages give the same findings), as codes and values
-    (:class:`~podkrig.online.findings.Finding`). In a joint calibration each test's findings name
-    the test."""
+    stage manifests and the ``calibration`` read back (so cached stages give the same findings), as
+    codes and values (:class:`~podkrig.online.findings.Finding`). In a joint calibration each
+    test's findings name the test."""
     study = run.study
     tests = study.calibration_tests
     found = []
@@ -168,16 +180,12 @@ def study_findings(run):
         if "failed" in record.result:  # the FE stages
             found += offline_findings(record.title, record.result)
     for t in tests:
-        noise_rel, noise_abs = t.measurement.noise_levels()
+        noise_rel, noise_abs = t.measurement.noise.levels()
         found += _named(t, held_out_findings(run.manifest(t.stage("held_out_validation"))["result"],
                                              noise_rel=noise_rel, noise_abs=noise_abs))
     if study.sensitivity.enabled:
         found += sensitivity_findings(run.manifest("sensitivity")["result"])
-    result = InverseResult.from_dict(run.manifest("inversion")["result"])
-    region = stages.load_region(run)
-    found += inversion_findings(result, region)
-    for t in tests if study.tests else ():
-        found += _named(t, inversion_findings(result.tests[t.name], per_test=True))
+    found += calibration.findings
     if study.diagnosis.enabled:
         for t in tests:
             found += _named(t, diagnosis_findings(run.manifest(t.stage("diagnosis"))["result"]))

@@ -31,27 +31,43 @@ from pydantic import (
     StrictStr,
 )
 
-from podkrig import limits
-from podkrig.config import Seed, finite as _finite, limit as _limit, settings as _settings, type_name
+from podkrig.config import Seed, finite as _finite, settings as _settings, type_name
 from podkrig.config import allowed as _allowed, choice as _choice, settings_error as study_error
+from podkrig.config import field_info
+from podkrig.diagnosis.settings import DiagnosisSettings
 from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
 from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
 from podkrig.offline.settings import training_rows as _training_rows
-from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.io.measurement_log import REPEATS, ImportSettings, zero_phase
-from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
+from podkrig.online.settings import (
+    REGION_METHODS,
+    CalibrationSettings,
+    Confidence,
+    Generations,
+    Instrument,
+    InversionSettings,
+    ModelFormError,
+    NoiseAbs,
+    NoiseRel,
+    NoiseSettings,
+    PopulationSize,
+    RegionSamples,
+    RegionSettings,
+    Starts,
+    check_ga_budget,
+    check_noise,
+)
 from podkrig.parameters import SCALES, ParameterSpace
 from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAMS, SurrogateSettings
 
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
-    "CalibrationTest", "Design", "DiagnosisSettings", "InversionSettings", "MeasurementSettings",
+    "CalibrationTest", "Design", "DiagnosisSettings", "InversionTable", "MeasurementSettings",
     "SensitivitySettings", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error",
     "type_name",
 ]
 
-REGION_METHODS = ("likelihood-ratio", "noise-mc")
 
 
 def _raise():
@@ -61,9 +77,6 @@ def _raise():
 # ---------------------------------------------------------------------------------------------
 # measurement
 
-_NOISE_ALLOWED = ("noise_abs = σ_res > 0 mm (a number, or a table sensor = σ) and/or noise_rel = δ in (0, 1) "
-                  "(σ² = σ_res² + (δ d)²), or instrument = " + " | ".join(f'"{k}"' for k in INSTRUMENTS)
-                  + " (or a table sensor = instrument)")
 _FILE_ALLOWED = ("a CSV (.csv, .txt) or Excel (.xlsx) log, relative to the study file: a load column and one "
                  "column per sensor, units in the headers (e.g. 'load [kN]', 'D1 [µm]'; mm without one)")
 
@@ -82,38 +95,6 @@ def _measurement_file(value, info):
     if not exists:
         raise study_error(f"no measurement file at {full}", allowed=_FILE_ALLOWED)
     return full
-
-
-def _noise_abs(value):
-    if isinstance(value, dict):
-        if not value:
-            raise study_error("empty table", allowed=_NOISE_ALLOWED)
-        for sensor, sigma in value.items():
-            if isinstance(sigma, bool) or not isinstance(sigma, int | float):
-                raise study_error(f"must be a number; got {type_name(sigma)} {sigma!r}", sensor, "σ > 0 mm")
-            if not sigma > 0 or not math.isfinite(sigma):
-                raise study_error(f"{sigma!r} is out of range", sensor, "σ > 0 mm")
-        return {k: float(v) for k, v in value.items()}
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise study_error(f"must be a number; got {type_name(value)} {value!r}", allowed=_NOISE_ALLOWED)
-    if not value > 0 or not math.isfinite(value):
-        raise study_error(f"{value!r} is out of range", allowed=_NOISE_ALLOWED)
-    return float(value)
-
-
-def _instrument(value):
-    names = " | ".join(f'"{k}"' for k in INSTRUMENTS)
-    if isinstance(value, str):
-        if value not in INSTRUMENTS:
-            raise study_error(f"{value!r} is not a known instrument", allowed=names)
-        return value
-    if isinstance(value, dict) and value:
-        for sensor, kind in value.items():
-            if not isinstance(kind, str) or kind not in INSTRUMENTS:
-                raise study_error(f"{kind!r} is not a known instrument", sensor, names)
-        return dict(value)
-    raise study_error(f"must be an instrument name or a table sensor = instrument; got {type_name(value)} {value!r}",
-                      allowed=names)
 
 
 def _zero(value):
@@ -144,20 +125,6 @@ def _rigid_groups(value):
     return {k: tuple(v) for k, v in value.items()}
 
 
-_MODEL_FORM_ERROR_ALLOWED = ('"none", "estimated" or a number in [0, 0.5) (a relative tolerance, e.g. 0.01 for 1 % '
-                             'of each reading)')
-
-
-def _model_form_error(value):
-    if isinstance(value, bool) or not isinstance(value, str | int | float):
-        raise study_error(f"got {type_name(value)} {value!r}", allowed=_MODEL_FORM_ERROR_ALLOWED)
-    try:
-        parsed = parse_model_form_error(value)
-    except ValueError:
-        raise study_error(f"got {value!r}", allowed=_MODEL_FORM_ERROR_ALLOWED) from None
-    return "none" if parsed is None else parsed
-
-
 def _load_range(value):
     if (isinstance(value, list) and len(value) == 2
             and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value)
@@ -171,9 +138,8 @@ def _load_range(value):
 class MeasurementSettings:
     """The measurement log (absolute path), how to read it and its noise model.
 
-    Noise: ``noise_abs`` σ_res in mm (one for all sensors, or one per sensor) and/or ``noise_rel``
-    δ, combined as σ_i² = σ_res,i² + (δ d_i)²; or ``instrument`` (one name, or one per sensor) with
-    the typical σ_res and δ of :data:`~podkrig.online.measurement.INSTRUMENTS`. Reading: see
+    Noise: ``noise_abs``, ``noise_rel`` or ``instrument``, the fields of
+    :class:`~podkrig.online.settings.NoiseSettings` (:attr:`noise`). Reading: see
     :class:`~podkrig.io.measurement_log.ImportSettings`. ``range_check`` stops a study whose
     readings lie far outside every FE run of the probe (before the training snapshots) and of the
     training design (a unit or sign error); false also skips the probe runs. ``rigid_body``:
@@ -188,9 +154,9 @@ class MeasurementSettings:
     """
 
     file: Annotated[Path, BeforeValidator(_measurement_file)]
-    noise_rel: Annotated[StrictFloat, _allowed(_NOISE_ALLOWED, gt=0, lt=1)] | None = None
-    noise_abs: Annotated[Any, AfterValidator(lambda v: None if v is None else _noise_abs(v))] = None
-    instrument: Annotated[Any, AfterValidator(lambda v: None if v is None else _instrument(v))] = None
+    noise_rel: NoiseRel = None
+    noise_abs: NoiseAbs = None
+    instrument: Instrument = None
     load_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
                            _allowed("the name of the load column (without its unit)")] = "load"
     repeats: _choice(REPEATS) = "average"
@@ -206,18 +172,13 @@ class MeasurementSettings:
     range_check: StrictBool = True
     rigid_body: _choice(RIGID_BODY_CHOICES, _RIGID_BODY_ALLOWED) = "auto"
     rigid_groups: Annotated[Any, AfterValidator(lambda v: None if v is None else _rigid_groups(v))] = None
-    model_form_error: Annotated[Any, AfterValidator(_model_form_error)] = "none"
+    model_form_error: ModelFormError = field_info(CalibrationSettings)["model_form_error"]["default"]
 
     def __post_init__(self):
         if self.rigid_body == "keep" and self.rigid_groups:
             raise study_error("rigid_groups name sensors whose rigid-body motion is removed, and rigid_body = \"keep\" "
                               "removes none; drop one of them", "rigid_groups", _RIGID_BODY_ALLOWED)
-        if self.instrument is not None:
-            other = [k for k in ("noise_abs", "noise_rel") if getattr(self, k) is not None]
-            if other:
-                raise study_error(f"give either instrument or {other[0]}, not both", "instrument", _NOISE_ALLOWED)
-        elif self.noise_rel is None and self.noise_abs is None:
-            raise study_error("give a noise model", None, _NOISE_ALLOWED)
+        check_noise(self.noise_abs, self.noise_rel, self.instrument)
         if self.delimiter == "," and self.decimal == ",":
             raise study_error("a comma cannot be both the delimiter and the decimal mark", "decimal")
 
@@ -228,63 +189,51 @@ class MeasurementSettings:
                               delimiter=self.delimiter,
                               decimal=self.decimal, sheet=self.sheet)
 
-    def noise_model(self, sensor_names=None):
-        """The :class:`~podkrig.online.measurement.NoiseModel` of these settings (``sensor_names``:
-        the measured sensors, needed for ``instrument``)."""
-        if self.instrument is not None:
-            if sensor_names is None:
-                raise ValueError("an instrument noise model needs the measured sensor names")
-            return instrument_noise(self.instrument, sensor_names)
-        return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel)
-
-    def noise_levels(self):
-        """``(δ, σ_res)``: the smallest relative and absolute noise levels of these settings (None
-        where absent), for comparisons with the surrogate's error."""
-        if self.instrument is None:
-            return self.noise_rel, self.noise_abs
-        kinds = {self.instrument} if isinstance(self.instrument, str) else set(self.instrument.values())
-        rel = min(INSTRUMENTS[k]["delta"] for k in kinds)
-        return (rel or None), min(INSTRUMENTS[k]["sigma_res_mm"] for k in kinds)
-
-    def noise_text(self):
-        """The noise model in words, with units."""
-        if self.instrument is not None:
-            kinds = {self.instrument} if isinstance(self.instrument, str) else set(self.instrument.values())
-            return "instruments: " + "; ".join(INSTRUMENTS[k]["text"] for k in sorted(kinds))
-        return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel).describe()
+    @property
+    def noise(self):
+        """The :class:`~podkrig.online.settings.NoiseSettings` of these settings."""
+        return NoiseSettings(noise_abs=self.noise_abs, noise_rel=self.noise_rel, instrument=self.instrument)
 
 
 # ---------------------------------------------------------------------------------------------
 # inversion and diagnosis
 
 
-_REGION_ALLOWED = (f"an integer in [{limits.REGION_SAMPLES_MIN}, {limits.REGION_SAMPLES_MAX}] (surrogate "
-                   "evaluations per sampling round)")
+def _default(cls, name):
+    return field_info(cls)[name]["default"]
 
 
 @_settings
-class InversionSettings:
-    """GA inversion and region of equivalence settings (see :func:`podkrig.online.invert.invert`)."""
+class InversionTable:
+    """The ``[inversion]`` table: the calibration's settings, flat (the fields and defaults of
+    :class:`~podkrig.online.settings.InversionSettings`, ``region_``-prefixed those of
+    :class:`~podkrig.online.settings.RegionSettings`, and those of
+    :class:`~podkrig.online.settings.CalibrationSettings`; the model-form error is each test's
+    ``[measurement] model_form_error``)."""
 
-    seed: Seed = 0
-    population_size: Annotated[StrictInt, _allowed(f"an integer in [4, {limits.MAX_POPULATION}]", ge=4),
-                               _limit(limits.check_population, f"an integer in [4, {limits.MAX_POPULATION}]")] = 100
-    generations: Annotated[StrictInt, _allowed("an integer >= 1", ge=1)] = 100
-    n_starts: Annotated[StrictInt, _allowed(f"an integer in [1, {limits.MAX_STARTS}] (least-squares polishes)", ge=1),
-                        _limit(limits.check_starts, f"an integer in [1, {limits.MAX_STARTS}]")] = 6
-    confidence: Annotated[StrictFloat, _allowed("a number in (0, 1), e.g. 0.95", gt=0, lt=1)] = 0.95
-    region_method: _choice(REGION_METHODS) = "likelihood-ratio"
-    region_samples: Annotated[StrictInt, _allowed(_REGION_ALLOWED, ge=1024),
-                              _limit(lambda n: limits.check_region_samples(n, "region_samples"),
-                                     _REGION_ALLOWED)] = 2**17
-    fe_check: StrictBool = True
+    seed: Seed = _default(InversionSettings, "seed")
+    population_size: PopulationSize = _default(InversionSettings, "population_size")
+    generations: Generations = _default(InversionSettings, "generations")
+    n_starts: Starts = _default(InversionSettings, "n_starts")
+    confidence: Confidence = _default(CalibrationSettings, "confidence")
+    region_method: _choice(REGION_METHODS) = _default(RegionSettings, "method")
+    region_samples: RegionSamples = _default(RegionSettings, "samples")
+    fe_check: StrictBool = _default(CalibrationSettings, "fe_check")
+    mcmc_steps: Annotated[StrictInt, _allowed("an integer >= 0 (MCMC steps; 0: no posterior)", ge=0)] = _default(
+        CalibrationSettings, "mcmc_steps")
 
     def __post_init__(self):
-        try:
-            limits.check_generations(self.generations, self.population_size)
-        except ValueError as e:
-            raise study_error(str(e), "generations", "population_size × (generations + 1) at most "
-                              f"{limits.MAX_GA_EVALUATIONS}") from None
+        check_ga_budget(self.population_size, self.generations)
+
+    def calibration(self, model_form_error="none"):
+        """The :class:`~podkrig.online.settings.CalibrationSettings` of this table with the tests'
+        ``model_form_error`` (one value, or a table test → value)."""
+        return CalibrationSettings(
+            inversion=InversionSettings(seed=self.seed, population_size=self.population_size,
+                                        generations=self.generations, n_starts=self.n_starts),
+            region=RegionSettings(method=self.region_method, samples=self.region_samples),
+            confidence=self.confidence, fe_check=self.fe_check, mcmc_steps=self.mcmc_steps,
+            model_form_error=model_form_error)
 
 
 def _power_of_two(value):
@@ -303,19 +252,6 @@ class SensitivitySettings:
     n: Annotated[StrictInt, AfterValidator(_power_of_two),
                  _allowed("a power of two in [256, 65536] (base samples)", ge=256, le=65536)] = 2**12
     seed: Seed = 0
-
-
-@_settings
-class DiagnosisSettings:
-    """Model diagnosis on or off, its seed, the most causes it names in turn, and an optional fixed
-    relative model-form tolerance (by default each reading's discretisation error is estimated
-    from the scenario on a mesh refined twice: :mod:`podkrig.online.model_error`)."""
-
-    enabled: StrictBool = False
-    seed: Seed = 0
-    max_causes: Annotated[StrictInt, _allowed("an integer in [1, 10]", ge=1, le=10)] = 3
-    model_tolerance: Annotated[StrictFloat | StrictInt | None,
-                               _allowed("a number in [0, 0.5), e.g. 0.01 for 1 % of each reading", ge=0, lt=0.5)] = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -403,7 +339,7 @@ class StudyFile:
                      Field(json_schema_extra={"table": "a table of parameter = value"})] = dataclasses.field(
         default_factory=dict)
     surrogate: SurrogateSettings = dataclasses.field(default_factory=SurrogateSettings)
-    inversion: InversionSettings = dataclasses.field(default_factory=InversionSettings)
+    inversion: InversionTable = dataclasses.field(default_factory=InversionTable)
     validation: Annotated[list[ValidationEntry],
                           Field(json_schema_extra={"array": "an array of tables ([[validation]])"})] = (
         dataclasses.field(default_factory=list))
@@ -468,7 +404,7 @@ class Study:
         Address of a Dask scheduler for the offline stage.
     surrogate : SurrogateSettings
     measurement : MeasurementSettings
-    inversion : InversionSettings
+    inversion : InversionTable
     validation : tuple of ValidationModel
     diagnosis : DiagnosisSettings
     sensitivity : SensitivitySettings
@@ -490,11 +426,19 @@ class Study:
     scheduler: str | None
     surrogate: SurrogateSettings
     measurement: MeasurementSettings
-    inversion: InversionSettings
+    inversion: InversionTable
     validation: tuple
     diagnosis: DiagnosisSettings
     sensitivity: SensitivitySettings = SensitivitySettings()
     tests: tuple = ()
+
+    def calibration_settings(self):
+        """The :class:`~podkrig.online.settings.CalibrationSettings` of the study: its
+        ``[inversion]`` table with each test's ``[measurement] model_form_error``."""
+        tests = self.calibration_tests
+        if not self.tests:
+            return self.inversion.calibration(tests[0].measurement.model_form_error)
+        return self.inversion.calibration({t.name: t.measurement.model_form_error for t in tests})
 
     @property
     def calibration_tests(self):

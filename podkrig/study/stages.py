@@ -15,23 +15,23 @@ Stages, in order (the measurement check, FE work, then the online stages)::
                              scenario (FE), one stage per model
     surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
     held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
-    model_form_error         each reading's discretisation error at a (no files)
-                             first optimum, from the mesh refined
-                             twice ([measurement] model_form_error
-                             = "estimated" in some test)
+    calibration              :func:`~podkrig.online.calibrate.calibrate`: region.npz, report/fit.png, residuals.png,
+                             model-form error (when asked), GA +      ga_*.png, deformed.png (with the FE
+                             polish, region of equivalence, FE check, check), region.png, rvc.png
+                             posterior, RVC of the calibration and
+                             validation models
     sensitivity              Sobol' indices of readings and misfit    report/sensitivity.png
-                             ([sensitivity] enabled)
-    inversion                GA + polish, FE check at the optimum     report/fit.png, residuals.png, ga_*.png,
-                                                                      deformed.png (with the FE check)
-    region                   region of equivalence, identifiability   region.npz, report/region.png
-    rvc                      response variability over the region     report/rvc.png
+                             ([sensitivity] enabled; with the
+                             calibration's model-form error)
     diagnosis                model diagnosis ([diagnosis] enabled)    report/diagnosis/ (its own page)
 
 In a joint calibration (``[[test]]`` tables) the per-test stages are named ``STAGE.TEST`` and write
-under ``TEST/`` and ``report/TEST/``; inversion, region, RVC and sensitivity are one stage each.
+under ``TEST/`` and ``report/TEST/``; the calibration and the sensitivity are one stage each.
 
-Each stage function takes the :class:`StudyRun` and records one manifest; the online stages store
-the ``to_dict`` of their result objects and read upstream results back with ``from_dict``.
+Each stage function takes the :class:`StudyRun` and records one manifest; the calibration stores
+:meth:`CalibrationResult.to_dict`, read back with :func:`load_calibration`. The run parses each
+measurement log once, loads each surrogate once and builds each test's inverse problem once
+(:class:`StudyRun`).
 """
 
 import dataclasses
@@ -45,20 +45,18 @@ from fe.scenarios.nonlinear import NonlinearScenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
+from podkrig.io.measurement_log import read_measurement
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.limits import fe_job_estimate
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
-from podkrig.online.invert import InverseResult, invert
+from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.joint import JointProblem
-from podkrig.io.measurement_log import read_measurement
-from podkrig.online.model_error import ModelError, discretisation_error, tolerance_error
+from podkrig.online.model_error import ModelError
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
-from podkrig.online.propagation import rvc
 from podkrig.online.rigid_body import rigid_body_modes
-from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.online.sensitivity import (
     NEGLIGIBLE_TOTAL_INDEX,
     misfit_sensitivity,
@@ -90,12 +88,57 @@ class StudyRun(StageCache):
         self.study = study
         self.figures = self.out / "report"
         self._scenarios = {}
+        self._measurements = {}
+        self._surrogates = {}
+        self._problems = {}
 
     def scenario(self, test):
         """The scenario of a calibration test, built once (only when a stage needs the FE model)."""
         if test.name not in self._scenarios:
             self._scenarios[test.name] = build_scenario(test.spec)
         return self._scenarios[test.name]
+
+    def measurement(self, test, sensor_names=None, load_levels=None, load_unit=None, load_response=None):
+        """A test's measurement log read once for its scenario's sensors and loads (or those given):
+        (Measurement, NoiseModel)."""
+        if sensor_names is None:
+            sc = self.scenario(test)
+            sensor_names, load_levels, load_unit = sc.sensor_names, sc.load_levels, sc.load_unit
+            load_response = getattr(sc, "load_response", "discrete")
+        key = (test.name, tuple(sensor_names), tuple(np.asarray(load_levels, dtype=float).tolist()), load_unit,
+               load_response)
+        if key not in self._measurements:
+            self._measurements[key] = read_study_measurement(test, sensor_names, load_levels, load_unit,
+                                                             load_response)
+        return self._measurements[key]
+
+    def surrogate(self, path):
+        """The :class:`~podkrig.online.problem.SurrogateModel` of a surrogate file of this run
+        (relative to its folder), loaded once (after the stage that writes it)."""
+        if path not in self._surrogates:
+            self._surrogates[path] = SurrogateModel(load_surrogate(self.out / path))
+        return self._surrogates[path]
+
+    def problem(self, test):
+        """The inverse problem of one test on its surrogate, without a model-form error (the
+        calibration adds it), built once."""
+        if test.name not in self._problems:
+            model = self.surrogate(test.file("surrogate.h5"))
+            data, noise = self.measurement(test, model.sensor_names, model.load_levels, model.load_unit,
+                                           model.load_response)
+            free, fixed = fix_from_scenario(model)
+            m = test.measurement
+            self._problems[test.name] = InverseProblem(model, data, noise, free=free, fixed=fixed,
+                                                       rigid_body=m.rigid_body, rigid_groups=m.rigid_groups)
+        return self._problems[test.name]
+
+    def calibration_problem(self):
+        """The study's calibration problem: the one test's :class:`InverseProblem`, or the
+        :class:`~podkrig.online.joint.JointProblem` of every ``[[test]]``."""
+        tests = self.study.calibration_tests
+        if not self.study.tests:
+            return self.problem(tests[0])
+        return JointProblem({t.name: self.problem(t) for t in tests})
 
     def figure(self, test, filename):
         """Path of a report figure of ``test`` (``report/NAME/filename`` in a joint calibration)."""
@@ -173,7 +216,7 @@ def read_study_measurement(test, sensor_names, load_levels, load_unit, load_resp
     """A test's measurement log read for a model: (Measurement, NoiseModel)."""
     m = test.measurement
     data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
-    return data, m.noise_model(data.sensor_names)
+    return data, m.noise.noise_model(data.sensor_names)
 
 
 def measurement_check(run, test):
@@ -188,7 +231,7 @@ def measurement_check(run, test):
     def compute():
         sc = run.scenario(test)
         response = getattr(sc, "load_response", "discrete")
-        data, noise = read_study_measurement(test, sc.sensor_names, sc.load_levels, sc.load_unit, response)
+        data, noise = run.measurement(test)
         rigid = rigid_body_modes(data, absolute_displacements(sc.sensors), m.rigid_body, m.rigid_groups)
         check_dof(data.n_obs, test.space.names, str(m.file), 0 if rigid is None else rigid.n_removed)
         if study.diagnosis.enabled:
@@ -203,7 +246,7 @@ def measurement_check(run, test):
                     "enabled = false, or give the readings at the levels")
         summary = data.check_summary(sc.sensor_names, noise)
         summary.update(load_response=response, load_unit=sc.load_unit, n_free=test.space.n_params,
-                       dof=data.n_obs - test.space.n_params, noise=m.noise_text())
+                       dof=data.n_obs - test.space.n_params, noise=m.noise.describe())
         for note in data.notes:
             logger.info("%s: %s", m.file.name, note)
         return summary, [], 0
@@ -304,7 +347,7 @@ def range_check(run, test, source):
     if not len(Y):
         return
     response = getattr(sc, "load_response", "discrete")
-    data, noise = read_study_measurement(test, sensor_names, levels, unit, response)
+    data, noise = run.measurement(test, sensor_names, levels, unit, response)
     problems = measurement_range_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1))
     if problems:
         raise ValueError(
@@ -432,7 +475,7 @@ def held_out_validation(run, test):
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
 
     def compute():
-        sur = load_surrogate(run.out / test.file("surrogate.h5"))
+        sur = run.surrogate(test.file("surrogate.h5")).surrogate
         with SnapshotStore.open(run.out / test.file("held_out.h5")) as store:
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
@@ -442,74 +485,13 @@ def held_out_validation(run, test):
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 
 
-def _problem(run, test, form_error=True):
-    """The inverse problem of one test on its surrogate: (problem, model); with ``form_error``, the
-    test's ``[measurement] model_form_error`` in C_D (a fixed ε, or the estimate of the
-    ``model_form_error`` stage)."""
-    model = SurrogateModel(load_surrogate(run.out / test.file("surrogate.h5")))
-    data, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
-                                         model.load_response)
-    free, fixed = fix_from_scenario(model)
-    m = test.measurement
-    error = None
-    if form_error and m.model_form_error == "estimated":
-        error = ModelError.from_dict(run.manifest("model_form_error")["result"][str(test.name)])
-    elif form_error and m.model_form_error != "none":
-        error = tolerance_error(data, float(m.model_form_error))
-    return InverseProblem(model, data, noise, free=free, fixed=fixed, rigid_body=m.rigid_body,
-                          rigid_groups=m.rigid_groups, model_form_error=error), model
-
-
-def calibration_problem(run, form_error=True):
-    """The study's calibration problem: the one test's :class:`InverseProblem`, or the
-    :class:`~podkrig.online.joint.JointProblem` of every ``[[test]]`` (``form_error``: see
-    :func:`_problem`)."""
-    tests = run.study.calibration_tests
-    if not run.study.tests:
-        return _problem(run, tests[0], form_error)[0]
-    return JointProblem({t.name: _problem(run, t, form_error)[0] for t in tests})
-
-
-def _estimates_form_error(run):
-    """The calibration tests whose ``[measurement] model_form_error`` is "estimated"."""
-    return [t for t in run.study.calibration_tests if t.measurement.model_form_error == "estimated"]
-
-
-def model_form_error(run):
-    """Each reading's discretisation error for the tests that ask for it estimated: one inversion
-    without it, then :func:`~podkrig.online.model_error.discretisation_error` at that optimum
-    (two FE runs per test): ``{test name: ModelError.to_dict()}``. Nothing to do otherwise."""
-    tests = _estimates_form_error(run)
-    if not tests:
-        return
-    s = run.study.inversion
-    inputs = {**_online_inputs(run), "ga": {"seed": s.seed, "population_size": s.population_size,
-                                            "generations": s.generations, "n_starts": s.n_starts}}
-
-    def compute():
-        problem = calibration_problem(run, form_error=False)
-        first = invert(problem, rng=s.seed, population_size=s.population_size, generations=s.generations,
-                       n_starts=s.n_starts)
-        per_test = _test_problems(problem)
-        result = {}
-        for test in tests:
-            one, p = (first, problem) if test.name is None else (first.tests[test.name], per_test[test.name])
-            error = discretisation_error(run.scenario(test), one.parameters, p.measurement,
-                                         rigid_body=p.misfit.rigid_body, observation=p.misfit.observation)
-            result[str(test.name)] = error.to_dict(p.measurement)
-        return result, [], 2 * len(tests)
-
-    run.stage("model_form_error", "Model-form error (two meshes)", inputs, compute)
-
-
-def _form_error_input(run):
-    """The model-form error estimates an online stage depends on (empty when none is estimated)."""
-    return {"model_form_error": run.manifest("model_form_error")["result"]} if _estimates_form_error(run) else {}
-
-
-def _test_problems(problem):
-    """The calibration problem's problem of each test, ``{test name or None: InverseProblem}``."""
-    return getattr(problem, "problems", {None: problem})
+def _form_errors(run):
+    """The model-form error the calibration put in each test's C_D, ``{test name: ModelError}``
+    (empty when no test asks for one)."""
+    if all(t.measurement.model_form_error == "none" for t in run.study.calibration_tests):
+        return {}
+    stored = run.manifest("calibration")["result"]["model_form_errors"]
+    return {None if name == "calibration" else name: ModelError.from_dict(e) for name, e in stored.items()}
 
 
 def _online_inputs(run):
@@ -518,7 +500,7 @@ def _online_inputs(run):
     for t in run.study.calibration_tests:
         m = t.measurement
         one = {"surrogate": run.outputs(t.stage("surrogate")), "measurement": file_sha256(m.file),
-               "noise": {"rel": m.noise_rel, "abs": m.noise_abs, "instrument": m.instrument},
+               "noise": dataclasses.asdict(m.noise),
                "import": dataclasses.asdict(m.import_settings()),
                "rigid_body": {"option": m.rigid_body, "groups": m.rigid_groups},
                **({} if m.model_form_error == "none" else {"model_form_error": m.model_form_error})}
@@ -528,20 +510,82 @@ def _online_inputs(run):
     return {"tests": inputs}
 
 
-def sensitivity(run):
-    """Sobol' indices on the surrogate(s) before the inversion: every reading of each test and the
-    misfit of the calibration, and the free parameters proposed for fixing (total index below
-    :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and the misfit)."""
-    s = run.study.sensitivity
-    inputs = {**_online_inputs(run), **_form_error_input(run), "n": s.n, "seed": s.seed,
-              "threshold": NEGLIGIBLE_TOTAL_INDEX}
+def calibration(run):
+    """The calibration (:func:`~podkrig.online.calibrate.calibrate`): model-form error when asked,
+    inversion, region of equivalence, FE check, posterior, RVC of the calibration and validation
+    models, findings; its :meth:`CalibrationResult.to_dict` with each test's model-form error
+    under ``model_form_errors``, the region's members in ``region.npz``, and its figures."""
+    study = run.study
+    tests = {t.name: t for t in study.calibration_tests}
+    settings = study.calibration_settings()
+    inputs = {**_online_inputs(run), "settings": dataclasses.asdict(settings),
+              "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
+                                      "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
 
     def compute():
-        options = {"n": s.n, "seed": s.seed}
-        problem = calibration_problem(run)
+        problem = run.calibration_problem()
+        validation = {m.name: (run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs)
+                      for m in study.validation}
+        result = calibrate(problem, settings, scenarios=lambda name: run.scenario(tests[name]), validation=validation,
+                           check_measurement=False, keep_field=True,
+                           progress=lambda step, done, total: run.progress.advance(done, total))
+        region = result.region
+        np.savez(run.out / "region.npz", samples=region.samples, omega=region.omega)
+        files = ["region.npz"] + _draw_calibration(run, result)
+        return result.to_dict(), files, result.n_fe_runs
+
+    run.stage("calibration", "Calibration (inversion, FE check, region, RVC)", inputs, compute)
+
+
+def _draw_calibration(run, result):
+    """The calibration's figures from its result: each test's fit, residuals and deformed specimen
+    (with the FE check), the GA's history and parameters, the region and the RVC; report files."""
+    files = []
+    for test in run.study.calibration_tests:
+        one = result.tests[test.name]
+        unit = one.problem.model.load_unit
+        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit)
+        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit)
+        drawn = ["fit.png", "residuals.png"]
+        response = result.responses.get(test.name)
+        if getattr(response, "field", None) is not None:
+            plot_deformed_field(run.scenario(test), response.field, run.figure(test, "deformed.png"),
+                                title="FE model at the best fit" + ("" if test.name is None else f" — test {test.name}"))
+            drawn.append("deformed.png")
+        files += [f"report/{test.file(f)}" for f in drawn]
+    inv = result.inversion
+    inverse_figures.plot_ga_history(inv.ga, run.figures / "ga_history.png")
+    inverse_figures.plot_ga_parameters(inv.ga, run.figures / "ga_parameters.png", inv.problem.free_space)
+    inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
+                                space=inv.problem.free_space)
+    inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
+    return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png"]
+
+
+def load_calibration(run):
+    """The calibration stage's :class:`~podkrig.online.calibrate.CalibrationResult` (its manifest,
+    and ``region.npz`` for the region's members)."""
+    with np.load(run.out / "region.npz") as f:
+        return CalibrationResult.from_dict(run.manifest("calibration")["result"], samples=f["samples"],
+                                           omega=f["omega"])
+
+
+def sensitivity(run):
+    """Sobol' indices on the surrogate(s): every reading of each test and the misfit of the
+    calibration (with its model-form error), and the free parameters proposed for fixing (total
+    index below :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and
+    the misfit)."""
+    s = run.study.sensitivity
+    errors = _form_errors(run)
+    estimate = {"model_form_error": {str(n): e.std.tolist() for n, e in errors.items()}} if errors else {}
+    inputs = {**_online_inputs(run), **estimate, "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
+
+    def compute():
+        options = {"n": s.n, "rng": s.seed}
+        problem = with_model_form_errors(run.calibration_problem(), errors)
         misfit = misfit_sensitivity(problem, **options)
         readings, files = {}, []
-        per_test = _test_problems(problem)
+        per_test = problems_by_test(problem)
         for test in run.study.calibration_tests:
             one = reading_sensitivity(per_test[test.name].model, **options)
             readings[str(test.name or "calibration")] = one
@@ -559,122 +603,20 @@ def sensitivity(run):
     run.stage("sensitivity", "Global sensitivity (Sobol' indices)", inputs, compute)
 
 
-def inversion(run):
-    """GA + polish on the surrogate(s), FE check at the optimum: :meth:`InverseResult.to_dict` (with
-    each test's view under ``tests`` in a joint calibration)."""
-    s = run.study.inversion
-    inputs = {**_online_inputs(run), **_form_error_input(run),
-              "ga": {"seed": s.seed, "population_size": s.population_size, "generations": s.generations,
-                     "n_starts": s.n_starts},
-              "fe_check": s.fe_check}
-
-    def compute():
-        problem = calibration_problem(run)
-        result = invert(problem, rng=s.seed, population_size=s.population_size, generations=s.generations,
-                        n_starts=s.n_starts)
-        files, fe_runs = [], 0
-        for test in run.study.calibration_tests:
-            one = result if test.name is None else result.tests[test.name]
-            one, drawn = _check_and_draw(run, test, one, s.fe_check)
-            result = one if test.name is None else result.with_test(test.name, one)
-            files += drawn
-            fe_runs += int(one.fe_check is not None)
-        inverse_figures.plot_ga_history(result.ga, run.figures / "ga_history.png")
-        inverse_figures.plot_ga_parameters(result.ga, run.figures / "ga_parameters.png", problem.free_space)
-        files += ["report/ga_history.png", "report/ga_parameters.png"]
-        return result.to_dict(), files, fe_runs
-
-    run.stage("inversion", "Inversion (GA + FE check)", inputs, compute)
-
-
-def _check_and_draw(run, test, result, check):
-    """A test's FE check at the optimum (``check``) and its fit, residual and deformed-specimen
-    figures: (result with its FE check, report files)."""
-    response = None
-    if check:  # the FE run of the check keeps its field for the deformed-specimen figure
-        response = run.scenario(test).run(result.parameters, field=True)
-        result = result.with_fe_check(run.scenario(test), response)
-    unit = result.problem.model.load_unit
-    inverse_figures.plot_fit(result, run.figure(test, "fit.png"), load_unit=unit)
-    inverse_figures.plot_residuals(result, run.figure(test, "residuals.png"), load_unit=unit)
-    files = ["fit.png", "residuals.png"]
-    if getattr(response, "field", None) is not None:
-        plot_deformed_field(run.scenario(test), response.field, run.figure(test, "deformed.png"),
-                            title="FE model at the best fit" + ("" if test.name is None else f" — test {test.name}"))
-        files.append("deformed.png")
-    return result, [f"report/{test.file(f)}" for f in files]
-
-
-def region(run):
-    """Region of equivalence around the best fit: :meth:`Region.to_dict`; members in ``region.npz``."""
-    s = run.study.inversion
-    inv = run.manifest("inversion")
-    inputs = {"inversion": inv["input_hash"], "x": inv["result"]["x"], "confidence": s.confidence,
-              "method": s.region_method, "samples": s.region_samples, "seed": s.seed}
-
-    def compute():
-        problem = calibration_problem(run)
-        x = InverseResult.from_dict(inv["result"]).x
-        if s.region_method == "noise-mc":
-            found = noise_monte_carlo_region(problem, x, confidence=s.confidence, rng=s.seed)
-        else:
-            found = likelihood_ratio_region(problem, x, confidence=s.confidence, n_samples=s.region_samples,
-                                            rng=s.seed)
-        np.savez(run.out / "region.npz", samples=found.samples, omega=found.omega)
-        inverse_figures.plot_region(found, run.figures / "region.png", best=x, space=problem.free_space)
-        return found.to_dict(), ["region.npz", "report/region.png"], 0
-
-    run.stage("region", "Region of equivalence", inputs, compute)
-
-
-def load_region(run):
-    """The region of the ``region`` stage (its manifest and ``region.npz``)."""
-    with np.load(run.out / "region.npz") as f:
-        return Region.from_dict(run.manifest("region")["result"], samples=f["samples"], omega=f["omega"])
-
-
-def rvc_stage(run):
-    """RVC of the calibration and validation models over the region: ``{"models": {name: RVCResult.to_dict()}}``
-    (the calibration models are ``calibration``, or ``calibration.TEST`` per test of a joint calibration)."""
-    study = run.study
-    tests = study.calibration_tests
-    inputs = {"region": run.outputs("region"), "seed": study.inversion.seed,
-              "calibration": {str(t.name): run.outputs(t.stage("surrogate")) for t in tests},
-              "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
-                                      "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
-
-    def compute():
-        found = load_region(run)
-        seed = study.inversion.seed
-        results = {}
-        for t in tests:
-            model = SurrogateModel(load_surrogate(run.out / t.file("surrogate.h5")))
-            results[t.stage("calibration")] = rvc(found, model, fixed=t.fixed, rng=seed)
-        for m in study.validation:
-            model = SurrogateModel(load_surrogate(run.out / f"validation_{m.name}_surrogate.h5"))
-            results[m.name] = rvc(found, model, outputs=list(m.outputs) if m.outputs else None, rng=seed)
-        inverse_figures.plot_rvc(results, run.figures / "rvc.png")
-        return {"models": {k: v.to_dict() for k, v in results.items()}}, ["report/rvc.png"], 0
-
-    run.stage("rvc", "Response variability (RVC)", inputs, compute)
-
-
 def diagnosis(run, test):
-    """The model diagnosis of a test on its FE model (its own report page): :meth:`Diagnosis.to_dict`."""
+    """The model diagnosis of a test on its FE model (its own report page): :meth:`DiagnosisResult.to_dict`."""
     study = run.study
-    inputs = {**_online_inputs(run), "seed": study.diagnosis.seed, "max_causes": study.diagnosis.max_causes,
-              "model_tolerance": study.diagnosis.model_tolerance}
+    inputs = {**_online_inputs(run), "settings": dataclasses.asdict(study.diagnosis)}
 
     def compute():
-        problem, model = _problem(run, test)
+        problem = run.problem(test)
         folder = run.figures / test.file("diagnosis")
         shutil.rmtree(folder, ignore_errors=True)  # figures of an earlier diagnosis
-        result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, fixed=test.fixed,
-                          surrogate=model.surrogate, rng=study.diagnosis.seed, max_causes=study.diagnosis.max_causes,
-                          model_tolerance=study.diagnosis.model_tolerance,
+        result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, study.diagnosis,
+                          fixed=test.fixed, surrogate=problem.model.surrogate,
                           rigid_body=test.measurement.rigid_body, rigid_groups=test.measurement.rigid_groups,
                           progress=lambda stage, done, total: run.progress.advance(done, total))
-        write_diagnosis_report(result, folder, noise_text=test.measurement.noise_text())
+        write_diagnosis_report(result, folder, noise_text=test.measurement.noise.describe())
         files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())
         return result.to_dict(), files, result.n_fe_runs
 
