@@ -7,7 +7,7 @@ Usage::
     python scripts/bench_diagnosis.py --strong 10 --strong-pairs 6   # only effects ≥ 3σ (the targets' population)
 
 Trials (issue 7): pseudo-experimental data from the FE model with one candidate cause switched on
-at a seeded-random location and strength (:mod:`podkrig.diagnosis.trials`), noise σ = 1 % of the
+at a seeded-random location and strength (``tests/diagnosis_trials.py``), noise σ = 1 % of the
 largest reading (≥ 1 µm); the diagnosis never sees the cause. Three negative controls: no effect;
 no effect but other free-parameter values; data from an independent discretisation (Q4 elements,
 12 × 4 per unit, against the default Q8 6 × 2 model: 0.4–0.9 % apart on the diagonals). The diagonal test is instrumented with its six gauges and a

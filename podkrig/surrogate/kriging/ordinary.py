@@ -145,7 +145,7 @@ class KrigingHyperparameters:
     Attributes
     ----------
     variogram : {"exponential", "power"}
-        Semivariogram model (:mod:`podkrig.kriging.variogram`).
+        Semivariogram model (:mod:`podkrig.surrogate.kriging.variogram`).
     nugget : float
         Nugget relative to the sill (exponential) or scale (power), dimensionless.
     ranges : ndarray of shape (n_outputs, n_dims)
@@ -213,7 +213,7 @@ class OrdinaryKriging:
     Parameters
     ----------
     variogram : {"exponential", "power"}, default "exponential"
-        Semivariogram model, see :mod:`podkrig.kriging.variogram`.
+        Semivariogram model, see :mod:`podkrig.surrogate.kriging.variogram`.
     beta : float, "fit" or "fit-shared", default "fit-shared"
         Exponent of the semivariogram (bounded to [0.2, 2] for the exponential family, [0.2, 1.95]
         for the power model when fitted): a fixed value (the thesis compares 1.2, 1.5 and 1.8);
@@ -233,7 +233,7 @@ class OrdinaryKriging:
         (1.8: 4.2e-3 at n = 256). Exponents 1, 1.5 and 2 need no transcendental function in the
         prediction kernel, and exponents within about 0.01 below 2 (as fitted here) one logarithm
         per training point and dimension for all outputs together (see
-        :mod:`podkrig.kriging._kernels` and ``BENCHMARKS.md``).
+        :mod:`podkrig.surrogate.kriging._kernels` and ``BENCHMARKS.md``).
     ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
         Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
         the values used when ``optimizer=None``.
@@ -677,7 +677,7 @@ class OrdinaryKriging:
 
         - ``_theta``: :math:`a_k^{-\\beta}`, ``(n_outputs, n_dims)``;
         - ``_plan_unit``: the numba kernel's grouping of outputs for batches inside the unit cube
-          (:func:`podkrig.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
+          (:func:`podkrig.surrogate.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
         - ``_ones_weights``: :math:`w_j = K_j^{-1} 1 = L_j^{-T} L_j^{-1} 1` per output (exponential
           family), ``(n_outputs, n)``;
         - ``_L_inverse``: :math:`L_j^{-1}` per output, a list of ``(n, n)`` when it takes at most
