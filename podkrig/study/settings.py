@@ -147,8 +147,8 @@ class MeasurementSettings:
     (:mod:`podkrig.online.rigid_body`; "auto": each DIC grid and the ``rigid_groups``).
     ``model_form_error``: the FE model's own discretisation error added to C_D in the inversion
     (thesis eq. 2.10): "none", "estimated" (per reading from the mesh refined twice, at a first
-    optimum: the ``model_form_error`` stage) or a relative tolerance ε
-    (:mod:`podkrig.online.model_error`). Validating a table
+    optimum, by the calibration stage: :func:`~podkrig.online.calibrate.model_form_errors`) or a
+    relative tolerance ε (:mod:`podkrig.online.model_error`). Validating a table
     needs the study file's folder in the context (``{"folder": Path}``); constructing one in
     code takes an existing file.
     """
