@@ -261,9 +261,10 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     refined = {name: _scenario_of(scenarios, name, p) for name, p in problems_by_test(problem).items()
                if settings.form_error(name) == "estimated"}
     first = invert(problem, **ga) if refined else None
-    errors = model_form_errors(problem, settings, first, scenarios=refined or scenarios)
+    errors = model_form_errors(problem, settings, first, scenarios=refined)
     n_fe += 2 * len(refined)
     problem = with_model_form_errors(problem, errors)
+    per_test = problems_by_test(problem)
     say("inversion", 1, 5)
     result = invert(problem, **ga)
     # 3. region of equivalence (with the model-form error)
@@ -272,7 +273,7 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     # 4. FE check at the optimum, per test
     responses = {}
     if settings.fe_check:
-        for name, p in problems_by_test(problem).items():
+        for name, p in per_test.items():
             one = result if name is None else result.tests[name]
             scenario = _scenario_of(scenarios, name, p)
             response = scenario.run(one.parameters, field=True) if keep_field else scenario.run(one.parameters)
@@ -289,7 +290,6 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     say("posterior", 4, 5)
     # 6. RVC of the calibration model(s) and the validation models
     seed = settings.inversion.seed
-    per_test = problems_by_test(problem)
     rvcs = {}
     for name, p in per_test.items() if calibration_rvc else ():
         key = "calibration" if name is None else f"calibration.{name}"
