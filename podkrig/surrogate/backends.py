@@ -40,7 +40,6 @@ from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import FitMethod, OrdinaryKriging
 
-DEFAULT_BACKEND = "podkrig"
 _SMT_NUGGET = 100.0 * float(np.finfo(float).eps)  # SMT's own default jitter
 
 
