@@ -40,6 +40,7 @@ from podkrig.reports.inverse import write_inversion_report
 _CALIBRATION = field_info(CalibrationSettings)
 _REGION = field_info(RegionSettings)
 _GA = field_info(InversionSettings)
+_IMPORT = ImportSettings()  # the defaults of reading a measurement log
 
 
 def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None):
@@ -163,13 +164,15 @@ def register(app):
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
         instrument: str = _INSTRUMENT,
-        load_column: str = typer.Option("load", "--load-column", help="Name of the load column (without its unit)."),
-        repeats: str = typer.Option("average", "--repeats", help="Several readings at one load step: average or keep."),
-        load_tolerance: float = typer.Option(0.0, "--load-tolerance",
+        load_column: str = typer.Option(_IMPORT.load_column, "--load-column",
+                                        help="Name of the load column (without its unit)."),
+        repeats: str = typer.Option(_IMPORT.repeats, "--repeats",
+                                    help="Several readings at one load step: average or keep."),
+        load_tolerance: float = typer.Option(_IMPORT.load_tolerance, "--load-tolerance",
                                              help="Rows within this of a step's first load form one step (load unit)."),
         zero: str = typer.Option(None, "--zero", help="Gauges zeroed at: first (row), a load, 'end of PHASE', or none "
                                                       "(default)."),
-        phase_column: str = typer.Option("phase", "--phase-column",
+        phase_column: str = typer.Option(_IMPORT.phase_column, "--phase-column",
                                          help="Column naming each row's phase (for --zero 'end of PHASE')."),
         load_range: str = typer.Option(None, "--load-range", help="LOWER,UPPER: use only these loads (load unit)."),
         delimiter: str = typer.Option(None, "--delimiter", help="CSV delimiter (default: detected)."),

@@ -77,6 +77,9 @@ def _raise():
 # ---------------------------------------------------------------------------------------------
 # measurement
 
+#: the defaults of reading a measurement log (:class:`~podkrig.io.measurement_log.ImportSettings`)
+_IMPORT = ImportSettings()
+
 _FILE_ALLOWED = ("a CSV (.csv, .txt) or Excel (.xlsx) log, relative to the study file: a load column and one "
                  "column per sensor, units in the headers (e.g. 'load [kN]', 'D1 [µm]'; mm without one)")
 
@@ -158,13 +161,14 @@ class MeasurementSettings:
     noise_abs: NoiseAbs = None
     instrument: Instrument = None
     load_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
-                           _allowed("the name of the load column (without its unit)")] = "load"
-    repeats: _choice(REPEATS) = "average"
+                           _allowed("the name of the load column (without its unit)")] = _IMPORT.load_column
+    repeats: _choice(REPEATS) = _IMPORT.repeats
     load_tolerance: Annotated[StrictFloat, AfterValidator(_finite),
-                              _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = 0.0
+                              _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = _IMPORT.load_tolerance
     zero: Annotated[Any, AfterValidator(_zero)] = None
     phase_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
-                            _allowed("the name of the phase column (read for zero = \"end of PHASE\")")] = "phase"
+                            _allowed("the name of the phase column (read for zero = \"end of PHASE\")")] = (
+        _IMPORT.phase_column)
     load_range: Annotated[Any, AfterValidator(lambda v: None if v is None else _load_range(v))] = None
     delimiter: _choice((",", ";", "\t"), '",", ";" or "\\t" (default: detected)') | None = None
     decimal: _choice((".", ","), '"." or "," (default: detected)') | None = None
