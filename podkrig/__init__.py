@@ -14,7 +14,8 @@ The public API, by stage (each name also lives in its stage's module)::
                          calibrate, CalibrationResult, CalibrationSettings, InversionSettings,
                          RegionSettings, NoiseSettings, likelihood_ratio_region, rvc, nested_analyses, sample_posterior,
                          reading_sensitivity, misfit_sensitivity)
-    from podkrig import diagnose, DiagnosisSettings, place_sensors      # diagnosis, test design
+    from podkrig import diagnose, DiagnosisResult, DiagnosisSettings    # diagnosis
+    from podkrig import place_sensors                                   # test design
     from podkrig import load_study, run_study                           # studies
     from podkrig import minimize, GeneticAlgorithm, GAOptions           # the GA
 
@@ -67,6 +68,7 @@ _PUBLIC = {
     "InversionSettings": "podkrig.online.settings",
     "RegionSettings": "podkrig.online.settings",
     "NoiseSettings": "podkrig.online.settings",
+    "DiagnosisResult": "podkrig.diagnosis.results",
     "DiagnosisSettings": "podkrig.diagnosis.settings",
     "likelihood_ratio_region": "podkrig.online.region",
     "noise_monte_carlo_region": "podkrig.online.region",

@@ -57,3 +57,11 @@ def scrambled_sobol(n, d, rng, *, skip=0):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # scipy's power-of-two note
         return engine.random(n)
+
+
+def rng_seed(rng):
+    """An integer seed derived from ``rng`` (int or Generator) for a seeded design: an integer is
+    returned as it is (the same points as before), a Generator gives one draw from it."""
+    if isinstance(rng, np.random.Generator):
+        return int(rng.integers(2**31))
+    return rng

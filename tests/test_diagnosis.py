@@ -17,7 +17,7 @@ from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from fe.supports import spring_supported_model, support_areas
 from diagnosis_trials import make_trial
-from podkrig.diagnosis import CANDIDATES, Diagnosis, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
+from podkrig.diagnosis import CANDIDATES, DiagnosisResult, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
 from podkrig.parameters import ParameterSpace
 
 BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
@@ -193,7 +193,7 @@ def test_hidden_effect_is_named(cause, wall, shear_wall):
         assert out["gain"]["held_out_rms_after"] < out["gain"]["held_out_rms_before"]
         # the result reads back from its JSON (with state) to an equal one
         full = json.loads(json.dumps(d.to_dict(state=True)))
-        back = Diagnosis.from_dict(full, scenario=setup.scenario)
+        back = DiagnosisResult.from_dict(full, scenario=setup.scenario)
         assert back.to_dict(state=True) == full and back.to_dict() == out
         assert_allclose(back.residuals(back.extended), d.residuals(d.extended))
 

@@ -15,7 +15,7 @@ from numpy.testing import assert_allclose
 
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
-from podkrig.diagnosis import CANDIDATES, Diagnosis, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
+from podkrig.diagnosis import CANDIDATES, DiagnosisResult, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
 from podkrig.online.model_error import discretisation_error, tolerance_error
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import ParameterSpace
@@ -154,7 +154,7 @@ def test_the_demos_two_hidden_effects_are_named_in_turn(wall):
     assert [c["cause"] for c in out["causes"]] == [s.score.name for s in d.steps]
     assert [s["cause"] for s in out["gain"]["steps"]] == [c.name for c in d.causes]
     full = json.loads(json.dumps(d.to_dict(state=True)))
-    back = Diagnosis.from_dict(full, scenario=wall)
+    back = DiagnosisResult.from_dict(full, scenario=wall)
     assert back.to_dict(state=True) == full
 
 

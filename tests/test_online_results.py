@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from podkrig._qmc import rng_seed
 from podkrig.online.calibrate import calibrate
 from podkrig.online.findings import (
     CHI2_DOF_LIMIT, COVERAGE_LIMIT, FE_CHECK_LIMIT, Finding, diagnosis_findings, fe_check_ok, held_out_findings,
     inversion_findings, is_identifiable, offline_findings,
 )
-from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert, rng_seed
+from podkrig.online.invert import FECheck, InverseResult, _distinct_starts, fe_check, invert
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.nested import NestedAnalysis, OverparamResult, information_criteria, nested_analyses
 from podkrig.online.problem import InverseProblem, fix_from_scenario

@@ -140,7 +140,7 @@ def test_a_reached_target_adds_nothing(stores, tmp_path):
 
 
 def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(stores, tmp_path, monkeypatch):
-    """Each round draws the candidate set with seed ``seed + round`` (design ``sampling``), scores
+    """Each round draws the candidate set with seed ``rng + round`` (design ``sampling``), scores
     it by the variance summed over the outputs of the surrogate fitted with the file's own
     settings (here the power variogram, 3 POD modes and the displacement field as output, none
     of them a default; all kept in the refined surrogate) and appends
@@ -153,7 +153,7 @@ def test_new_runs_are_the_spaced_highest_variance_candidates_of_the_seeded_set(s
     save_surrogate(template, file)
     scores = []
     monkeypatch.setattr(refine, "select_batch", lambda U, score, *rest: scores.append(score) or select_batch(U, score, *rest))
-    out, sur = _refine(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, seed=5,
+    out, sur = _refine(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32, rng=5,
                            sampling="random")
     assert out["added"] == 2
     U_cand = sample("random", 32, 2, 5 + 1)
@@ -200,4 +200,5 @@ def test_library_defaults_are_the_commands_defaults():
     cli = {p.name: p.default for p in command.params}
     library = {k: p.default for k, p in inspect.signature(refine_surrogate).parameters.items()
                if p.default is not inspect.Parameter.empty}
-    assert library == {k: cli["candidates" if k == "n_candidates" else k] for k in library}
+    option = {"n_candidates": "candidates", "rng": "seed"}
+    assert library == {k: cli[option.get(k, k)] for k in library}

@@ -23,7 +23,7 @@ def test_ishigami_indices_within_0_01_of_the_analytic_values():
     """Analytic indices of Ishigami (a = 7, b = 0.1; Sobol' & Levitan 1999): S = (0.3139, 0.4424, 0),
     S_T = (0.5576, 0.4424, 0.2437). With 2^14 base samples the estimators' error is ~0.005 (the
     issue's tolerance is 0.01); the 95 % bootstrap intervals are a few 0.01 wide and contain them."""
-    res = sobol_indices(_ishigami, ("x1", "x2", "x3"), ("y",), n=2**14, seed=0)
+    res = sobol_indices(_ishigami, ("x1", "x2", "x3"), ("y",), n=2**14, rng=0)
     first, total = np.array([0.3139, 0.4424, 0.0]), np.array([0.5576, 0.4424, 0.2437])
     assert_allclose(res.first[0], first, atol=0.01)
     assert_allclose(res.total[0], total, atol=0.01)
@@ -40,7 +40,7 @@ def test_additive_linear_model_has_equal_first_and_total_indices():
     def fun(U):
         return np.column_stack([U @ a, np.full(len(U), 2.0)])
 
-    res = sobol_indices(fun, ("a", "b", "c", "d"), ("y", "const"), n=2**12, seed=3)
+    res = sobol_indices(fun, ("a", "b", "c", "d"), ("y", "const"), n=2**12, rng=3)
     exact = a**2 / np.sum(a**2)
     assert_allclose(res.first[0], exact, atol=0.01)
     assert_allclose(res.total[0], exact, atol=0.01)
@@ -116,7 +116,7 @@ def test_design_and_intervals_are_the_seeded_sobol_matrices_and_bootstrap_percen
         seen.append(U.copy())
         return _two_outputs(U)
 
-    res = sobol_indices(fun, ("u", "v"), ("add", "mul"), n=n, seed=seed, confidence=confidence, n_resamples=R)
+    res = sobol_indices(fun, ("u", "v"), ("add", "mul"), n=n, rng=seed, confidence=confidence, n_resamples=R)
     (X,) = seen
     AB = scrambled_sobol(n, 2 * d, seed)
     A, B = AB[:, :d], AB[:, d:]

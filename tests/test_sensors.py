@@ -308,7 +308,7 @@ def test_surrogate_sensitivities_approach_the_exact_ones(scenario, space, twenty
     for scenarios without an affine model) agrees with the exact FE sensitivities: the D-criterion
     ranking of 200 random 4-sensor layouts has Spearman ρ > 0.95 and the chosen layouts' exact
     criteria differ by < 2 % (surrogate of 128 Sobol' points; kriging error ~1e-3 relative)."""
-    train = candidate_sensitivities(scenario, space, twenty, prior_points(space, 128, seed=3))
+    train = candidate_sensitivities(scenario, space, twenty, prior_points(space, 128, rng=3))
     sur = candidate_surrogate(train)
 
     class Model:  # what SurrogateModel exposes, over the candidates' channels

@@ -246,6 +246,12 @@ class NonlinearScenario(Scenario):
                 readings[k] = (1 - a) * path.readings[idx[i - 1]] + a * path.readings[idx[i]]
                 loads[k] = (1 - a) * load[i - 1] + a * load[i]
         peak = int(np.argmax(load)) if len(load) else None
+        peak_load = float(load[peak]) if peak is not None else float("nan")
+        peak_displacement = float(disp[peak]) if peak is not None else float("nan")
+        refined = getattr(path, "peaks", {}).get(control_phase)
+        if refined is not None:
+            # the load maximum refined to the solver's peak_tolerance (fe.solvers.nonlinear.Peak)
+            peak_load, peak_displacement = refined.load, self.control_sign * refined.path
         u = None
         if field and path.displacements is not None:
             u = np.full((len(levels), self.mesh.n_nodes, 2), np.nan)
@@ -254,8 +260,7 @@ class NonlinearScenario(Scenario):
                     u[k] = path.displacements[at[k]]
         return NonlinearResponse(
             readings, self.sensor_names, levels, self.load_unit, u, loads=loads, force_unit=self.force_unit,
-            peak_load=float(load[peak]) if peak is not None else float("nan"),
-            peak_displacement=float(disp[peak]) if peak is not None else float("nan"),
+            peak_load=peak_load, peak_displacement=peak_displacement,
             status=path.status, limit=path.limit, message=path.message,
             reached=float(disp[-1]) if len(disp) else 0.0,
             extra=self.extra_outputs(path, at), path=path)

@@ -21,8 +21,48 @@ fixed after pre-compression; their reactions are recorded.
 Every iteration re-evaluates the interface law from the last converged state (no history is
 updated before a step converges). Newton steps are damped by a backtracking line search on the
 residual norm; a step that does not converge within ``max_iterations`` (or whose local return
-fails, or whose residual grows a million-fold) is cut back; easy steps grow the increment. Every
-run ends within its :class:`PathSettings` budget with a status and the converged part of the path.
+fails, or whose residual grows a million-fold) is cut back. Every run ends within its
+:class:`PathSettings` budget with a status and the converged part of the path.
+
+Step control (``predictor``, ``step_rule``). Newton starts each increment from a prediction along
+the path: ``"secant"`` (default) extrapolates the last two converged states of the phase linearly
+to the new path value, ``q = q_n + a (q_n − q_{n−1})``, ``λ`` likewise, with
+``a = Δ_{n+1} / Δ_n`` [1]_, and evaluates the interface law there, so that the first iteration
+already uses the tangent of the cracks and slips the step is heading into; ``"tangent"`` (the
+earlier behaviour) starts from the converged state with its consistent tangent. After a failed
+increment the retry uses the tangent predictor. A prediction already within the force tolerance
+is accepted without iterating. The next increment follows the Newton iterations of the last
+ones: ``"easy_steps"`` (default) grows it by ``growth`` after two steps of at most
+``easy_iterations``; ``"iterations"`` scales it by ``clip(√(easy_iterations / n), cutback,
+growth)`` after a step of ``n`` iterations, the classical rule of Crisfield [2]_. On the coarse
+J4D walls the secant predictor with ``"easy_steps"`` failed fewest increments and iterated least
+(``scripts/bench_nonlinear_peaks.py``); the failures left are at the cracking events where
+displacement control needs its detour.
+
+Peaks (``peak_tolerance``). In every displacement- or indirectly controlled phase a load maximum
+is bracketed by three consecutive converged steps a, b, c (b highest). Were the load concave
+there, its maximum could exceed F_b by at most the larger secant extrapolation,
+``(F_b − F_a)(v_c − v_b)/(v_b − v_a)`` or ``(F_b − F_c)(v_b − v_a)/(v_c − v_b)``. At the end of
+the phase the brackets are refined in the order of that bound while it exceeds the largest load
+found so far (at most ``max_peak_steps`` increments per phase), on a side path that leaves the
+recorded steps, and so the readings at the output levels, untouched: from the state at the
+bracket's start the bracket is re-followed in four equal increments (Newton to
+``peak_newton_tolerance``), the bracket shrinks to the two sub-steps around the highest state,
+and so on until the load changes by at most ``peak_tolerance`` × load between the highest state
+and both its neighbours (or the bracket is narrower than the smallest increment). For a smooth
+maximum the true peak then exceeds the reported one by at most a quarter of that change (a
+parabola through equally spaced points), at a kink by at most the change. A refined maximum
+replaces a recorded one unless lower by more than the tolerance (a recorded load carries the
+error of the looser ``tolerance``). The result is ``PathResult.peaks[phase]`` (:class:`Peak`);
+``Peak.resolved`` says whether the tolerance was met.
+
+References
+----------
+.. [1] Kadapa, C. (2021). A simple extrapolated predictor for overcoming the starting and
+   tracking issues in the arc-length method for nonlinear structural mechanics. Engineering
+   Structures 234.
+.. [2] Crisfield, M. A. (1991). Non-linear Finite Element Analysis of Solids and Structures,
+   Vol. 1, §9.5 (automatic increments from the number of iterations). Wiley.
 
 The budget counts what a run costs, not how busy the machine is: attempted increments
 (``max_steps``), Newton iterations (``max_total_iterations``) and the CPU time of the process
@@ -51,6 +91,13 @@ BUDGET = "budget_exhausted"
 #: The limits of a run's budget, in the order they are checked (``PathResult.limit``): attempted
 #: increments, Newton iterations, process CPU time, and the wall-clock hang guard.
 LIMITS = ("steps", "iterations", "cpu", "wall")
+
+#: Predictors of an increment's first Newton iterate and rules for the next increment (:class:`PathSettings`).
+PREDICTORS = ("secant", "tangent")
+STEP_RULES = ("easy_steps", "iterations")
+
+#: Sub-increments per bracket refinement of a load maximum (the bracket halves per refinement).
+PEAK_SUBSTEPS = 4
 
 
 @dataclass(frozen=True)
@@ -106,6 +153,25 @@ class PathSettings:
         falls below its minimum).
     record_states : bool
         Keep the interface state (opening, slip, κ2, plastic work; float32) of every converged step.
+    predictor : {"secant", "tangent"}
+        Start of Newton in each increment (module docstring): extrapolation of the last two
+        converged states of the phase, or the converged state with its tangent.
+    step_rule : {"easy_steps", "iterations"}
+        Increment after a converged step: ``growth`` times the last one after two easy steps, or
+        ``√(easy_iterations / iterations)`` times the last one (bounded by ``cutback`` and ``growth``).
+    peak_tolerance : float
+        Relative load change across the final bracket of a refined load maximum (module docstring);
+        0 disables the refinement (the peak is then the largest recorded load).
+    max_peak_steps : int
+        Increments of all peak refinements of one phase (a cap on their cost; the peak found by
+        then is reported, ``Peak.resolved`` says whether it met the tolerance).
+    max_peak_levels : int
+        Bracket refinements per maximum (each re-follows the bracket in four increments and halves it).
+    peak_newton_tolerance : float
+        Force tolerance (as ``tolerance``, which it replaces when smaller) of the increments of a
+        peak refinement: the reaction of a state accepted at ``tolerance`` = 1e-3 is only known to
+        about 0.1 %, too coarse to resolve a peak to ``peak_tolerance``. Where an increment of the
+        refinement cannot reach it, the rest of that bracket uses ``tolerance``.
     """
 
     max_steps: int = 600
@@ -128,6 +194,12 @@ class PathSettings:
     max_detour_steps: int = 200
     detour_after_failures: int = 4
     relaxed_factor: float = 10.0
+    predictor: str = "secant"
+    step_rule: str = "easy_steps"
+    peak_tolerance: float = 1e-3
+    max_peak_steps: int = 32
+    max_peak_levels: int = 16
+    peak_newton_tolerance: float = 1e-4
 
     def __post_init__(self):
         for name in ("max_steps", "max_iterations", "max_total_iterations"):
@@ -143,6 +215,15 @@ class PathSettings:
             raise ValueError(f"need growth >= 1 and 0 < cutback < 1; got {self.growth}, {self.cutback}")
         if not 0 < self.min_increment_fraction <= 1 <= self.max_increment_fraction:
             raise ValueError("need 0 < min_increment_fraction <= 1 <= max_increment_fraction")
+        if self.predictor not in PREDICTORS:
+            raise ValueError(f"predictor must be one of {PREDICTORS}; got {self.predictor!r}")
+        if self.step_rule not in STEP_RULES:
+            raise ValueError(f"step_rule must be one of {STEP_RULES}; got {self.step_rule!r}")
+        if not 0 <= self.peak_tolerance < 0.1:
+            raise ValueError(f"peak_tolerance (relative load change across a peak's bracket) must be in [0, 0.1); "
+                             f"got {self.peak_tolerance}")
+        if not int(self.max_peak_steps) >= 0:
+            raise ValueError(f"max_peak_steps must be >= 0; got {self.max_peak_steps}")
 
     def to_dict(self):
         return dataclasses.asdict(self)
@@ -228,6 +309,15 @@ class PathResult:
         (``"steps"``, ``"iterations"``, ``"cpu"``, ``"wall"``); None otherwise.
     message : str
     total_iterations, attempted_steps : int
+        Over the whole run, peak refinements included.
+    failed_steps : int
+        Increments of the recorded path that failed and were cut back (retried); those of the
+        detour are in ``attempted_steps`` only, like the peak refinements'.
+    peak_steps : int
+        Converged increments of the peak refinements (not recorded in the path).
+    peaks : dict of str to Peak
+        Per displacement- or indirectly controlled phase that recorded a step: its largest load,
+        refined to ``peak_tolerance`` (module docstring).
     relaxed_steps : list of (int, float)
         Steps accepted with a relative residual above ``tolerance`` (index, relative residual).
     seconds : float
@@ -251,6 +341,9 @@ class PathResult:
     message: str = ""
     total_iterations: int = 0
     attempted_steps: int = 0
+    failed_steps: int = 0
+    peak_steps: int = 0
+    peaks: dict = field(default_factory=dict)
     relaxed_steps: list = field(default_factory=list)
     seconds: float = 0.0
     cpu_seconds: float = 0.0
@@ -272,10 +365,68 @@ class PathResult:
     def to_dict(self):
         return {
             "status": self.status, "limit": self.limit, "message": self.message, "steps": int(len(self.path)),
-            "attempted_steps": self.attempted_steps, "total_iterations": self.total_iterations,
+            "attempted_steps": self.attempted_steps, "failed_steps": self.failed_steps,
+            "peak_steps": self.peak_steps, "total_iterations": self.total_iterations,
+            "peaks": {k: v.to_dict() for k, v in self.peaks.items()},
             "relaxed_steps": [[int(i), float(r)] for i, r in self.relaxed_steps],
             "seconds": self.seconds, "cpu_seconds": self.cpu_seconds, "settings": self.settings,
         }
+
+
+@dataclass
+class Peak:
+    """The largest load of a phase, refined to a stated tolerance (module docstring).
+
+    Attributes
+    ----------
+    phase : str
+    path : float
+        Path value (e.g. the controlled displacement, mm) of the converged state with the largest load.
+    load : float
+        That load (times ``load_scale``).
+    readings : ndarray (n_channels,)
+        Sensor readings there, mm.
+    change : float
+        Largest relative load change between that state and its neighbours in the final bracket
+        (0 when the peak is the first or last recorded step of the phase: an end of its range).
+    resolved : bool
+        ``change <= tolerance``.
+    tolerance : float
+        ``PathSettings.peak_tolerance``.
+    bracket : tuple of float
+        Path values of the final bracket.
+    refined : bool
+        Whether the peak comes from a refinement (False: a recorded step).
+    """
+
+    phase: str
+    path: float
+    load: float
+    readings: np.ndarray
+    change: float = 0.0
+    resolved: bool = True
+    tolerance: float = 0.0
+    bracket: tuple = ()
+    refined: bool = False
+
+    def to_dict(self):
+        return {"phase": self.phase, "path": float(self.path), "load": float(self.load), "change": float(self.change),
+                "resolved": bool(self.resolved), "tolerance": float(self.tolerance),
+                "bracket": [float(v) for v in self.bracket], "refined": bool(self.refined)}
+
+
+@dataclass
+class _Snapshot:
+    """A converged state of the solver (for restarting a peak refinement)."""
+
+    q: np.ndarray
+    lam: float
+    state: object
+    tangent: object
+    previous_state: object
+    value: float
+    load: float
+    readings: np.ndarray
 
 
 class _Budget(Exception):
@@ -340,23 +491,34 @@ class PathFollower:
             raise _Budget(f"wall-clock limit of {s.max_seconds:g} s (hang guard) exhausted", "wall")
 
     # ---------------------------------------------------------------- one increment
-    def _increment(self, phase, fixed, positions, diag, target):
+    def _increment(self, phase, fixed, positions, diag, target, predicted=None, tolerance=None):
         """Newton iterations from the converged state to path value ``target``.
 
-        Returns (q, λ, law update, internal force, iterations) or raises SolverError on failure.
+        ``predicted`` = (q, λ): the first iterate (secant predictor); None: the converged state
+        with its tangent. ``tolerance`` overrides ``settings.tolerance``. Returns (q, λ, law update,
+        internal force, iterations) or raises SolverError on failure.
         """
         s, model = self.settings, self.model
+        tol = s.tolerance if tolerance is None else tolerance
         self._elastic_factorised = False
-        q = self.q.copy()
-        lam = target if phase.control == "load" else self.lam
         f_ref = phase.f_ref if phase.f_ref is not None else 0.0
-        upd, data, fint = self._evaluate(q, self.state)
-        if data is None:
-            raise SolverError("interface return mapping failed")
-        if self.tangent is not None:
-            # predictor on the last converged (consistent) tangent, not the unloading one that the
-            # law returns for a zero increment: a softening path continues to soften
-            data, _ = model.tangent_and_force(q, upd.state.traction, self.tangent)
+        data = None
+        if predicted is not None:
+            q, lam = predicted
+            if phase.control == "load":
+                lam = target
+            upd, data, fint = self._evaluate(q, self.state)
+        if data is None:  # no prediction, or its return mapping failed: the tangent predictor
+            predicted = None
+            q = self.q.copy()
+            lam = target if phase.control == "load" else self.lam
+            upd, data, fint = self._evaluate(q, self.state)
+            if data is None:
+                raise SolverError("interface return mapping failed")
+            if self.tangent is not None:
+                # predictor on the last converged (consistent) tangent, not the unloading one that the
+                # law returns for a zero increment: a softening path continues to soften
+                data, _ = model.tangent_and_force(q, upd.state.traction, self.tangent)
         r_start = None
         best, goal = None, None
         elastic = False  # after max_iterations Newton iterations: initial-stiffness iterations
@@ -371,13 +533,14 @@ class PathFollower:
             scale = max(np.linalg.norm(fint), np.linalg.norm(f_ext), 1e-12)
             remaining = self._remaining(phase, q, target)
             logger.debug("  it %d%s: residual %.3e N (tol %.3e), remaining %.3e, sub-stepped points %d", it,
-                         " (elastic)" if elastic else "", rn, s.tolerance * scale, remaining,
+                         " (elastic)" if elastic else "", rn, tol * scale, remaining,
                          int(np.count_nonzero(upd.status == 1)))
-            if it > 0 and rn <= s.tolerance * scale and abs(remaining) <= 1e-9 * max(abs(target), 1.0):
-                return q, lam, upd, fint, it
+            if ((it > 0 or predicted is not None) and rn <= tol * scale
+                    and abs(remaining) <= 1e-9 * max(abs(target), 1.0)):
+                return q, lam, upd, fint, it  # a prediction within tolerance is accepted as it is
             if it > 0 and np.isfinite(rn) and (best is None or rn < best[0]):
                 best = (rn, q, lam, upd, data, fint, it)
-                goal = s.tolerance * scale
+                goal = tol * scale
             if it == limit:
                 if elastic or not s.elastic_fallback or best is None:
                     break
@@ -486,6 +649,7 @@ class PathFollower:
         positions, diag = model.row_positions(fixed)
         if phase.control == "dof":
             self._column = model.column_positions(phase.dof)
+        system = (fixed, positions, diag)
         start = self._path_value(phase, self.q, self.lam)
         direction = 1.0 if phase.target >= start else -1.0
         stops = sorted({float(v) for v in phase.levels if (v - start) * direction > 0} | {float(phase.target)},
@@ -496,6 +660,9 @@ class PathFollower:
         easy = 0
         failures = 0  # consecutive failed increments
         relaxed_run = 0  # consecutive relaxed acceptances (at most two: no creeping at a limit point)
+        first = len(res.path)  # index of the phase's first recorded step
+        self._chain = []  # the phase's last converged normal steps (secant predictor, peak brackets)
+        self._brackets = []  # (bound of the maximum, start snapshot, end path value) of load maxima
         for stop in stops:
             while (stop - value) * direction > 1e-12 * max(abs(stop), 1.0):
                 self._check_budget()
@@ -503,8 +670,10 @@ class PathFollower:
                 target = stop if step >= abs(stop - value) * (1 - 1e-12) else value + direction * step
                 res.attempted_steps += 1
                 try:
-                    q, lam, upd, fint, its = self._increment(phase, fixed, positions, diag, target)
+                    predicted = self._predict(phase, target) if failures == 0 else None
+                    q, lam, upd, fint, its = self._increment(phase, *system, target, predicted)
                 except SolverError as e:
+                    res.failed_steps += 1
                     inc *= s.cutback
                     easy = 0
                     failures += 1
@@ -520,10 +689,12 @@ class PathFollower:
                         self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
                         value = self._path_value(phase, q, lam)
                         self._record(phase, fint, its, upd)
+                        self._chain = []
                         inc, failures, relaxed_run = phase.increment, 0, relaxed_run + 1
                         continue
                     detour_now = failures >= s.detour_after_failures or inc < inc_min
                     if detour_now and phase.control != "load" and s.arc_length_fallback:
+                        self._chain = []
                         reached = self._detour(phase, held, value, direction)
                         if reached is not None:
                             value, inc, easy, failures = reached, phase.increment, 0, 0
@@ -534,6 +705,7 @@ class PathFollower:
                         res.message = (f"{phase.name}: no convergence at {phase.control} path value {value:.6g} "
                                        f"towards {target:.6g} with the increment cut to {inc / s.cutback:.3g} "
                                        f"(minimum {inc_min:.3g}); last failure: {e}")
+                        self._resolve_peak(phase, system, first)
                         return False
                     continue
                 failures = relaxed_run = 0
@@ -543,10 +715,169 @@ class PathFollower:
                 if abs(value - target) <= 1e-9 * max(abs(target), 1.0):
                     value = target
                 self._record(phase, fint, its, upd)
-                easy = easy + 1 if its <= s.easy_iterations else 0
-                if easy >= 2:
-                    inc = min(inc * s.growth, inc_max)
+                self._chain_step(phase, value)
+                if s.step_rule == "iterations":
+                    # Crisfield's rule: the increment follows the iterations the last one needed
+                    factor = s.growth if its == 0 else np.sqrt(s.easy_iterations / its)
+                    inc = float(np.clip(inc * min(max(factor, s.cutback), s.growth), inc_min, inc_max))
+                else:
+                    easy = easy + 1 if its <= s.easy_iterations else 0
+                    if easy >= 2:
+                        inc = min(inc * s.growth, inc_max)
+        self._resolve_peak(phase, system, first)
         return True
+
+    # ---------------------------------------------------------------- prediction and peaks
+    def _snapshot(self, value):
+        res = self.result
+        return _Snapshot(self.q, self.lam, self.state, self.tangent, self.previous_state, value,
+                         float(res.load[-1]), np.asarray(res.readings[-1]))
+
+    def _restore(self, snap):
+        self.q, self.lam, self.state = snap.q, snap.lam, snap.state
+        self.tangent, self.previous_state = snap.tangent, snap.previous_state
+
+    def _chain_step(self, phase, value):
+        """Keep the last three converged steps of the phase; note a bracketed load maximum."""
+        self._chain = (self._chain + [self._snapshot(value)])[-3:]
+        if phase.control == "load" or self.settings.peak_tolerance <= 0 or len(self._chain) < 3:
+            return
+        a, b, c = self._chain
+        left, right = b.value - a.value, c.value - b.value
+        if b.load >= a.load and b.load > c.load and left * right > 0:
+            bound = b.load + max((b.load - a.load) * right / left, (b.load - c.load) * left / right)
+            self._brackets.append((bound, a, c.value))
+
+    def _predict(self, phase, target):
+        """Secant predictor (q, λ) for the increment to ``target``, or None (module docstring)."""
+        if self.settings.predictor != "secant" or len(self._chain) < 2:
+            return None
+        a, b = self._chain[-2], self._chain[-1]
+        if b.q is not self.q or b.value == a.value:
+            return None
+        ratio = (target - b.value) / (b.value - a.value)
+        if not 0 < ratio <= 2 * self.settings.max_increment_fraction:
+            return None
+        q = b.q + ratio * (b.q - a.q)
+        if phase.control == "dof":
+            q[phase.dof] = target
+        return q, b.lam + ratio * (b.lam - a.lam)
+
+    def _resolve_peak(self, phase, system, first):
+        """Refine the phase's load maxima (module docstring); sets ``result.peaks[phase.name]``."""
+        res, s = self.result, self.settings
+        if phase.control == "load" or len(res.path) <= first:
+            return
+        loads = np.asarray(res.load[first:], float)
+        k = int(np.argmax(loads))
+        peak = Peak(phase.name, float(res.path[first + k]), float(loads[k]), np.asarray(res.readings[first + k]),
+                    tolerance=s.peak_tolerance, bracket=(float(res.path[first + k]),) * 2)
+        if s.peak_tolerance > 0 and 0 < k < len(loads) - 1:
+            # an interior maximum not bracketed by three normal steps (e.g. in a detour): unresolved
+            peak.change = float(max(loads[k] - loads[k - 1], loads[k] - loads[k + 1]) / max(abs(loads[k]), 1e-300))
+            peak.resolved = peak.change <= s.peak_tolerance
+            peak.bracket = (float(res.path[first + k - 1]), float(res.path[first + k + 1]))
+        end = self._snapshot(self._path_value(phase, self.q, self.lam)) if len(res.path) > first else None
+        candidates = sorted(self._brackets, key=lambda b: -b[0])
+        self._peak_budget = res.peak_steps + s.max_peak_steps
+        try:
+            for bound, start, stop in candidates:
+                if bound <= peak.load or res.peak_steps >= self._peak_budget:
+                    break
+                found = self._refine(phase, system, start, stop)
+                # a refined maximum replaces a recorded one unless lower by more than the tolerance:
+                # recorded loads carry the error of the looser ``tolerance``
+                if found.load > peak.load or (not peak.refined and found.resolved
+                                              and found.load >= peak.load - s.peak_tolerance * abs(peak.load)):
+                    peak = found
+        except _Budget as b:
+            logger.info("%s: peak refinement stopped (%s); the peak is the best found so far", phase.name, b)
+            peak.resolved = False
+        finally:
+            if end is not None:
+                self._restore(end)
+        res.peaks[phase.name] = peak
+        self._brackets = []
+
+    def _refine(self, phase, system, start, stop):
+        """Shrink the bracket [start.value, stop] around its load maximum (module docstring)."""
+        s, res = self.settings, self.result
+        width_min = abs(phase.increment) * s.min_increment_fraction
+        lo, hi = start, stop
+        best = Peak(phase.name, start.value, start.load, start.readings, change=np.inf, resolved=False,
+                    tolerance=s.peak_tolerance, bracket=(start.value, stop), refined=True)
+        for _ in range(s.max_peak_levels):
+            followed = self._follow(phase, system, lo, hi, PEAK_SUBSTEPS)
+            points = [lo] + followed
+            complete = len(followed) == PEAK_SUBSTEPS
+            loads = np.array([p.load for p in points])
+            k = int(np.argmax(loads))
+            logger.debug("%s: peak bracket %s loads %s", phase.name, [p.value for p in points], loads)
+            # resolved only between two neighbours: a maximum at an end of the bracket may lie beyond
+            change = np.inf
+            if 0 < k < len(points) - 1:
+                change = max(loads[k] - loads[k - 1], loads[k] - loads[k + 1]) / max(abs(loads[k]), 1e-300)
+            # the highest state of the finest bracket, unless an earlier bracket's was higher by
+            # more than the tolerance (states at the same path value differ by the Newton tolerance)
+            if loads[k] >= best.load - s.peak_tolerance * abs(best.load):
+                best = Peak(phase.name, points[k].value, float(loads[k]), points[k].readings, change=float(change),
+                            resolved=bool(change <= s.peak_tolerance), tolerance=s.peak_tolerance,
+                            bracket=(points[max(k - 1, 0)].value, points[min(k + 1, len(points) - 1)].value),
+                            refined=True)
+            if change <= s.peak_tolerance or len(points) < 2 or (k == len(points) - 1 and not complete):
+                break  # resolved, or the maximum is where the side path could not go on (a jump)
+            lo = points[max(k - 1, 0)]
+            if k == len(points) - 1:  # still rising at the bracket's end: extend it by one sub-step
+                hi = 2 * points[k].value - points[k - 1].value
+            else:
+                hi = points[k + 1].value
+            if abs(hi - lo.value) < width_min:
+                break
+        logger.debug("%s: peak %.6g at %.6g (change %.2e, resolved %s)", phase.name, best.load, best.path,
+                     best.change, best.resolved)
+        return best
+
+    def _follow(self, phase, system, start, stop, parts):
+        """Converged snapshots at ``parts`` equal sub-steps from ``start`` to ``stop`` on a side
+        path (not recorded); fewer when an increment fails below the smallest increment."""
+        s, res = self.settings, self.result
+        self._restore(start)
+        self._chain = []
+        out = []
+        h = (stop - start.value) / parts
+        value = start.value
+        inc, inc_min = abs(h), abs(phase.increment) * s.min_increment_fraction / parts
+        tight = min(s.tolerance, s.peak_newton_tolerance)
+        for j in range(1, parts + 1):
+            goal = start.value + j * h if j < parts else stop
+            while abs(goal - value) > 1e-12 * max(abs(goal), 1.0):
+                self._check_budget()
+                if res.peak_steps >= self._peak_budget:
+                    return out
+                target = goal if inc >= abs(goal - value) * (1 - 1e-12) else value + np.sign(h) * inc
+                res.attempted_steps += 1
+                try:
+                    q, lam, upd, fint, its = self._increment(phase, *system, target, self._predict(phase, target),
+                                                             tolerance=tight)
+                except SolverError:
+                    if tight < s.tolerance:
+                        # a point cycling at a kink of the return map may not reach the tighter
+                        # tolerance: go on with the path's own (the peak is then known to ~tolerance)
+                        tight = s.tolerance
+                        continue
+                    inc *= s.cutback
+                    if inc < inc_min:
+                        return out
+                    continue
+                res.peak_steps += 1
+                self.previous_state = self.state
+                self.q, self.lam, self.state, self.tangent = q, lam, upd.state, upd.tangent
+                value = target
+                snap = _Snapshot(q, lam, upd.state, upd.tangent, self.previous_state, value,
+                                 self._load(phase, fint), self.model.readings(q))
+                self._chain = (self._chain + [snap])[-3:]
+            out.append(self._chain[-1])
+        return out
 
     def _detour(self, phase, held, value, direction):
         """Pass a snap-back of a displacement- or indirectly controlled phase by indirect control on
@@ -622,15 +953,17 @@ class PathFollower:
         upd = self.law.update(np.zeros((len(self.state), 2)), self.state)
         return self.model.tangent_and_force(self.q, upd.state.traction, upd.tangent)[1]
 
+    def _load(self, phase, fint):
+        """Load measure of the phase at the current state (λ or the reaction at the controlled dof)."""
+        if phase.control == "dof":
+            return float((fint[phase.dof] - phase.f_const[phase.dof]) * phase.load_scale)
+        return float(self.lam * phase.load_scale)
+
     def _record(self, phase, fint, its, upd):
         res = self.result
         res.phase.append(phase.name)
         res.path.append(self._path_value(phase, self.q, self.lam))
-        if phase.control == "dof":
-            load = (fint[phase.dof] - phase.f_const[phase.dof]) * phase.load_scale
-        else:
-            load = self.lam * phase.load_scale
-        res.load.append(load)
+        res.load.append(self._load(phase, fint))
         res.readings.append(self.model.readings(self.q))
         held = np.asarray(phase.held, dtype=np.int64)
         res.held_reactions.append((fint[held] - phase.f_const[held]) * phase.load_scale)

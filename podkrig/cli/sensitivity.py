@@ -43,7 +43,7 @@ def register(app):
             free_names = tuple(x.strip() for item in free for x in item.split(",") if x.strip()) or None
             fixed = dict(parse_assignment(t, "--fix") for t in fix)
             model = SurrogateModel(load_surrogate(surrogate))
-            options = {"n": n, "seed": seed, "confidence": confidence}
+            options = {"n": n, "rng": seed, "confidence": confidence}
             readings = reading_sensitivity(model, free=free_names, fixed=fixed, **options)
             misfit = None
             if data is not None:

@@ -200,7 +200,7 @@ def refine(
     configure_logging(verbose)
     with user_errors():
         sur = refine_surrogate(load_surrogate(file), store, held_out, target_error=target_error, budget=budget,
-                               batch=batch, n_candidates=candidates, seed=seed, workers=workers,
+                               batch=batch, n_candidates=candidates, rng=seed, workers=workers,
                                sampling=sampling.value)
         save_surrogate(sur, file)
     result = sur.provenance_["refinement"]

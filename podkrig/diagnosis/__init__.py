@@ -9,14 +9,15 @@ from podkrig.diagnosis.candidates import (
     FEContext,
     Location,
 )
-from podkrig.diagnosis.engine import Diagnosis, build_base_surrogate, diagnose
+from podkrig.diagnosis.engine import build_base_surrogate, diagnose
+from podkrig.diagnosis.results import DiagnosisResult
 from podkrig.diagnosis.settings import DiagnosisSettings
 
 __all__ = [
            "CANDIDATES",
            "DEFAULT_CANDIDATES",
            "Candidate",
-           "Diagnosis",
+           "DiagnosisResult",
            "DiagnosisSettings",
            "EffectParameter",
            "FEContext",

@@ -54,10 +54,11 @@ from podkrig.diagnosis.results import (
     Alternative,
     CandidateScore,
     Cause,
-    Diagnosis,
+    DiagnosisResult,
     Fit,
     Step,
 )
+from podkrig._qmc import rng_seed
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
 from podkrig.online.settings import InversionSettings
@@ -77,10 +78,11 @@ MIN_EFFECT = 2.0
 _EXACT_VISIBILITY = 20
 
 
-def build_base_surrogate(scenario, space, values, n_train=64, seed=0):
+def build_base_surrogate(scenario, space, values, n_train=64, rng=0):
     """A POD-kriging surrogate of the scenario's readings over ``space`` (others at ``values``):
-    ``n_train`` Sobol' FE runs, exponent fitted on the dominant mode (``beta="fit-shared"``)."""
-    X = space.from_unit(sobol(n_train, space.n_params, seed))
+    ``n_train`` Sobol' FE runs, exponent fitted on the dominant mode (``beta="fit-shared"``);
+    ``rng`` (int or Generator) scrambles the Sobol' design: an integer is its seed."""
+    X = space.from_unit(sobol(n_train, space.n_params, rng_seed(rng)))
     Y = np.stack([scenario.run({**values, **space.as_params(x)}).readings for x in X])
     sur = PODKriging(kriging=OrdinaryKriging(beta="fit-shared"), space=space).fit(X, Y)
     sur.provenance_.update({  # what an inversion model needs to know (as fit_from_store records it)
@@ -217,7 +219,7 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
 
     Returns
     -------
-    Diagnosis
+    DiagnosisResult
     """
     if not measurement.complete or measurement.reference_load is not None:
         raise ValueError(f"{measurement.source}: the diagnosis needs every sensor read at each load level (no "
@@ -237,7 +239,7 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     # 1. base calibration: surrogate first, FE last (with the model-form error at the surrogate's optimum)
     say("calibration", 0, 4)
     if surrogate is None:
-        surrogate = build_base_surrogate(scenario, space, values0, n_train=settings.n_train, seed=rng)
+        surrogate = build_base_surrogate(scenario, space, values0, n_train=settings.n_train, rng=rng)
         ctx.n_runs += settings.n_train
     say("calibration", 1, 4)
     problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
@@ -291,7 +293,7 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     seconds = time.perf_counter() - t_start
     causes = [t[0].name for t in terms]
     logger.info("diagnosis: %s (%s) in %.1f s, %d FE runs", verdict, causes, seconds, ctx.n_runs)
-    return Diagnosis(
+    return DiagnosisResult(
         scenario=scenario, measurement=measurement, noise_std=noise_std, alpha=alpha, base=base,
         extended=extended, chi2_p_value=p_chi2, verdict=verdict, cause=causes[0] if causes else None,
         best=best, alternatives=alternatives, candidates=ranked + inapplicable, structure=structure,

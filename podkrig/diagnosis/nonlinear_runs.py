@@ -9,7 +9,8 @@ scenario's force levels (kN) are **interpolated linearly on the converged force�
 between the two steps that bracket each force (the first crossing). Its control target is chosen
 from an elastic probe: ``TARGET_FACTOR`` (1.2) × the elastic control displacement at the top
 force, doubled (at most twice) while a softer cracked response still rises below the top force
-there; a run has ``RUN_STEPS`` increments and ``RUN_SECONDS`` at most.
+there; a run has at most ``RUN_STEPS`` increments, ``50 RUN_STEPS`` Newton iterations and
+``RUN_CPU_SECONDS`` of CPU time (the wall clock is only the solver's hang guard).
 
 Joint strengths are varied by one **strength scale** ``s`` on the nonlinear scenario's defaults:
 ``ft_bj``, ``c_bj`` and ``fc`` times ``s``, the fracture energies ``GfI_bj``, ``GfII_bj``,
@@ -44,9 +45,11 @@ SCALED_STRENGTHS = ("ft_bj", "c_bj", "fc")
 SCALED_ENERGIES = ("GfI_bj", "GfII_bj", "Gfc")
 #: strength scale of the elastic reference run: no joint yields at any realistic load
 ELASTIC_SCALE = 1e3
-#: budget of one nonlinear run: wall time (s) and attempted increments (a run that has not reached
-#: the top force by then counts as a panel that cannot carry it; the elastic path takes ~30)
-RUN_SECONDS = 60.0
+#: budget of one nonlinear run: CPU time of the process (s, ``PathSettings.max_cpu_seconds``: it
+#: does not shrink when the machine is busy, as wall time would) and attempted increments (a run
+#: that has not reached the top force by then counts as a panel that cannot carry it; the elastic
+#: path takes ~30); Newton iterations are capped at 50 per increment of the budget
+RUN_CPU_SECONDS = 60.0
 RUN_STEPS = 80
 #: first control target, × the elastic control displacement at the top force
 TARGET_FACTOR = 1.2
@@ -178,7 +181,7 @@ class NonlinearTwin:
         nl = self._twin(target)
         params = {**self.elastic_values(values), **scaled_strengths(nl, s)}
         settings = nl.options.path_settings(record_states=record_states)
-        settings = dataclasses.replace(settings, max_seconds=RUN_SECONDS, max_steps=RUN_STEPS,
+        settings = dataclasses.replace(settings, max_cpu_seconds=RUN_CPU_SECONDS, max_steps=RUN_STEPS,
                                        max_total_iterations=50 * RUN_STEPS)
         r = nl.run(params, settings=settings)
         self.runs += 1

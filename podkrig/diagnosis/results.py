@@ -1,5 +1,5 @@
 """Results of a model diagnosis: the fits (base and extended model), the score of each candidate
-cause, and the :class:`Diagnosis` with its verdict, gain and JSON form; computed by
+cause, and the :class:`DiagnosisResult` with its verdict, gain and JSON form; computed by
 :func:`podkrig.diagnosis.engine.diagnose`."""
 
 import dataclasses
@@ -252,7 +252,7 @@ class Step:
 
 
 @dataclass(frozen=True, eq=False)
-class Diagnosis:
+class DiagnosisResult:
     """Outcome of :func:`diagnose`; :meth:`to_dict` is the JSON of ``podkrig diagnose``."""
 
     scenario: object
@@ -419,4 +419,4 @@ class Diagnosis:
         }
 
 
-__all__ = ["CHI2_ALPHA_SHARE", "Alternative", "CandidateScore", "Cause", "Diagnosis", "Fit", "Step"]
+__all__ = ["CHI2_ALPHA_SHARE", "Alternative", "CandidateScore", "Cause", "DiagnosisResult", "Fit", "Step"]

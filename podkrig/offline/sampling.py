@@ -2,7 +2,8 @@
 
 Every design returns ``U`` of shape ``(n_samples, n_params)`` in :math:`[0, 1)^d`, reproducible
 from an integer ``seed`` (recorded by the snapshot store); map it to physical values with
-:meth:`podkrig.parameters.ParameterSpace.from_unit`.
+:meth:`podkrig.parameters.ParameterSpace.from_unit`. The design's ``seed`` is an integer, not an
+``rng`` as elsewhere in podkrig: it is the design's identity, stored in the snapshot file.
 
 - ``"sobol"``: scrambled Sobol' points [1]_ with the Joe & Kuo direction numbers [2]_, through
   :class:`scipy.stats.qmc.Sobol`. Its balance properties need ``n`` to be a power of two (a

@@ -263,7 +263,7 @@ def held_out_findings(held, *, noise_rel=None, noise_abs=None):
 
 
 def diagnosis_findings(d):
-    """Findings of a model diagnosis (``d``: :meth:`podkrig.diagnosis.Diagnosis.to_dict`):
+    """Findings of a model diagnosis (``d``: :meth:`podkrig.diagnosis.DiagnosisResult.to_dict`):
     ``diagnosis-unexplained`` or ``diagnosis-cause`` unless the model is adequate."""
     if d["verdict"] == "adequate":
         return []

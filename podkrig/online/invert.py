@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from podkrig._qmc import scrambled_sobol
+from podkrig._qmc import rng_seed, scrambled_sobol
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
@@ -276,13 +276,6 @@ def _polish_from_starts(problem, ga, x, n_eval, rng, n_starts):
     return x, n_eval
 
 
-def rng_seed(rng):
-    """An integer seed derived from ``rng`` (int or Generator) for a scrambled Sobol' engine."""
-    if isinstance(rng, np.random.Generator):
-        return int(rng.integers(2**31))
-    return rng
-
-
 def _distinct_starts(U, omega, k, min_distance=0.15):
     """The best of the unit-cube points ``U`` and up to ``k - 1`` more of the best, each at least
     ``min_distance`` (max norm) from those already chosen."""
@@ -334,4 +327,4 @@ def fe_check(result, scenario, response=None):
     )
 
 
-__all__ = ["FECheck", "InverseResult", "fe_check", "invert", "rng_seed"]
+__all__ = ["FECheck", "InverseResult", "fe_check", "invert"]

@@ -107,7 +107,7 @@ class SensitivityResult:
                    float(d["confidence"]), int(d["n_base"]), float(d["seconds"]))
 
 
-def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, seed=0, confidence=0.95, n_resamples=200):
+def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, rng=0, confidence=0.95, n_resamples=200):
     """Sobol' indices of a batched function of the unit cube.
 
     Parameters
@@ -121,8 +121,9 @@ def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, seed=0, confidence=
         Names of the ``s`` outputs.
     n : int
         Base samples, a power of two (2^14 by default: indices to ~±0.01 for smooth responses).
-    seed : int
-        Seed of the scrambled Sobol' matrices and of the bootstrap.
+    rng : int or numpy.random.Generator
+        Source of the scrambled Sobol' matrices and of the bootstrap (an integer gives the same
+        indices on every run).
     confidence : float
         Level of the bootstrap intervals.
     n_resamples : int
@@ -140,7 +141,7 @@ def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, seed=0, confidence=
         raise ValueError(f"n_resamples must be >= 10 for a percentile interval; got {n_resamples}")
     t0 = time.perf_counter()
     d = len(parameters)
-    AB = scrambled_sobol(n, 2 * d, seed)
+    AB = scrambled_sobol(n, 2 * d, rng)
     A, B = AB[:, :d], AB[:, d:]
     mixed = np.repeat(A[None], d, axis=0)  # (d, n, d): A with column i from B
     mixed[np.arange(d), :, np.arange(d)] = B.T
@@ -154,7 +155,7 @@ def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, seed=0, confidence=
     variance = np.var(np.concatenate([f_A, f_B], axis=1), axis=1)
     live = variance > 1e-300 * np.maximum(1.0, np.abs(f_A).max(axis=1) ** 2)
     first, total = _estimate(f_A, f_B, f_AB, live)
-    boot_first, boot_total = _bootstrap(f_A, f_B, f_AB, live, n_resamples, np.random.default_rng(seed))
+    boot_first, boot_total = _bootstrap(f_A, f_B, f_AB, live, n_resamples, np.random.default_rng(rng))
     q = 100 * np.array([(1 - confidence) / 2, (1 + confidence) / 2])
     fl, fh = np.percentile(boot_first, q, axis=0)
     tl, th = np.percentile(boot_total, q, axis=0)

@@ -10,6 +10,13 @@ from podkrig.reports.figures import pyplot, save
 from podkrig.reports.html import Page, fmt
 from podkrig.reports.step_slider import build_step_slider, step_slider_html
 
+#: each limit of a run's budget (``response.limit``, :data:`fe.solvers.nonlinear.LIMITS`): its name in
+#: words and the scenario option that sets it
+LIMITS = {"steps": ("step", "max_steps"), "iterations": ("iteration", "max_total_iterations"),
+          "cpu": ("CPU-time", "max_cpu_seconds"), "wall": ("wall-clock (hang guard)", "max_seconds")}
+#: the options of a run's budget
+BUDGET_OPTIONS = "max_steps, max_total_iterations, max_cpu_seconds"
+
 
 def plot_load_displacement(scenario, response, path):
     """Load against the control displacement over every converged step; the peak and the
@@ -73,6 +80,16 @@ def plot_deformed_mesh(scenario, response, path, level=-1, magnification=None):
     return path
 
 
+def _early_stop_remedy(response):
+    """What to do about a run that stopped early, naming the limit that ended it if one did."""
+    if response.limit in LIMITS:
+        words, option = LIMITS[response.limit]
+        remedy = f"The {words} limit ended the run: raise {option} (the budget: {BUDGET_OPTIONS})"
+    else:
+        remedy = f"Raise the budget ({BUDGET_OPTIONS})"
+    return remedy + ", lower the increment, or check the parameters; the converged part of the path is shown."
+
+
 def write_nonlinear_report(scenario, response, values, out_dir):
     """Figures plus an HTML page in ``out_dir``; returns the page path."""
     out = Path(out_dir)
@@ -83,9 +100,7 @@ def write_nonlinear_report(scenario, response, values, out_dir):
         page.success(f"Reached {response.reached:g} {response.load_unit}: peak {response.peak_load:.4g} "
                      f"{response.force_unit} at {response.peak_displacement:.4g} mm.")
     else:
-        page.warning(f"The run stopped early ({response.status}): {response.message}",
-                     "Raise the budget (max_steps, max_seconds), lower the increment, or check the parameters; "
-                     "the converged part of the path is shown.")
+        page.warning(f"The run stopped early ({response.status}): {response.message}", _early_stop_remedy(response))
     page.figure("load_displacement.png", "Load against the control displacement (every converged step).")
     if response.path.displacements:
         plot_deformed_mesh(scenario, response, out / "deformed.png")

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig._qmc import rng_seed
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
 from podkrig.online.problem import InverseProblem
@@ -113,9 +114,10 @@ class MonteCarloResult:
                 "seconds": self.seconds}
 
 
-def interior_truths(space, n, seed=0, margin=0.2):
-    """``n`` Sobol' points of the box shrunk by ``margin`` on each side (unit coordinates), physical."""
-    return space.from_unit(margin + (1 - 2 * margin) * sobol(n, space.n_params, seed))
+def interior_truths(space, n, rng=0, margin=0.2):
+    """``n`` Sobol' points of the box shrunk by ``margin`` on each side (unit coordinates), physical.
+    ``rng`` (int or Generator) scrambles the Sobol' set: an integer is the design's seed."""
+    return space.from_unit(margin + (1 - 2 * margin) * sobol(n, space.n_params, rng_seed(rng)))
 
 
 def monte_carlo(surrogate, sens, layout, noise, truths, *, n_realisations=50, rng=0, population_size=40,

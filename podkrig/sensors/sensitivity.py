@@ -36,6 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from fe.sensors import sensor_operator
+from podkrig._qmc import rng_seed
 from podkrig.offline.sampling import sobol
 
 logger = logging.getLogger(__name__)
@@ -93,9 +94,10 @@ class Sensitivities:
         return np.concatenate([np.flatnonzero(self.channel_sensor == i) for i in indices])
 
 
-def prior_points(space, n, seed=0):
-    """``n`` scrambled Sobol' points of the free parameters' box (unit → physical), ``(n, n_params)``."""
-    return space.from_unit(sobol(n, space.n_params, seed))
+def prior_points(space, n, rng=0):
+    """``n`` scrambled Sobol' points of the free parameters' box (unit → physical), ``(n, n_params)``;
+    ``rng`` (int or Generator) scrambles them: an integer is the design's seed."""
+    return space.from_unit(sobol(n, space.n_params, rng_seed(rng)))
 
 
 def _central_differences(f, values, names, rel_step=1e-6):

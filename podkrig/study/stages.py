@@ -581,7 +581,7 @@ def sensitivity(run):
     inputs = {**_online_inputs(run), **estimate, "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
 
     def compute():
-        options = {"n": s.n, "seed": s.seed}
+        options = {"n": s.n, "rng": s.seed}
         problem = with_model_form_errors(run.calibration_problem(), errors)
         misfit = misfit_sensitivity(problem, **options)
         readings, files = {}, []
@@ -604,7 +604,7 @@ def sensitivity(run):
 
 
 def diagnosis(run, test):
-    """The model diagnosis of a test on its FE model (its own report page): :meth:`Diagnosis.to_dict`."""
+    """The model diagnosis of a test on its FE model (its own report page): :meth:`DiagnosisResult.to_dict`."""
     study = run.study
     inputs = {**_online_inputs(run), "settings": dataclasses.asdict(study.diagnosis)}
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from podkrig._qmc import rng_seed
 from podkrig.offline.runner import run_pending
 from podkrig.offline.sampling import METHODS, sample
 from podkrig.offline.store import SnapshotStore
@@ -57,7 +58,7 @@ def select_batch(U_candidates, score, U_train, k):
 
 
 def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=64, batch=8, n_candidates=4096,
-                     seed=1, workers=1, sampling="sobol"):
+                     rng=1, workers=1, sampling="sobol"):
     """Enrich the training store until the held-out median error or the FE budget is reached.
 
     Parameters
@@ -77,8 +78,9 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
         FE runs per round.
     n_candidates : int
         Size of the candidate set (a power of two for Sobol').
-    seed : int
-        Seed of the candidate set (``seed + round``).
+    rng : int or numpy.random.Generator
+        Source of the candidate sets: round ``r`` (1, 2, ...) draws its set with seed ``rng + r``
+        (a Generator gives the base seed by one draw).
     workers : int
         FE workers of the runner (1: in this process).
     sampling : {"sobol", "lhs", "lhs-ese", "random"}
@@ -98,7 +100,7 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
         raise ValueError(f"target_error must be > 0; got {target_error!r}")
     if sampling not in METHODS:
         raise ValueError(f"sampling must be one of {', '.join(METHODS)}; got {sampling!r}")
-    store, held_out = Path(store), Path(held_out)
+    store, held_out, seed = Path(store), Path(held_out), rng_seed(rng)
     template = surrogate
     output = template.provenance_.get("output", "readings")
     with SnapshotStore.open(held_out) as h:
