@@ -248,9 +248,10 @@ def _power_of_two(value):
 
 @_settings
 class SensitivitySettings:
-    """Global sensitivity before the inversion (:mod:`podkrig.online.sensitivity`): Sobol' indices of
-    every reading and of the misfit on the surrogate(s), ``n`` base samples (``n (d + 2)``
-    evaluations), and the free parameters proposed for fixing because nothing is sensitive to them."""
+    """Global sensitivity (:mod:`podkrig.online.sensitivity`), after the calibration: Sobol' indices
+    of every reading and of the misfit (with the calibration's model-form error) on the
+    surrogate(s), ``n`` base samples (``n (d + 2)`` evaluations), and the free parameters proposed
+    for fixing in the next calibration because nothing is sensitive to them."""
 
     enabled: StrictBool = True
     n: Annotated[StrictInt, AfterValidator(_power_of_two),
