@@ -148,12 +148,12 @@ def run_study(study, out, *, progress=None, confirm=None):
         stages.surrogate(run, test)
         stages.held_out_validation(run, test)
     stages.calibration(run)
+    calibration = stages.load_calibration(run)
     if study.sensitivity.enabled:  # with the calibration's model-form error
-        stages.sensitivity(run)
+        stages.sensitivity(run, calibration.model_form_errors)
     if study.diagnosis.enabled:
         for test in tests:
             stages.diagnosis(run, test)
-    calibration = stages.load_calibration(run)
     found = words(study_findings(run, calibration), "study", diagnosis_enabled=study.diagnosis.enabled)
     report = write_study_report(run.figures / "index.html", study, run.records, calibration, found)
     write_json(run.out / "summary.json", {
