@@ -17,7 +17,6 @@ from podkrig.cli._common import (
     TableFormat,
     configure_logging,
     parse_rigid_groups,
-    number,
     print_findings,
     settings_from_options,
     user_errors,
@@ -35,6 +34,7 @@ from podkrig.online.nested import nested_analyses
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
 from podkrig.reports.findings import words
+from podkrig.reports.html import num
 from podkrig.reports.inverse import write_inversion_report
 
 _CALIBRATION = field_info(CalibrationSettings)
@@ -322,7 +322,7 @@ def parameters_table(calibration, title):
         table.add_column(col, justify="right")
     for j, name in enumerate(r.free):
         lo, hi = region.intervals[name]
-        table.add_row(name, units[name], number(r.x[j], 5), escape(f"[{number(lo)}, {number(hi)}]"),
+        table.add_row(name, units[name], num(r.x[j], 5), escape(f"[{num(lo)}, {num(hi)}]"),
                       "yes" if region.identifiability[name]["identifiable"] else "NO")
     return table
 
