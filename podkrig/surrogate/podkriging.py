@@ -356,8 +356,9 @@ class PODKriging:
         kr = self.kriging_
         settings = {
             "pod": self.pod_.get_params(),
-            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
-                        for k, v in kr.get_params().items()},
+            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple))
+                            else f"callable {getattr(v, '__qualname__', type(v).__name__)}" if callable(v) else v)
+                        for k, v in kr.get_params().items()},  # a callable optimizer: its name only
         }
         pod_arrays, pod_attrs = self.pod_.to_arrays()
         kr_arrays, kr_attrs = kr.to_arrays()

@@ -11,7 +11,8 @@ from podkrig.surrogate.kriging.ordinary import (
     FitMethod,
     KrigingHyperparameters,
     OrdinaryKriging,
+    l_bfgs_b,
 )
 from podkrig.surrogate.kriging.variogram import VARIOGRAMS, covariance, semivariogram
 
-__all__ = ["DEFAULT_BETA", "VARIOGRAMS", "FitMethod", "KrigingHyperparameters", "OrdinaryKriging", "covariance", "semivariogram"]
+__all__ = ["DEFAULT_BETA", "VARIOGRAMS", "FitMethod", "KrigingHyperparameters", "OrdinaryKriging", "covariance", "l_bfgs_b", "semivariogram"]
