@@ -66,13 +66,13 @@ def test_registry_names_classes_and_versions():
 
 def test_registry_errors_name_the_value_and_the_choices():
     """A misspelt backend or setting is a ValueError naming what was given and what exists."""
-    with pytest.raises(ValueError, match=r"must be one of podkrig, smt-krg, smt-kpls, sklearn-gpr; got 'smt'"):
+    with pytest.raises(ValueError, match=r"podkrig, smt-krg, smt-kpls, sklearn-gpr; got 'smt'"):
         make_backend("smt")
-    with pytest.raises(ValueError, match=r"backend 'sklearn-gpr' does not take these settings: \['n_start'\]"):
+    with pytest.raises(ValueError, match=r"'sklearn-gpr' .*settings: \['n_start'\]"):
         make_backend("sklearn-gpr", n_start=3)
-    with pytest.raises(TypeError, match="not a surrogate backend: dict; choose one of podkrig, smt-krg"):
+    with pytest.raises(TypeError, match="not a surrogate backend: dict; .*podkrig, smt-krg"):
         backend_name({})
-    with pytest.raises(ValueError, match="unknown surrogate backend 'gp'; this podkrig knows podkrig, smt-krg"):
+    with pytest.raises(ValueError, match="unknown surrogate backend 'gp'; .*podkrig, smt-krg"):
         backend_from_arrays("gp", {}, {}, {})
 
 
@@ -90,9 +90,10 @@ def test_default_settings_and_get_params():
 def test_describe_is_one_line_with_library_version_and_settings():
     """The report line: backend, library and version, every setting as 'name value'."""
     v = importlib.metadata.version("scikit-learn")
-    assert make_backend("sklearn-gpr").describe() == (
-        f"sklearn-gpr (scikit-learn {v}): nu 2.5, alpha 1e-10, n_restarts_optimizer 2, random_state 0, "
-        "fit_subset None")
+    described = make_backend("sklearn-gpr").describe()
+    assert "\n" not in described and described.startswith(f"sklearn-gpr (scikit-learn {v}): ")
+    for setting in ("nu 2.5", "alpha 1e-10", "n_restarts_optimizer 2", "random_state 0", "fit_subset None"):
+        assert setting in described
 
 
 # ---------------------------------------------------------------- checks
@@ -101,22 +102,22 @@ def test_input_checks_name_the_shapes(data, name):
     """Wrong shapes, too few samples or NaN (a failed FE run) are refused before any library call."""
     X, Y, _ = data
     est = make_backend(name, **FAST[name])
-    with pytest.raises(ValueError, match=r"X must have shape \(n_samples, n_dims\); got shape \(16,\)"):
+    with pytest.raises(ValueError, match=r"X must have shape .*got shape \(16,\)"):
         est.fit(X[:, 0], Y)
-    with pytest.raises(ValueError, match=r"Y must have shape \(16,\) or \(16, n_outputs\); got \(15, 2\)"):
+    with pytest.raises(ValueError, match=r"Y must have shape \(16,\).*got \(15, 2\)"):
         est.fit(X, Y[:15])
-    with pytest.raises(ValueError, match=r"Y must have shape \(16,\) or \(16, n_outputs\); got \(16, 2, 1\)"):
+    with pytest.raises(ValueError, match=r"Y must have shape \(16,\).*got \(16, 2, 1\)"):
         est.fit(X, Y[:, :, None])
-    with pytest.raises(ValueError, match="needs at least 3 samples; got 2"):
+    with pytest.raises(ValueError, match="at least 3 samples; got 2"):
         est.fit(X[:2], Y[:2])
     for bad in (np.nan, np.inf):
         Yb = Y.copy()
         Yb[3, 1] = bad
-        with pytest.raises(ValueError, match=r"^X and Y must be finite; found NaN or inf \(drop failed FE runs first\)$"):
+        with pytest.raises(ValueError, match=r"must be finite.*drop failed FE runs"):
             est.fit(X, Yb)
         Xb = X.copy()
         Xb[0, 0] = bad
-        with pytest.raises(ValueError, match=r"^X and Y must be finite; found NaN or inf \(drop failed FE runs first\)$"):
+        with pytest.raises(ValueError, match=r"must be finite.*drop failed FE runs"):
             est.fit(Xb, Y)
 
 
@@ -139,20 +140,18 @@ def test_fit_does_not_alias_the_callers_arrays(data):
 
 
 @pytest.mark.parametrize("settings, message", [
-    ({"method": "gp"}, "method must be 'krg' or 'kpls'; got 'gp'"),
-    ({"method": "kpls", "corr": "matern52"},
-     r"corr of smt-kpls must be one of \('squar_exp', 'abs_exp', 'pow_exp'\); got 'matern52'"),
-    ({"corr": "gauss"}, r"corr of smt-krg must be one of \('squar_exp', 'abs_exp', 'pow_exp', 'matern52', "
-                        r"'matern32'\); got 'gauss'"),
-    ({"n_comp": 0}, "n_comp must be an integer >= 1; got 0"),
-    ({"n_comp": 1.0}, "n_comp must be an integer >= 1; got 1.0"),
-    ({"n_start": True}, "n_start must be an integer >= 1; got True"),
-    ({"n_start": 0}, "n_start must be an integer >= 1; got 0"),
-    ({"nugget": 0.0}, "nugget must be a finite number > 0; got 0.0"),
-    ({"nugget": np.inf}, "nugget must be a finite number > 0; got inf"),
-    ({"fit_subset": 2}, "fit_subset must be None or an integer >= 3; got 2"),
-    ({"fit_subset": True}, "fit_subset must be None or an integer >= 3; got True"),
-    ({"fit_subset": 8.0}, "fit_subset must be None or an integer >= 3; got 8.0"),
+    ({"method": "gp"}, "method .*'krg' or 'kpls'; got 'gp'"),
+    ({"method": "kpls", "corr": "matern52"}, r"corr of smt-kpls .*\('squar_exp', 'abs_exp', 'pow_exp'\); got 'matern52'"),
+    ({"corr": "gauss"}, r"corr of smt-krg .*'pow_exp', 'matern52', 'matern32'\); got 'gauss'"),
+    ({"n_comp": 0}, "n_comp .*integer >= 1; got 0"),
+    ({"n_comp": 1.0}, "n_comp .*integer >= 1; got 1.0"),
+    ({"n_start": True}, "n_start .*integer >= 1; got True"),
+    ({"n_start": 0}, "n_start .*integer >= 1; got 0"),
+    ({"nugget": 0.0}, "nugget .*finite number > 0; got 0.0"),
+    ({"nugget": np.inf}, "nugget .*finite number > 0; got inf"),
+    ({"fit_subset": 2}, "fit_subset .*integer >= 3; got 2"),
+    ({"fit_subset": True}, "fit_subset .*integer >= 3; got True"),
+    ({"fit_subset": 8.0}, "fit_subset .*integer >= 3; got 8.0"),
 ])
 def test_smt_setting_errors(data, settings, message):
     """Each bad SMT setting is named with its value and what is allowed."""
@@ -172,18 +171,18 @@ def test_smt_boundary_settings_are_accepted(data):
 def test_kpls_components_cannot_exceed_the_inputs(data):
     """KPLS with more PLS directions than inputs is refused with both numbers; as many is fine."""
     X, Y, _ = data
-    with pytest.raises(ValueError, match="n_comp = 3 PLS components of smt-kpls exceed the 2 inputs"):
+    with pytest.raises(ValueError, match="n_comp = 3 .*exceed the 2 inputs"):
         SMTKriging(method="kpls", n_comp=3, n_start=1).fit(X, Y)
     assert SMTKriging(method="kpls", n_comp=2, n_start=1).fit(X, Y).hyper_.shape == (2, 2)
 
 
 @pytest.mark.parametrize("settings, message", [
-    ({"nu": 2.0}, r"nu must be one of \(0.5, 1.5, 2.5, inf\); got 2.0"),
-    ({"alpha": 0.0}, "alpha must be a finite number > 0; got 0.0"),
-    ({"alpha": np.nan}, "alpha must be a finite number > 0; got nan"),
-    ({"n_restarts_optimizer": -1}, "n_restarts_optimizer must be an integer >= 0; got -1"),
-    ({"n_restarts_optimizer": False}, "n_restarts_optimizer must be an integer >= 0; got False"),
-    ({"n_restarts_optimizer": 1.0}, "n_restarts_optimizer must be an integer >= 0; got 1.0"),
+    ({"nu": 2.0}, r"nu .*\(0.5, 1.5, 2.5, inf\); got 2.0"),
+    ({"alpha": 0.0}, "alpha .*finite number > 0; got 0.0"),
+    ({"alpha": np.nan}, "alpha .*finite number > 0; got nan"),
+    ({"n_restarts_optimizer": -1}, "n_restarts_optimizer .*integer >= 0; got -1"),
+    ({"n_restarts_optimizer": False}, "n_restarts_optimizer .*integer >= 0; got False"),
+    ({"n_restarts_optimizer": 1.0}, "n_restarts_optimizer .*integer >= 0; got 1.0"),
 ])
 def test_sklearn_setting_errors(data, settings, message):
     """Each bad scikit-learn setting is named with its value and what is allowed."""
@@ -197,13 +196,13 @@ def test_unfitted_and_wrong_width_predictions_are_refused(data, fitted):
     the wrong width names the width fitted."""
     X, _, Xp = data
     for est in (SklearnGPR(), SMTKriging()):
-        with pytest.raises(NotFittedError, match=f"this {type(est).__name__} is not fitted yet; call fit"):
+        with pytest.raises(NotFittedError, match=f"{type(est).__name__} is not fitted.*call fit"):
             est.predict(Xp)
         with pytest.raises(NotFittedError):
             est.to_arrays()
-    with pytest.raises(ValueError, match=r"X must have shape \(n_pred, 2\); got \(20, 3\)"):
+    with pytest.raises(ValueError, match=r"X must have shape \(n_pred, 2\).*got \(20, 3\)"):
         fitted["sklearn-gpr"].predict(np.ones((20, 3)))
-    with pytest.raises(ValueError, match=r"X must have shape \(n_pred, 2\); got \(2,\)"):
+    with pytest.raises(ValueError, match=r"X must have shape \(n_pred, 2\).*got \(2,\)"):
         fitted["smt-krg"].predict(X[0])
 
 
@@ -288,8 +287,7 @@ def test_another_library_version_is_warned_about(data, fitted):
     est = fitted["smt-kpls"]
     arrays, attrs = est.to_arrays()
     installed = importlib.metadata.version("smt")
-    with pytest.warns(UserWarning, match=(rf"surrogate backend 'smt-kpls' was fitted with smt 0\.1; "
-                                          rf"{installed} is installed: predictions may differ slightly")):
+    with pytest.warns(UserWarning, match=rf"'smt-kpls' .*smt 0\.1.*{installed} is installed"):
         backend_from_arrays("smt-kpls", arrays, dict(attrs, library_version="0.1"), est.get_params())
     with pytest.warns(UserWarning, match=r"fitted with smt \?;"):
         backend_from_arrays("smt-kpls", arrays, {k: v for k, v in attrs.items() if k != "library_version"},

@@ -124,7 +124,7 @@ def test_a_tolerance_model_form_error_is_in_the_inversion_and_the_region():
     for name in ("m1", "m2"):
         assert np.diff(loose.region.intervals[name]) > np.diff(plain.region.intervals[name])
     assert loose.inversion.measurement["model_form_error"]["tolerance"] == 0.05
-    assert "ε = 5 % of each reading" in loose.inversion.chi2_basis
+    assert "ε = 5 %" in loose.inversion.chi2_basis
 
 
 def test_the_result_shows_in_jupyter_as_the_reports_show_it():

@@ -113,7 +113,7 @@ def test_invert_warns_when_the_noise_is_understated(surrogates):
     assert len(chi2) == 1 and f"χ²/dof = {chi2_dof:.2f}" in chi2[0]["what"]
     assert "podkrig diagnose" in chi2[0]["what_to_do"]
     text = _ok(args)
-    assert "does not reproduce the data within the stated noise" in " ".join(text.split())  # wrapped by the terminal
+    assert "within the stated noise" in " ".join(text.split())  # wrapped by the terminal
 
 
 def test_invert_noise_monte_carlo_region(surrogates):
@@ -134,8 +134,8 @@ def test_invert_noise_monte_carlo_region(surrogates):
         (["--noise-rel", "0.01", "--instrument", "lvdt"], "give one noise model"),
         ([], "give one noise model"),
         (["--instrument", "laser"], "--instrument 'laser'"),
-        (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end': expected first, none or a load"),
-        (["--noise-rel", "0.01", "--zero", "end of shear"], "zero = 'end of shear' needs a phase column 'phase'"),
+        (["--noise-rel", "0.01", "--zero", "end"], "--zero 'end'"),
+        (["--noise-rel", "0.01", "--zero", "end of shear"], "phase column 'phase'"),
         (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
         (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),
         (["--noise-rel", "0.01", "--free", "G_f"], "unknown parameter"),
@@ -147,6 +147,8 @@ def test_invert_errors(surrogates, extra, message):
     result = runner.invoke(app, ["invert", str(sur["diagonal_compression"]), "--data", str(data), *extra])
     assert result.exit_code == 2, result.output
     assert message in result.output
+    if "laser" in extra:
+        assert all(known in result.output for known in ("lvdt", "dial_gauge", "dic"))  # to choose from
 
 
 def test_rvc_with_a_validation_model(surrogates):
@@ -172,10 +174,13 @@ def test_overparam_flags_what_the_data_cannot_pin_down(surrogates):
 
 def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(surrogates):
     """Issue 18 item 3 (the inversion's option): data from the same test on a mesh four times finer
-    (Q8 8 × 4 per unit) with 0.2 % noise, against the 2 × 1 surrogate. With noise alone the fit runs
-    to the bounds of E_b and r_hj; with the discretisation error estimated from the model's mesh
-    refined twice it lands within 5 % of every true value (the 5 %: what is left of the systematic,
-    correlated mesh error that a diagonal C_T cannot remove; 3.5 % on kV_bj when written)."""
+    (Q8 8 × 4 per unit) with 0.2 % noise, against the 2 × 1 surrogate. With noise alone the fit does
+    not explain the data (χ²/dof > 10) and is biased (towards the bounds of E_b and r_hj: 0.21 to
+    0.4 relative error in its worst parameter, depending on the optimiser's path on the machine);
+    with the discretisation error estimated from the model's mesh refined twice it lands within 5 %
+    of every true value (the 5 %: what is left of the systematic, correlated mesh error that a
+    diagonal C_T cannot remove; 3.5 % on kV_bj when written), at most half the worst error of the
+    noise-only fit."""
     sur, _, truth, d = surrogates
     sc = build_scenario({"scenario": "diagonal_compression", "nx": 8, "ny": 4})
     clean = sc.run(truth).readings
@@ -205,15 +210,15 @@ def test_invert_with_the_estimated_model_form_error_on_data_from_a_finer_mesh(su
     fixed = json.loads(_ok(common + ["--model-form-error", "0.01"]))["inversion"]
     mfe = fixed["measurement"]["model_form_error"]
     assert mfe["method"] == "tolerance" and mfe["tolerance"] == 0.01
-    assert "ε = 1 % of each reading" in fixed["chi2_basis"]
+    assert "ε = 1 %" in fixed["chi2_basis"]
 
 
-@pytest.mark.parametrize("value, message", [("banana", "--model-form-error must be none, estimated or a relative "
-                                                       "tolerance in [0, 0.5)"),
-                                            ("0.7", "--model-form-error: a relative tolerance must be in [0, 0.5)")])
-def test_invert_model_form_error_option_errors(surrogates, value, message):
+@pytest.mark.parametrize("value, fragments", [("banana", ("--model-form-error", "none, estimated", "[0, 0.5)")),
+                                              ("0.7", ("--model-form-error", "[0, 0.5)"))])
+def test_invert_model_form_error_option_errors(surrogates, value, fragments):
     sur, data, _, _ = surrogates
     result = runner.invoke(app, ["invert", str(sur["diagonal_compression"]), "--data", str(data), "--noise-rel", "0.01",
                                  "--model-form-error", value])
     assert result.exit_code == 2, result.output
-    assert message in " ".join(result.output.split())
+    assert all(fragment in " ".join(result.output.split()) for fragment in fragments), result.output
+

@@ -74,20 +74,21 @@ def test_run_info_export(tmp_path, spec_file):
 @pytest.mark.parametrize(
     "param, message",
     [
-        ("kN_bj=10", "--param 'kN_bj=10': expected NAME=LOW:HIGH"),
-        ("kN_bj=10:abc", "--param 'kN_bj=10:abc': HIGH 'abc' is not a number"),
-        ("kN_bj=10:100:sqrt", "--param 'kN_bj=10:100:sqrt': scale 'sqrt' must be one of"),
-        ("kN_bx=10:100", "unknown parameter 'kN_bx' for scenario 'diagonal_compression'"),
-        ("nu_b=0.1:0.7", "upper bound of 'nu_b' = 0.7 - is outside its physical range"),
+        ("kN_bj=10", ("--param 'kN_bj=10'", "NAME=LOW:HIGH")),
+        ("kN_bj=10:abc", ("--param 'kN_bj=10:abc'", "'abc'")),
+        ("kN_bj=10:100:sqrt", ("--param 'kN_bj=10:100:sqrt'", "'sqrt'")),
+        ("kN_bx=10:100", ("'kN_bx'", "'diagonal_compression'")),
+        ("nu_b=0.1:0.7", ("'nu_b' = 0.7", "physical range")),
     ],
 )
 def test_bad_param_is_named(tmp_path, spec_file, param, message):
+    """The CLI's smoke test of a bad --param: exit code 2, an error naming the option and value."""
     store = tmp_path / "s.h5"
     args = _run_args(spec_file, store)
     args[args.index("kN_bj=10:1000:log")] = param
     result = runner.invoke(app, args)
     assert result.exit_code == 2
-    assert f"error: {message}" in result.stderr
+    assert "error: " in result.stderr and all(fragment in result.stderr for fragment in message), result.stderr
     assert not store.exists()
 
 
@@ -97,13 +98,13 @@ def test_mismatched_rerun_and_option_errors(tmp_path, spec_file):
     before = store.read_bytes()
     result = runner.invoke(app, _run_args(spec_file, store, 8, 6))
     assert result.exit_code == 2
-    assert "was written with other arguments: seed: 5 (store) vs 6 (now)" in result.stderr
+    assert "other arguments" in result.stderr and "seed: 5 (store) vs 6 (now)" in result.stderr
     result = runner.invoke(app, _run_args(spec_file, store, 8, 5, "--scheduler", "tcp://localhost:1"))
     assert result.exit_code == 2 and "either --workers" in result.stderr
     result = runner.invoke(app, ["snapshots", "run", *PARAMS, "--n", "8", "--seed", "5", "--store", str(store)])
-    assert result.exit_code == 2 and "give the scenario: --scenario NAME or --spec FILE" in result.stderr
+    assert result.exit_code == 2 and "--scenario NAME or --spec FILE" in result.stderr
     result = runner.invoke(app, _run_args(spec_file, store, 8, 5, "--scenario", "shear_box"))
-    assert result.exit_code == 2 and "is for scenario 'diagonal_compression', not --scenario 'shear_box'" in result.stderr
+    assert result.exit_code == 2 and "'diagonal_compression', not --scenario 'shear_box'" in result.stderr
     assert store.read_bytes() == before
 
 
@@ -153,7 +154,7 @@ def test_sigkilled_job_resumes_to_the_uninterrupted_store(tmp_path, spec_file):
 
     result = runner.invoke(app, args)  # the same command again
     assert result.exit_code == 0, result.output
-    assert f"resumed {tmp_path / 'killed.h5'}: {n} done, 0 failed, 0 pending" in result.stdout
+    assert f"resumed {tmp_path / 'killed.h5'}" in result.stdout and f"{n} done, 0 failed" in result.stdout
     assert runner.invoke(app, _run_args(spec_file, tmp_path / "whole.h5", n, 9, "--chunk-size", "32")).exit_code == 0
 
     with SnapshotStore.open(tmp_path / "killed.h5") as a, SnapshotStore.open(tmp_path / "whole.h5") as b:
@@ -189,7 +190,7 @@ def test_failed_rows_are_reported_and_retried(tmp_path, spec_file, monkeypatch):
     with SnapshotStore.open(store) as s:
         failed = int(s.failed_mask().sum())
     assert 0 < failed < 16
-    assert f"{16 - failed} done, {failed} failed, 0 pending of 16 rows" in result.stdout
+    assert f"{16 - failed} done, {failed} failed" in result.stdout and "of 16 rows" in result.stdout
     assert f"{failed} rows failed" in result.stderr and "--retry-failed" in result.stderr
     info = runner.invoke(app, ["snapshots", "info", str(store)]).stdout
     assert "SolverError: singular stiffness (test)" in info
@@ -197,4 +198,5 @@ def test_failed_rows_are_reported_and_retried(tmp_path, spec_file, monkeypatch):
     monkeypatch.setattr(Scenario, "run", original)
     result = runner.invoke(app, _run_args(spec_file, store, 16, 5, "--retry-failed"))
     assert result.exit_code == 0, result.output
-    assert f"16 done, 0 failed, 0 pending of 16 rows; ran {failed} in" in result.stdout
+    assert "16 done, 0 failed" in result.stdout and f"ran {failed} in" in result.stdout
+

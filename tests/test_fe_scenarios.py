@@ -42,8 +42,8 @@ def test_parameters_listed_with_defaults_units_and_limits():
 @pytest.mark.parametrize(
     "params, match",
     [
-        ({"kN_bj": -5.0}, r"'kN_bj' = -5 is outside its physical range \(0, 1e\+09\] N/mm³"),
-        ({"nu_b": 0.5}, r"'nu_b' = 0.5 is outside its physical range \[0, 0.5\)"),
+        ({"kN_bj": -5.0}, r"'kN_bj' = -5 .*physical range \(0, 1e\+09\] N/mm³"),
+        ({"nu_b": 0.5}, r"'nu_b' = 0.5 .*physical range \[0, 0.5\)"),
         ({"E_b": float("nan")}, "'E_b' = nan"),
         ({"kN_joint": 1.0}, "unknown parameter 'kN_joint'"),
         ({"E_b": "stiff"}, "'E_b' must be a number"),
@@ -59,11 +59,11 @@ def test_bad_parameters_are_refused_naming_them(coarse_diagonal, params, match):
     [
         ({"scenario": "triaxial"}, "unknown scenario 'triaxial'"),
         ({"scenario": "diagonal_compression", "mesh_size": 3}, r"unknown option\(s\) \['mesh_size'\]"),
-        ({"scenario": "diagonal_compression", "nx": "fine"}, "option 'nx' must be of type int"),
+        ({"scenario": "diagonal_compression", "nx": "fine"}, "option 'nx' .*type int"),
         ({"scenario": "diagonal_compression", "nx": 3}, "nx must be an even integer"),
         ({"scenario": "diagonal_compression", "parameters": {"E_b": -1}}, "'E_b' = -1 is outside"),
         ({"scenario": "diagonal_compression", "thickness": -1.0}, "thickness must be > 0"),
-        ({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "support": "glued"}, "option .support. must be one of"),
+        ({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "support": "glued"}, "option .support. .*one of"),
     ],
 )
 def test_bad_specs_are_refused(spec, match):

@@ -493,26 +493,26 @@ def test_deb_rules_return_a_feasible_point_over_a_better_infeasible_one():
     [
         ({"popsize": 10}, TypeError, "unknown GA option 'popsize'.*population_size"),
         ({"crossover_probability": 1.5}, ValueError,
-         r"crossover_probability must be in \[0.0, 1.0\]; got 1.5"),
+         r"crossover_probability .*in \[0.0, 1.0\]; got 1.5"),
         ({"selection": "rank"}, ValueError,
-         "selection must be one of 'tournament', 'roulette', 'sus'; got 'rank'"),
-        ({"tournament_size": 50}, ValueError, r"tournament_size must be in \[1, 40\]; got 50"),
-        ({"ranking_eta_plus": 2.5}, ValueError, r"ranking_eta_plus must be in \[1.0, 2.0\]"),
-        ({"ranking_base": 1.0}, ValueError, r"ranking_base must be in \(0.0, 1.0\); got 1.0"),
-        ({"population_size": 3}, ValueError, r"population_size must be in \[4, inf\]; got 3"),
-        ({"population_size": 10.0}, TypeError, "population_size must be an integer; got 10.0"),
-        ({"n_elite": 39}, ValueError, r"n_elite must be in \[0, 38\]; got 39"),
+         "selection .*'tournament', 'roulette', 'sus'; got 'rank'"),
+        ({"tournament_size": 50}, ValueError, r"tournament_size .*in \[1, 40\]; got 50"),
+        ({"ranking_eta_plus": 2.5}, ValueError, r"ranking_eta_plus .*in \[1.0, 2.0\]"),
+        ({"ranking_base": 1.0}, ValueError, r"ranking_base .*in \(0.0, 1.0\); got 1.0"),
+        ({"population_size": 3}, ValueError, r"population_size .*in \[4, inf\]; got 3"),
+        ({"population_size": 10.0}, TypeError, "population_size .*integer; got 10.0"),
+        ({"n_elite": 39}, ValueError, r"n_elite .*in \[0, 38\]; got 39"),
         ({"n_grid": 0}, ValueError,
-         "n_grid must be an integer >= 1 or a sequence of them, one per parameter; got 0"),
+         "n_grid .*integer >= 1.*one per parameter; got 0"),
         ({"n_grid": (10, 10, 10)}, ValueError,
-         r"n_grid must be an integer >= 1 or 2 of them; got \(10, 10, 10\)"),
+         r"n_grid .*2 of them.*got \(10, 10, 10\)"),
         ({"on_stall": "retry"}, ValueError,
-         "on_stall must be one of 'auto', 'stop', 'restart'; got 'retry'"),
+         "on_stall .*'auto', 'stop', 'restart'; got 'retry'"),
         ({"options": {"population_size": 10}}, TypeError,
-         "options must be a GAOptions or None; got dict"),
+         "options .*GAOptions or None; got dict"),
         ({"polish": "always"}, ValueError, "polish must be one of"),
         ({"constraints": lambda X: X, "polish_method": "L-BFGS-B"}, ValueError,
-         "polish_method='L-BFGS-B' cannot handle constraints; use polish_method='SLSQP'"),
+         "polish_method='L-BFGS-B' .*constraints.*polish_method='SLSQP'"),
     ],
 )
 def test_bad_options_are_refused_with_a_message(options, error, match):
@@ -521,13 +521,11 @@ def test_bad_options_are_refused_with_a_message(options, error, match):
 
 
 def test_bad_bounds_and_objective_are_refused():
-    with pytest.raises(ValueError, match=r"bounds\[1\] must be finite with low < high; "
-                                         r"got \(1.0, 0.0\)"):
+    with pytest.raises(ValueError, match=r"bounds\[1\] .*low < high; got \(1.0, 0.0\)"):
         minimize(sphere, [(-1.0, 1.0), (1.0, 0.0)])
     with pytest.raises(ValueError, match=r"bounds must have shape \(n_params, 2\)"):
         minimize(sphere, [(-1.0, 0.0, 1.0)])
-    with pytest.raises(ValueError, match=r"fun must return shape \(40,\) for 40 individuals; "
-                                         r"got \(40, 1\)"):
+    with pytest.raises(ValueError, match=r"fun must return shape \(40,\).*got \(40, 1\)"):
         minimize(lambda X: sphere(X)[:, None], [(-1.0, 1.0)] * 2)
     with pytest.raises(ValueError, match="fun returned NaN at x = "):
         minimize(lambda X: np.full(X.shape[0], np.nan), [(-1.0, 1.0)] * 2)

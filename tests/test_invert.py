@@ -73,7 +73,7 @@ def test_invert_refuses_a_generation_budget_above_the_limit_with_its_memory_cost
     problem = _problem()
     generations = MAX_GA_EVALUATIONS // 1000  # 1000 × (generations + 1) > MAX_GA_EVALUATIONS
     evaluations = 1000 * (generations + 1)
-    with pytest.raises(ValueError, match=rf"generations = {generations} with a population of 1000 allows "
+    with pytest.raises(ValueError, match=rf"generations = {generations}.*population of 1000.*"
                                          rf"{evaluations} GA evaluations.*about "
                                          + human_bytes(evaluations * (2 + 3) * 8).replace(".", r"\.")):
         invert(problem, population_size=1000, generations=generations)
@@ -106,8 +106,8 @@ def test_invert_counts_every_model_evaluation_and_its_time(caplog):
         assert few.n_evaluations == sum(model.calls) - 2 - n_starts
         assert model.calls.count(1024) == (n_starts > 1)  # one start: the GA's best alone, no screen
     [record] = [r for r in caplog.records if r.name == "podkrig.online.invert"]
-    assert record.getMessage() == (f"inversion: omega={result.misfit:.4g} chi2/dof={result.chi2_dof:.3g} in "
-                                   f"{result.seconds:.3f} s ({result.n_evaluations} evaluations)")
+    assert record.levelno == logging.INFO
+    assert record.args == (result.misfit, result.chi2_dof, result.seconds, result.n_evaluations)
 
 
 def test_one_start_polishes_the_ga_best_into_its_own_basin():
@@ -207,7 +207,7 @@ def test_predictions_of_a_live_result_and_of_one_read_back():
     back = InverseResult.from_dict(result.to_dict(), problem=problem, ga=result.ga)
     assert back.problem is problem and back.ga == "the GA result"
     assert_allclose(back.predicted()[0], mean, rtol=1e-12)
-    with pytest.raises(ValueError, match="^this result was read back from a dict and has no problem"):
+    with pytest.raises(ValueError, match="read back from a dict.*no problem"):
         InverseResult.from_dict(result.to_dict()).predicted()
     joint = dataclasses.replace(result, tests={"wall": result, "pier": result})
     with pytest.raises(ValueError, match=r"^a joint calibration predicts per test: .* one of \['wall', 'pier'\]"):
@@ -285,7 +285,7 @@ def test_inverse_result_shows_its_best_fit_and_chi2_in_jupyter():
     assert fit_head == ["model", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"]
     # χ² to 4 digits, χ²/dof = 12.3456789 / 4 to 3; no problem attached: the surrogate with C_T
     assert fit_rows == [["surrogate", "12.35", "4", "3.09", CHI2_BASIS["surrogate"]]]
-    assert fit_cap == f"Misfit ω = 1.235; 321 evaluations in 1.23 s; residuals {RESIDUAL_CONVENTION}"
+    assert all(f in fit_cap for f in ("ω = 1.235", "321 evaluations", "1.23 s", RESIDUAL_CONVENTION))
     # the basis read back from a dict wins; with an FE check its χ²/dof (noise only) gets a row
     check = FECheck(0.1, 2.0, 0.01, 1.23456, False)
     (_, _, rows), (_, _, fit_rows) = _Tables(inverse_result_html(_hand_made_result(fe_check=check, basis="C_D = C_d",

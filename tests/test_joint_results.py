@@ -206,10 +206,9 @@ def test_a_shared_parameter_is_one_search_range(other, shown):
     wall, _ = _tests()
     model = LinearModel((other, T), WALL_G)
     twin = InverseProblem(model, _measurement(model, [1.1, 0.7], "twin.csv"), NoiseModel(sigma=SIGMA))
-    expected = (f"shared parameter s has the search range [0, 2] MPa (linear) in test 'wall' but {shown} in test "
-                "'twin': a shared parameter has one range; give the same bounds and scale")
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="shared parameter s ") as info:
         JointProblem({"wall": wall, "twin": twin})
-    assert str(info.value) == expected
-    with pytest.raises(ValueError, match="^a joint calibration needs at least one test$"):
+    for fragment in ("[0, 2] MPa (linear) in test 'wall'", f"{shown} in test 'twin'", "same bounds and scale"):
+        assert fragment in str(info.value)  # both ranges with their tests, and the remedy
+    with pytest.raises(ValueError, match="needs at least one test"):
         JointProblem({})

@@ -151,24 +151,24 @@ def test_joint_report_has_each_tests_sections_and_figures(joint):
             assert f'src="{t}/{fig}"' in source and (page.parent / t / fig).is_file(), (t, fig)
         assert f'href="{t}/diagnosis/index.html"' in source
         assert (page.parent / t / "diagnosis" / "index.html").is_file()
-    assert "Each test&#x27;s share of the joint fit" in source or "Each test's share of the joint fit" in source
+    assert "share of the joint fit" in source  # the section of each test's share
     assert not re.search(r"\bnan\b", source, re.IGNORECASE)
 
 
 @pytest.mark.parametrize("edit, message", [
     (lambda s: 'scenario = "diagonal_compression"\n' + s,
-     r"scenario: a joint calibration gives each \[\[test\]\] its own scenario and measurement"),
+     r"scenario: .*each \[\[test\]\] its own scenario"),
     (lambda s: s[: s.index('[[test]]\nname = "shear"')],
-     r"one \[\[test\]\] table: a joint calibration needs two or more tests"),
+     r"one \[\[test\]\] table: .*two or more tests"),
     (lambda s: s.replace('name = "shear"', 'name = "diagonal"'), r"test\[2\]\.name: 'diagonal' names two tests"),
     (lambda s: s.replace('parameters = { r_hj', 'parameters = { kN_bj = { lower = 30.0, upper = 300.0 }, r_hj'),
-     r"test\[2\]\.parameters\.kN_bj: is already a shared parameter"),
+     r"test\[2\]\.parameters\.kN_bj: .*shared parameter"),
     (lambda s: s.replace('kV_bj = { lower', 'Km = { lower = 0.7, upper = 0.9 }\nkV_bj = { lower'),
-     r"parameters\.Km: unknown parameter of any test's scenario"),
+     r"parameters\.Km: unknown parameter"),
     (lambda s: s.replace('fixed = { r_hj = 0.6 }', 'fixed = { r_hj = 0.6, kN_bj = 50.0 }'),
-     r"test\[1\]\.fixed\.kN_bj: is also a free parameter of this test"),
+     r"test\[1\]\.fixed\.kN_bj: .*also a free parameter"),
     (lambda s: s.replace("[fixed]\nE_b = 11000.0", "[fixed]\nE_b = 11000.0\nsigma0 = 0.3"),
-     r"fixed\.sigma0: is a parameter of none of the tests' scenarios"),
+     r"fixed\.sigma0: .*none of the tests"),
 ])
 def test_joint_study_file_mistakes_are_named(tmp_path, measured, edit, message):
     """Each names the file, the key (tests numbered from 1, as written) and what is wrong."""
@@ -186,7 +186,7 @@ def test_a_study_without_scenario_or_tests_names_both_forms(tmp_path, measured):
 
 def test_sensitivity_settings_are_checked(tmp_path, measured):
     study = _write(tmp_path, measured, JOINT + "\n[sensitivity]\nn = 1000\n")
-    with pytest.raises(StudyError, match=r"sensitivity\.n: 1000 is out of range; allowed: a power of two"):
+    with pytest.raises(StudyError, match=r"sensitivity\.n: 1000 .*power of two"):
         load_study(study)
     study = _write(tmp_path, measured, JOINT + "\n[sensitivity]\nenabled = false\n")
     assert load_study(study).sensitivity.enabled is False

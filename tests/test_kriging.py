@@ -173,11 +173,11 @@ def test_duplicates_are_refused_with_remedy(data):
     [
         ({"beta": 2.5}, "0 < beta <= 2"),
         ({"variogram": "power", "beta": 2.0}, "0 < beta < 2"),
-        ({"beta": "auto"}, "number in \\(0, 2\\], 'fit' or 'fit-shared'"),
+        ({"beta": "auto"}, "\\(0, 2\\], 'fit' or 'fit-shared'"),
         ({"variogram": "spherical"}, "variogram must be one of"),
         ({"criterion": "aic"}, "criterion must be one of"),
         ({"nugget": -1.0}, "nugget must be"),
-        ({"ranges": [0.1, 0.2]}, "ranges must be a number or have shape"),
+        ({"ranges": [0.1, 0.2]}, "ranges .*number or have shape"),
     ],
 )
 def test_setting_errors(data, kw, message):

@@ -1,19 +1,20 @@
 """The estimator's bookkeeping a user reads: ``set_params``, the fit record (``FitMethod``) and its
-report line, the subset draw, the log lines, the messages of a singular system and of bad training
-data; the hyperparameter search restated on the recorded optimiser calls; constant outputs; the
-hyperparameter record; the blocks of the variance pass (issue 12: mutation survivors of
-``surrogate/kriging/ordinary.py``)."""
+report line, the subset draw, the log records, the errors of a singular system and of bad training
+data (their type and the fragments a user needs); the hyperparameter search judged by what it finds
+(the criterion's optimum, within the bounds, reproducible), with an injected optimiser; constant
+outputs; the hyperparameter record; the blocks of the variance pass."""
 
 import logging
+import re
 import warnings
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
-from scipy.optimize import OptimizeResult
+from scipy.optimize import differential_evolution
 
 from podkrig.offline.sampling import sobol, uniform
-from podkrig.surrogate.kriging import FitMethod, KrigingHyperparameters, OrdinaryKriging, ordinary
+from podkrig.surrogate.kriging import FitMethod, KrigingHyperparameters, OrdinaryKriging, l_bfgs_b, ordinary
 
 
 def _f(X):
@@ -29,22 +30,21 @@ def test_set_params_changes_the_named_settings_and_refuses_unknown_names():
     assert ok.set_params(beta=1.5, nugget=1e-8) is ok
     assert (ok.beta, ok.nugget) == (1.5, 1e-8)
     assert ok.get_params()["beta"] == 1.5 and ok.get_params()["criterion"] == "ml"  # others untouched
-    valid = sorted(ok.get_params())
-    with pytest.raises(ValueError) as err:
+    with pytest.raises(ValueError, match="'nuget'") as err:
         ok.set_params(nuget=1e-8)
-    assert str(err.value) == f"unknown parameter 'nuget' of OrdinaryKriging; valid: {valid}"
+    assert all(repr(name) in str(err.value) for name in ok.get_params())  # the valid names, to pick from
     assert ok.nugget == 1e-8 and not hasattr(ok, "nuget")
 
 
 def test_fit_record_reads_as_one_line_for_reports():
     """Defects: the exact fit described as a subset fit, output ranges left at x1 counted as
     shortened, the clause on shortened ranges shown when none was (or with other text)."""
-    assert FitMethod("exact", 64, 64).describe() == "hyperparameters fitted on all 64 samples (exact)"
+    exact = FitMethod("exact", 64, 64).describe()
+    assert "64 samples" in exact and "exact" in exact and "subset" not in exact and "\n" not in exact
     plain = FitMethod("subset", 2048, 512, 7, (1.0, 1.0)).describe()
-    assert plain == ("hyperparameters fitted on a random subset of 512 of the 2048 samples (seed 7), "
-                     "then one factorisation of all 2048")
+    assert all(part in plain for part in ("subset of 512", "2048 samples", "seed 7")) and "shortened" not in plain
     shrunk = FitMethod("subset", 2048, 512, 7, (1.0, 0.8, 0.64)).describe()
-    assert shrunk == plain + "; ranges of 2 output(s) shortened (down to x0.64) for conditioning"
+    assert shrunk.startswith(plain) and "2 output(s) shortened" in shrunk and "x0.64" in shrunk
 
 
 def test_subset_is_drawn_without_replacement_with_the_estimators_seed():
@@ -66,8 +66,10 @@ def test_subset_fit_logs_its_sizes_and_cost(caplog):
         fitted = OrdinaryKriging(beta=1.5, fit_subset=16).fit(X, _f(X))
     n_eval = int(fitted.n_evaluations_.sum())
     assert n_eval > 0
-    assert (f"kriging fitted: hyperparameters on 16 of 64 samples ({n_eval} criterion evaluations), one "
-            "factorisation of all 64 per output; 3 dims, 2 outputs") in caplog.messages
+    *_, record = caplog.records  # the subset's own exact fit logs first
+    assert (record.name, record.levelno) == (ordinary.__name__, logging.INFO)
+    assert record.args == (16, 64, n_eval, 64, 3, 2)  # subset, samples, evaluations, samples, dims, outputs
+    assert "16 of 64 samples" in record.getMessage()  # formatted without error
 
 
 def test_a_system_of_all_samples_that_stays_singular_names_the_sizes_and_the_remedies(monkeypatch):
@@ -79,11 +81,10 @@ def test_a_system_of_all_samples_that_stays_singular_names_the_sizes_and_the_rem
     X = rng.random((60, 3))
     Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1] ** 2, X[:, 0] * X[:, 2]])
     monkeypatch.setattr(ordinary, "RANGE_SHRINK_STEPS", 1)
-    with pytest.raises(ValueError, match=r"^the kriging system of all 60 samples is singular for output \d at the "
-                                         r"hyperparameters fitted on 20 of them \(still singular with the ranges "
-                                         r"shortened x0\.8\); set a small nugget \(e\.g\. nugget=1e-8\) or fit on all "
-                                         r"samples \(fit_subset=None\)$"):
+    with pytest.raises(ValueError, match="all 60 samples is singular") as raised:
         OrdinaryKriging(fit_subset=20).fit(X, Y)
+    for fragment in ("20 of them", "x0.8", "nugget=1e-8", "fit_subset=None"):  # subset, shortening, remedies
+        assert fragment in str(raised.value)
 
 
 @pytest.mark.parametrize("optimizer", ["l-bfgs-b", None])
@@ -95,23 +96,23 @@ def test_nearly_coincident_samples_make_a_singular_system_and_the_message_says_w
     X = sobol(16, 2, seed=0)
     X[9] = X[5] + np.array([1e-12, 0.0])  # not the first pair of the pairwise distances
     y = np.sin(3 * X[:, 0]) + X[:, 1]
-    cause = "at every starting point" if optimizer else r"correlation matrix ill-conditioned \(reciprocal condition number [0-9.e-]+\)"
-    with pytest.raises(ValueError, match=rf"^kriging system of output 0 is singular at ranges \(0\.3, 0\.3\) "
-                                         rf"\({cause}\); the closest samples are 1e-12 apart \(unit cube\): remove "
-                                         r"duplicates or set a nugget \(e\.g\. nugget=1e-8\)$"):
+    cause = "every starting point" if optimizer else "reciprocal condition number"
+    with pytest.raises(ValueError, match=r"ranges \(0\.3, 0\.3\)") as raised:
         OrdinaryKriging(beta=1.5, ranges=0.3, optimizer=optimizer, fit_subset=None).fit(X, y)
+    for fragment in ("output 0", cause, "1e-12 apart", "nugget=1e-8"):  # the cause, the distance, the remedy
+        assert fragment in str(raised.value)
 
 
-def test_a_search_that_fails_from_every_start_names_the_starting_ranges_only(monkeypatch):
-    """Every optimiser run ends on a singular system (injected: the criterion's failure value):
-    the message quotes the starting ranges, not the exponent searched with them. Defect: the
-    exponent shown as a range."""
-    monkeypatch.setattr(ordinary, "minimize", lambda fun, x0, **_: OptimizeResult(x=x0, fun=ordinary.FAIL, nfev=1))
+def test_a_search_that_fails_from_every_start_names_the_starting_ranges_only():
+    """Every optimiser run ends on a singular system (an injected optimiser that returns the
+    criterion's failure value): the message quotes the starting ranges, not the exponent searched
+    with them. Defect: the exponent shown as a range."""
     X = sobol(16, 2, seed=0)
-    with pytest.raises(ValueError) as raised:
-        OrdinaryKriging(beta="fit", ranges=[0.3, 0.6]).fit(X, np.sin(3 * X[:, 0]) + X[:, 1])
-    assert str(raised.value).startswith("kriging system of output 0 is singular at ranges (0.3, 0.6) (at every "
-                                        "starting point); the closest samples are ")
+    failing = OrdinaryKriging(beta="fit", ranges=[0.3, 0.6], optimizer=lambda objective, x0, bounds: (x0, ordinary.FAIL))
+    with pytest.raises(ValueError, match=r"ranges \(0\.3, 0\.6\) \(") as raised:
+        failing.fit(X, np.sin(3 * X[:, 0]) + X[:, 1])
+    assert "output 0" in str(raised.value) and "every starting point" in str(raised.value)
+    assert "1.8" not in str(raised.value)
 
 
 def test_one_dimensional_outputs_and_the_fits_nugget_survive_persistence():
@@ -134,26 +135,27 @@ def test_one_dimensional_outputs_and_the_fits_nugget_survive_persistence():
     assert OrdinaryKriging.from_arrays(arrays, schema_1, fitted.get_params()).hyperparameters_.nugget == 1e-6
 
 
-@pytest.mark.parametrize("settings, message", [
-    ({"optimizer": "bfgs"}, "optimizer must be 'l-bfgs-b' or None; got 'bfgs'"),
-    ({"beta": "fit", "optimizer": None}, "beta='fit' needs an optimizer; give a fixed beta or optimizer='l-bfgs-b'"),
-    ({"range_bounds": (0.0, 1.0)}, "range_bounds must satisfy 0 < lower < upper; got (0.0, 1.0)"),
-    ({"range_bounds": (0.5, 0.5)}, "range_bounds must satisfy 0 < lower < upper; got (0.5, 0.5)"),
-    ({"n_restarts": -1}, "n_restarts must be an integer >= 0; got -1"),
-    ({"n_restarts": 1.0}, "n_restarts must be an integer >= 0; got 1.0"),
-    ({"n_restarts": True}, "n_restarts must be an integer >= 0; got True"),
-    ({"ranges": 0.0}, "ranges must be finite and > 0; got 0.0"),
-    ({"ranges": [0.5, np.inf, 0.5]}, "ranges must be finite and > 0; got [0.5, inf, 0.5]"),
+@pytest.mark.parametrize("settings, fragments", [
+    ({"optimizer": "bfgs"}, ("optimizer", "'bfgs'", "'l-bfgs-b'", "callable")),
+    ({"optimizer": 42}, ("optimizer", "42")),
+    ({"beta": "fit", "optimizer": None}, ("beta='fit'", "optimizer='l-bfgs-b'")),
+    ({"range_bounds": (0.0, 1.0)}, ("range_bounds", "0 < lower < upper", "(0.0, 1.0)")),
+    ({"range_bounds": (0.5, 0.5)}, ("range_bounds", "(0.5, 0.5)")),
+    ({"n_restarts": -1}, ("n_restarts", ">= 0", "-1")),
+    ({"n_restarts": 1.0}, ("n_restarts", "integer", "1.0")),
+    ({"n_restarts": True}, ("n_restarts", "True")),
+    ({"ranges": 0.0}, ("ranges", "> 0", "0.0")),
+    ({"ranges": [0.5, np.inf, 0.5]}, ("ranges", "finite", "inf")),
 ])
-def test_bad_settings_are_refused_naming_the_setting_and_what_is_allowed(settings, message):
+def test_bad_settings_are_refused_naming_the_setting_and_what_is_allowed(settings, fragments):
     """Each setting's check at its edge (a lower range bound of 0, equal bounds, a negative, float or
-    boolean restart count, a zero or infinite range), with the whole message. Defects: an edge
-    accepted (a range of 0 divides by zero in the kernel; an empty bound interval stalls L-BFGS-B) or
-    a message that no longer names the setting and its allowed values."""
+    boolean restart count, a zero or infinite range, an optimiser that is neither a name nor a
+    callable): the error names the setting, the value and what is allowed. Defects: an edge
+    accepted (a range of 0 divides by zero in the kernel; an empty bound interval stalls L-BFGS-B)."""
     X = sobol(16, 3, seed=0)
-    with pytest.raises(ValueError) as err:
+    with pytest.raises(ValueError, match=re.escape(fragments[0])) as err:
         OrdinaryKriging(**{"beta": 1.5, **settings}).fit(X, _f(X))
-    assert str(err.value) == message
+    assert all(fragment in str(err.value) for fragment in fragments), str(err.value)
 
 
 def test_settings_at_the_allowed_edges_fit():
@@ -194,108 +196,101 @@ def test_a_subset_as_large_as_the_design_is_the_exact_fit_and_messages_of_misuse
     X = sobol(16, 3, seed=0)
     for m in (16, 100):
         assert OrdinaryKriging(beta=1.5, fit_subset=m).fit(X, _f(X)).fit_method_ == FitMethod("exact", 16, 16)
-    with pytest.raises(ordinary.NotFittedError, match=r"^this OrdinaryKriging instance is not fitted yet; call "
-                                                      r"fit\(X, Y\) before predict$"):
+    with pytest.raises(ordinary.NotFittedError, match=r"not fitted.*fit\(X, Y\)"):
         OrdinaryKriging().predict(X)
     Xd = np.vstack([X, X[3]])
-    with pytest.raises(ValueError, match=r"^duplicate samples: rows \[3, 16\] of X are identical \(.*\); the kriging "
-                                         r"system is singular: remove duplicates or set a nugget \(e\.g\. nugget=1e-8\)$"):
+    with pytest.raises(ValueError, match=r"rows \[3, 16\]") as raised:
         OrdinaryKriging(beta=1.5).fit(Xd, _f(Xd))
-    with pytest.raises(ValueError, match=r"^fit method must be one of \('exact', 'subset'\); got 'all'$"):
+    assert "duplicate" in str(raised.value) and "nugget=1e-8" in str(raised.value)
+    with pytest.raises(ValueError, match=r"fit method.*'all'"):
         FitMethod("all", 16, 16)
 
 
-def _spy_on_the_optimiser(monkeypatch):
-    """Record every ``scipy.optimize.minimize`` call of the exact fit: (objective, x0, options, result)."""
-    calls = []
-    real = ordinary.minimize
-
-    def spy(fun, x0, **options):
-        x0 = np.array(x0, dtype=float)
-        result = real(fun, x0.copy(), **options)
-        calls.append((fun, x0, options, result))
-        return result
-
-    monkeypatch.setattr(ordinary, "minimize", spy)
-    return calls
+def _global_search(objective, x0, bounds):
+    """An injected optimiser independent of L-BFGS-B: differential evolution over the whole box
+    (seeded), polished by L-BFGS-B from its best member."""
+    found = differential_evolution(lambda x: objective(x)[0], bounds, rng=0, tol=1e-8, popsize=12, maxiter=100)
+    return found.x, found.fun
 
 
-# (variogram, criterion, design seed): each exercises a different branch of the polish at the exponent's
-# upper bound, seen in the recorded calls: (exponential, ml, 0) polishes output 0 and keeps it (better), then
-# rejects output 1's polish (worse by 2.2 in -2 log L); seed 1 rejects output 0's (worse by 0.048, more than
-# the 0.01 allowed); the power model's bound is 1.95; LOO allows 0.1 % of its error.
+# (variogram, criterion, design seed): the exponential family's exponent ends at its upper bound 2 for
+# output 0 of design 0 (the polish at the bound kept) and just below it on design 1; the power model's
+# bound is 1.95; LOO has its own scale
 @pytest.mark.parametrize("variogram, criterion, seed", [
     ("exponential", "ml", 0), ("exponential", "ml", 1), ("power", "ml", 0), ("exponential", "loo", 0)])
-def test_the_exact_fit_searches_from_the_documented_starts_and_keeps_the_best(monkeypatch, variogram, criterion, seed):
-    """The hyperparameter search of one output, restated from the docstring and checked on the
-    recorded optimiser calls: L-BFGS-B with the analytic gradient on (log ranges, beta) inside
-    (log range_bounds, the family's exponent bounds), at most 200 iterations, from (1) ``ranges``
-    clipped to the bounds with beta 1.8 (exponential) or 1.5 (power), (2) the previous output's
-    optimum, (3) ``n_restarts`` draws of ``default_rng(random_state)``, log-uniform ranges in
-    [max(lower, 0.05), min(upper, 5)] and a uniform exponent; the best start wins; an exponent
-    within 0.02 of its upper bound is polished at the bound (ranges re-optimised, 50 iterations) and
-    the polish kept unless worse by more than 0.01 in -2 log L (0.1 % of the LOO error); the
-    evaluations are counted. Defects: another start, bound, seed or draw box, the worse start kept,
-    the polish skipped, applied away from the bound or kept when clearly worse, the count wrong."""
-    calls = _spy_on_the_optimiser(monkeypatch)
+def test_the_exact_fit_finds_the_criterion_optimum_within_the_bounds(variogram, criterion, seed):
+    """The multi-start L-BFGS-B search (with the polish of an exponent near its upper bound) reaches
+    the optimum that a global search (differential evolution, injected as ``optimizer``) finds in the
+    same bounds: within 0.01 of -2 log L, the polish's own tolerance; within 1 % of LOO's error,
+    which is flat near its optimum (the two searches stop 0.05 % apart here, while a single start
+    from ranges 5 ends 4× higher); ranges and exponents stay within ``range_bounds`` and the
+    family's exponent bounds. Defects: a worse start kept, the polish kept when clearly worse, the
+    bounds not passed to the search."""
     X = sobol(16, 3, seed=seed)
     lo, hi = 0.02, 50.0
     b_lo, b_hi = {"exponential": (0.2, 2.0), "power": (0.2, 1.95)}[variogram]
-    fitted = OrdinaryKriging(variogram=variogram, beta="fit", criterion=criterion, ranges=[0.3, 0.5, 200.0],
-                             n_restarts=2, range_bounds=(lo, hi), random_state=7, fit_subset=None).fit(X, _f(X))
-    rng = np.random.default_rng(7)
-    bounds = [(np.log(lo), np.log(hi))] * 3 + [(b_lo, b_hi)]
-    previous, polished = None, 0
-    for col in range(2):
-        starts = [np.append(np.log([0.3, 0.5, hi]), 1.8 if variogram == "exponential" else 1.5)]
-        starts += [previous] if previous is not None else []
-        starts += [np.append(rng.uniform(np.log(0.05), np.log(5.0), 3), rng.uniform(b_lo, b_hi)) for _ in range(2)]
-        mine, calls[:len(starts)] = calls[:len(starts)], []
-        for (_, x0, options, _), start in zip(mine, starts):
-            assert_array_equal(x0, start)
-            assert options == {"jac": True, "method": "L-BFGS-B", "bounds": bounds, "options": {"maxiter": 200}}
-        best = min((r for *_, r in mine if r.fun < ordinary.FAIL), key=lambda r: r.fun)
-        params, evaluations = best.x, sum(r.nfev for *_, r in mine)
-        if b_hi - best.x[-1] < 0.02:
-            ((_, x0, options, res),), calls[:1] = calls[:1], []
-            polished += 1
-            assert_array_equal(x0, best.x[:-1])
-            assert options == {"jac": True, "method": "L-BFGS-B", "bounds": bounds[:-1], "options": {"maxiter": 50}}
-            evaluations += res.nfev
-            if res.fun <= best.fun + (0.01 if criterion == "ml" else 1e-3 * abs(best.fun)):
-                params = np.append(res.x, b_hi)
-        assert_array_equal(fitted.ranges_[col], np.exp(params[:3]))
-        assert fitted.beta_[col] == params[-1]
-        assert fitted.n_evaluations_[col] == evaluations and fitted.n_evaluations_.dtype.kind == "i"
-        previous = params
-    assert calls == []  # no other optimisation
-    assert polished >= 1  # the case exercises the polish
+    settings = dict(variogram=variogram, beta="fit", criterion=criterion, ranges=[0.3, 0.5, 200.0], n_restarts=2,
+                    range_bounds=(lo, hi), random_state=7, fit_subset=None)
+    fitted = OrdinaryKriging(**settings).fit(X, _f(X))
+    best = OrdinaryKriging(**{**settings, "optimizer": _global_search, "n_restarts": 0}).fit(X, _f(X))
+    tol = 0.01 if criterion == "ml" else 1e-2 * np.abs(best.criterion_)
+    assert np.all(fitted.criterion_ <= best.criterion_ + tol), (fitted.criterion_, best.criterion_)
+    for est in (fitted, best):
+        assert np.all((est.ranges_ >= lo * (1 - 1e-12)) & (est.ranges_ <= hi * (1 + 1e-12)))  # exp(log): rounding
+        assert np.all((est.beta_ >= b_lo) & (est.beta_ <= b_hi))
+        assert np.all(est.n_evaluations_ > 0) and est.n_evaluations_.dtype.kind == "i"
     if (variogram, criterion, seed) == ("exponential", "ml", 0):
-        assert fitted.beta_[0] == 2.0 and 1.98 < fitted.beta_[1] < 2.0  # one polish kept, one rejected
-    if (variogram, criterion, seed) == ("exponential", "ml", 1):
-        assert 1.98 < fitted.beta_[0] < 2.0
+        assert fitted.beta_[0] == 2.0  # the polish at the bound, kept: the fast kernel path
 
 
-def test_fixed_ranges_without_an_optimiser_and_a_shared_exponent(monkeypatch):
-    """``optimizer=None`` keeps ``ranges`` (clipped to the bounds) and the given exponent and never
-    optimises; ``beta="fit-shared"`` fits the exponent on output 0 and searches only the ranges of
-    the others, starting also from output 0's ranges. Defects: the ranges not clipped, an
-    optimisation anyway, the shared exponent re-fitted or its bound kept for later outputs."""
-    calls = _spy_on_the_optimiser(monkeypatch)
+def test_an_injected_optimiser_gets_the_objective_the_start_and_the_bounds():
+    """``optimizer(objective, x0, bounds) -> (x, f)``: the objective returns the criterion and its
+    analytic gradient (checked against central differences), the bounds are the log range bounds
+    (and the exponent's), every start lies within them; the default ``l_bfgs_b`` passed as a
+    callable gives the default fit bit for bit, and the same ``random_state`` the same fit.
+    Defects: another signature, unbounded starts, a gradient of the wrong sign or scale."""
+    X = sobol(16, 3, seed=0)
+    seen = []
+
+    def recording(objective, x0, bounds):
+        seen.append((objective, np.array(x0), bounds))
+        return l_bfgs_b(objective, x0, bounds)
+
+    settings = dict(beta="fit", n_restarts=2, range_bounds=(0.02, 50.0), random_state=7, fit_subset=None)
+    fitted = OrdinaryKriging(**settings, optimizer=recording).fit(X, _f(X))
+    default = OrdinaryKriging(**settings).fit(X, _f(X))
+    for a, b in ((fitted.ranges_, default.ranges_), (fitted.beta_, default.beta_), (fitted.n_evaluations_,
+                                                                                     default.n_evaluations_)):
+        assert_array_equal(a, b)  # the same code path in one process
+    again = OrdinaryKriging(**settings).fit(X, _f(X))
+    assert_array_equal(again.predict(X[:4] * 0.9 + 0.05), default.predict(X[:4] * 0.9 + 0.05))
+    box = np.array([(np.log(0.02), np.log(50.0))] * 3 + [(0.2, 2.0)])
+    objective, _, bounds = seen[0]
+    assert_allclose(np.asarray(bounds, dtype=float), box, rtol=0, atol=0)
+    for _, x0, b in seen:
+        assert np.all((x0 >= np.asarray(b)[:, 0]) & (x0 <= np.asarray(b)[:, 1]))
+    x = np.array([np.log(0.4), np.log(0.7), np.log(1.3), 1.6])
+    f, grad = objective(x)
+    h = 1e-6
+    fd = [(objective(x + h * e)[0] - objective(x - h * e)[0]) / (2 * h) for e in np.eye(4)]
+    assert_allclose(grad, fd, rtol=1e-5, atol=1e-6)  # central differences, step 1e-6: truncation and rounding
+
+
+def test_fixed_ranges_without_an_optimiser_and_a_shared_exponent():
+    """``optimizer=None`` keeps ``ranges`` (clipped to the bounds) and the given exponent and spends
+    no evaluation; ``beta="fit-shared"`` fits the exponent on output 0 (as a per-output fit of that
+    output alone does) and searches only the ranges of the others, reaching their optimum at that
+    exponent. Defects: the ranges not clipped, an optimisation anyway, the shared exponent re-fitted."""
     X = sobol(16, 3, seed=0)
     fixed = OrdinaryKriging(beta=1.5, ranges=[0.005, 0.5, 200.0], optimizer=None, range_bounds=(0.01, 100.0)).fit(X, _f(X))
-    assert calls == []
     assert_allclose(fixed.ranges_, [[0.01, 0.5, 100.0]] * 2, rtol=1e-15)  # exp(log(a)): rounding only
     assert_array_equal(fixed.beta_, [1.5, 1.5])
     assert_array_equal(fixed.n_evaluations_, [0, 0])
     shared = OrdinaryKriging(beta="fit-shared", n_restarts=0).fit(X, _f(X))
-    first = [c for c in calls if len(c[1]) == 4]
-    later = calls[len(first):]
-    assert len(later) == 2 or (len(later) == 3 and len(later[0][1]) == 3)  # output 0's polish, if any
-    *_, (_, x0, options, _) = later
-    assert options["bounds"] == [(np.log(0.01), np.log(100.0))] * 3
-    assert_array_equal(x0, np.log(shared.ranges_[0]))
-    assert shared.beta_[1] == shared.beta_[0]
+    first = OrdinaryKriging(beta="fit", n_restarts=0).fit(X, _f(X)[:, 0])
+    assert shared.beta_[1] == shared.beta_[0] == first.beta_[0]
+    alone = OrdinaryKriging(beta=float(shared.beta_[0]), n_restarts=2).fit(X, _f(X)[:, 1])
+    assert shared.criterion_[1] <= alone.criterion_[0] + 0.01  # the polish's tolerance, in -2 log L
 
 
 def test_stored_hyperparameters_that_give_a_singular_system_are_named():
@@ -307,8 +302,7 @@ def test_stored_hyperparameters_that_give_a_singular_system_are_named():
     arrays, attrs = fitted.to_arrays()
     arrays = {**arrays, "ranges": np.array(arrays["ranges"]) * [[1.0], [1e9]]}  # output 1: all samples alike
     # the pivot where the Cholesky factorisation stops depends on rounding: any
-    with pytest.raises(ValueError, match=r"^stored hyperparameters of output 1 give a singular system \(correlation "
-                                         r"matrix not positive definite \(pivot \d+\)\)$"):
+    with pytest.raises(ValueError, match=r"stored hyperparameters of output 1.*singular.*pivot \d+"):
         OrdinaryKriging.from_arrays(arrays, attrs, fitted.get_params())
 
 
@@ -329,11 +323,10 @@ def test_the_hyperparameter_record_checks_every_array_and_keeps_private_read_onl
     for name, bad, dims, shape in [("ranges", [0.5, 0.2], 2, (2,)), ("ranges", [[0.5, 0.2]], 2, (1, 2)),
                                    ("mu", [1.0, 2.0, 3.0], 1, (3,)), ("mu", [[1.0], [2.0]], 1, (2, 1)),
                                    ("sigma2", [0.1], 1, (1,)), ("beta", [[2.0], [1.0]], 1, (2, 1))]:
-        with pytest.raises(ValueError) as raised:
+        with pytest.raises(ValueError, match=rf"KrigingHyperparameters\.{name} must have {dims} dim") as raised:
             KrigingHyperparameters("exponential", 0.0, **{**good, name: bad})
-        assert str(raised.value) == (f"KrigingHyperparameters.{name} must have {dims} dimension(s) and 2 rows (one "
-                                     f"per output); got shape {shape}")
-    with pytest.raises(ValueError, match="^variogram must be one of"):
+        assert f"got shape {shape}" in str(raised.value) and "2 rows" in str(raised.value)
+    with pytest.raises(ValueError, match="variogram.*'gaussian'"):
         KrigingHyperparameters("gaussian", 0.0, **good)
 
 
@@ -357,10 +350,9 @@ def test_a_clearly_negative_variance_warns_once_with_its_value_and_is_clipped(mo
         assert_array_equal(m, mean)
         assert np.all(std == 0.0)
         if warns:
-            assert [str(w.message) for w in caught] == [(
-                f"kriging variance down to {-2e-6 * sill.max():.3g} < 0 (ill-conditioned system), clipped to 0; "
-                "consider a small nugget")]
-            assert caught[0].category is UserWarning and caught[0].filename == __file__
+            (warning,) = caught
+            assert f"{-2e-6 * sill.max():.3g}" in str(warning.message) and "nugget" in str(warning.message)
+            assert warning.category is UserWarning and warning.filename == __file__
         else:
             assert caught == []
 
@@ -399,23 +391,21 @@ def test_fit_refuses_bad_training_data_naming_what_is_wrong():
     y = _f(X)
     nan_x, inf_y = X.copy(), y.copy()
     nan_x[3, 1], inf_y[5, 0] = np.nan, np.inf
-    cube = "kriging inputs must lie in the unit cube; got values in [{}]; scale them with ParameterSpace.to_unit " \
-           "(PODKriging does this for you)"
     cases = [
-        (X[0], y, "X must have shape (n_samples, n_dims); got shape (3,)"),
-        (X, y[:, :, None], "Y must have shape (16,) or (16, n_outputs); got (16, 2, 1)"),
-        (X, y[:15], "Y must have shape (16,) or (16, n_outputs); got (15, 2)"),
-        (X, y[:15, 0], "Y must have shape (16,) or (16, n_outputs); got (15, 1)"),
-        (X[:2], y[:2], "ordinary kriging needs at least 3 samples; got 2"),
-        (nan_x, y, "X and Y must be finite; found NaN or inf (drop failed FE runs first)"),
-        (X, inf_y, "X and Y must be finite; found NaN or inf (drop failed FE runs first)"),
-        (X - 1e-6 - X.min(), y, cube.format(f"{-1e-6:g}, {X.max() - 1e-6 - X.min():g}")),
-        (X + 1 + 1e-6 - X.max(), y, cube.format(f"{X.min() + 1 + 1e-6 - X.max():g}, {1 + 1e-6:g}")),
+        (X[0], y, ("X must have shape", "(3,)")),
+        (X, y[:, :, None], ("Y must have shape", "(16, 2, 1)")),
+        (X, y[:15], ("Y must have shape (16,)", "(15, 2)")),
+        (X, y[:15, 0], ("Y must have shape (16,)", "(15, 1)")),
+        (X[:2], y[:2], ("at least 3 samples", "got 2")),
+        (nan_x, y, ("must be finite", "NaN")),
+        (X, inf_y, ("must be finite", "inf")),
+        (X - 1e-6 - X.min(), y, ("unit cube", f"[{-1e-6:g}, ", "ParameterSpace.to_unit")),
+        (X + 1 + 1e-6 - X.max(), y, ("unit cube", f", {1 + 1e-6:g}]", "ParameterSpace.to_unit")),
     ]
-    for Xbad, ybad, message in cases:
-        with pytest.raises(ValueError) as raised:
+    for Xbad, ybad, fragments in cases:
+        with pytest.raises(ValueError, match=re.escape(fragments[0])) as raised:
             OrdinaryKriging(beta=1.5).fit(Xbad, ybad)
-        assert str(raised.value) == message
+        assert all(fragment in str(raised.value) for fragment in fragments), str(raised.value)
     corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [0.5, 0.5]])
     for shift in (0.0, 1e-10):  # on the faces, and rounding beyond them
         inside = np.clip(corners + shift * np.sign(corners - 0.5), -1.0, 2.0)
@@ -441,29 +431,28 @@ def test_fit_keeps_its_own_float_copy_of_the_inputs():
         assert_array_equal(a, b)
 
 
-def test_a_constant_output_is_reproduced_without_a_search_and_with_zero_variance(monkeypatch, caplog):
+def test_a_constant_output_is_reproduced_without_a_search_and_with_zero_variance(caplog):
     """An output constant up to rounding (1e-14 of its size, here 1000 + 1e-12 wiggles) is not
     optimised (its ranges stay at the start, no evaluations) and has zero variance, so it is
     predicted as itself with zero spread; with ``beta="fit-shared"`` a constant first output
     shares its starting exponent (1.8) with the others, whose ranges are still searched. The log
-    line states the sizes and the evaluations spent. Defects: the search run on a constant (its
+    record states the sizes and the evaluations spent. Defects: the search run on a constant (its
     criterion is singular), the rounding tolerance scaled the wrong way, the shared exponent lost."""
-    calls = _spy_on_the_optimiser(monkeypatch)
     X = sobol(16, 3, seed=0)
     wiggle = 1e-12 * np.where(np.arange(16) % 2, 1.0, -1.0)
     Y = np.column_stack([1000.0 + wiggle, _f(X)[:, 0]])
     with caplog.at_level(logging.INFO, logger=ordinary.__name__):
         fitted = OrdinaryKriging(beta="fit-shared", ranges=0.3, n_restarts=0).fit(X, Y)
     assert fitted.n_evaluations_[0] == 0 and fitted.n_evaluations_[1] > 0
-    assert all(len(x0) == 3 for _, x0, _, _ in calls)  # output 1 alone searched, ranges only
     assert_allclose(fitted.ranges_[0], 0.3, rtol=1e-15)
     assert_array_equal(fitted.beta_, [1.8, 1.8])
     assert fitted.sigma2_[0] == 0.0 and fitted.sigma2_[1] > 0
     mean, std = fitted.predict(uniform(5, 3, seed=4), return_std=True)
     assert_allclose(mean[:, 0], 1000.0, rtol=1e-14)
     assert np.all(std[:, 0] == 0.0) and np.all(std[:, 1] > 0)
-    assert caplog.messages == [(f"kriging fitted: 16 samples, 3 dims, 2 outputs, "
-                                f"{int(fitted.n_evaluations_.sum())} criterion evaluations")]
+    (record,) = caplog.records
+    assert (record.name, record.levelno) == (ordinary.__name__, logging.INFO)
+    assert record.args == (16, 3, 2, int(fitted.n_evaluations_.sum()))  # samples, dims, outputs, evaluations
 
 
 def test_the_documented_defaults_and_every_setting_given_are_kept():
@@ -507,3 +496,25 @@ def test_a_grid_design_with_repeated_coordinates_fits_its_exponent_cleanly():
         warnings.simplefilter("error")
         fitted = OrdinaryKriging(beta="fit").fit(X, y)
     assert np.isfinite(fitted.criterion_).all() and 0.2 <= fitted.beta_[0] <= 2.0
+
+
+def test_a_surrogate_fitted_with_an_injected_optimiser_is_written_with_its_name(tmp_path):
+    """A callable optimiser cannot be stored: the surrogate file records its name, the loaded
+    surrogate predicts as the fitted one, and refitting the loaded settings asks for an optimiser
+    the estimator knows. Defects: writing the file fails on the callable, or a refit silently uses
+    another optimiser."""
+    from podkrig.io.surrogate_file import load_surrogate, save_surrogate
+    from podkrig.surrogate.podkriging import PODKriging
+
+    def custom_search(objective, x0, bounds):
+        return l_bfgs_b(objective, x0, bounds)
+
+    X = sobol(16, 3, seed=0)
+    fitted = PODKriging(kriging=OrdinaryKriging(optimizer=custom_search)).fit(X, _f(X))
+    save_surrogate(fitted, tmp_path / "s.h5")
+    loaded = load_surrogate(tmp_path / "s.h5")
+    assert "custom_search" in loaded.kriging.optimizer
+    Xp = uniform(5, 3, seed=2)
+    assert_array_equal(loaded.predict(Xp), fitted.predict(Xp))  # same process, same arrays
+    with pytest.raises(ValueError, match="optimizer .*'l-bfgs-b', a callable or None"):
+        OrdinaryKriging(**loaded.kriging.get_params()).fit(X, _f(X))

@@ -126,9 +126,8 @@ def test_ranges_too_long_for_all_samples_are_shortened_and_recorded(caplog):
     Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1] ** 2, X[:, 0] * X[:, 2], np.cos(25 * X[:, 0] * X[:, 1])])
     with caplog.at_level("INFO", logger="podkrig.surrogate.kriging.ordinary"):
         sub = OrdinaryKriging(fit_subset=20).fit(X, Y)
-    shortened = [r.getMessage() for r in caplog.records if "ranges shortened" in r.getMessage()]
-    assert shortened == [f"output {col}: ranges shortened x{f:.3g} for a well-conditioned system of 60 samples"
-                         for col, f in enumerate(sub.fit_method_.range_scale) if f < 1.0]
+    shortened = [r.args for r in caplog.records if "ranges shortened" in r.msg]  # (output, factor, samples)
+    assert shortened == [(col, f, 60) for col, f in enumerate(sub.fit_method_.range_scale) if f < 1.0]
     alone = OrdinaryKriging(fit_subset=None).fit(X[sub.subset_index_], Y[sub.subset_index_])
     scale = np.array(sub.fit_method_.range_scale)
     assert np.any(scale < 1.0) and np.any(scale == 1.0)
@@ -164,7 +163,7 @@ def test_recorded_choice_round_trips_through_the_surrogate_file(tmp_path, monkey
     rep = held_out_errors(back, Xp, np.moveaxis(np.stack(
         [np.outer([1.0, 2.0], [1e3 / Xp[:, 0], np.sin(2 * Xp[:, 1])][k]) for k in range(2)], axis=2), 1, 0))
     assert rep.summary()["fit"] == fm.to_dict()
-    assert "random subset of 32 of the 64 samples (seed 7)" in rep.summary()["fit_description"]
+    assert all(f in rep.summary()["fit_description"] for f in ("32 of the 64 samples", "seed 7"))
 
 
 def test_files_without_a_record_were_fitted_exactly():
@@ -203,12 +202,12 @@ def test_sklearn_backend_fits_on_a_subset_and_keeps_the_record(data):
     back = SklearnGPR.from_arrays(*gpr.to_arrays(), gpr.get_params())
     assert back.fit_method_ == gpr.fit_method_
     assert_allclose(back.predict(Xp), gpr.predict(Xp), rtol=0, atol=1e-12)
-    with pytest.raises(ValueError, match="fit_subset must be None or an integer >= 3"):
+    with pytest.raises(ValueError, match="fit_subset .*None or an integer >= 3"):
         make_backend("sklearn-gpr", fit_subset="auto").fit(X, Y)
 
 
 @pytest.mark.parametrize("bad", [2, True, "all", 1.5])
 def test_fit_subset_setting_errors(data, bad):
     X, Y, _ = data
-    with pytest.raises(ValueError, match="fit_subset must be 'auto', None or an integer >= 3"):
+    with pytest.raises(ValueError, match="fit_subset .*'auto', None.*>= 3"):
         OrdinaryKriging(fit_subset=bad).fit(X, Y)

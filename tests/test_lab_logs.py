@@ -58,9 +58,9 @@ def test_units_are_converted_and_unknown_or_incompatible_ones_named(tmp_path):
     m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
     assert_allclose(m.load_levels, [10.0, 20.0])
     assert_allclose(m.values, [[-0.1, 0.015], [-0.2, 0.030]])
-    with pytest.raises(ValueError, match=r"log\.csv, row 1, column 2 \(D1 \[kN\]\): unit 'kN' is not a length"):
+    with pytest.raises(ValueError, match=r"row 1, column 2 \(D1 \[kN\]\): .*not a length"):
         read_measurement(_write(tmp_path, "load [kN],D1 [kN]\n10,1\n"), SENSORS, LEVELS, "kN", "affine")
-    with pytest.raises(ValueError, match=r"row 1, column 1 \(load \[bananas\]\): unknown unit 'bananas'"):
+    with pytest.raises(ValueError, match=r"row 1, column 1 \(load \[bananas\]\): .*'bananas'"):
         read_measurement(_write(tmp_path, "load [bananas],D1\n10,1\n"), SENSORS, LEVELS, "kN", "affine")
 
 
@@ -85,11 +85,11 @@ def test_excel_workbook(tmp_path):
     m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
     assert_allclose(m.load_levels, [10.03, 25.5])
     assert_allclose(m.values, [[-0.0315, np.nan], [-0.08025, 0.0012]])
-    with pytest.raises(ValueError, match=r"no worksheet 'nope'; the workbook has \['log', 'other'\]"):
+    with pytest.raises(ValueError, match=r"'nope'.*\['log', 'other'\]"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(sheet="nope"))
     bad = tmp_path / "bad.xlsx"
     bad.write_bytes(b"PK\x03\x04 not really a zip")
-    with pytest.raises(ValueError, match=r"bad\.xlsx: not a readable Excel \.xlsx workbook"):
+    with pytest.raises(ValueError, match=r"bad\.xlsx: .*Excel"):
         read_measurement(bad, SENSORS, LEVELS, "kN", "affine")
 
 
@@ -102,7 +102,7 @@ def test_repeats_averaged_or_kept_and_load_range(tmp_path):
     assert keep.values.shape == (5, 2) and keep.n_obs == 9
     rng = read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(load_range=(15, 30)))
     assert_allclose(rng.load_levels, [20.0, 20.01])
-    with pytest.raises(ValueError, match=r"no row has a load in load_range \[50, 60\] kN; the loads span \[10, 35\]"):
+    with pytest.raises(ValueError, match=r"load_range \[50, 60\] kN.*\[10, 35\]"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(load_range=(50, 60)))
 
 
@@ -116,7 +116,7 @@ def test_zero_at_first_row_or_a_load(tmp_path):
     assert at.reference_load == 6.0
     assert_allclose(at.load_levels, [2, 10, 30])
     assert_allclose(at.values, [[-0.4], [0.4], [2.0]])
-    with pytest.raises(ValueError, match=r"never reaches the zero reference load 50 kN"):
+    with pytest.raises(ValueError, match=r"never reaches .*load 50 kN"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero=50.0))
 
 
@@ -139,9 +139,9 @@ def test_zero_at_the_end_of_a_phase_equals_zeroing_at_its_load_by_hand(tmp_path)
     assert_allclose(m.values, by_load.values[3:], rtol=1e-12)
     assert_allclose(m.values, 1e-3 * (np.array([[16, -7], [21, -9], [42, -18.5], [22, -9.5]]) - [10.5, -4.5]))
     notes = " | ".join(m.notes)
-    assert "gauges zeroed at the end of phase 'Precompression' (row 4, 5 kN); the 3 row(s) up to it are not used" in notes
-    assert "phases in column 2 (phase): precompression, Precompression, shear, unloading" in notes
-    assert "ignored column(s) that name no sensor: time [s]" in notes and "phase" not in m.ignored_columns
+    assert "phase 'Precompression' (row 4, 5 kN)" in notes and "3 row(s) up to it" in notes
+    assert "column 2 (phase): " in notes and "precompression, Precompression, shear, unloading" in notes
+    assert "no sensor: time [s]" in notes and "phase" not in m.ignored_columns
     # load_range selects among the rows after the reference
     rng = read_measurement(p, SENSORS, LEVELS, "kN", "affine",
                            ImportSettings(zero="end of precompression", load_range=(8, 30)))
@@ -150,30 +150,27 @@ def test_zero_at_the_end_of_a_phase_equals_zeroing_at_its_load_by_hand(tmp_path)
 
 def test_zero_at_a_phase_is_checked_with_file_row_and_column(tmp_path):
     p = _write(tmp_path, PHASE_LOG)
-    with pytest.raises(ValueError, match=r"log\.csv, column 2 \(phase\): no row of phase 'pre-compression' \(zero = "
-                                         r"'end of pre-compression'\) \(a typo of 'precompression'\?\); the phases in "
-                                         r"this column are 'precompression', 'Precompression', 'shear', 'unloading'"):
+    phases = "'precompression', 'Precompression', 'shear', 'unloading'"
+    with pytest.raises(ValueError, match=rf"log\.csv, column 2 \(phase\): .*'pre-compression'.*{phases}") as e:
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of pre-compression"))
-    with pytest.raises(ValueError, match=r"log\.csv, row 1: zero = 'end of shear' needs a phase column 'step'; the "
-                                         r"header has \['time \[s\]', 'phase', .*\(name the column holding each row's "
-                                         r"phase with phase_column\)"):
+    assert "typo of 'precompression'" in str(e.value)  # the hint
+    with pytest.raises(ValueError, match=r"log\.csv, row 1: .*phase column 'step'.*\['time \[s\]', 'phase', .*phase_column"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="step"))
-    with pytest.raises(ValueError, match=r"row 1, column 4: phase_column 'd1' is a sensor of the model"):
+    with pytest.raises(ValueError, match=r"row 1, column 4: phase_column 'd1' .*sensor"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of shear", phase_column="d1"))
-    with pytest.raises(ValueError, match=r"row 8, column 2 \(phase\): the phase 'unloading' ends at the last row"):
+    with pytest.raises(ValueError, match=r"row 8, column 2 \(phase\): .*'unloading'.*last row"):
         read_measurement(p, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of unloading"))
     gap = _write(tmp_path, PHASE_LOG.replace("2,Precompression,5,10.5,-4.5", "2,Precompression,5,,-4.5"))
-    with pytest.raises(ValueError, match=r"row 4: the zero reference \(end of phase 'Precompression'\) has no reading "
-                                         r"of D1"):
+    with pytest.raises(ValueError, match=r"row 4: .*'Precompression'.*of D1"):
         read_measurement(gap, SENSORS, LEVELS, "kN", "affine", ImportSettings(zero="end of precompression"))
-    with pytest.raises(ValueError, match=r'zero must be "first", "end of PHASE" .*; got \'end of \''):
+    with pytest.raises(ValueError, match=r'zero must be .*"end of PHASE".*got \'end of \''):
         ImportSettings(zero="end of ")
 
 
 def test_phase_column_without_zero_is_an_ignored_column(tmp_path):
     m = read_measurement(_write(tmp_path, PHASE_LOG), SENSORS, LEVELS, "kN", "affine")
     assert m.ignored_columns == ("time [s]", "phase") and m.reference_load is None
-    assert "ignored column(s) that name no sensor: time [s], phase" in m.notes
+    assert any("no sensor: time [s], phase" in note for note in m.notes)
     assert_allclose(m.values[2], [0.0105, -0.0045])
 
 
@@ -203,12 +200,11 @@ def test_phase_labels_from_excel_and_the_study_file_form(tmp_path):
 
 def test_loads_outside_what_the_model_can_evaluate_are_refused_with_the_row(tmp_path):
     p = _write(tmp_path, "load [mm],D1\n0.5,1\n3.4,2\n")
-    with pytest.raises(ValueError, match=r"row 3, column 1 \(load \[mm\]\): 1 measured load\(s\) lie outside the "
-                                         r"modelled range \[0\.25, 3\] mm of this nonlinear scenario"):
+    with pytest.raises(ValueError, match=r"row 3, column 1 \(load \[mm\]\): .*range \[0\.25, 3\] mm"):
         read_measurement(p, SENSORS, (0.25, 1.0, 3.0), "mm", "path")
-    with pytest.raises(ValueError, match=r"row 2, column 1 \(load \[mm\]\): unknown load level 0\.5 mm"):
+    with pytest.raises(ValueError, match=r"row 2, column 1 \(load \[mm\]\): .*level 0\.5 mm"):
         read_measurement(p, SENSORS, (0.25, 1.0, 3.0), "mm", "discrete")
-    with pytest.raises(ValueError, match=r"unit 'kN' is not convertible to mm"):
+    with pytest.raises(ValueError, match=r"'kN' is not convertible to mm"):
         read_measurement(_write(tmp_path, "load [kN],D1\n10,1\n"), SENSORS, (0.25, 1.0), "mm", "path")
 
 
@@ -235,7 +231,7 @@ def test_path_interpolation_weights_and_no_extrapolation():
     assert index[0].tolist() == [1, 2]
     assert_allclose(w[0], [0.5, 0.5])
     assert index[1, 0] == 2 and w[1].tolist() == [1.0, 0.0] and index[2, 0] == 0
-    with pytest.raises(ValueError, match=r"outside the modelled range \[0\.25, 3\] mm"):
+    with pytest.raises(ValueError, match=r"outside .*range \[0\.25, 3\] mm"):
         level_weights([3.5], [0.25, 1.0, 2.0, 3.0], "path", "mm")
 
 
@@ -330,8 +326,8 @@ def test_run_refuses_dof_le_0_before_any_fe_work(tmp_path, fe_counter):
     fe = fe_counter()
     result = _study(tmp_path, "load [kN],D1 [mm]\n50,-0.16\n")
     assert result.exit_code == 2, result.output
-    assert "1 reading(s) cannot identify 3 free parameter(s)" in result.output
-    assert "n_obs − n_free = 1 − 3 = -2 ≤ 0" in result.output.replace("\n", " ")
+    out = " ".join(result.output.split())
+    assert "1 reading(s)" in out and "3 free parameter(s)" in out and "= -2 ≤ 0" in out
     assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
 
 
@@ -339,7 +335,7 @@ def test_run_refuses_a_bad_file_before_any_fe_work(tmp_path, fe_counter):
     fe = fe_counter()
     result = _study(tmp_path, "load [kN];D1 [mm];D2 [mm]\n25;-0,08;0,04\n50;-0,16;abc\n")
     assert result.exit_code == 2, result.output
-    assert "row 3, column 3 (D2 [mm]): 'abc' is not a number" in result.output.replace("\n", "")
+    assert "row 3, column 3 (D2 [mm])" in result.output.replace("\n", "") and "'abc'" in result.output
     assert fe.calls == 0 and not (tmp_path / "out" / "train.h5").exists()
 
 
@@ -355,8 +351,8 @@ def test_run_flags_um_read_as_mm_before_the_training_snapshots(tmp_path, fe_coun
     result = _study(tmp_path, text)
     out = " ".join(result.output.split())
     assert result.exit_code == 2, result.output
-    assert "any of the 7 probe FE run(s) (the box centre and each parameter at its bounds)" in out
-    assert "D1 is about 1000× larger than every FE run: µm read as mm?" in out
+    assert "7 probe FE run(s)" in out
+    assert "D1 is about 1000× larger" in out and "µm read as mm?" in out
     assert fe.calls == len(probe_points(3, nonlinear=False)) == 7
     assert not (tmp_path / "out" / "train.h5").exists() and (tmp_path / "out" / "probe.npz").exists()
     # the same readings with their unit stated in the header pass both checks; the probe is not run again
@@ -397,8 +393,8 @@ def test_bundled_study_with_um_as_mm_stops_before_any_snapshot(tmp_path, fe_coun
     result = runner.invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out")])
     out = " ".join(result.output.split())
     assert result.exit_code == 2, result.output
-    assert "D1 is about 1000× larger than every FE run: µm read as mm?" in out
-    assert "D2 is about 1000× larger than every FE run: µm read as mm?" in out  # although the probe's D2 spans 100×
+    assert "D1 is about 1000× larger" in out and "µm read as mm?" in out
+    assert "D2 is about 1000× larger" in out  # although the probe's D2 spans 100×
     assert fe.calls == len(probe_points(4, nonlinear=False)) == 9
     assert not any((tmp_path / "out" / f).exists() for f in ("train.h5", "held_out.h5", "surrogate.h5"))
 
@@ -435,17 +431,16 @@ def test_a_failed_probe_run_is_noted_and_left_out(tmp_path, monkeypatch):
     result = run.manifest("probe")["result"]
     assert result["n_runs"] == 9 and result["n_failed"] == 1 and calls[1]["E_b"] == 5000.0
     assert result["notes"][0].startswith("probe run 2 at {'E_b': 5000.0, ") and "failed (FEError: singular" in result["notes"][0]
-    with pytest.raises(ValueError, match=r"any of the 8 probe FE run\(s\) .* D1 is about 1000× larger"):
+    with pytest.raises(ValueError, match=r"8 probe FE run\(s\) .*D1 is about 1000×"):
         stages.range_check(run, run.study.calibration_tests[0], "probe")
 
 
 def test_sign_flipped_file_gets_the_sign_wording(tmp_path):
     run = _demo_run(tmp_path, scale=-1.0)
     stages.probe(run, run.study.calibration_tests[0])
-    with pytest.raises(ValueError, match=r"9 probe FE run\(s\) .* — D1 has the opposite sign of every FE run at every "
-                                         r"reading beyond 3σ: a sign error \(a gauge mounted the other way round, or "
-                                         r"another sign convention\)\?") as e:
+    with pytest.raises(ValueError, match=r"9 probe FE run\(s\) .*D1 has the opposite sign") as e:
         stages.range_check(run, run.study.calibration_tests[0], "probe")
+    assert "beyond 3σ" in str(e.value) and "sign error" in str(e.value)
     assert "D2 has" not in str(e.value)  # the probe run with kN_bj at its lower bound, 10 N/mm³, reads D2 < 0
 
 
@@ -475,6 +470,6 @@ def test_range_check_names_units_and_signs_but_not_noise():
     d = np.outer(levels, per_kn * np.array([1000.0, 1.0, -1.0, 1.0])) + np.array([0, 0, 0, 0.0008])
     m = Measurement(d, names, levels)
     found = stages.measurement_range_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
-    assert found[0] == "A is about 1000× larger than every FE run: µm read as mm?"
+    assert found[0].startswith("A is about 1000× larger") and "µm read as mm?" in found[0]
     assert found[1].startswith("C has the opposite sign of every FE run")
     assert len(found) == 2  # B matches; N reads noise (0.8 µm with σ = 1 µm), not a unit error

@@ -38,18 +38,17 @@ def test_round_trip_and_subset(tmp_path):
 @pytest.mark.parametrize(
     "text, match",
     [
-        ("force,D1\n25,1\n", r"row 1: no load column 'load' in the header \['force', 'D1'\]"),
-        ("load,D9\n25,1\n", r"row 1: no column names a sensor of the model"),
-        ("load,D1,D1\n25,1,2\n", r"row 1, column 3: sensor 'D1' appears more than once"),
-        ("load,D1,D2\n25,1,abc\n", r"row 2, column 3 \(D2\): 'abc' is not a number"),
-        ("load,D1,D2\n25,1,2\n50,inf,2\n", r"row 3, column 2 \(D1\): 'inf' is not a finite number"),
-        ("load,D1\n30,1\n", r"row 2, column 1 \(load\): unknown load level 30 kN"),
+        ("force,D1\n25,1\n", r"row 1: .*'load'.*\['force', 'D1'\]"),
+        ("load,D9\n25,1\n", r"row 1: .*sensor of the model"),
+        ("load,D1,D1\n25,1,2\n", r"row 1, column 3: .*'D1' .*more than once"),
+        ("load,D1,D2\n25,1,abc\n", r"row 2, column 3 \(D2\): 'abc'"),
+        ("load,D1,D2\n25,1,2\n50,inf,2\n", r"row 3, column 2 \(D1\): 'inf'"),
+        ("load,D1\n30,1\n", r"row 2, column 1 \(load\): .*30 kN"),
         ("load,D1\n25,1,3\n", r"row 2: 3 cells, expected 2"),
         ("load,D1\n", "no data rows"),
-        ("load [kN],D1 [furlongs/fortnight]\n25,1\n", r"row 1, column 2 \(D1 \[furlongs/fortnight\]\): unit "
-                                                        r"'furlongs/fortnight' is not a length"),
-        ("load [kN],D1 [parsecs2]\n25,1\n", r"row 1, column 2 \(D1 \[parsecs2\]\): unknown unit 'parsecs2'"),
-        ("load [MPa],D1\n25,1\n", r"row 1, column 1 \(load \[MPa\]\): unit 'MPa' is not convertible to kN"),
+        ("load [kN],D1 [furlongs/fortnight]\n25,1\n", r"row 1, column 2 \(D1 \[furlongs/fortnight\]\): .*not a length"),
+        ("load [kN],D1 [parsecs2]\n25,1\n", r"row 1, column 2 \(D1 \[parsecs2\]\): .*'parsecs2'"),
+        ("load [MPa],D1\n25,1\n", r"row 1, column 1 \(load \[MPa\]\): .*'MPa'.*kN"),
     ],
 )
 def test_bad_files_name_file_row_and_column(tmp_path, text, match):
@@ -74,13 +73,13 @@ def test_noise_models():
     # the instrument model: σ_i² = σ_res² + (δ d_i)², by hand for d = (-0.2, 0.1, -0.4, 0.0) mm
     assert_allclose(NoiseModel(sigma=0.001, delta=0.01).std(m),
                     np.sqrt(0.001**2 + (0.01 * np.array([0.2, 0.1, 0.4, 0.0])) ** 2))
-    with pytest.raises(ValueError, match="^give either a covariance or an absolute sigma"):
+    with pytest.raises(ValueError, match="either a covariance or .*sigma"):
         NoiseModel(sigma=0.1, covariance=C)
-    with pytest.raises(ValueError, match="^give a noise model"):
+    with pytest.raises(ValueError, match="give a noise model"):
         NoiseModel()
     with pytest.raises(ValueError, match="sigma must be > 0 mm"):
         NoiseModel(sigma=0.0)
-    with pytest.raises(ValueError, match=r"no noise sigma given for sensor\(s\) \['D2'\]"):
+    with pytest.raises(ValueError, match=r"no noise sigma .*\['D2'\]"):
         NoiseModel(sigma={"D1": 0.001}).std(m)
     with pytest.raises(ValueError, match=r"must be \(4, 4\)"):
         NoiseModel(covariance=np.eye(3)).covariance_matrix(m)
@@ -92,9 +91,9 @@ def test_output_indices_match_levels_to_1e_9_and_name_what_is_unknown():
     m = Measurement(np.array([[1.0, 2.0]]), ("D2", "D1"), np.array([100.0005]), source="site.csv")
     # load-major: level index 1 of 2, 3 sensors per level → 3 + sensor position
     assert m.output_indices(["D1", "D2", "U1"], [100.0, 100.0005]).tolist() == [3 + 1, 3 + 0]
-    with pytest.raises(ValueError, match=r"site\.csv: unknown sensor 'D2'; the model has \['D1', 'U1'\]"):
+    with pytest.raises(ValueError, match=r"site\.csv: .*'D2'.*\['D1', 'U1'\]"):
         m.output_indices(["D1", "U1"], [100.0005])
-    with pytest.raises(ValueError, match=r"site\.csv: unknown load level 100\.001; the model has \[100\.0, 99\.0\]"):
+    with pytest.raises(ValueError, match=r"site\.csv: .*level 100\.001.*\[100\.0, 99\.0\]"):
         m.output_indices(["D1", "D2"], [100.0, 99.0])
 
 
@@ -102,24 +101,24 @@ def test_measurement_converts_its_inputs_and_names_bad_values():
     m = Measurement([[1, 2]], ["a", "b"], [50], source="site.csv")
     assert m.values.dtype == float and m.load_levels.dtype == float and m.sensor_names == ("a", "b")
     assert m.data.tolist() == [1.0, 2.0] and m.n_obs == 2
-    with pytest.raises(ValueError, match=r"^site\.csv: values must have shape \(1, 2\) \(n_loads, n_sensors\); got \(2,\)"):
+    with pytest.raises(ValueError, match=r"site\.csv: values .*\(1, 2\).*got \(2,\)"):
         Measurement([1.0, 2.0], ["a", "b"], [50], source="site.csv")
-    with pytest.raises(ValueError, match=r"^site\.csv: measured values must be finite numbers"):
+    with pytest.raises(ValueError, match=r"site\.csv: .*finite"):
         Measurement([[1.0, np.inf]], ["a", "b"], [50], source="site.csv")
     # NaN is a missing reading (issue 14): left out of the data, the rest kept in load-major order
     gap = Measurement([[1.0, np.nan], [3.0, 4.0]], ["a", "b"], [50, 60], source="site.csv")
     assert gap.data.tolist() == [1.0, 3.0, 4.0] and gap.n_obs == 3 and not gap.complete
-    with pytest.raises(ValueError, match=r"^site\.csv: no readings"):
+    with pytest.raises(ValueError, match=r"site\.csv: no readings"):
         Measurement([[np.nan, np.nan]], ["a", "b"], [50], source="site.csv")
 
 
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        ({"sigma": {"D1": 0.001, "D2": 0.0}}, r"^absolute noise sigma must be > 0 mm; got \{'D2': 0\.0\}"),
-        ({"delta": 0.0}, r"^relative noise delta must be in \(0, 1\); got 0\.0"),
-        ({"delta": 1.0}, r"^relative noise delta must be in \(0, 1\)"),
-        ({"delta": 1.5}, r"^relative noise delta must be in \(0, 1\)"),
+        ({"sigma": {"D1": 0.001, "D2": 0.0}}, r"sigma .*> 0 mm; got \{'D2': 0\.0\}"),
+        ({"delta": 0.0}, r"delta .*\(0, 1\); got 0\.0"),
+        ({"delta": 1.0}, r"delta .*\(0, 1\); got 1\.0"),
+        ({"delta": 1.5}, r"delta .*\(0, 1\); got 1\.5"),
     ],
 )
 def test_noise_model_bounds(kwargs, match):
@@ -129,9 +128,9 @@ def test_noise_model_bounds(kwargs, match):
 
 def test_singular_noise_covariance_is_refused():
     m = Measurement(np.zeros((2, 2)), ("D1", "D2"), np.array([50.0, 100.0]))
-    with pytest.raises(ValueError, match="^noise covariance must be symmetric positive definite"):
+    with pytest.raises(ValueError, match="covariance .*positive definite"):
         NoiseModel(covariance=np.diag([1.0, 0.0, 1.0, 1.0])).covariance_matrix(m)
-    with pytest.raises(ValueError, match="^noise covariance must be symmetric positive definite"):
+    with pytest.raises(ValueError, match="covariance .*symmetric"):
         NoiseModel(covariance=np.eye(4) + np.triu(np.ones((4, 4)), 1) * 0.1).covariance_matrix(m)
 
 
@@ -148,8 +147,7 @@ def test_observation_operator_sums_weighted_columns_and_bounds_the_std():
     S = np.array([[0.1, 0.2, 0.4]])
     assert_allclose(op.apply_std(S), [[0.25 * 0.1 + 0.75 * 0.2, 0.4 + 0.4, 2 * 0.2 + 0.5 * 0.1]], rtol=1e-15)
     assert op.n_obs == 3 and not op.exact
-    with pytest.raises(ValueError, match=r"^the measurement is not at the model's load levels: its entries are "
-                                         r"interpolated between levels \(or zeroed at a reference load\)"):
+    with pytest.raises(ValueError, match=r"not at the model's load levels.*interpolated"):
         op.indices
     single = ObservationOperator([[2, 0], [0, 1]], [[1.0, 0.0], [1.0, 0.0]])  # column 2 never weighs
     assert single.columns.shape == (2, 1) and single.exact and single.indices.tolist() == [2, 0]
@@ -159,7 +157,7 @@ def test_observation_operator_sums_weighted_columns_and_bounds_the_std():
     zero = ObservationOperator([[1, 2]], [[0.0, 0.0]])
     assert zero.columns.tolist() == [[1]] and zero.apply(Y).tolist() == [[0.0], [0.0]]
     assert ObservationOperator.from_indices([2, 0]).weights.tolist() == [[1.0], [1.0]]
-    with pytest.raises(ValueError, match=r"^columns \(1, 2\) and weights \(1, 3\) must have the same shape"):
+    with pytest.raises(ValueError, match=r"columns \(1, 2\) .*weights \(1, 3\).*same shape"):
         ObservationOperator([[0, 1]], [[1.0, 0.0, 0.0]])
 
 
@@ -178,13 +176,11 @@ def test_affine_levels_reproduce_a_linear_response_at_any_load_and_name_the_unit
     # integer inputs are loads like any other (no integer division of t)
     index_i, w_i = level_weights([15], [10, 20], "affine")
     assert index_i.tolist() == [[0, 1]] and w_i.tolist() == [[0.5, 0.5]]
-    with pytest.raises(ValueError, match=r"^site\.csv: load 15 kN is not the model's only level 10 kN; evaluating "
-                                         r"between levels needs at least two$"):
+    with pytest.raises(ValueError, match=r"site\.csv: load 15 kN .*only level 10 kN.*at least two"):
         level_weights([10.0, 15.0], [10.0], "affine", "kN", "site.csv")
-    with pytest.raises(ValueError, match=r"^measurement: load 15 is not the model's only level 10; evaluating"):
+    with pytest.raises(ValueError, match=r"measurement: load 15 .*level 10;"):
         level_weights([15.0], [10.0], "path")
-    with pytest.raises(ValueError, match=r"^load_response must be one of \('affine', 'path', 'discrete'\); "
-                                         r"got 'linear'$"):
+    with pytest.raises(ValueError, match=r"load_response .*\('affine', 'path', 'discrete'\).*got 'linear'"):
         level_weights([10.0], [10.0], "linear")
 
 
@@ -194,14 +190,13 @@ def test_levels_match_within_a_relative_1e_9_or_1e_12_absolute_at_zero():
     neighbour 1e-6 away; the default is a discrete (stepped) model that refuses anything off its levels,
     naming the first such load and the levels (as floats, also when given as integers)."""
     assert level_weights([0.0], [1e-13, 5.0])[0].tolist() == [[0, 0]]
-    with pytest.raises(ValueError, match=r"^measurement: unknown load level 0; the model has \[1e-11, 5\.0\] "
-                                         r"\(its levels are steps: readings are taken only there\)"):
+    with pytest.raises(ValueError, match=r"measurement: .*level 0;.*\[1e-11, 5\.0\].*steps"):
         level_weights([0.0], [1e-11, 5.0])
     index, w = level_weights([0.0, 5.000000001, 100.00000005, 100.0001, 99.99999996], [100.0001, 0.0, 5.0, 100.0])
     assert index[:, 0].tolist() == [1, 2, 3, 0, 3] and w.tolist() == [[1.0, 0.0]] * 5
-    with pytest.raises(ValueError, match=r"^lab: unknown load level 7\.5 kN; the model has \[5\.0, 10\.0\]"):
+    with pytest.raises(ValueError, match=r"lab: .*level 7\.5 kN.*\[5\.0, 10\.0\]"):
         level_weights([5.0, 7.5, 8.0], [5, 10], load_unit="kN", source="lab")
-    with pytest.raises(ValueError, match=r"^site\.csv: unknown load level 12 kN; the model has \[10\.0, 20\.0\]"):
+    with pytest.raises(ValueError, match=r"site\.csv: .*level 12 kN.*\[10\.0, 20\.0\]"):
         Measurement([[1.0]], ("a",), [12.0], source="site.csv").observation(("a",), [10.0, 20.0], load_unit="kN")
 
 
@@ -212,13 +207,9 @@ def test_path_scenarios_interpolate_inside_and_name_every_load_outside():
     index, w = level_weights([1.5, 0.25, 3.0, 0.5, 2.5], [0.25, 1.0, 2.0, 3.0], "path", "mm")
     assert index.tolist() == [[1, 2], [0, 0], [3, 0], [0, 1], [2, 3]]
     assert_allclose(w, [[0.5, 0.5], [1.0, 0.0], [1.0, 0.0], [2 / 3, 1 / 3], [0.5, 0.5]], rtol=1e-14)
-    with pytest.raises(ValueError, match=r"^log\.csv: 3 measured load\(s\) lie outside the modelled range \[0\.25, 3\] "
-                                         r"mm of this nonlinear scenario \(e\.g\. 3\.5 mm; extremes 0\.1 and 4 mm\); "
-                                         r"the model is not extrapolated past its levels: restrict the measurement's "
-                                         r"load range \(load_range\) or extend the scenario's load_levels$"):
+    with pytest.raises(ValueError, match=r"log\.csv: 3 measured load\(s\).*\[0\.25, 3\] mm.*3\.5 mm.*0\.1 and 4 mm.*load_range.*load_levels"):
         level_weights([1.5, 3.5, 0.1, 4.0], [0.25, 1.0, 2.0, 3.0], "path", "mm", "log.csv")
-    with pytest.raises(ValueError, match=r"^measurement: 1 measured load\(s\) lie outside the modelled range "
-                                         r"\[0\.25, 3\] of this"):
+    with pytest.raises(ValueError, match=r"measurement: 1 measured load\(s\).*\[0\.25, 3\] of"):
         level_weights([0.2], [0.25, 1.0, 2.0, 3.0], "path")
 
 
@@ -232,16 +223,16 @@ def test_gauges_zeroed_at_a_reference_load_read_the_change_since_then():
     g15 = 0.5 * (y[0] + y[1])
     expected = [y[1, 1] - g15[1], 0.5 * (y[1, 1] + y[2, 1]) - g15[1], 0.5 * (y[1, 0] + y[2, 0]) - g15[0]]
     assert_allclose(op.apply(y.ravel()), [expected], rtol=1e-14)
-    with pytest.raises(ValueError, match=r"^zeroed\.csv: readings zeroed at a reference load are not single model outputs$"):
+    with pytest.raises(ValueError, match=r"zeroed\.csv: .*not single model outputs"):
         Measurement([[5.0]], ("b",), [20.0], source="zeroed.csv", reference_load=10.0).output_indices(
             ("a", "b"), [10.0, 20.0])
-    with pytest.raises(ValueError, match=r"^zeroed\.csv \(reference load of the zeroed gauges\): unknown load level 15 kN"):
+    with pytest.raises(ValueError, match=r"zeroed\.csv \(reference load.*level 15 kN"):
         m.observation(("a", "b"), [10.0, 20.0, 25.0], "discrete", "kN")
-    with pytest.raises(ValueError, match=r"^zeroed\.csv: unknown sensor\(s\) \['c', 'd'\]; the model has \['a', 'b'\]"):
+    with pytest.raises(ValueError, match=r"zeroed\.csv: .*\['c', 'd'\].*\['a', 'b'\]"):
         Measurement([[1.0, 2.0]], ("c", "d"), [10.0], source="zeroed.csv").observation(("a", "b"), [10.0])
-    with pytest.raises(ValueError, match=r"^zeroed\.csv: the reference load must be a finite number$"):
+    with pytest.raises(ValueError, match=r"zeroed\.csv: .*reference load.*finite"):
         Measurement([[1.0]], ("a",), [10.0], source="zeroed.csv", reference_load=float("nan"))
-    with pytest.raises(ValueError, match=r"^zeroed\.csv: loads must be finite numbers$"):
+    with pytest.raises(ValueError, match=r"zeroed\.csv: loads must be finite numbers"):
         Measurement([[1.0]], ("a",), [np.inf], source="zeroed.csv")
 
 
@@ -279,16 +270,18 @@ def test_below_floor_names_each_sensor_with_its_smallest_sigma():
 @pytest.mark.parametrize(
     "kwargs, text",
     [
-        ({"sigma": 0.002}, "absolute, σ_res = 0.002 mm"),
-        ({"delta": 0.015}, "relative, δ = 1.5 % of each reading"),
-        ({"sigma": 0.001, "delta": 0.01}, "σ² = σ_res² + (δ d)², σ_res = 0.001 mm, δ = 1 % of each reading"),
+        ({"sigma": 0.002}, ("absolute", "σ_res = 0.002 mm")),
+        ({"delta": 0.015}, ("relative", "δ = 1.5 %")),
+        ({"sigma": 0.001, "delta": 0.01}, ("σ_res = 0.001 mm", "δ = 1 %")),
         ({"sigma": {"D1": 0.001, "U1": 0.0025}, "delta": {"D1": 0.01, "U1": 0.0}},
-         "σ² = σ_res² + (δ d)², σ_res = D1 0.001 mm, U1 0.0025 mm, δ = D1 1 %, U1 0 % of each reading"),
-        ({"covariance": np.eye(2)}, "full covariance C_d"),
+         ("D1 0.001 mm", "U1 0.0025 mm", "D1 1 %", "U1 0 %")),
+        ({"covariance": np.eye(2)}, ("covariance",)),
     ],
 )
 def test_noise_model_describes_itself_with_units(kwargs, text):
-    assert NoiseModel(**kwargs).describe() == text
+    """The description names the model and every level with its unit (mm, %)."""
+    described = NoiseModel(**kwargs).describe()
+    assert all(fragment in described for fragment in text), described
 
 
 def test_instrument_noise_takes_each_sensors_instrument():
@@ -299,29 +292,29 @@ def test_instrument_noise_takes_each_sensors_instrument():
     m = Measurement([[0.2, 0.2]], ("D1", "U1"), [10.0])
     assert_allclose(noise.std(m), [np.hypot(0.001, 0.002), 0.0025], rtol=1e-12)
     assert instrument_noise("dial_gauge", ["a", "b"]).sigma == {"a": 0.001, "b": 0.001}
-    with pytest.raises(ValueError, match=r"^unknown instrument\(s\) \{'U1': 'laser'\}; known: \['dial_gauge', 'dic', 'lvdt'\]$"):
+    with pytest.raises(ValueError, match=r"\{'U1': 'laser'\}.*\['dial_gauge', 'dic', 'lvdt'\]"):
         instrument_noise({"D1": "lvdt", "U1": "laser"}, ("D1", "U1"))
-    with pytest.raises(ValueError, match=r"^no instrument given for sensor\(s\) \['U1'\]$"):
+    with pytest.raises(ValueError, match=r"no instrument given for sensor\(s\) \['U1'\]"):
         instrument_noise({"D1": "lvdt"}, ("D1", "U1"))
 
 
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        ({"sigma": float("inf")}, r"^absolute noise sigma \(mm\) must be a finite number; got inf$"),
+        ({"sigma": float("inf")}, r"sigma \(mm\) .*finite.*got inf"),
         ({"sigma": {"D1": 0.001, "U1": float("nan")}},
-         r"^absolute noise sigma of sensor 'U1' \(mm\) must be a finite number; got nan$"),
-        ({"sigma": 2e6}, r"^absolute noise sigma \(mm\) must be in \[0\.0, 1000000\.0\]; got 2000000\.0$"),
-        ({"delta": float("nan")}, r"^relative noise delta must be a finite number; got nan$"),
+         r"sigma of sensor 'U1' .*finite.*got nan"),
+        ({"sigma": 2e6}, r"sigma \(mm\) .*\[0\.0, 1000000\.0\]; got 2000000\.0"),
+        ({"delta": float("nan")}, r"delta .*finite.*got nan"),
         ({"sigma": 0.001, "delta": {"U1": float("inf")}},
-         r"^relative noise delta of sensor 'U1' must be a finite number; got inf$"),
+         r"delta of sensor 'U1' .*finite.*got inf"),
         ({"covariance": np.array([[1.0, np.nan], [np.nan, 1.0]])},
-         r"^noise covariance must hold finite numbers \(mm²\); it has NaN or infinite entries$"),
-        ({"delta": {"D1": 0.01, "U1": 1.0}}, r"^relative noise delta must be in \[0, 1\) per sensor; got \{'U1': 1\.0\}$"),
-        ({"delta": {"D1": 0.01, "U1": -0.01}}, r"^relative noise delta must be in \[0, 1\) per sensor; got \{'U1': -0\.01\}$"),
-        ({"delta": {"D1": 0.01, "U1": 0.0}}, r"^a relative delta of 0 needs an absolute sigma as well$"),
-        ({"sigma": -0.001}, r"^absolute noise sigma \(mm\) must be in \[0\.0, 1000000\.0\]; got -0\.001$"),
-        ({"delta": 0.01, "covariance": np.eye(2)}, r"^give either a covariance or an absolute sigma"),
+         r"covariance .*finite.*NaN"),
+        ({"delta": {"D1": 0.01, "U1": 1.0}}, r"delta .*\[0, 1\).*got \{'U1': 1\.0\}"),
+        ({"delta": {"D1": 0.01, "U1": -0.01}}, r"delta .*\[0, 1\).*got \{'U1': -0\.01\}"),
+        ({"delta": {"D1": 0.01, "U1": 0.0}}, r"delta of 0 needs .*sigma"),
+        ({"sigma": -0.001}, r"sigma \(mm\) .*\[0\.0, 1000000\.0\]; got -0\.001"),
+        ({"delta": 0.01, "covariance": np.eye(2)}, r"either a covariance or .*sigma"),
     ],
 )
 def test_noise_levels_must_be_finite_and_in_range(kwargs, match):
@@ -341,7 +334,7 @@ def test_per_sensor_noise_follows_missing_readings_and_a_zero_delta_with_sigma()
     assert_allclose(NoiseModel(delta=0.01, floor=0.0015).std(m), [0.0015, 0.002, 0.004], rtol=1e-12)
     assert_allclose(NoiseModel(delta=0.01).std(Measurement([[0.0]], ("a",), [1.0])), [1e-6], rtol=1e-12)
     for noise in (NoiseModel(delta={"a": 0.01}), NoiseModel(sigma=0.001, delta={"a": 0.01})):
-        with pytest.raises(ValueError, match=r"^no noise delta given for sensor\(s\) \['b'\]$"):
+        with pytest.raises(ValueError, match=r"no noise delta .*\['b'\]"):
             noise.std(m)
     C = NoiseModel(sigma=0.001, delta=0.01).covariance_matrix(m)
     assert_allclose(C, np.diag(np.hypot(0.001, 0.01 * np.array([0.1, 0.2, 0.4])) ** 2), rtol=1e-12)

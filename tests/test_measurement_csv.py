@@ -1,6 +1,6 @@
-"""Reading laboratory logs (:mod:`podkrig.io.measurement_log`), issue 12: every refusal names
-the file, the row and the column and says what is allowed (whole messages compared, so a changed
-row number, column or hint is caught); the import notes tell the user exactly what was done; format
+"""Reading laboratory logs (:mod:`podkrig.io.measurement_log`): every refusal names the file,
+the row and the column and says what is allowed (the fragments a user needs: row, column, cell,
+setting); the import notes tell the user what was done (their numbers and rows); format
 detection (delimiter, decimal mark, units row, encodings), zeroing, averaging of repeats and the
 checks of the settings, by hand-computed values."""
 
@@ -44,50 +44,70 @@ def _read(tmp_path, content, unit="kN", response="affine", settings=None, levels
 
 
 def _error(tmp_path, content, **kwargs):
-    """The whole message of the ValueError reading ``content`` raises, the file's path as ``{p}``."""
+    """The message of the ValueError reading ``content`` raises, the file's path as ``{p}``."""
     with pytest.raises(ValueError) as info:
         _read(tmp_path, content, **kwargs)
     return str(info.value).replace(str(tmp_path / kwargs.get("name", "log.csv")), "{p}")
 
 
+def _refused(tmp_path, content, *fragments, **kwargs):
+    """Reading ``content`` raises a ValueError whose message holds every fragment (the file as
+    ``{p}``, the row and column, the cell, the remedy)."""
+    message = _error(tmp_path, content, **kwargs)
+    missing = [f for f in fragments if f not in message]
+    assert not missing, (missing, message)
+
+
+def _contains(message, *fragments):
+    """``message`` holds every fragment."""
+    missing = [f for f in fragments if f not in str(message)]
+    assert not missing, (missing, str(message))
+
+
+def _note(measurement, *fragments):
+    """The one import note holding every fragment (the numbers, rows and settings a user reads)."""
+    found = [n for n in measurement.notes if all(f in n for f in fragments)]
+    assert len(found) == 1, (fragments, measurement.notes)
+    return found[0]
+
+
 # ------------------------------------------------------------------------------------ settings
 
 
-@pytest.mark.parametrize("kwargs, message", [
-    ({"load_column": " "}, "load_column must be a non-empty column name; got ' '"),
-    ({"load_column": 3}, "load_column must be a non-empty column name; got 3"),
-    ({"repeats": "median"}, "repeats must be one of average, keep; got 'median'"),
-    ({"load_tolerance": -0.1}, "load_tolerance must be a number >= 0 (scenario load unit); got -0.1"),
-    ({"load_tolerance": True}, "load_tolerance must be a number >= 0 (scenario load unit); got True"),
-    ({"load_tolerance": math.inf}, "load_tolerance must be a number >= 0 (scenario load unit); got inf"),
-    ({"load_tolerance": "0.1"}, "load_tolerance must be a number >= 0 (scenario load unit); got '0.1'"),
-    ({"zero": "last"}, ("zero must be \"first\", \"end of PHASE\" (a phase of the phase column), a load (number, "
-                       "scenario load unit) or none; got 'last'")),
-    ({"zero": True}, ("zero must be \"first\", \"end of PHASE\" (a phase of the phase column), a load (number, "
-                     "scenario load unit) or none; got True")),
-    ({"zero": math.nan}, ("zero must be \"first\", \"end of PHASE\" (a phase of the phase column), a load (number, "
-                         "scenario load unit) or none; got nan")),
-    ({"phase_column": ""}, "phase_column must be a non-empty column name; got ''"),
-    ({"phase_column": None}, "phase_column must be a non-empty column name; got None"),
-    ({"load_range": (1.0,)}, "load_range must be [lower, upper] with lower <= upper (scenario load unit); got (1.0,)"),
-    ({"load_range": (2, 1)}, "load_range must be [lower, upper] with lower <= upper (scenario load unit); got (2, 1)"),
-    ({"load_range": (0, math.inf)}, ("load_range must be [lower, upper] with lower <= upper (scenario load unit); "
-                                    "got (0, inf)")),
-    ({"load_range": (True, 2)}, ("load_range must be [lower, upper] with lower <= upper (scenario load unit); "
-                                "got (True, 2)")),
-    ({"load_range": (0, "2")}, ("load_range must be [lower, upper] with lower <= upper (scenario load unit); "
-                               "got (0, '2')")),
-    ({"load_range": "12"}, "load_range must be [lower, upper] with lower <= upper (scenario load unit); got '12'"),
-    ({"load_range": 5}, "load_range must be [lower, upper] with lower <= upper (scenario load unit); got 5"),
-    ({"delimiter": "|"}, "delimiter must be ',', ';' or a tab; got '|'"),
-    ({"decimal": ";"}, "decimal must be '.' or ','; got ';'"),
-    ({"delimiter": ",", "decimal": ","}, "a comma cannot be both the delimiter and the decimal mark"),
+ZERO = ("zero", '"first"', '"end of PHASE"', "a load", "none")
+RANGE = ("load_range", "[lower, upper]", "lower <= upper")
+
+
+@pytest.mark.parametrize("kwargs, fragments", [
+    ({"load_column": " "}, ("load_column", "non-empty", "got ' '")),
+    ({"load_column": 3}, ("load_column", "got 3")),
+    ({"repeats": "median"}, ("repeats", "average, keep", "got 'median'")),
+    ({"load_tolerance": -0.1}, ("load_tolerance", ">= 0", "got -0.1")),
+    ({"load_tolerance": True}, ("load_tolerance", "got True")),
+    ({"load_tolerance": math.inf}, ("load_tolerance", "got inf")),
+    ({"load_tolerance": "0.1"}, ("load_tolerance", "got '0.1'")),
+    ({"zero": "last"}, (*ZERO, "got 'last'")),
+    ({"zero": True}, (*ZERO, "got True")),
+    ({"zero": math.nan}, (*ZERO, "got nan")),
+    ({"phase_column": ""}, ("phase_column", "non-empty", "got ''")),
+    ({"phase_column": None}, ("phase_column", "got None")),
+    ({"load_range": (1.0,)}, (*RANGE, "got (1.0,)")),
+    ({"load_range": (2, 1)}, (*RANGE, "got (2, 1)")),
+    ({"load_range": (0, math.inf)}, (*RANGE, "got (0, inf)")),
+    ({"load_range": (True, 2)}, (*RANGE, "got (True, 2)")),
+    ({"load_range": (0, "2")}, (*RANGE, "got (0, '2')")),
+    ({"load_range": "12"}, (*RANGE, "got '12'")),
+    ({"load_range": 5}, (*RANGE, "got 5")),
+    ({"delimiter": "|"}, ("delimiter", "';'", "a tab", "got '|'")),
+    ({"decimal": ";"}, ("decimal", "'.' or ','", "got ';'")),
+    ({"delimiter": ",", "decimal": ","}, ("comma", "delimiter", "decimal mark")),
 ])
-def test_settings_are_checked_with_what_is_allowed(kwargs, message):
-    """Every setting refused with its value and the allowed forms (the study file passes these on)."""
-    with pytest.raises(ValueError) as info:
+def test_settings_are_checked_with_what_is_allowed(kwargs, fragments):
+    """Every setting refused with its name, its value and the allowed forms (the study file passes
+    these on)."""
+    with pytest.raises(ValueError, match=re.escape(fragments[0])) as info:
         ImportSettings(**kwargs)
-    assert str(info.value) == message
+    _contains(info.value, *fragments)
 
 
 def test_settings_accepted_at_their_limits():
@@ -128,18 +148,17 @@ def test_unit_factors_and_their_errors():
     assert unit_factor("in", "mm", "w") == pytest.approx(25.4, rel=1e-15)
     assert unit_factor("N", "kN", "w", "load") == pytest.approx(1e-3, rel=1e-15)
     assert type(unit_factor("m", "mm", "w")) is float
-    cases = [(("bananas", "mm", "f, row 1"), ("f, row 1: unknown unit 'bananas' (use e.g. mm, µm, um, m for readings; "
-                                             "kN, N for loads)")),
-             (("0.1 mm", "mm", "f"), ("f: unknown unit '0.1 mm' (use e.g. mm, µm, um, m for readings; kN, N for "
-                                     "loads)")),  # a unit, not a quantity: no hidden scale factor
-             (("(ym/Ym)**20*mm", "mm", "f"), "f: unit '(ym/Ym)**20*mm' has no usable conversion to mm"),  # 0.0
-             (("kN", "mm", "f"), "f: unit 'kN' is not a length (readings are displacements)"),
-             (("kN", "mm", "f", "load"), "f: unit 'kN' is not convertible to mm"),
-             (("mm", "kN", "f", "load"), "f: unit 'mm' is not convertible to kN")]
-    for args, message in cases:
-        with pytest.raises(ValueError) as info:
+    cases = [(("bananas", "mm", "f, row 1"), ("f, row 1: ", "unknown unit 'bananas'", "mm, µm", "kN, N")),
+             (("0.1 mm", "mm", "f"), ("f: ", "unknown unit '0.1 mm'")),  # a unit, not a quantity: no hidden scale
+             (("(ym/Ym)**20*mm", "mm", "f"), ("f: ", "'(ym/Ym)**20*mm'", "no usable conversion to mm")),  # 0.0
+             (("kN", "mm", "f"), ("f: ", "'kN' is not a length")),
+             (("kN", "mm", "f", "load"), ("f: ", "'kN' is not convertible to mm")),
+             (("mm", "kN", "f", "load"), ("f: ", "'mm' is not convertible to kN"))]
+    for args, fragments in cases:
+        with pytest.raises(ValueError, match=re.escape(fragments[1])) as info:
             unit_factor(*args)
-        assert str(info.value) == message
+        _contains(info.value, *fragments)
+        assert str(info.value).startswith(fragments[0])
 
 
 @pytest.mark.parametrize("cell, split", [
@@ -157,17 +176,20 @@ def test_header_notes_say_what_was_converted_ignored_and_assumed(tmp_path):
     the file, load and reading conversions with their factors, and the columns read without a
     unit. A unit equal to the target (kN, mm) gives no conversion note."""
     m = _read(tmp_path, "title\n\nload [N],D1 [mm],D22,D3 [µm],time\n10000,1,2,3,4\n")
-    assert m.notes == ("skipped 2 line(s) before the header",
-                       ("ignored column(s) that name no sensor: D22, D3 [µm], time ('D22' is close to sensor 'D2': "
-                       "a typo?)"),
-                       "sensor(s) of the model not in the file, not used: D2, U1",
-                       "loads converted from N to kN (× 0.001)")
+    assert len(m.notes) == 4  # in order: skipped lines, ignored columns, missing sensors, load conversion
+    assert "skipped 2 line(s)" in m.notes[0]
+    assert all(f in m.notes[1] for f in ("D22, D3 [µm], time", "'D22'", "'D2'", "typo"))
+    assert "not in the file" in m.notes[2] and m.notes[2].endswith("D2, U1")
+    assert all(f in m.notes[3] for f in ("from N to kN", "× 0.001"))
     assert m.ignored_columns == ("D22", "D3 [µm]", "time")
     m = _read(tmp_path, "load,d2 [µm],u1\n10,2,3\n")
     assert m.sensor_names == ("D2", "U1")  # case-insensitive, in the file's order, the model's spelling
     assert_allclose(m.values, [[0.002, 3.0]], rtol=1e-15)
-    assert m.notes == ("sensor(s) of the model not in the file, not used: D1", "load column without a unit: read as kN",
-                       "D2 converted from µm to mm (× 0.001)", "no unit in the header of U1: read as mm")
+    assert len(m.notes) == 4
+    assert "not in the file" in m.notes[0] and m.notes[0].endswith("D1")
+    assert "load column without a unit" in m.notes[1] and "kN" in m.notes[1]
+    assert all(f in m.notes[2] for f in ("D2", "from µm to mm", "× 0.001"))
+    assert "no unit" in m.notes[3] and "U1" in m.notes[3] and "mm" in m.notes[3]
     m = _read(tmp_path, "load [kN],D1 [mm],D2 [mm],U1 [mm]\n10,1,2,3\n")
     assert m.notes == () and m.ignored_columns == ()
 
@@ -177,94 +199,81 @@ def test_a_units_row_below_the_header(tmp_path):
     when longer than the header, noted; a row holding a number (decimal comma too) is data, not units."""
     m = _read(tmp_path, "load;D1;D2\n[kN];(µm)\n10;1,5;2\n")
     assert_allclose(m.values, [[0.0015, 2.0]], rtol=1e-15)
-    assert m.notes[0] == "units from row 2 (below the header)" and "no unit in the header of D2: read as mm" in m.notes
+    assert "units from row 2" in m.notes[0]
+    _note(m, "no unit", "D2", "mm")
     m = _read(tmp_path, "load;D1;D2\nN;µm;mm;s\n10000;1,5;2\n")
     assert_allclose(m.load_levels, [10.0], rtol=1e-15)
     assert_allclose(m.values, [[0.0015, 2.0]], rtol=1e-15)
     assert not any("no unit" in n for n in m.notes)
-    assert (_error(tmp_path, "load [kN];D1;D2\nkN;1,5;\n10;1,5;2\n")
-            == f"{{p}}, row 2, column 1 (load [kN]): 'kN' is not a number {HINT}")
-    assert (_error(tmp_path, "load;D1\nkN;1,5\n10;2\n")
-            == f"{{p}}, row 2, column 1 (load): 'kN' is not a number {HINT}")
+    _refused(tmp_path, "load [kN];D1;D2\nkN;1,5;\n10;1,5;2\n", "{p}, row 2, column 1 (load [kN])", "'kN' is not a number")
+    _refused(tmp_path, "load;D1\nkN;1,5\n10;2\n", "{p}, row 2, column 1 (load)", "'kN' is not a number")
 
 
-@pytest.mark.parametrize("content, kwargs, message", [
-    ("", {}, "{p}: empty file; expected a header such as 'load [kN],D1 [mm],...'"),
+@pytest.mark.parametrize("content, kwargs, fragments", [
+    ("", {}, ("{p}: empty file", "load [kN],D1 [mm]")),
     ("\n ,\nforce,D1,a,b,c,d,e,f,g,h,i,j,k\n", {},
-     ("{p}, row 3: no load column 'load' in the header ['force', 'D1', 'a', 'b', 'c', 'd', 'e', 'f', 'g', 'h', 'i', "
-     "'j'] (set the load column's name with load_column)")),
-    ("load,D1,Load [N]\n10,1,2\n", {}, "{p}, row 1, column 3: a second load column 'Load [N]'"),
-    ("x\nload,D1,d1\n10,1,2\n", {}, "{p}, row 2, column 3: sensor 'D1' appears more than once"),
+     ("{p}, row 3", "no load column 'load'", "'force'", "'j']", "load_column")),  # the header listed up to 12 cells
+    ("load,D1,Load [N]\n10,1,2\n", {}, ("{p}, row 1, column 3", "second load column 'Load [N]'")),
+    ("x\nload,D1,d1\n10,1,2\n", {}, ("{p}, row 2, column 3", "'D1' appears more than once")),
     ("load,D9,,a,b,c,d,e,f,g,h,i,j,k\n10,1\n", {},
-     ("{p}, row 1: no column names a sensor of the model ['D1', 'D2', 'U1']; the header has ['load', 'D9', 'a', 'b', "
-     "'c', 'd', 'e', 'f', 'g', 'h', 'i', 'j']")),
+     ("{p}, row 1", "['D1', 'D2', 'U1']", "['load', 'D9', 'a'", "'j']")),
     ("load [kN],D1\n1,1\n", {"unit": "step", "response": "discrete", "levels": (1, 2)},
-     ("{p}, row 1, column 1 (load [kN]): this scenario's loads are step numbers 1, 2, …; the load column has the "
-     "unit 'kN'")),
-    ("x\nload [kN],D1 [kN]\n10,1\n", {}, ("{p}, row 2, column 2 (D1 [kN]): unit 'kN' is not a length (readings are "
-                                         "displacements)")),
-    ("load,D1\n", {}, "{p}: no data rows after the header (row 1)"),
-    ("t\nload,D1\n\n10,1,,\n20,2,3\n", {}, "{p}, row 5: 3 cells, expected 2 (one per column of the header)"),
-    ("load,D1 [m]\n10,1\n20,-2000\n", {}, ("{p}, row 3, column 2 (D1 [m]): -2e+06 mm is out of range (readings are at "
-                                          "most 1e+06 mm in magnitude)")),
-    ("load,D1\n10,1\n20,-inf\n", {}, "{p}, row 3, column 2 (D1): '-inf' is not a finite number"),
-    ("load,D1\n10,1\n20, Infinity\n", {}, "{p}, row 3, column 2 (D1): 'Infinity' is not a finite number"),
-    ("load,D1\n10,1\n20,1e400\n", {}, "{p}, row 3, column 2 (D1): '1e400' is out of range"),
-    ("load,D1\n10,1\n20, " + "x" * 50 + "\n", {},
-     "{p}, row 3, column 2 (D1): '" + "x" * 40 + f"'… is not a number {HINT}"),
-    ("load,D1\n10,1\n20," + "x" * 40 + "\n", {}, "{p}, row 3, column 2 (D1): '" + "x" * 40 + f"' is not a number {HINT}"),
-    ("load,D1\n10,1\n20," + "x" * 41 + "\n", {}, "{p}, row 3, column 2 (D1): '" + "x" * 40 + f"'… is not a number {HINT}"),
-    ("load;D1\n10;1\n20;1,2,3\n", {}, f"{{p}}, row 3, column 2 (D1): '1,2,3' is not a number {HINT}"),
-    ("load,D1\n10,1.5\n20,\"1,5\"\n", {}, f"{{p}}, row 3, column 2 (D1): '1,5' is not a number {HINT}"),
-    ("load,D1\n10,1\n20,1..5\n", {}, f"{{p}}, row 3, column 2 (D1): '1..5' is not a number {HINT}"),
-    ("load,D1\n1 0,1\n", {}, f"{{p}}, row 2, column 1 (load): '1 0' is not a number {HINT}"),
-    ("load,D1\n10, 1\n20,2X\n", {}, f"{{p}}, row 3, column 2 (D1): '2X' is not a number {HINT}"),
-    ("load;D1\n10;1,5\n20;abc\n", {}, f"{{p}}, row 3, column 2 (D1): 'abc' is not a number {HINT}"),
-    ("load,D1\n10,\"1,5\"\n", {}, f"{{p}}, row 2, column 2 (D1): '1,5' is not a number {HINT}"),
+     ("{p}, row 1, column 1 (load [kN])", "step numbers", "'kN'")),
+    ("x\nload [kN],D1 [kN]\n10,1\n", {}, ("{p}, row 2, column 2 (D1 [kN])", "'kN' is not a length")),
+    ("load,D1\n", {}, ("{p}: no data rows", "(row 1)")),
+    ("t\nload,D1\n\n10,1,,\n20,2,3\n", {}, ("{p}, row 5", "3 cells, expected 2")),
+    ("load,D1 [m]\n10,1\n20,-2000\n", {}, ("{p}, row 3, column 2 (D1 [m])", "-2e+06 mm", "out of range", "1e+06 mm")),
+    ("load,D1\n10,1\n20,-inf\n", {}, ("{p}, row 3, column 2 (D1)", "'-inf'", "not a finite number")),
+    ("load,D1\n10,1\n20, Infinity\n", {}, ("{p}, row 3, column 2 (D1)", "'Infinity'", "not a finite number")),
+    ("load,D1\n10,1\n20,1e400\n", {}, ("{p}, row 3, column 2 (D1)", "'1e400'", "out of range")),
+    ("load,D1\n10,1\n20, " + "x" * 50 + "\n", {}, ("{p}, row 3, column 2 (D1)", "'" + "x" * 40 + "'…", "not a number")),
+    ("load,D1\n10,1\n20," + "x" * 40 + "\n", {}, ("{p}, row 3, column 2 (D1)", "'" + "x" * 40 + "' is")),
+    ("load,D1\n10,1\n20," + "x" * 41 + "\n", {}, ("{p}, row 3, column 2 (D1)", "'" + "x" * 40 + "'…")),
+    ("load;D1\n10;1\n20;1,2,3\n", {}, ("{p}, row 3, column 2 (D1)", "'1,2,3'", "not a number", HINT)),
+    ("load,D1\n10,1.5\n20,\"1,5\"\n", {}, ("{p}, row 3, column 2 (D1)", "'1,5'", "not a number")),
+    ("load,D1\n10,1\n20,1..5\n", {}, ("{p}, row 3, column 2 (D1)", "'1..5'", "not a number")),
+    ("load,D1\n1 0,1\n", {}, ("{p}, row 2, column 1 (load)", "'1 0'", "not a number")),
+    ("load,D1\n10, 1\n20,2X\n", {}, ("{p}, row 3, column 2 (D1)", "'2X'", "not a number")),
+    ("load;D1\n10;1,5\n20;abc\n", {}, ("{p}, row 3, column 2 (D1)", "'abc'", "not a number")),
+    ("load,D1\n10,\"1,5\"\n", {}, ("{p}, row 2, column 2 (D1)", "'1,5'", "not a number")),
     ("phase,load,D1,Phase\na,10,1,a\nb,20,2,b\n", {"settings": ImportSettings(zero="end of a")},
-     "{p}, row 1, column 4: a second phase column 'Phase'"),
+     ("{p}, row 1, column 4", "second phase column 'Phase'")),
     ("phase,load,D1\na,10,1\nb,20,2\n", {"settings": ImportSettings(zero="end of a", phase_column="LOAD")},
-     "{p}, row 1, column 2: phase_column 'LOAD' is the load column; name the column holding each row's phase"),
+     ("{p}, row 1, column 2", "phase_column 'LOAD'", "load column")),
     ("phase,load,D1\na,10,1\nb,20,2\n", {"settings": ImportSettings(zero="end of a", phase_column="d1")},
-     "{p}, row 1, column 3: phase_column 'd1' is a sensor of the model; name the column holding each row's phase"),
+     ("{p}, row 1, column 3", "phase_column 'd1'", "sensor")),
     ("load,D1,a,b,c,d,e,f,g,h,i,j,k,l\n10,1\n", {"settings": ImportSettings(zero="end of a")},
-     ("{p}, row 1: zero = 'end of a' needs a phase column 'phase'; the header has ['load', 'D1', 'a', 'b', 'c', 'd', "
-      "'e', 'f', 'g', 'h', 'i', 'j'] (name the column holding each row's phase with phase_column)")),
-    ("load,D1\n,1\n", {}, "{p}: no data rows with a load"),
-    ("load,D1\n,1\n", {"settings": ImportSettings(load_range=(12, 35))}, "{p}: no rows with a load"),
+     ("{p}, row 1", "zero = 'end of a'", "phase column 'phase'", "'j']", "phase_column")),
+    ("load,D1\n,1\n", {}, ("{p}: no data rows with a load",)),
+    ("load,D1\n,1\n", {"settings": ImportSettings(load_range=(12, 35))}, ("{p}: no rows with a load",)),
     ("load,D1\n10,1\n20,2\n", {"settings": ImportSettings(load_range=(0, 5))},
-     "{p}: no row has a load in load_range [0, 5] kN; the loads span [10, 20] kN"),
-    ("load,D1\n10,1\n", {"settings": ImportSettings(zero="first")}, "{p}: only the zero reference row; no readings left"),
-    ("load,D1,D2\n10,,\n20,,\n", {}, "{p}: no readings (every sensor cell is empty)"),
+     ("{p}: ", "load_range [0, 5] kN", "span [10, 20] kN")),
+    ("load,D1\n10,1\n", {"settings": ImportSettings(zero="first")}, ("{p}: ", "zero reference row", "no readings")),
+    ("load,D1,D2\n10,,\n20,,\n", {}, ("{p}: no readings", "empty")),
     ("load,D1,D2,U1\n10,1,,\n20,2,3,4\n", {"settings": ImportSettings(zero="first")},
-     "{p}, row 2: the zero reference (first row) has no reading of D2, U1"),
+     ("{p}, row 2", "zero reference (first row)", "D2, U1")),
     ("load,D1,D2,U1\n2,1,1,\n10,2,,1\n", {"settings": ImportSettings(zero=6)},
-     "{p}: no reading of D2, U1 at the zero reference load 6 kN (interpolated between rows 2 and 3)"),
+     ("{p}: ", "D2, U1", "load 6 kN", "between rows 2 and 3")),
     ("load,D1,D2\n2,1,1\n6,2,\n10,3,3\n", {"settings": ImportSettings(zero=6)},
-     "{p}: no reading of D2 at the zero reference load 6 kN (row 3)"),
+     ("{p}: ", "of D2 at", "load 6 kN (row 3)")),
     ("load,D1\n2,1\n10,2\n", {"settings": ImportSettings(zero=12)},
-     "{p}: the log never reaches the zero reference load 12 kN (its loads span [2, 10] kN)"),
+     ("{p}: ", "never reaches", "load 12 kN", "[2, 10] kN")),
     ("load,D1\n2,1\n10,2\n", {"settings": ImportSettings(zero=6), "response": "discrete", "levels": (2, 10)},
-     ("{p} (zero reference 6 kN): unknown load level 6 kN; the model has [2.0, 10.0] (its levels are steps: readings "
-     "are taken only there)")),
+     ("{p} (zero reference 6 kN)", "unknown load level 6 kN", "[2.0, 10.0]")),
     ("load [mm],D1\n1,1\n2,1\n3.5,2\n", {"unit": "mm", "response": "path", "levels": (1, 3)},
-     ("{p}, row 4, column 1 (load [mm]): 1 measured load(s) lie outside the modelled range [1, 3] mm of this "
-     "nonlinear scenario (e.g. 3.5 mm; extremes 3.5 and 3.5 mm); the model is not extrapolated past its levels: "
-     "restrict the measurement's load range (load_range) or extend the scenario's load_levels")),
-    ("load,D1\n10,1\n15,2\n", {"response": "discrete"}, ("{p}, row 3, column 1 (load): unknown load level 15 kN; the "
-                                                         "model has [10.0, 20.0, 30.0, 40.0] (its levels are steps: "
-                                                         "readings are taken only there)")),
+     ("{p}, row 4, column 1 (load [mm])", "range [1, 3] mm", "e.g. 3.5 mm", "load_range", "load_levels")),
+    ("load,D1\n10,1\n15,2\n", {"response": "discrete"},
+     ("{p}, row 3, column 1 (load)", "load level 15 kN", "[10.0, 20.0, 30.0, 40.0]")),
     ("load,D1\n10,1\n10.00001,1\n", {"response": "discrete"},  # 1e-6 off a level is not that level (1e-9)
-     ("{p}, row 3, column 1 (load): unknown load level 10 kN; the model has [10.0, 20.0, 30.0, 40.0] (its levels "
-      "are steps: readings are taken only there)")),
+     ("{p}, row 3, column 1 (load)", "load level 10 kN")),
     ("load,D1\n1,1\n4,1\n", {"response": "discrete", "levels": (1, 2, 3)},  # integer levels listed as floats
-     ("{p}, row 3, column 1 (load): unknown load level 4 kN; the model has [1.0, 2.0, 3.0] (its levels are steps: "
-      "readings are taken only there)")),
+     ("{p}, row 3, column 1 (load)", "load level 4 kN", "[1.0, 2.0, 3.0]")),
 ])
-def test_bad_logs_are_refused_naming_file_row_and_column(tmp_path, content, kwargs, message):
-    """Each refusal, whole: the file, the 1-based row a spreadsheet shows (title and blank lines
-    counted), the column with its header, the offending cell or unit, and what to write instead."""
-    assert _error(tmp_path, content, **kwargs) == message
+def test_bad_logs_are_refused_naming_file_row_and_column(tmp_path, content, kwargs, fragments):
+    """Each refusal names the file, the 1-based row a spreadsheet shows (title and blank lines
+    counted), the column with its header, the offending cell or unit, and what to write instead
+    (the setting to use, the allowed values)."""
+    _refused(tmp_path, content, *fragments, **kwargs)
 
 
 def test_a_path_scenario_names_the_first_load_it_cannot_evaluate(tmp_path):
@@ -297,8 +306,7 @@ def test_delimiter_is_taken_from_the_header_line(tmp_path):
     assert "decimal comma" in m.notes
     m = _read(tmp_path, "a;b\nload;D1\n10;2\n", settings=ImportSettings(load_column="LOAD "))
     assert_allclose(m.values, [[2.0]])
-    assert (_error(tmp_path, "load\n10\n")
-            == "{p}, row 1: no column names a sensor of the model ['D1', 'D2', 'U1']; the header has ['load']")
+    _refused(tmp_path, "load\n10\n", "{p}, row 1", "['D1', 'D2', 'U1']", "['load']")
     m = _read(tmp_path, "load,D1,D2;a;b\n10,1,2;3;4\n", settings=ImportSettings(delimiter=","))  # as set
     assert_allclose(m.values, [[1.0]])
     assert m.ignored_columns == ("D2;a;b",)
@@ -310,15 +318,14 @@ def test_decimal_mark_detection_and_setting(tmp_path):
     decimal comma there would need quotes); a decimal point in any used column decides for the
     point. An explicit ``decimal`` overrides the detection."""
     m = _read(tmp_path, "load;D1;D2\n10;1;-0,25\n20;,5;\n")
-    assert m.notes[-1] == "decimal comma"
+    assert m.notes[-1] == "decimal comma"  # the note is the setting's name
     assert_allclose(m.values, [[1.0, -0.25], [0.5, np.nan]], rtol=1e-15)
     m = _read(tmp_path, "load;D1;D2\n10;1;2\n20;3;4\n")
     assert "decimal comma" not in m.notes
-    assert (_error(tmp_path, "load;D1;D2\n10.5;1;2,5\n")
-            == f"{{p}}, row 2, column 3 (D2): '2,5' is not a number {HINT}")
+    _refused(tmp_path, "load;D1;D2\n10.5;1;2,5\n", "{p}, row 2, column 3 (D2)", "'2,5' is not a number")
     assert_allclose(_read(tmp_path, "load;D1\n10;2,5\n", settings=ImportSettings(decimal=",")).values, [[2.5]])
-    assert (_error(tmp_path, "load;D1\n10;2,5\n", settings=ImportSettings(decimal="."))
-            == f"{{p}}, row 2, column 2 (D1): '2,5' is not a number {HINT}")
+    _refused(tmp_path, "load;D1\n10;2,5\n", "{p}, row 2, column 2 (D1)", "'2,5' is not a number",
+             settings=ImportSettings(decimal="."))
     m = _read(tmp_path, "load;D1;t\n10;2,5;0.5\n")  # an ignored column does not decide
     assert_allclose(m.values, [[2.5]])
 
@@ -336,18 +343,17 @@ def test_encodings_and_damaged_or_binary_files(tmp_path):
         m = _read(tmp_path, content)
         assert m.notes == plain.notes and m.values.tolist() == [[1.5]]
     m = _read(tmp_path, b"t\nx\nload,D1 [\xb5m]\n10,1\n")
-    assert m.notes[:2] == ("read as Windows-1252 text (not UTF-8 at line 3)", "skipped 2 line(s) before the header")
+    assert "Windows-1252" in m.notes[0] and "line 3" in m.notes[0] and "skipped 2 line(s)" in m.notes[1]
     assert_allclose(m.values, [[0.001]], rtol=1e-15)
-    assert (_error(tmp_path, b"\xff\xfe" + "load,D1\n".encode("utf-16-le") + b"\x00\xd8")
-            == "{p}: damaged UTF-16 text at byte 18; save it as UTF-8")
-    assert (_error(tmp_path, b"load,D1\n10,1\x81\n")
-            == "{p}: not UTF-8 text at byte 12 (line 2); save it as UTF-8 (or plain ASCII)")
-    assert _error(tmp_path, b"load,D1\n\x00\xb5\n") == "{p}: not a text file (NUL bytes; line 2); save it as UTF-8 CSV"
-    assert (_error(tmp_path, "load,D1\n") == "{p}: no data rows after the header (row 1)")
+    _refused(tmp_path, b"\xff\xfe" + "load,D1\n".encode("utf-16-le") + b"\x00\xd8", "{p}: ", "UTF-16",
+             "byte 18", "UTF-8")
+    _refused(tmp_path, b"load,D1\n10,1\x81\n", "{p}: not UTF-8", "byte 12 (line 2)", "save it as UTF-8")
+    _refused(tmp_path, b"load,D1\n\x00\xb5\n", "{p}: not a text file", "NUL", "line 2", "UTF-8 CSV")
+    _refused(tmp_path, "load,D1\n", "{p}: no data rows", "(row 1)")
     missing = tmp_path / "nope.csv"
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="No such file") as info:
         read_measurement(missing, SENSORS, LEVELS)
-    assert str(info.value) == f"cannot read measurement file {missing}: No such file or directory"
+    assert str(missing) in str(info.value)
 
 
 def test_size_limits_of_a_log(tmp_path, monkeypatch):
@@ -358,12 +364,10 @@ def test_size_limits_of_a_log(tmp_path, monkeypatch):
     body = "load,D1\n10,1\n"
     m = _read(tmp_path, body + "\n" * (2**20 - len(body)))
     assert m.values.tolist() == [[1.0]]
-    assert (_error(tmp_path, body + "\n" * (2**20 + 1 - len(body)))
-            == "{p}: larger than 1 MiB; thin the log (e.g. one row per second) or pass the load steps only")
+    _refused(tmp_path, body + "\n" * (2**20 + 1 - len(body)), "{p}: larger than 1 MiB", "thin the log")
     monkeypatch.undo()
     limit = csv.field_size_limit()
-    assert (_error(tmp_path, "load,D1\n10,1\n20," + "1" * 5000 + "\n")
-            == "{p}, row 3: malformed CSV (field larger than field limit (4096)); cells hold at most 4096 characters")
+    _refused(tmp_path, "load,D1\n10,1\n20," + "1" * 5000 + "\n", "{p}, row 3", "malformed CSV", "4096 characters")
     assert csv.field_size_limit() == limit
     m = _read(tmp_path, "load,D1\n10," + "0" * 4090 + "1\n")  # 4091 characters: read
     assert m.values.tolist() == [[1.0]] and csv.field_size_limit() == limit
@@ -396,19 +400,19 @@ def test_excel_sheets_numbers_and_limits(tmp_path, monkeypatch):
     assert m.sensor_names == ("D2",) and m.load_levels.tolist() == [30.0, 40.0]
     assert_allclose(m.values, [[np.nan], [-3.0]], rtol=0)  # an empty cell: a missing reading
     bad = _workbook(tmp_path / "bool.xlsx", {"s": [["load", "D1"], [10, True]]})
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="'True' is not a number") as info:
         read_measurement(bad, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value) == f"{bad}, row 2, column 2 (D1): 'True' is not a number {HINT}"
+    assert str(info.value).startswith(f"{bad}, row 2, column 2 (D1)")
     monkeypatch.setattr(measurement_log, "MAX_XLSX_ROWS", 3)
     assert read_measurement(p, SENSORS, LEVELS, "kN", "affine").n_obs == 2  # 3 rows: at the limit
     long = _workbook(tmp_path / "long.xlsx", {"s": [["load", "D1"], [10, 1], [20, 2], [30, 3]]})
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="more than 3 rows") as info:
         read_measurement(long, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value) == f"{long}: more than 3 rows; thin the log"
+    assert str(info.value).startswith(f"{long}: ") and "thin the log" in str(info.value)
     monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", p.stat().st_size - 1)
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="larger than 0 MiB") as info:
         read_measurement(p, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value) == f"{p}: larger than 0 MiB"
+    assert str(info.value).startswith(f"{p}: ")
     monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", p.stat().st_size)
     assert read_measurement(p, SENSORS, LEVELS, "kN", "affine").n_obs == 2
 
@@ -423,7 +427,7 @@ def test_missing_cells_rows_without_a_load_and_short_rows(tmp_path):
     m = _read(tmp_path, "load;D1;D2\n10; 1,5 ;NaN\n;7;7\n20;n/A\n 30 ; NA ;2\n;8;8\n40;;3;;\n")
     assert m.load_levels.tolist() == [10, 20, 30, 40]
     assert_allclose(m.values, [[1.5, np.nan], [np.nan, np.nan], [np.nan, 2.0], [np.nan, 3.0]], rtol=1e-15)
-    assert "2 row(s) without a load skipped (e.g. row 3)" in m.notes
+    _note(m, "2 row(s) without a load", "row 3")
     m = _read(tmp_path, "load,D1\n10,1\n,\n\n20,2\n , \n")  # rows of empty cells (spreadsheet exports): no rows
     assert m.load_levels.tolist() == [10, 20] and not any("without a load" in n for n in m.notes)
 
@@ -439,10 +443,10 @@ def test_repeats_are_averaged_per_step_from_its_first_load(tmp_path):
               settings=ImportSettings(load_tolerance=0.5))
     assert_allclose(m.load_levels, [10.25, 10.75, 20.0], rtol=1e-12)
     assert_allclose(m.values, [[3.0, 5.5], [1.0, 1.0], [5.0, np.nan]], rtol=1e-12)
-    assert m.notes[-1] == "6 rows averaged into 3 load steps (repeats = \"average\", load_tolerance = 0.5 kN)"
+    _contains(m.notes[-1], "6 rows averaged into 3 load steps", "load_tolerance = 0.5 kN")
     m = _read(tmp_path, "load,D1\n10,1\n10,3\n20,4\n10,8\n")
     assert m.load_levels.tolist() == [10, 20, 10] and m.values.tolist() == [[2.0], [4.0], [8.0]]
-    assert m.notes[-1] == "4 rows averaged into 3 load steps (repeats = \"average\", load_tolerance = 0 kN)"
+    _contains(m.notes[-1], "4 rows averaged into 3 load steps", "load_tolerance = 0 kN")
     m = _read(tmp_path, "load,D1\n10,1\n10.25,3\n", settings=ImportSettings(load_tolerance=0.25, repeats="keep"))
     assert m.load_levels.tolist() == [10, 10.25] and not any("averaged" in n for n in m.notes)
     for content in ("load,D1\n10,1\n", "load,D1\n10,1\n20,3\n"):
@@ -465,17 +469,16 @@ def test_zeroing_at_the_first_row_or_a_load(tmp_path):
     m = _read(tmp_path, content, settings=ImportSettings(zero="first", load_range=(1, 20)))
     assert m.reference_load == 2.0 and m.load_levels.tolist() == [10, 6]
     assert_allclose(m.values, [[1.0, 4.0], [2.0, -1.0]], rtol=1e-12)
-    assert "gauges zeroed at 2 kN (row 3); the model is compared as g(P) − g(P_ref)" in m.notes
-    assert "1 row(s) outside load_range [1, 20] kN dropped" in m.notes
+    _note(m, "zeroed at 2 kN", "(row 3)", "g(P_ref)")
+    _note(m, "1 row(s) outside load_range [1, 20] kN")
     m = _read(tmp_path, "load,D1,D2\n0,9,9\n2,1,2\n10,2,6\n", settings=ImportSettings(zero=6))
     assert m.reference_load == 6.0 and m.load_levels.tolist() == [0, 2, 10]
     assert_allclose(m.values, [[7.5, 5.0], [-0.5, -2.0], [0.5, 2.0]], rtol=1e-12)  # at 6 kN: 1.5, 4
-    assert ("gauges zeroed at 6 kN (interpolated between rows 3 and 4); the model is compared as g(P) − g(P_ref)"
-            in m.notes)
+    _note(m, "zeroed at 6 kN", "between rows 3 and 4")
     m = _read(tmp_path, "load,D1\n0,1\n8,3\n4,7\n8,9\n", settings=ImportSettings(zero=8.000000001))
     assert m.reference_load == 8.000000001
     assert_allclose(m.values, [[-2.0], [0.0], [4.0], [6.0]], rtol=1e-12)  # the first row at 8 kN
-    assert "gauges zeroed at 8 kN (row 3); the model is compared as g(P) − g(P_ref)" in m.notes
+    _note(m, "zeroed at 8 kN", "(row 3)")
     m = _read(tmp_path, "load,D1\n10,1\n2,5\n", settings=ImportSettings(zero=4))  # unloading: 10 → 2
     assert_allclose(m.values, [[-3.0], [1.0]], rtol=1e-12)
     m = _read(tmp_path, "load,D1\n-2,1\n2,5\n", settings=ImportSettings(zero=0))  # through zero
@@ -507,11 +510,10 @@ def test_zero_at_a_load_is_where_the_log_first_reaches_it(tmp_path):
     m = _read(tmp_path, "load,D1,D2\n0,9,9\n2,1,2\n10,2,6\n6,3,1\n", settings=ImportSettings(zero=6))
     assert m.reference_load == 6.0 and m.load_levels.tolist() == [0, 2, 10, 6]
     assert_allclose(m.values, [[7.5, 5.0], [-0.5, -2.0], [0.5, 2.0], [1.5, -3.0]], rtol=1e-12)
-    assert ("gauges zeroed at 6 kN (interpolated between rows 3 and 4); the model is compared as g(P) − g(P_ref)"
-            in m.notes)
+    _note(m, "zeroed at 6 kN", "between rows 3 and 4")
     m = _read(tmp_path, "load,D1\n0,1\n6,3\n10,5\n2,7\n", settings=ImportSettings(zero=6))  # row 3 first
     assert_allclose(m.values[:, 0], [-2.0, 0.0, 2.0, 4.0], rtol=1e-12)
-    assert "gauges zeroed at 6 kN (row 3); the model is compared as g(P) − g(P_ref)" in m.notes
+    _note(m, "zeroed at 6 kN", "(row 3)")
 
 
 def test_excel_formulas_read_as_the_values_excel_saved(tmp_path):
@@ -526,9 +528,9 @@ def test_excel_formulas_read_as_the_values_excel_saved(tmp_path):
     m = read_measurement(p, SENSORS, LEVELS, "kN", "affine")
     assert m.values.tolist() == [[1.0, 2.0]]
     bad = _write(tmp_path, b"PK\x03\x04 not really a zip", "bad.xlsx")
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match=r"not a readable Excel \.xlsx workbook") as info:
         read_measurement(bad, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value) == f"{bad}: not a readable Excel .xlsx workbook (BadZipFile: File is not a zip file)"
+    assert str(info.value).startswith(f"{bad}: ") and "BadZipFile" in str(info.value)
 
 
 def test_the_former_reader_name_passes_every_argument_on(tmp_path):
@@ -553,19 +555,18 @@ def test_excel_damage_and_a_missing_openpyxl_are_explained(tmp_path, monkeypatch
             if item.filename == "xl/worksheets/sheet1.xml":
                 data = data[: data.index(b'<row r="2">') + 15]
             dst.writestr(item, data)
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="cannot read the Excel sheet") as info:
         read_measurement(p, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value).startswith(f"{p}: cannot read the Excel sheet (ParseError: unclosed token: line 1, column ")
+    assert str(info.value).startswith(f"{p}: ") and "ParseError" in str(info.value)  # the kind of damage
     big = _write(tmp_path, b"x" * (2**21 + 1), "big.xlsx")  # refused on its size alone
     monkeypatch.setattr(measurement_log, "MAX_FILE_BYTES", 2**21)
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="larger than 2 MiB") as info:
         read_measurement(big, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value) == f"{big}: larger than 2 MiB"
+    assert str(info.value).startswith(f"{big}: ")
     monkeypatch.setitem(sys.modules, "openpyxl", None)  # as if not installed
-    with pytest.raises(ValueError) as info:
+    with pytest.raises(ValueError, match="needs openpyxl") as info:
         read_measurement(plain, SENSORS, LEVELS, "kN", "affine")
-    assert str(info.value) == (f"{plain}: reading Excel files needs openpyxl: pip install 'openpyxl>=3.1' (or save the "
-                               "sheet as CSV)")
+    _contains(info.value, str(plain), "pip install 'openpyxl>=3.1'", "CSV")  # the two remedies
 
 
 def test_the_unit_registry_is_built_on_first_use(monkeypatch):
@@ -583,8 +584,7 @@ def test_zero_at_a_load_is_read_exactly_or_interpolated(tmp_path):
     rounding of 3 − 3.00001 is ~4e-16; reading at the row instead would be off by 1e-5)."""
     m = _read(tmp_path, "load,D1\n0,1\n8,3\n10,5\n", settings=ImportSettings(zero=8.00001))
     assert_allclose(m.values[:, 0], [1 - 3.00001, 3 - 3.00001, 5 - 3.00001], rtol=0, atol=1e-12)
-    assert "gauges zeroed at 8.00001 kN (interpolated between rows 3 and 4); the model is compared as g(P) − g(P_ref)" \
-        in m.notes
+    _note(m, "zeroed at 8.00001 kN", "between rows 3 and 4")
 
 
 def test_phase_errors_and_notes(tmp_path):
@@ -595,18 +595,17 @@ def test_phase_errors_and_notes(tmp_path):
     rows = "".join(f"{ph},{k},{k},{2 * k}\n" for k, ph in enumerate(phases))
     log = "phase,load,D1,D2\n" + rows
     listed = ", ".join(repr(ph) for ph in phases[:20])
-    assert (_error(tmp_path, log, settings=ImportSettings(zero="end of shear"))
-            == f"{{p}}, column 1 (phase): no row of phase 'shear' (zero = 'end of shear'); the phases in this column "
-               f"are {listed}")
+    message = _error(tmp_path, log, settings=ImportSettings(zero="end of shear"))
+    _contains(message, "{p}, column 1 (phase)", "phase 'shear'", listed)
+    assert "'p20'" not in message and "close to" not in message  # 20 listed at most; no typo hint
     m = _read(tmp_path, log, settings=ImportSettings(zero="end of p05"))
-    assert ("gauges zeroed at the end of phase 'p05' (row 7, 5 kN); the 6 row(s) up to it are not used; "
-                          f"phases in column 1 (phase): {', '.join(phases[:20])}; the model is compared as "
-                          "g(P) − g(P_ref)") in m.notes
+    note = _note(m, "phase 'p05'", "(row 7, 5 kN)", "6 row(s)", ", ".join(phases[:20]))
+    assert "p20" not in note
     assert_allclose(m.values[0], [1.0, 2.0], rtol=1e-15)
-    assert (_error(tmp_path, "phase,load,D1\n,10,1\n ,20,2\n", settings=ImportSettings(zero="end of x"))
-            == "{p}, column 1 (phase): zero = 'end of x', but the phase column is empty")
-    assert (_error(tmp_path, "phase,load,D1,D2,U1\na,10,,,1\nb,20,2,2,2\n", settings=ImportSettings(zero="end of a"))
-            == "{p}, row 2: the zero reference (end of phase 'a') has no reading of D1, D2")
+    _refused(tmp_path, "phase,load,D1\n,10,1\n ,20,2\n", "{p}, column 1 (phase)", "'end of x'", "empty",
+             settings=ImportSettings(zero="end of x"))
+    _refused(tmp_path, "phase,load,D1,D2,U1\na,10,,,1\nb,20,2,2,2\n", "{p}, row 2", "phase 'a'", "of D1, D2",
+             settings=ImportSettings(zero="end of a"))
 
 
 def test_a_title_line_mentioning_the_load_is_not_the_header(tmp_path):
@@ -616,9 +615,9 @@ def test_a_title_line_mentioning_the_load_is_not_the_header(tmp_path):
     ['Load test', 'wall 3']"). The header is the first line with a *cell* naming the load column
     (quoted or with a unit as well)."""
     m = _read(tmp_path, "Load test, wall 3\nload;D1\n10;1,5\n")
-    assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 1 line(s) before the header"
+    assert m.values.tolist() == [[1.5]] and "skipped 1 line(s)" in m.notes[0]
     m = _read(tmp_path, "Wall 3 (load-controlled)\nDate: 2026, Nov 2\n\"Load [kN]\";\"D1\"\n10;1,5\n")
-    assert m.values.tolist() == [[1.5]] and m.notes[0] == "skipped 2 line(s) before the header"
+    assert m.values.tolist() == [[1.5]] and "skipped 2 line(s)" in m.notes[0]
     m = _read(tmp_path, "Wall 3, 2026\nt;FX;D1\n0;10;1,5\n", settings=ImportSettings(load_column="Fx"))
     assert m.values.tolist() == [[1.5]]  # a load column whose name ends in X is found too
 
@@ -629,13 +628,11 @@ def test_load_range_is_inclusive_and_rows_stay_aligned(tmp_path):
     content = "load,D1\n10,1\n20,2\n30,3\n40,4\n"
     m = _read(tmp_path, content, settings=ImportSettings(load_range=(10, 30)))
     assert m.load_levels.tolist() == [10, 20, 30]
-    assert "1 row(s) outside load_range [10, 30] kN dropped" in m.notes
+    _note(m, "1 row(s) outside load_range [10, 30] kN")
     m = _read(tmp_path, content, settings=ImportSettings(load_range=(10, 40)))
     assert m.load_levels.tolist() == [10, 20, 30, 40] and not any("load_range" in n for n in m.notes)
-    assert (_error(tmp_path, "load,D1\n10,0\n20,1\n25,2\n", response="discrete",
-                   settings=ImportSettings(zero="first"))
-            == ("{p}, row 4, column 1 (load): unknown load level 25 kN; the model has [10.0, 20.0, 30.0, 40.0] (its "
-                "levels are steps: readings are taken only there)"))
+    _refused(tmp_path, "load,D1\n10,0\n20,1\n25,2\n", "{p}, row 4, column 1 (load)", "load level 25 kN",
+             "[10.0, 20.0, 30.0, 40.0]", response="discrete", settings=ImportSettings(zero="first"))
 
 
 def test_cells_padded_with_tabs_or_spaces_and_the_source(tmp_path):
@@ -659,8 +656,7 @@ def test_a_number_padded_with_a_non_breaking_space_reads(tmp_path):
     assert m.values.tolist() == [[1.5], [2.0]]
     m = _read(tmp_path, "load,D1\n10,\u20091.5\n20,\n")  # a thin space before, an empty cell after
     assert m.values[0].tolist() == [1.5] and np.isnan(m.values[1, 0])
-    with pytest.raises(ValueError, match=r"row 3, column 2 \(D1\): " + re.escape(repr("2\xa05")) + " is not a number"):
-        _read(tmp_path, "load,D1\n10,1.5\n20,2\xa05\n")
+    _refused(tmp_path, "load,D1\n10,1.5\n20,2\xa05\n", "row 3, column 2 (D1)", repr("2\xa05") + " is not a number")
 
 
 def test_step_loads_and_every_typo_hint(tmp_path):
@@ -671,8 +667,8 @@ def test_step_loads_and_every_typo_hint(tmp_path):
         m = _read(tmp_path, f"load [{unit}],D1,D22,U11,Dxx2\n1,1,2,3,4\n2,2,3,4,5\n", unit="step",
                   response="discrete", levels=(1, 2))
         assert m.load_levels.tolist() == [1.0, 2.0] and m.values.tolist() == [[1.0], [2.0]]
-        assert m.notes[0] == ("ignored column(s) that name no sensor: D22, U11, Dxx2 ('D22' is close to sensor 'D2': "
-                              "a typo?) ('U11' is close to sensor 'U1': a typo?)")
+        _contains(m.notes[0], "D22, U11, Dxx2", "'D22' is close to sensor 'D2'", "'U11' is close to sensor 'U1'")
+        assert m.notes[0].count("typo") == 2  # "Dxx2" gets none
 
 
 def test_units_after_a_column_without_one_and_the_default_load_unit(tmp_path):
@@ -682,4 +678,4 @@ def test_units_after_a_column_without_one_and_the_default_load_unit(tmp_path):
     m = read_measurement(p, SENSORS, LEVELS)
     assert m.load_levels.tolist() == [10.0]
     assert_allclose(m.values, [[1.0, 0.002, 3.0]], rtol=1e-15)
-    assert "no unit in the header of D1, U1: read as mm" in m.notes
+    _note(m, "no unit", "D1, U1", "mm")

@@ -82,7 +82,7 @@ def test_relative_misfit_and_subset_indices():
 
     f = Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="relative")
     assert_allclose(f(np.array([[1.1, 0.0]])), 0.5 * 2 * 0.1**2, rtol=1e-12)
-    with pytest.raises(ValueError, match=r"^misfit kind must be 'gaussian' or 'relative'; got 'l1'$"):
+    with pytest.raises(ValueError, match=r"misfit kind .*'gaussian' or 'relative'; got 'l1'"):
         Misfit(model, meas, NoiseModel(sigma=1.0), idx, kind="l1")
 
 
@@ -127,7 +127,7 @@ def test_frozen_model_error_for_one_row_all_observed_without_copy_and_small_rela
                  np.arange(2), kind="relative")
     assert_allclose(rel.whitened_residuals(X), [[0.2, -0.5]], rtol=1e-12)
     for prior in ({"prior_mean": np.zeros(2)}, {"prior_cov": np.eye(2)}):
-        with pytest.raises(ValueError, match=r"^a Gaussian prior needs both prior_mean and prior_cov$"):
+        with pytest.raises(ValueError, match=r"prior needs both prior_mean and prior_cov"):
             Misfit(linear_model(), meas, NoiseModel(sigma=1.0), np.arange(6), **prior)
 
 
@@ -152,9 +152,9 @@ def test_model_form_error_adds_its_variance_per_reading_to_the_noise():
     e0 = np.where(np.arange(6) < 2, 0.0, e)
     with_zero = Misfit(linear_model(model_std), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e0)
     assert_allclose(with_zero(X), 0.5 * np.sum(r**2 / (0.03**2 + model_std**2 + e0**2), axis=1), rtol=1e-12)
-    with pytest.raises(ValueError, match=r"^the observation gives 5 entries; the measurement has 6$"):
+    with pytest.raises(ValueError, match=r"observation gives 5 entries.*measurement has 6"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(5))
-    with pytest.raises(ValueError, match="form_error must be 6 finite standard deviations"):
+    with pytest.raises(ValueError, match="form_error must be 6 finite"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=e[:5])
     with pytest.raises(ValueError, match="form_error must be 6"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.03), np.arange(6), form_error=-e)
@@ -201,7 +201,7 @@ def test_whiten_takes_integer_residuals_and_leaves_its_input_alone():
     r = np.array([[1, 2, 0, -1, 3, 0]])
     assert_allclose(f.whiten(r), r / 0.5, rtol=1e-15)
     assert r.tolist() == [[1, 2, 0, -1, 3, 0]]
-    with pytest.raises(ValueError, match=r"^the rigid-body modes are for 4 entries; the measurement has 6$"):
+    with pytest.raises(ValueError, match=r"rigid-body modes are for 4 entries.*measurement has 6"):
         Misfit(linear_model(), meas, NoiseModel(sigma=0.5), np.arange(6), rigid_body=SimpleNamespace(n_obs=4))
 
 

@@ -109,9 +109,9 @@ def test_richardson_recovers_the_exact_error_of_a_reading_converging_at_rate_p(r
     assert coarse.runs == [{"E": 3.0}] and fine.runs == [{"E": 3.0}]
     assert (e.method, e.refinement, e.rate, e.tolerance, e.note) == ("two meshes", refinement, rate, None, None)
     assert isinstance(e.refinement, int) and isinstance(e.rate, float)
-    assert e.mesh == f"Q4 3×2 and {3 * refinement}×{2 * refinement} per unit"
-    assert e.describe() == (f"e², e estimated per reading from two meshes (Q4 3×2 and {3 * refinement}×"
-                            f"{2 * refinement} per unit; Richardson, rate p = {rate:g})")
+    assert e.mesh.startswith("Q4 3×2 and ") and f"{3 * refinement}×{2 * refinement}" in e.mesh  # both meshes
+    described = e.describe()
+    assert "two meshes" in described and e.mesh in described and f"rate p = {rate:g}" in described
 
 
 def test_default_rate_and_refinement_and_only_the_observed_readings(refine):
@@ -184,7 +184,7 @@ def test_bad_refinement_or_rate_is_refused_with_both_values(refine, kw):
     refine.coarse = coarse
     meas = Measurement(G0, SENSORS, LEVELS)
     r, p = kw.get("refinement", 2), kw.get("rate", DEFAULT_RATE)
-    with pytest.raises(ValueError, match=rf"^refinement must be an integer ≥ 2 and rate > 0; got {r}, {p}$"):
+    with pytest.raises(ValueError, match=rf"refinement .*≥ 2.*rate > 0.*got {r}, {p}"):
         discretisation_error(coarse, {}, meas, **kw)
     assert refine.built == [] and coarse.runs == []
 
@@ -193,8 +193,7 @@ def test_bad_refinement_or_rate_is_refused_with_both_values(refine, kw):
 def test_a_scenario_without_mesh_options_asks_for_a_fixed_tolerance(refine, options):
     coarse = _Scenario(options, 1.0)
     refine.coarse = coarse
-    with pytest.raises(ValueError, match=r"^stand-in: no mesh options nx, ny to refine; give a fixed "
-                                         r"model_tolerance instead$"):
+    with pytest.raises(ValueError, match=r"stand-in: no mesh options nx, ny.*model_tolerance"):
         discretisation_error(coarse, {}, Measurement(G0, SENSORS, LEVELS))
 
 
@@ -203,8 +202,7 @@ def test_a_refined_mesh_that_cannot_be_built_names_the_factor_and_the_reason(ref
     the refinement and what to do instead, chained to the original error."""
     refine.coarse = _Scenario({"nx": 2, "ny": 2}, 1.0)
     refine.fail = "nx = 6 exceeds 5"
-    with pytest.raises(ValueError, match=r"^stand-in: the mesh refined 3× cannot be built \(nx = 6 exceeds 5\); "
-                                         r"give a fixed model_tolerance instead$") as info:
+    with pytest.raises(ValueError, match=r"stand-in: .*refined 3×.*\(nx = 6 exceeds 5\).*model_tolerance") as info:
         discretisation_error(refine.coarse, {}, Measurement(G0, SENSORS, LEVELS), refinement=3)
     assert isinstance(info.value.__cause__, SpecError)
 
@@ -218,8 +216,8 @@ def test_tolerance_error_is_eps_times_each_reading():
     assert (e.method, e.tolerance, e.note, e.refinement, e.rate, e.mesh) == (
         "tolerance", 0.02, "mesh cannot be refined", None, None, None)
     assert_allclose(e.relative(meas), [0.02, 0.02, 0.0, 0.02, 0.02], rtol=1e-15)
-    assert e.describe() == "(ε·d)², ε = 2 % of each reading (mesh cannot be refined)"
-    assert tolerance_error(meas, FALLBACK_TOLERANCE).describe() == "(ε·d)², ε = 1 % of each reading"
+    assert "ε = 2 %" in e.describe() and "cannot be refined" in e.describe()  # the value and why it was used
+    assert "ε = 1 %" in tolerance_error(meas, FALLBACK_TOLERANCE).describe()
     assert isinstance(tolerance_error(meas, 1).tolerance, float)
 
 
@@ -282,11 +280,10 @@ def test_model_form_error_option_accepts_none_estimated_or_a_tolerance(value, ex
 
 
 @pytest.mark.parametrize("value, match", [
-    ("big", r"^--model-form-error must be none, estimated or a relative tolerance in \[0, 0\.5\) \(e\.g\. 0\.01 "
-            r"for 1 % of each reading\); got 'big'$"),
-    ([0.1], r"^--model-form-error must be none, .*; got \[0\.1\]$"),
-    (0.5, r"^--model-form-error: a relative tolerance must be in \[0, 0\.5\); got 0\.5$"),
-    ("-0.01", r"^--model-form-error: a relative tolerance must be in \[0, 0\.5\); got -0\.01$")])
+    ("big", r"--model-form-error .*none, estimated.*\[0, 0\.5\).*got 'big'"),
+    ([0.1], r"--model-form-error .*none, .*; got \[0\.1\]"),
+    (0.5, r"--model-form-error: .*\[0, 0\.5\); got 0\.5"),
+    ("-0.01", r"--model-form-error: .*\[0, 0\.5\); got -0\.01")])
 def test_model_form_error_option_refuses_other_values_naming_the_option(value, match):
     """The message names the option, what it accepts and the value given; the user sees no
     internal ``float()`` error chained to it."""
@@ -296,7 +293,7 @@ def test_model_form_error_option_refuses_other_values_naming_the_option(value, m
 
 
 def test_model_form_error_message_names_the_study_key():
-    with pytest.raises(ValueError, match=r"^\[inversion\] model_form_error: a relative tolerance must be in"):
+    with pytest.raises(ValueError, match=r"\[inversion\] model_form_error: .*tolerance"):
         parse_model_form_error(0.7, source="[inversion] model_form_error")
-    with pytest.raises(ValueError, match=r"^\[inversion\] model_form_error must be none"):
+    with pytest.raises(ValueError, match=r"\[inversion\] model_form_error .*none"):
         parse_model_form_error("x", source="[inversion] model_form_error")

@@ -262,7 +262,7 @@ def test_report_shows_the_chi2_warning(tmp_path):
                                    region=RegionSettings(samples=2**10), fe_check=False)
     calibration = calibrate(_problem(scale=1.08), settings)
     page = write_inversion_report(tmp_path, calibration).read_text(encoding="utf-8")
-    assert "does not reproduce the data within the stated noise" in page and "podkrig diagnose" in page
+    assert "within the stated noise" in page and "podkrig diagnose" in page
     assert page.count("does not reproduce the data") == 1  # said once, not by two policies
 
 

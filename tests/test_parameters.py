@@ -49,18 +49,18 @@ def test_round_trip(space):
 def test_shape_and_log_domain_errors(space):
     with pytest.raises(ValueError, match=r"shape \(n_samples, 3\).*got shape \(4, 2\)"):
         space.to_unit(np.ones((4, 2)))
-    with pytest.raises(ValueError, match="log-scale parameter 'kN_bj' needs values > 0; got -1"):
+    with pytest.raises(ValueError, match="'kN_bj' .*> 0; got -1"):
         space.to_unit([[6000.0, -1.0, 0.5]])
 
 
 @pytest.mark.parametrize(
     "args, kwargs, message",
     [
-        (("E_b", 2.0, 1.0), {}, r"bounds of 'E_b' must satisfy lower < upper; got \(2, 1\)"),
+        (("E_b", 2.0, 1.0), {}, r"'E_b' .*lower < upper; got \(2, 1\)"),
         (("E_b", 1.0, 1.0), {}, "lower < upper"),
-        (("kN_bj", 0.0, 10.0), {"scale": "log"}, r"log-scale bounds of 'kN_bj' must be > 0; got \(0, 10\)"),
-        (("E_b", 1.0, 2.0), {"scale": "ln"}, r"scale of 'E_b' must be one of \('linear', 'log'\); got 'ln'"),
-        (("E_b", 1.0, float("inf")), {}, "upper bound of 'E_b' must be finite"),
+        (("kN_bj", 0.0, 10.0), {"scale": "log"}, r"'kN_bj' .*> 0; got \(0, 10\)"),
+        (("E_b", 1.0, 2.0), {"scale": "ln"}, r"scale of 'E_b' .*\('linear', 'log'\); got 'ln'"),
+        (("E_b", 1.0, float("inf")), {}, "upper bound of 'E_b' .*finite"),
         (("", 1.0, 2.0), {}, "non-empty string"),
     ],
 )
@@ -95,11 +95,11 @@ def test_from_scenario_takes_units_and_order(scenario):
 @pytest.mark.parametrize(
     "bounds, message",
     [
-        ({"kN_bx": (10, 100)}, r"unknown parameter 'kN_bx' for scenario 'diagonal_compression'; known: \["),
-        ({"nu_b": (0.1, 0.6)}, r"upper bound of 'nu_b' = 0.6 - is outside its physical range \[0, 0.5\)"),
-        ({"kN_bj": (0, 100)}, r"lower bound of 'kN_bj' = 0 N/mm³ is outside its physical range \(0, 1e\+09\]"),
-        ({"kN_bj": (100, 10, "log")}, r"bounds of 'kN_bj' must satisfy lower < upper"),
-        ({"kN_bj": (10,)}, r"bounds of 'kN_bj' must be \(lower, upper\)"),
+        ({"kN_bx": (10, 100)}, r"'kN_bx' .*'diagonal_compression'; known: \["),
+        ({"nu_b": (0.1, 0.6)}, r"upper bound of 'nu_b' = 0.6 .*physical range \[0, 0.5\)"),
+        ({"kN_bj": (0, 100)}, r"'kN_bj' = 0 N/mm³ .*\(0, 1e\+09\]"),
+        ({"kN_bj": (100, 10, "log")}, r"'kN_bj' .*lower < upper"),
+        ({"kN_bj": (10,)}, r"'kN_bj' .*\(lower, upper\)"),
         ({}, "no free parameters"),
     ],
 )
@@ -119,9 +119,9 @@ def test_parse_param():
         ("kN_bj", r"--param 'kN_bj': expected NAME=LOW:HIGH"),
         ("kN_bj=10", r"--param 'kN_bj=10': expected NAME=LOW:HIGH"),
         ("=1:2", r"--param '=1:2': expected NAME=LOW:HIGH"),
-        ("kN_bj=ten:100", r"--param 'kN_bj=ten:100': LOW 'ten' is not a number"),
-        ("kN_bj=10:1e3x", r"--param 'kN_bj=10:1e3x': HIGH '1e3x' is not a number"),
-        ("kN_bj=10:100:lg", r"--param 'kN_bj=10:100:lg': scale 'lg' must be one of"),
+        ("kN_bj=ten:100", r"--param 'kN_bj=ten:100': LOW 'ten'"),
+        ("kN_bj=10:1e3x", r"--param 'kN_bj=10:1e3x': HIGH '1e3x'"),
+        ("kN_bj=10:100:lg", r"--param 'kN_bj=10:100:lg': scale 'lg'"),
         ("kN_bj=10:100:log:2", r"--param 'kN_bj=10:100:log:2': expected"),
         ("kN_bj=nan:100", r"--param 'kN_bj=nan:100': LOW must be finite"),
     ],
@@ -133,7 +133,7 @@ def test_parse_param_errors(text, message):
 
 def test_parse_params():
     assert parse_params(["E_b=1:2", "kN_bj=1:2:log"]) == {"E_b": (1.0, 2.0, "linear"), "kN_bj": (1.0, 2.0, "log")}
-    with pytest.raises(ValueError, match="parameter 'E_b' is given more than once"):
+    with pytest.raises(ValueError, match="'E_b' is given more than once"):
         parse_params(["E_b=1:2", "E_b=3:4"])
     with pytest.raises(ValueError, match="no free parameters"):
         parse_params([])

@@ -79,16 +79,16 @@ def test_input_not_modified_and_uncentred():
     [
         ({"n_modes": 2, "energy": 0.9}, None, "either n_modes or energy"),
         ({"energy": 1.5}, None, "0 < energy <= 1"),
-        ({"n_modes": 0}, None, "n_modes must be an integer >= 1"),
-        ({"n_modes": True}, None, "n_modes must be an integer >= 1"),
-        ({"energy": 0.0}, None, r"0 < energy <= 1; got 0.0 \(e.g. energy=0.9999 keeps 99.99 %\)"),
+        ({"n_modes": 0}, None, "n_modes .*integer >= 1"),
+        ({"n_modes": True}, None, "n_modes .*integer >= 1"),
+        ({"energy": 0.0}, None, r"< energy <= 1; got 0.0.*energy=0.9999"),
         ({"n_modes": 9}, None, "exceeds the numerical rank 5"),
         ({"method": "qr"}, None, "method must be one of"),
         ({}, np.ones((5, 3)), "all snapshots are identical"),
-        ({}, np.full((4, 3), np.nan), r"^Y must be finite; found NaN or inf \(drop failed FE runs first\)"),
-        ({}, np.ones(3), r"Y must have shape \(n_samples, n_outputs\); got shape \(3,\)"),
-        ({}, np.ones((1, 3)), "POD needs at least 2 snapshots; got 1"),
-        ({"method": "snapshots"}, np.ones((5, 30)), r"^all snapshots are identical \(zero variance after centring\)"),
+        ({}, np.full((4, 3), np.nan), r"Y must be finite.*drop failed FE runs"),
+        ({}, np.ones(3), r"Y must have shape .*got shape \(3,\)"),
+        ({}, np.ones((1, 3)), "at least 2 snapshots; got 1"),
+        ({"method": "snapshots"}, np.ones((5, 30)), r"all snapshots are identical"),
     ],
 )
 def test_errors(kwargs, data, message):
@@ -98,7 +98,7 @@ def test_errors(kwargs, data, message):
 
 
 def test_not_fitted():
-    with pytest.raises(NotFittedError, match=r"^this POD instance is not fitted yet; call fit\(Y\) first"):
+    with pytest.raises(NotFittedError, match=r"POD instance is not fitted.*fit\(Y\)"):
         POD().transform(np.ones((2, 3)))
 
 
@@ -153,9 +153,9 @@ def test_snapshots_method_keeps_the_rank_for_small_readings_without_warnings():
 def test_wrong_widths_are_named():
     Y, _, _ = _data(8)
     pod = POD(n_modes=5).fit(Y)
-    with pytest.raises(ValueError, match=r"Y must have shape \(n_samples, 30\); got \(2, 29\)"):
+    with pytest.raises(ValueError, match=r"Y must have shape \(n_samples, 30\).*got \(2, 29\)"):
         pod.transform(Y[:2, :29])
-    with pytest.raises(ValueError, match=r"A must have shape \(n_samples, 5\); got \(2, 4\)"):
+    with pytest.raises(ValueError, match=r"A must have shape \(n_samples, 5\).*got \(2, 4\)"):
         pod.inverse_transform(np.zeros((2, 4)))
 
 
@@ -169,7 +169,11 @@ def test_energy_curve_and_truncation_by_energy_on_a_hand_basis(caplog):
     assert_allclose(pod.energy_, [0.9, 1.0], rtol=1e-14)
     assert pod.n_modes_ == 1 and pod.retained_energy_ == pytest.approx(0.9, rel=1e-14)
     assert POD(energy=0.9 + 1e-9, center=False).fit(Y).n_modes_ == 2
-    assert caplog.messages == ["POD (svd): 2 snapshots x 3 outputs, rank 2, 1 modes keep 0.9000000000 of the energy"]
+    (record,) = caplog.records
+    assert (record.name, record.levelno) == ("podkrig.surrogate.pod", logging.INFO)
+    assert record.args[:5] == ("svd", 2, 3, 2, 1) and record.args[5] == pytest.approx(0.9, rel=1e-14)  # method,
+    # snapshots, outputs, rank, modes kept, energy kept
+
 
 
 def test_single_precision_snapshots_are_decomposed_and_measured_in_double_precision():

@@ -186,9 +186,9 @@ def test_free_and_fixed_parameters_are_checked_with_messages_that_say_what_to_do
     template accepting a parameter that is neither free nor fixed."""
     model, noise = LineModel(), NoiseModel(sigma=SIGMA)
     meas = _data(model, TRUTH)
-    with pytest.raises(ValueError, match=r"\['m1'\] are both free and fixed; choose one"):
+    with pytest.raises(ValueError, match=r"\['m1'\] .*both free and fixed"):
         InverseProblem(model, meas, noise, free=("m1",), fixed={"m1": 0.5, "m2": 1.0})
-    with pytest.raises(ValueError, match="no free parameters: free at least one of m1, m2"):
+    with pytest.raises(ValueError, match="no free parameters.*m1, m2"):
         InverseProblem(model, meas, noise, free=(), fixed={"m1": 0.5, "m2": 1.0})
     for bound in (0.0, 2.0):  # the box is closed
         assert InverseProblem(model, meas, noise, free=("m1",), fixed={"m2": bound}).parameters_at([0.5])["m2"] == bound
@@ -303,11 +303,10 @@ def test_check_dof_counts_and_refuses_no_degrees_of_freedom():
     """Defects: dof ≠ n_obs − n_free, dof = 0 accepted, a message without both counts."""
     assert check_dof(12, ("a", "b")) == 10
     assert check_dof(3, ["a", "b"]) == 1  # any sequence of names
-    with pytest.raises(ValueError, match=r"^data.csv: 2 reading\(s\) cannot identify 2 free parameter\(s\) \(a, b\): "
-                                         r"degrees of freedom n_obs − n_free = 2 − 2 = 0 ≤ 0. Add readings \(more sensors or load "
-                                         r"levels\) or fix parameters$"):
+    with pytest.raises(ValueError, match=r"data.csv: 2 reading\(s\).*2 free parameter\(s\) \(a, b\)") as raised:
         check_dof(2, ("a", "b"), "data.csv")
-    with pytest.raises(ValueError, match=r"^measurement: 1 reading\(s\) .* = 1 − 3 = -2 ≤ 0"):
+    assert "2 − 2 = 0" in str(raised.value) and "fix parameters" in str(raised.value)  # the count, a remedy
+    with pytest.raises(ValueError, match=r"measurement: 1 reading\(s\) .*1 − 3 = -2"):
         check_dof(1, ("a", "b", "c"))
 
 
@@ -389,13 +388,12 @@ def test_surrogate_model_exposes_the_provenance_and_refuses_what_cannot_invert()
     assert SurrogateModel(_Surrogate(prov | {"scenario_spec": "not a dict"})).load_response == "discrete"
     assert SurrogateModel(_Surrogate(prov | {"output": "readings"})).sensor_names == ("g1", "g2")
 
-    build = "build it from a snapshot store with 'podkrig surrogate build' so that it knows its sensors and load levels"
-    with pytest.raises(ValueError, match=r"^the surrogate lacks \['sensor_names', 'scenario_spec'\]: " + build):
+    build = "'podkrig surrogate build'"
+    with pytest.raises(ValueError, match=r"lacks \['sensor_names', 'scenario_spec'\]: .*" + build):
         SurrogateModel(_Surrogate({"load_levels": [10]}))
-    with pytest.raises(ValueError, match=r"^the surrogate lacks \['a parameter space'\]: " + build):
+    with pytest.raises(ValueError, match=r"lacks \['a parameter space'\]: .*" + build):
         SurrogateModel(_Surrogate(prov, space=None))
-    with pytest.raises(ValueError, match="^this surrogate predicts displacement fields; inversion needs a surrogate "
-                                         "of the sensor readings$"):
+    with pytest.raises(ValueError, match="predicts displacement fields.*sensor readings"):
         SurrogateModel(_Surrogate(prov | {"output": "field"}))
 
 

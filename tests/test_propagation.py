@@ -49,10 +49,9 @@ def test_rvc_output_errors_name_what_is_missing_and_what_exists():
     """Fails if the message for an unknown output stops listing it with the first three valid
     names, or the one for a missing parameter stops naming it and the remedy."""
     region = _region([[1.0, 1.0], [1.2, 0.8]])
-    with pytest.raises(ValueError, match=r"^unknown RVC output\(s\) \['w@15'\]; outputs are SENSOR@LOAD, "
-                                         r"e.g. \['u@5', 'v@5', 'u@15'\]$"):
+    with pytest.raises(ValueError, match=r"\['w@15'\].*SENSOR@LOAD.*\['u@5', 'v@5', 'u@15'\]"):
         rvc(region, ValidationModel(), fixed={"c": 0.25}, outputs=["u@5", "w@15"])
-    with pytest.raises(ValueError, match=r"needs values for \['c'\] \(not calibrated\): pass them as fixed"):
+    with pytest.raises(ValueError, match=r"needs values for \['c'\].*fixed"):
         rvc(region, ValidationModel())
     picked = rvc(region, ValidationModel(), fixed={"c": 0.25}, outputs=["v@5", "u@5"])
     assert picked.outputs == ("v@5", "u@5")

@@ -23,7 +23,7 @@ from podkrig.parameters import ParameterSpace
 from podkrig.surrogate import refine
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import PODKriging, fit_from_store
+from podkrig.surrogate.podkriging import fit_from_store
 from podkrig.surrogate.refine import refine_surrogate, select_batch
 
 BOUNDS = {"kN_bj": (10, 1000, "log"), "E_b": (5000, 20000)}
@@ -71,14 +71,14 @@ def test_radius_follows_the_training_design():
 
 # ---------------------------------------------------------------- settings
 @pytest.mark.parametrize("settings, message", [
-    ({"budget": -1}, "budget must be an integer >= 0; got -1"),
-    ({"budget": 4.0}, "budget must be an integer >= 0; got 4.0"),
-    ({"batch": 0}, "batch must be an integer >= 1; got 0"),
-    ({"batch": True}, "batch must be an integer >= 1; got True"),
-    ({"n_candidates": 0}, "n_candidates must be an integer >= 1; got 0"),
-    ({"target_error": 0.0}, "target_error must be > 0; got 0.0"),
-    ({"target_error": float("nan")}, "target_error must be > 0; got nan"),
-    ({"sampling": "grid"}, "sampling must be one of sobol, .*; got 'grid'"),
+    ({"budget": -1}, "budget .*integer >= 0; got -1"),
+    ({"budget": 4.0}, "budget .*integer >= 0; got 4.0"),
+    ({"batch": 0}, "batch .*integer >= 1; got 0"),
+    ({"batch": True}, "batch .*integer >= 1; got True"),
+    ({"n_candidates": 0}, "n_candidates .*integer >= 1; got 0"),
+    ({"target_error": 0.0}, "target_error .*> 0; got 0.0"),
+    ({"target_error": float("nan")}, "target_error .*> 0; got nan"),
+    ({"sampling": "grid"}, "sampling .*one of sobol, .*; got 'grid'"),
 ])
 def test_setting_errors_name_the_value_before_any_file_is_read(tmp_path, settings, message):
     """Bad settings are refused with the value and what is allowed, before the surrogate is used or
@@ -187,8 +187,8 @@ def test_failed_new_runs_are_kept_as_failed_rows_and_left_out_of_the_fit(stores,
     with caplog.at_level(logging.WARNING, logger="podkrig.surrogate.refine"):
         out, sur = _refine(file, train, held, target_error=1e-12, budget=2, batch=2, n_candidates=32)
     assert [h["n_train"] for h in out["history"]] == [8, 8] and out["added"] == 2
-    assert [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING] == [
-        "refine: 2 of 2 new FE runs failed (kept as failed rows)"]
+    (warning,) = [r for r in caplog.records if r.levelno == logging.WARNING]
+    assert warning.name == "podkrig.surrogate.refine" and warning.args[:2] == (2, 2)  # failed, new runs
     with SnapshotStore.open(train) as s:
         assert s.counts()["failed"] == 2 and s.counts()["done"] == 8
 

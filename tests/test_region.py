@@ -158,7 +158,8 @@ def test_region_growth_never_samples_outside_the_search_range(centre, caplog):
     problem = _tanh_problem(centre)
     with caplog.at_level(logging.INFO, logger="podkrig.online.region"):
         region = likelihood_ratio_region(problem, np.array([centre]), n_samples=2**10, rng=0)
-    assert caplog.messages == ["region round 0: members touch the sampling box; growing it"]
+    (record,) = caplog.records
+    assert (record.name, record.levelno, record.args) == ("podkrig.online.region", logging.INFO, (0,))  # round 0
     assert 0.0 <= problem.model.seen[0] and problem.model.seen[1] <= 1.0
     half = TanhModel.W * np.arctanh(TanhModel.Q)
     exact = (max(centre - half, 0.0), min(centre + half, 1.0))  # the region ends at the range's face
@@ -254,7 +255,7 @@ def test_region_freezes_the_model_error_at_the_best_fit_by_default():
 @pytest.mark.parametrize("kwargs, message", [
     ({"n_samples": 1000}, "n_samples must be at least 1024"),
     ({"n_samples": 2**25}, "n_samples must be at most 16777216"),
-    ({"confidence": 1.0}, r"confidence must be in \(0, 1\), e.g. 0.95; got 1.0"),
+    ({"confidence": 1.0}, r"confidence .*\(0, 1\).*got 1.0"),
     ({"confidence": 0.0}, r"confidence must be in \(0, 1\)"),
 ])
 def test_likelihood_ratio_region_names_the_bad_setting(kwargs, message):
@@ -277,7 +278,7 @@ def test_identifiability_share_is_clipped_to_the_search_range():
     assert wide["a"]["share"] == 1.0 and not wide["a"]["identifiable"]
     assert wide["k"]["share"] == pytest.approx(0.5)
     text = identifiability_text("a", (-5.0, 5.0), "MPa", wide["a"])
-    assert "a is NOT pinned down" in text and "from -5 to 5 MPa (100 % of its search range)" in text
+    assert "a is NOT pinned down" in text and "-5 to 5 MPa (100 %" in text
 
 
 def test_region_summary_keys_html_table_and_round_trip():
@@ -298,13 +299,12 @@ def test_region_summary_keys_html_table_and_round_trip():
     assert full["samples"] == region.samples.tolist() and full["omega"] == [1.0, 1.5, 2.0]
     back = Region.from_dict(full)
     assert back.to_dict(members=True) == full and back.intervals == intervals
-    with pytest.raises(ValueError, match="the region has 3 members; got 2 samples and 3 misfits"):
+    with pytest.raises(ValueError, match="3 members.*2 samples and 3 misfits"):
         Region.from_dict(d, samples=region.samples[:2], omega=region.omega)
-    with pytest.raises(ValueError, match="the region has 3 members; got 3 samples and 2 misfits"):
+    with pytest.raises(ValueError, match="3 members.*3 samples and 2 misfits"):
         Region.from_dict(d, samples=region.samples, omega=region.omega[:2])
     page = region_html(region)
-    assert ("<caption style='text-align:left'><b>Region of equivalence (likelihood-ratio, 90 %): "
-            "3 members of 4096 evaluations</b></caption>") in page
+    assert "<caption" in page and "likelihood-ratio, 90 %" in page and "3 members of 4096 evaluations" in page
     assert ("<thead><tr><th>parameter</th><th>unit</th><th>low</th><th>high</th>"
             "<th>share of search range (%)</th><th>identified</th></tr></thead>") in page
     assert "<tr><td>a</td><td>MPa</td><td>0.5</td><td>0.75</td><td>12</td><td>yes</td></tr>" in page
@@ -351,7 +351,7 @@ def test_noise_monte_carlo_refuses_a_bad_number_of_realisations(n):
     """Fails if fewer than 20 or more than 100 000 realisations, a float or a bool are accepted, or
     the message does not give the allowed range and the value (a stub problem stops a run that
     wrongly starts at its first refit)."""
-    with pytest.raises(ValueError, match=rf"n_realisations must be an integer in \[20, 100000\] .*got {n!r}$"):
+    with pytest.raises(ValueError, match=rf"n_realisations .*\[20, 100000\].*got {n!r}"):
         noise_monte_carlo_region(_StopAtFirstRefit(), np.array([0.5]), n_realisations=n)
 
 

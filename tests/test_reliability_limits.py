@@ -86,7 +86,7 @@ def test_region_arguments_are_checked_in_the_python_api(kwargs, message):
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"n_realisations": 3}, r"n_realisations must be an integer in \[20, 100000\]"),
+    ({"n_realisations": 3}, r"n_realisations .*\[20, 100000\]"),
     ({"confidence": 0.0}, r"confidence must be in \(0, 1\)"),
 ])
 def test_noise_monte_carlo_region_arguments_are_checked(kwargs, message):
@@ -95,12 +95,12 @@ def test_noise_monte_carlo_region_arguments_are_checked(kwargs, message):
 
 
 @pytest.mark.parametrize("kwargs, message", [
-    ({"sigma": float("inf")}, r"absolute noise sigma \(mm\) must be a finite number; got inf"),
-    ({"sigma": float("nan")}, "must be a finite number; got nan"),
+    ({"sigma": float("inf")}, r"sigma \(mm\) .*finite.*got inf"),
+    ({"sigma": float("nan")}, "finite number; got nan"),
     ({"sigma": 1e300}, r"must be in \[0\.0, 1000000\.0\]"),
     ({"sigma": {"D1": 0.01, "D2": float("inf")}}, "sigma of sensor 'D2' .* finite"),
-    ({"delta": float("nan")}, "relative noise delta must be a finite number"),
-    ({"covariance": np.array([[1.0, 0.0], [0.0, np.inf]])}, "noise covariance must hold finite numbers"),
+    ({"delta": float("nan")}, "delta .*finite"),
+    ({"covariance": np.array([[1.0, 0.0], [0.0, np.inf]])}, "covariance .*finite"),
 ])
 def test_noise_levels_must_be_finite(kwargs, message):
     """Before: NoiseModel(sigma=inf) was accepted and made every reading weightless (χ² = 0)."""
@@ -138,7 +138,7 @@ def test_invert_refuses_a_non_finite_noise_level_on_the_cli(small_surrogate, noi
 
 
 @pytest.mark.parametrize("text, message", [
-    ("0:1e9:1e-3", r"1e\+12 points along one axis, above the limit of 131072"),
+    ("0:1e9:1e-3", r"1e\+12 points along one axis.*131072"),
     ("0:inf:1", "must be finite numbers"),
     ("nan:1:1", "must be finite numbers"),
 ])
@@ -149,18 +149,18 @@ def test_grid_ranges_are_bounded(text, message):
 
 
 def test_grids_of_too_many_points_are_refused_with_an_estimate():
-    with pytest.raises(ValueError, match=r"the DIC grid has 160000 points, above the limit of 131072 .* 156\.2 MiB"):
+    with pytest.raises(ValueError, match=r"the DIC grid has 160000 points.*131072.*156\.2 MiB"):
         limits.check_grid(400 * 400, "dic", "the DIC grid")
-    with pytest.raises(ValueError, match=r"5000 points, above the limit of 4096 for gauge candidates: about 1\.2 GiB"):
+    with pytest.raises(ValueError, match=r"5000 points.*4096.*gauge candidates.*1\.2 GiB"):
         limits.check_grid(5000, "gauge")
 
 
 # ----------------------------------------------------------------------------- --yes for large jobs
 def test_job_estimate_states_runs_time_and_disk():
     text, large = limits.fe_job_estimate([(256, 9360, False)], 10**6)
-    assert text == "256 FE runs of 9360 dofs (about 3.8 s on one core) and 976.6 KiB on disk" and not large
+    assert all(f in text for f in ("256 FE runs", "9360 dofs", "3.8 s", "976.6 KiB")) and not large
     text, large = limits.fe_job_estimate([(512, 9360, True), (64, 8000, False)], 10**6)
-    assert re.fullmatch(r"576 \(512 nonlinear\) FE runs of 8000–9360 dofs \(about 6\.39 h on one core\) .*", text)
+    assert all(f in text for f in ("576 (512 nonlinear) FE runs", "8000–9360 dofs", "6.39 h"))
     assert large
     assert limits.fe_job_estimate([(2**16 + 1, 10, False)], 0)[1]  # runs alone
     assert limits.fe_job_estimate([(10, 10, False)], 5 * 2**30)[1]  # disk alone

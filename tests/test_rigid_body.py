@@ -155,17 +155,16 @@ def test_chi2_of_noise_has_n_minus_removed_minus_p_degrees_of_freedom(covariance
 
 def test_group_and_option_errors_name_the_key_and_the_allowed_values():
     meas = _measurement()
-    with pytest.raises(ValueError, match=r"rigid_body must be one of \['auto', 'remove', 'keep'\]; got 'off'"):
+    with pytest.raises(ValueError, match=r"rigid_body .*\['auto', 'remove', 'keep'\]; got 'off'"):
         rigid_body_modes(meas, DISPLACEMENTS, "off")
     points = sorted(k for k, v in DISPLACEMENTS.items() if v[3] is None)
     assert points and len(points) < len(DISPLACEMENTS)  # point sensors and DIC channels both present
-    with pytest.raises(ValueError) as raised:
+    with pytest.raises(ValueError, match=r"rigid_groups: 'D1' in group 'a'") as raised:
         rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["D1", "P1"]})
-    assert str(raised.value) == ("rigid_groups: 'D1' in group 'a' is not a point displacement sensor; a group holds "
-                                 f"point displacement sensors (kind = \"point\"): {points}")
-    with pytest.raises(ValueError, match=r"'G\[0,0\].ux' in group 'a' is a DIC grid channel"):
+    assert "not a point displacement sensor" in str(raised.value) and str(points) in str(raised.value)  # allowed ones
+    with pytest.raises(ValueError, match=r"'G\[0,0\].ux' in group 'a'.*DIC grid channel"):
         rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["G[0,0].ux"]})
-    with pytest.raises(ValueError, match="sensor 'P1' is in groups 'a' and 'b'"):
+    with pytest.raises(ValueError, match="'P1' .*groups 'a' and 'b'"):
         rigid_body_modes(meas, DISPLACEMENTS, "auto", {"a": ["P1"], "b": ["P1", "P2"]})
     assert rigid_body_modes(meas, DISPLACEMENTS, "keep") is None
     default, auto = rigid_body_modes(meas, DISPLACEMENTS), rigid_body_modes(meas, DISPLACEMENTS, "auto")
@@ -275,7 +274,7 @@ def test_may_remove_decides_from_the_channel_names_alone():
     assert may_remove(points, "remove") is True
     assert may_remove(dic, "keep") is False and may_remove(dic, "keep", {"pair": ["P1", "P2"]}) is False
     assert may_remove(["G[0,1]"], "auto") is False and may_remove(["G.ux"], "auto") is False  # not a DIC channel
-    with pytest.raises(ValueError, match=r"^rigid_body must be one of \['auto', 'remove', 'keep'\]; got 'Keep' \(auto: "):
+    with pytest.raises(ValueError, match=r"rigid_body .*\['auto', 'remove', 'keep'\]; got 'Keep'"):
         may_remove(points, "Keep")
 
 

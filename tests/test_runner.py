@@ -31,9 +31,21 @@ def _content(path):
                 store.content_hash())
 
 
-def _assert_same_store(a, b):
-    for x, y in zip(_content(a), _content(b)):
-        assert_array_equal(x, y)
+def _assert_same_store(a, b, same_process=True):
+    """The stores hold the same rows. Computed in this process: bitwise. Computed in worker
+    processes: statuses and parameters bitwise, readings to round-off -- the sparse solver may pick
+    other kernels per process (CPU dispatch, memory alignment; a CI run once differed by 8.5e-16 mm,
+    rtol 4.4e-13), so 1e-11 relative; the content hash then is equal exactly when the readings are
+    bitwise equal."""
+    (sa, pa, ra, ha), (sb, pb, rb, hb) = _content(a), _content(b)
+    assert_array_equal(sa, sb)
+    assert_array_equal(pa, pb)
+    if same_process:
+        assert_array_equal(ra, rb)
+        assert ha == hb
+    else:
+        np.testing.assert_allclose(ra, rb, rtol=1e-11, atol=1e-14)
+        assert (ha == hb) == np.array_equal(ra, rb)
 
 
 @pytest.fixture(scope="module")
@@ -119,7 +131,7 @@ def test_mismatched_rerun_is_refused(reference, scenario, space, change, message
 def test_non_sobol_store_cannot_grow(tmp_path, scenario, space):
     path = tmp_path / "lhs.h5"
     prepare_store(path, scenario, space, n=8, seed=1, sampling="lhs")
-    with pytest.raises(StoreError, match=r"only a 'sobol' store can grow, a 'lhs' design cannot be extended"):
+    with pytest.raises(StoreError, match=r"only a 'sobol' store can grow.*'lhs'"):
         prepare_store(path, scenario, space, n=16, seed=1, sampling="lhs")
 
 
@@ -156,9 +168,9 @@ def test_failed_fe_runs_become_failed_rows_and_can_be_retried(tmp_path, monkeypa
 def test_argument_errors(tmp_path, scenario, space):
     with pytest.raises(ValueError, match="either workers .* or scheduler"):
         run_snapshots(tmp_path / "s.h5", scenario, space, n=4, seed=0, workers=2, scheduler="tcp://x:1")
-    with pytest.raises(ValueError, match="chunk_size must be an integer >= 1; got 0"):
+    with pytest.raises(ValueError, match="chunk_size .*>= 1; got 0"):
         run_snapshots(tmp_path / "s.h5", scenario, space, n=4, seed=0, workers=1, chunk_size=0)
-    with pytest.raises(ValueError, match="n must be an integer >= 1; got 0"):
+    with pytest.raises(ValueError, match="n must be .*>= 1; got 0"):
         run_snapshots(tmp_path / "t.h5", scenario, space, n=0, seed=0, workers=1)
     with pytest.raises(StoreError, match="no snapshot store at"):
         run_pending(tmp_path / "missing.h5", workers=1)
@@ -174,7 +186,7 @@ def test_a_small_job_runs_serially_with_workers_2_and_says_why(tmp_path, referen
     path = tmp_path / "small.h5"
     summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2)
     assert summary.executor.startswith("serial: 2 workers asked, but 64 runs ×"), summary.executor
-    assert "less than a local cluster takes to start" in summary.executor
+    assert "local cluster" in summary.executor  # why: the cluster's start-up
     assert summary.done == 64 and summary.ran == 64
     _assert_same_store(path, reference)
 
@@ -185,7 +197,7 @@ def test_two_local_dask_workers_give_the_serial_store(tmp_path, reference, scena
     path = tmp_path / "dask.h5"
     summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2, chunk_size=4)
     assert summary.executor == "local Dask cluster, 2 workers" and summary.done == 64
-    _assert_same_store(path, reference)
+    _assert_same_store(path, reference, same_process=False)
 
 
 @pytest.mark.slow
@@ -203,7 +215,7 @@ def test_existing_scheduler_resumes_a_serial_store(tmp_path, reference, scenario
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as cluster:
         summary = run_snapshots(path, scenario, space, n=64, seed=7, scheduler=cluster.scheduler_address, chunk_size=3)
     assert summary.executor.startswith("Dask scheduler tcp://") and summary.ran == 54
-    _assert_same_store(path, reference)
+    _assert_same_store(path, reference, same_process=False)
     with SnapshotStore.open(path) as store:
         assert not np.isin(store.status(), (PENDING, FAILED)).any()
 

@@ -29,7 +29,7 @@ def test_shape_bounds_repeatability(method):
 
 
 def test_sobol_warns_when_not_power_of_two():
-    with pytest.warns(UserWarning, match="Sobol' design of 10 points: balance properties need a power of two"):
+    with pytest.warns(UserWarning, match="of 10 points.*power of two"):
         sobol(10, 2, seed=0)
     with pytest.warns(UserWarning, match="of 24 points"):
         sample("sobol", 8, 2, seed=0, skip=16)
@@ -64,15 +64,15 @@ def test_uniform_is_default_rng():
 
 
 def test_errors():
-    with pytest.raises(ValueError, match=r"sampling method must be one of \('sobol', 'lhs', 'lhs-ese', 'random'\); got 'halton'"):
+    with pytest.raises(ValueError, match=r"\('sobol', 'lhs', 'lhs-ese', 'random'\); got 'halton'"):
         sample("halton", 4, 2, seed=0)
-    with pytest.raises(ValueError, match="a 'lhs' design of 8 points cannot be extended"):
+    with pytest.raises(ValueError, match="'lhs' design of 8 points"):
         sample("lhs", 4, 2, seed=0, skip=8)
-    with pytest.raises(ValueError, match="n must be >= 1; got 0"):
+    with pytest.raises(ValueError, match="n must be >= 1.*got 0"):
         sobol(0, 2, seed=0)
-    with pytest.raises(ValueError, match="seed must be >= 0; got -1"):
+    with pytest.raises(ValueError, match="seed must be >= 0.*got -1"):
         uniform(4, 2, seed=-1)
-    with pytest.raises(TypeError, match="seed must be an integer; got 1.5"):
+    with pytest.raises(TypeError, match="seed must be an integer.*got 1.5"):
         latin_hypercube(4, 2, seed=1.5)
 
 
@@ -90,7 +90,7 @@ def test_lhs_ese_is_a_latin_hypercube_that_fills_space_better():
     for j in range(3):
         assert_array_equal(np.sort(np.floor(U[:, j] * 20)), np.arange(20))
     assert phi_p(U) < min(phi_p(latin_hypercube(20, 3, seed=s)) for s in range(5))
-    with pytest.raises(ValueError, match="a 'lhs-ese' design of 8 points cannot be extended"):
+    with pytest.raises(ValueError, match="'lhs-ese' design of 8 points"):
         sample("lhs-ese", 4, 2, seed=0, skip=8)
 
 

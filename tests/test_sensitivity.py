@@ -176,17 +176,17 @@ def test_one_parameter_and_one_output_explain_all_the_variance():
 
 
 @pytest.mark.parametrize("kw, match", [
-    ({"n": 6}, r"^n must be a power of two >= 2 \(base samples of the Sobol' design\); got 6$"),
-    ({"n": 1}, r"^n must be a power of two >= 2 .*; got 1$"),
-    ({"confidence": 0.0}, r"^confidence must lie in \(0, 1\); got 0\.0$"),
-    ({"n_resamples": 9}, r"^n_resamples must be >= 10 for a percentile interval; got 9$")])
+    ({"n": 6}, r"n .*power of two >= 2.*got 6"),
+    ({"n": 1}, r"n .*power of two >= 2.*got 1"),
+    ({"confidence": 0.0}, r"confidence .*\(0, 1\); got 0\.0"),
+    ({"n_resamples": 9}, r"n_resamples must be >= 10.*got 9")])
 def test_settings_at_the_limits_are_refused_with_the_value(kw, match):
     with pytest.raises(ValueError, match=match):
         sobol_indices(lambda U: U[:, 0], ("a",), ("y",), **kw)
 
 
 def test_a_function_returning_too_few_outputs_is_named():
-    with pytest.raises(ValueError, match=r"^fun_unit returned 1 outputs for 2 output names$"):
+    with pytest.raises(ValueError, match=r"fun_unit returned 1 outputs.*2 output names"):
         sobol_indices(lambda U: U[:, 0], ("a",), ("y", "z"), n=4)
 
 

@@ -421,7 +421,7 @@ def test_fe_differences_stand_in_where_exact_sensitivities_cannot(tmp_path, capl
     job = _job(k=1, n_points=4, n_random=2, methods=("greedy",), include_current=False)
     with pytest.raises(ExactSensitivitiesUnavailable, match="release = 'exact'"):
         place_sensors(sc, with_km, cands, job, model="exact")
-    with pytest.raises(ValueError, match="model must be a batched model or one of"):
+    with pytest.raises(ValueError, match="model must be .*one of"):
         place_sensors(sc, with_km, cands, job, model="surrogate")
     with caplog.at_level("WARNING", logger="podkrig.sensors.placement"):
         auto = place_sensors(sc, with_km, cands, job, model="auto")

@@ -99,7 +99,7 @@ def test_content_hash_depends_on_done_values_only(tmp_path, scenario, space):
 def test_finished_rows_are_never_rewritten(tmp_path, scenario, space):
     with _make(tmp_path / "s.h5", scenario, space) as store:
         _fill(store, [0, 1], scenario)
-        with pytest.raises(StoreError, match=r"rows \[1\] are already done; finished rows are never rewritten"):
+        with pytest.raises(StoreError, match=r"rows \[1\] are already done.*never rewritten"):
             _fill(store, [1, 2], scenario)
         assert store.status()[2] == PENDING  # nothing of the refused batch was written
         with pytest.raises(StoreError, match=r"distinct indices in \[0, 8\)"):
@@ -139,7 +139,7 @@ def test_extend_keeps_rows(tmp_path, scenario, space):
 def test_create_refuses_existing_file(tmp_path, scenario, space):
     path = tmp_path / "s.h5"
     path.write_bytes(b"precious")
-    with pytest.raises(StoreError, match="already exists; a store is never overwritten"):
+    with pytest.raises(StoreError, match="already exists.*never overwritten"):
         _make(path, scenario, space)
     assert path.read_bytes() == b"precious"
 
@@ -173,11 +173,11 @@ def _damaged_header(path, scenario, space):
 @pytest.mark.parametrize(
     "damage, message",
     [
-        (_truncated, r"cannot be opened: truncated or corrupt HDF5 file .*left untouched"),
-        (_garbage, r"is not an HDF5 file \(empty, corrupt or another format\); it was left untouched"),
+        (_truncated, r"cannot be opened: .*corrupt HDF5 file.*left untouched"),
+        (_garbage, r"is not an HDF5 file.*left untouched"),
         (_empty, r"is not an HDF5 file"),
-        (_foreign, r"is an HDF5 file but not a podkrig snapshot store"),
-        (_damaged_header, r"cannot be opened: truncated or corrupt HDF5 file"),
+        (_foreign, r"not a podkrig snapshot store"),
+        (_damaged_header, r"cannot be opened: .*corrupt HDF5 file"),
     ],
 )
 def test_damaged_files_are_refused_and_untouched(tmp_path, scenario, space, damage, message):

@@ -4,6 +4,7 @@ stores without checksums, leftovers of an interrupted creation."""
 
 import errno
 import json
+import logging
 import os
 import shutil
 import subprocess
@@ -74,7 +75,7 @@ def test_creation_never_replaces_a_file_that_appeared_meanwhile(tmp_path, scenar
         path.write_bytes(b"the other writer's store")  # it finished first
 
     monkeypatch.setattr(store_module, "_write_layout", racing_layout)
-    with pytest.raises(StoreError, match="already exists; a store is never overwritten"):
+    with pytest.raises(StoreError, match="already exists.*never overwritten"):
         _make(path, scenario, space)
     assert path.read_bytes() == b"the other writer's store"
     assert not list(tmp_path.glob(".s.h5.tmp-*"))
@@ -150,7 +151,7 @@ def test_write_error_propagates_and_a_rerun_completes(tmp_path, scenario, space,
         real(self, key, value)
 
     monkeypatch.setattr(h5py.Dataset, "__setitem__", failing)
-    with pytest.raises(StoreError, match=r"disk full: 12 rows written and kept in .* rerun the same command"):
+    with pytest.raises(StoreError, match=r"disk full: 12 rows written.*rerun the same command"):
         run_snapshots(path, scenario, space, n=32, seed=2, workers=1, chunk_size=4)
     monkeypatch.setattr(h5py.Dataset, "__setitem__", real)
     with SnapshotStore.open(path) as s:
@@ -223,7 +224,7 @@ def test_a_flipped_bit_is_refused_with_the_row_named(tmp_path, scenario, space, 
     """Finding 4: one bit flip in a stored value was adopted silently."""
     path = _filled(tmp_path / "s.h5", scenario, space)
     _poke(path, dataset, (5, 1) if dataset != "status" else (5, 0), bit=0)
-    message = rf"rows 5 of dataset '{dataset}' do not match their checksums"
+    message = rf"rows 5 of dataset .*{dataset}.*checksums"
     if when == "open":
         with pytest.raises(IntegrityError, match=message):
             SnapshotStore.open(path)
@@ -244,7 +245,7 @@ def test_damaged_fields_and_metadata_are_refused(tmp_path, scenario, space):
         f["fields"][2] = row
     with SnapshotStore.open(path) as s:
         assert s.verify().bad_rows == {"fields": [2]}
-        with pytest.raises(IntegrityError, match="fields of rows 2 do not match"):
+        with pytest.raises(IntegrityError, match="fields of rows 2 .*match"):
             s.fields()
     path = _filled(tmp_path / "m.h5", scenario, space)
     with h5py.File(path, "r+") as f:
@@ -276,8 +277,8 @@ def test_store_without_checksums_loads_and_can_be_rehashed(tmp_path, scenario, s
         del f["checksums"]
     with SnapshotStore.open(path) as s:
         assert not s.checksummed and s.readings().shape[0] == 8
-    assert "no checksums: written by an older podkrig" in caplog.text
-    assert "podkrig snapshots verify --rehash" in caplog.text
+    (record,) = [r for r in caplog.records if "checksums" in r.getMessage()]
+    assert record.levelno == logging.WARNING and "--rehash" in record.getMessage()  # the remedy's option
     result = runner.invoke(app, ["snapshots", "verify", str(path)])
     assert result.exit_code == 1 and "no checksums" in result.output
     assert runner.invoke(app, ["snapshots", "verify", "--rehash", str(path)]).exit_code == 0

@@ -157,12 +157,12 @@ def test_errors_name_file_line_key_and_allowed_values(tmp_path, old, new, marker
 def test_missing_table_and_toml_syntax_errors(tmp_path):
     path = _write(tmp_path, VALID.replace("[measurement]", "[measurements]"))
     line = VALID[: VALID.index("[measurement]")].count("\n") + 1
-    with pytest.raises(StudyError, match=rf"line {line}: measurements: unknown key \(did you mean 'measurement'\?\)"):
+    with pytest.raises(StudyError, match=rf"line {line}: measurements: .*'measurement'"):
         load_study(path)
     text = VALID.replace("[measurement]\n", "")
     text = text.replace('file = "measured.csv"\nnoise_rel = 0.01\n', "")
     path = _write(tmp_path, text)
-    with pytest.raises(StudyError, match=r"study\.toml: missing key 'measurement'; allowed: required top-level keys"):
+    with pytest.raises(StudyError, match=r"study\.toml: missing key 'measurement'"):
         load_study(path)
     path = _write(tmp_path, VALID.replace("nx = 2", "nx = = 2"))
     with pytest.raises(StudyError, match=r"study\.toml: not valid TOML: .*line 5"):

@@ -100,7 +100,7 @@ def test_save_load_round_trip(surrogate, snapshots, tmp_path):
 
 def test_extrapolation_refused_or_warned(surrogate):
     x = np.array([[2000.0, 40.0, 0.5, 10000.0]])  # kN_bj above its bound 1000 N/mm³
-    with pytest.raises(ValueError, match=r"kN_bj = 2000 N/mm³ not in \[10, 1000\].*extrapolate=True"):
+    with pytest.raises(ValueError, match=r"kN_bj = 2000 N/mm³ .*\[10, 1000\].*extrapolate=True"):
         surrogate.predict(x)
     with pytest.warns(UserWarning, match="extrapolating"):
         y = surrogate.predict(x, extrapolate=True)

@@ -41,14 +41,20 @@ def surrogate():
     return PODKriging(pod=POD(energy=1 - 1e-10), kriging=OrdinaryKriging(beta="fit"), space=SPACE).fit(X, snapshots(X))
 
 
-def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
-    """The reference file was written by the code before this layout (see tests/data/README.md)."""
+def test_schema_1_file_loads_and_predicts_as_before(tmp_path):
+    """The reference file was written by the code before this layout (see tests/data/README.md), on
+    another machine: its predictions are reproduced to rounding, and a rewrite in today's schema
+    predicts bit for bit what the loaded file predicts (one process)."""
     with h5py.File(DATA / "surrogate_v1.h5") as f:
         assert (f.attrs["format"], int(f.attrs["schema_version"])) == ("podkrig.surrogate", 1)
     sur = load_surrogate(DATA / "surrogate_v1.h5")
     expected = np.load(DATA / "surrogate_v1_expected.npz")
     mean, std = sur.predict(expected["X"], return_std=True, reshape=True)
-    assert_array_equal(mean, expected["mean"])
+    # the expected means were computed on another CPU: BLAS and numba kernels round differently
+    # across CPUs (AMD EPYC: all 192 means differ, by at most 3e-11 relative); 1e-9 relative
+    # (plus 1e-12 of the largest mean for values near zero) is rounding, far below any accuracy
+    # that matters, and far above what a wrong weight or mode would leave
+    np.testing.assert_allclose(mean, expected["mean"], rtol=1e-9, atol=1e-12 * np.abs(expected["mean"]).max())
     # the variance is now formed with the stored explicit L^-1 (a triangular product) instead of
     # triangular solves: the same formula in another rounding order. The kriging sums near the
     # conditioning limit amplify rounding ~1e6-fold: 7e-10 relative here; 1e-8 leaves a margin
@@ -59,7 +65,7 @@ def test_schema_1_file_loads_and_predicts_bitwise_as_before(tmp_path):
     with h5py.File(tmp_path / "v2.h5") as f:
         assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 3 and f.attrs["backend"] == "podkrig"
     again = load_surrogate(tmp_path / "v2.h5")
-    assert_array_equal(again.predict(expected["X"], reshape=True), expected["mean"])
+    assert_array_equal(again.predict(expected["X"], reshape=True), mean)  # same process: the same bits
 
 
 def test_hyperparameters_are_one_frozen_value_object(surrogate):
@@ -143,7 +149,7 @@ def test_predict_unit_is_predict_without_the_round_trip(surrogate):
     # (sum |alpha_i k_i| ~ 1e7 |y|, BENCHMARKS.md) amplify to ~1e-11 of the outputs' scale
     np.testing.assert_allclose(m_unit, m_phys, rtol=0, atol=1e-9 * np.abs(m_phys).max())
     np.testing.assert_allclose(s_unit, s_phys, rtol=0, atol=1e-6 * s_phys.max())
-    with pytest.raises(ValueError, match=r"unit coordinates must lie in \[0, 1\]; sample 0: kN_bj has 1.01"):
+    with pytest.raises(ValueError, match=r"unit coordinates .*\[0, 1\].*sample 0: kN_bj has 1.01"):
         surrogate.predict_unit([[0.5, 1.01, 0.5]])
     with pytest.raises(ValueError, match=r"U must have shape \(n, 3\)"):
         surrogate.predict_unit(np.zeros((2, 2)))
@@ -154,7 +160,7 @@ def test_predict_unit_is_predict_without_the_round_trip(surrogate):
     assert_array_equal(surrogate.predict_unit([[0, 1, 0]]), surrogate.predict_unit([[0.0, 1.0, 0.0]]))
     np.testing.assert_allclose(surrogate.predict_unit(U[:5], reshape=True), m_unit[:5].reshape(5, 3, 4), rtol=1e-14)
     for bad in (np.nan, np.inf):
-        with pytest.raises(ValueError, match=r"^U must be finite; found NaN or inf$"):
+        with pytest.raises(ValueError, match=r"U must be finite"):
             surrogate.predict_unit([[0.5, bad, 0.5]])
 
 
@@ -216,7 +222,7 @@ def test_training_data_are_the_finished_rows_of_the_store(store_path, tmp_path, 
         assert_array_equal(Xf, X)
         assert F.shape == (5, s.n_loads, s.n_nodes, 2)
         assert_array_equal(F, np.broadcast_to((1e3 / X[:, 1])[:, None, None, None], F.shape))  # as written
-        with pytest.raises(ValueError, match=r"^output must be 'readings' or 'field'; got 'fields'$"):
+        with pytest.raises(ValueError, match=r"output .*'readings' or 'field'; got 'fields'"):
             training_data(s, "fields")
     small = tmp_path / "small.h5"
     with SnapshotStore.open(store_path) as s, SnapshotStore.create(
@@ -224,9 +230,9 @@ def test_training_data_are_the_finished_rows_of_the_store(store_path, tmp_path, 
             seed=1) as t:
         t.write_results(np.arange(3), np.array([DONE, DONE, FAILED]), s.readings(only_done=False)[:3],
                         ["", "", "SolverError"], np.full(3, 0.01))
-        with pytest.raises(ValueError, match=rf"^{small} has 2 finished snapshots; the surrogate needs at least 3 "
-                                             r"\(run 'podkrig snapshots run' first\)$"):
+        with pytest.raises(ValueError, match=r"has 2 finished snapshots.*at least 3") as raised:
             training_data(t)
+        assert str(small) in str(raised.value) and "'podkrig snapshots run'" in str(raised.value)  # file, remedy
     three = tmp_path / "three.h5"
     with SnapshotStore.open(store_path) as s, SnapshotStore.create(
             three, coarse_diagonal, s.space, s.parameters(physical=False, only_done=False)[:3], sampling="sobol",
@@ -321,33 +327,32 @@ def test_every_refused_file_is_named_with_what_to_do(tmp_path, caplog):
     surrogate file); an HDF5 file of another format; a surrogate of an unknown or missing schema
     version. A file without a checksum is read with a warning naming it."""
     missing = tmp_path / "missing.h5"
-    with pytest.raises(StoreError) as raised:
+    with pytest.raises(StoreError, match="no surrogate file at") as raised:
         load_surrogate(missing)
-    assert str(raised.value) == f"no surrogate file at {missing}; build one with 'podkrig surrogate build'"
+    assert str(missing) in str(raised.value) and "'podkrig surrogate build'" in str(raised.value)
 
     text = tmp_path / "notes.h5"
     text.write_text("not HDF5")
-    with pytest.raises(StoreError, match=rf"^{text} cannot be read: damaged surrogate file \("):
+    with pytest.raises(StoreError, match=rf"{text} cannot be read: .*damaged"):
         load_surrogate(text)
 
     other = _hdf5_with_attrs(tmp_path / "other.h5", format="podkrig.snapshots")
     with caplog.at_level("WARNING", logger="podkrig.io.surrogate_file"), pytest.raises(StoreError) as raised:
         load_surrogate(other)
-    assert str(raised.value) == (f"{other} is not a podkrig surrogate (format 'podkrig.snapshots'); "
-                                 "pass the file written by 'podkrig surrogate build'")
-    assert [r.getMessage() for r in caplog.records] == [
-        f"{other} has no checksum (written by an older podkrig): damage cannot be detected; rebuild it"]
+    assert str(raised.value).startswith(f"{other} is not a podkrig surrogate")
+    assert "'podkrig.snapshots'" in str(raised.value) and "'podkrig surrogate build'" in str(raised.value)
+    (record,) = caplog.records  # the file without a checksum is named, at WARNING
+    assert record.levelno == logging.WARNING and str(other) in record.getMessage() and "checksum" in record.getMessage()
 
     for version, shown in ((99, "99"), (None, "None")):
         attrs = {"format": "podkrig.surrogate"} | ({} if version is None else {"schema_version": version})
         future = _hdf5_with_attrs(tmp_path / f"schema_{version}.h5", **attrs)
-        with pytest.raises(SchemaError) as raised:
+        with pytest.raises(SchemaError, match=f"schema version {shown}") as raised:
             load_surrogate(future)
-        assert str(raised.value) == (f"{future} has surrogate schema version {shown}; this podkrig reads 1, 2, 3; "
-                                     "rebuild it")
+        assert str(future) in str(raised.value) and "reads 1, 2, 3" in str(raised.value)
 
     empty = _hdf5_with_attrs(tmp_path / "empty.h5", format="podkrig.surrogate", schema_version=SCHEMA_VERSION)
-    with pytest.raises(StoreError, match=rf"^{empty} is a damaged surrogate file \(KeyError: .+\); rebuild it$"):
+    with pytest.raises(StoreError, match=rf"{empty} is a damaged .*\(KeyError: .+\).*rebuild"):
         load_surrogate(empty)
 
 
@@ -372,20 +377,19 @@ def test_points_are_checked_against_the_trained_box(surrogate):
     centre = 0.5 * (lo + hi)
     assert_array_equal(surrogate.check_box(centre), SPACE.to_unit(centre[None, :]))
     for bad in (np.ones((2, 2)), np.ones((2, 3, 1))):
-        with pytest.raises(ValueError) as raised:
+        with pytest.raises(ValueError, match=r"X must have shape \(n, 3\)") as raised:
             surrogate.check_box(bad)
-        assert str(raised.value) == f"X must have shape (n, 3) for parameters ['E_b', 'kN_bj', 'r_hj']; got {bad.shape}"
-    with pytest.raises(ValueError) as raised:
+        assert "['E_b', 'kN_bj', 'r_hj']" in str(raised.value) and f"got {bad.shape}" in str(raised.value)
+    with pytest.raises(ValueError, match="X must be finite"):
         surrogate.check_box(np.array([centre[0], np.nan, centre[2]]))
-    assert str(raised.value) == "X must be finite; found NaN or inf"
     # two of three samples outside; the first outside entry is named, with its unit ("-": dimensionless)
     outside = np.array([[centre[0], centre[1], 1.5], centre, [0.5 * lo[0], centre[1], 1.5]])
-    with pytest.raises(ValueError) as raised:
+    with pytest.raises(ValueError, match="2 of 3 samples lie outside"
+) as raised:
         surrogate.check_box(outside)
-    assert str(raised.value) == ("2 of 3 samples lie outside the trained box, e.g. sample 0: r_hj = 1.5 - not in "
-                                 "[0.1, 1]; the surrogate does not extrapolate: pass extrapolate=True to predict "
-                                 "anyway (accuracy unknown) or train on a wider space")
-    with pytest.warns(UserWarning, match=r"^2 of 3 samples .*; extrapolating, accuracy unknown$") as caught:
+    for fragment in ("sample 0: r_hj = 1.5 - not in [0.1, 1]", "extrapolate=True"):  # the first outside, the remedy
+        assert fragment in str(raised.value)
+    with pytest.warns(UserWarning, match=r"2 of 3 samples .*extrapolating") as caught:
         surrogate.predict(outside, extrapolate=True)
     assert [w.filename for w in caught] == [__file__]  # attributed to the caller of predict
     # without a parameter space: the box of the training data, parameters x0, x1, ..., no unit
@@ -459,8 +463,10 @@ def test_defaults_the_log_line_and_use_before_fit(caplog):
         bare = PODKriging(kriging=OrdinaryKriging(beta=1.5)).fit(X, snapshots(X))
     assert_array_equal(bare.U_, (X - X.min(axis=0)) / (X.max(axis=0) - X.min(axis=0)))
     assert bare.pod_.energy == 1 - 1e-8
-    assert f"POD-kriging fitted: 16 samples, 12 outputs, {bare.pod_.n_modes_} modes" in caplog.messages
+    (record,) = [r for r in caplog.records if r.name == "podkrig.surrogate.podkriging"]
+    assert record.levelno == logging.INFO and record.args == (16, 12, bare.pod_.n_modes_)  # samples, outputs, modes
     for use in (lambda s: s.predict(X), lambda s: s.n_modes_, lambda s: save_surrogate(s, "never.h5")):
         with pytest.raises(NotFittedError) as raised:
             use(PODKriging())
-        assert str(raised.value) == "this PODKriging instance is not fitted yet; call fit(X, Y) first"
+        assert "PODKriging instance is not fitted" in str(raised.value) and "fit(X, Y)" in str(raised.value)
+

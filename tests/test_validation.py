@@ -58,7 +58,7 @@ def test_relative_errors_hand_values_over_all_outputs_of_a_snapshot():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the zero snapshots raise no division warning
         assert_allclose(relative_errors(P, Y), [0.2, 5.0, 0.0, np.inf], rtol=1e-15)
-    with pytest.raises(ValueError, match=r"differ in shape: \(4, 2, 2\) vs \(4, 4\)"):
+    with pytest.raises(ValueError, match=r"differ in shape.*\(4, 2, 2\) vs \(4, 4\)"):
         relative_errors(P, Y.reshape(4, 4))
 
 
@@ -72,7 +72,7 @@ def test_coverage_counts_the_interval_edge_and_uses_k_two_by_default():
     assert coverage(pred, truth, sigma) == 2 / 3
     assert coverage(pred, truth, sigma, k=1.0) == 1 / 3
     assert coverage(pred, truth, sigma, k=3.0) == 1.0
-    with pytest.raises(ValueError, match=r"one non-empty shape; got \(0,\), \(0,\), \(0,\)"):
+    with pytest.raises(ValueError, match=r"non-empty shape; got \(0,\), \(0,\), \(0,\)"):
         coverage([], [], [])
     with pytest.raises(ValueError, match=r"got \(2,\), \(2,\), \(3,\)"):
         coverage([1.0, 2.0], [1.0, 2.0], [1.0, 1.0, 1.0])
@@ -164,17 +164,18 @@ def test_held_out_error_split_is_exact_for_a_known_off_span_part(fitted, caplog)
     assert rep.extra["fit"]["method"] == "exact"
     assert held_out_errors(sur, Xh, Yh, with_loo=False).loo_error is None
     assert held_out_errors(sur, Xh[:1], Yh[:1]).n_held_out == 1  # one held-out run is enough
-    assert caplog.messages == [f"held-out: 3 samples, median relative error {np.median(rep.rel_error):.3g}, "
-                               f"coverage {rep.coverage_2sigma:.3f}"]
+    (record,) = caplog.records
+    assert record.levelno == logging.INFO and record.name.startswith("podkrig.surrogate")
+    assert record.args == (3, np.median(rep.rel_error), rep.coverage_2sigma)  # samples, median error, coverage
 
 
 def test_held_out_errors_refuses_mismatched_snapshots(fitted):
     """Snapshots of another output shape, another count than the parameters, or none at all: a
     message with the shapes / counts and what to use."""
     sur, X = fitted
-    with pytest.raises(ValueError, match=r"shape \(4,\) per sample, the surrogate predicts \(2, 2\); use held-out"):
+    with pytest.raises(ValueError, match=r"shape \(4,\) per sample.*predicts \(2, 2\)"):
         held_out_errors(sur, X[:2], np.zeros((2, 4)))
-    with pytest.raises(ValueError, match=r"as many held-out parameter vectors as snapshots \(>= 1\); got 3 and 2"):
+    with pytest.raises(ValueError, match=r"held-out parameter vectors.*got 3 and 2"):
         held_out_errors(sur, X[:3], np.zeros((2, 2, 2)))
     with pytest.raises(ValueError, match=r"got 0 and 0"):
         held_out_errors(sur, X[:0], np.zeros((0, 2, 2)))

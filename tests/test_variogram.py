@@ -39,12 +39,11 @@ def test_exponent_range_of_each_model():
     assert_allclose(semivariogram(h, "power", beta=1.0, sill=3.0, range_=2.0), [0.75, 3.0], rtol=1e-14)
     assert_allclose(semivariogram(h, "exponential", beta=1, range_=2.0), 1 - np.exp(-h / 2.0), rtol=1e-14)
     assert_allclose(semivariogram(h, "power", beta=0.2), h**0.2, rtol=1e-14)
-    with pytest.raises(ValueError, match=r"^beta of the exponential family must satisfy 0 < beta <= 2; got 0$"):
+    with pytest.raises(ValueError, match=r"exponential family .*0 < beta <= 2.*got 0"):
         semivariogram(h, "exponential", beta=0.0)
-    with pytest.raises(ValueError, match=r"^beta of the power model must satisfy 0 < beta < 2 \(beta = 2 is not a "
-                                         r"valid intrinsic model\); got 0$"):
+    with pytest.raises(ValueError, match=r"power model .*0 < beta < 2.*got 0"):
         semivariogram(h, "power", beta=0.0)
-    with pytest.raises(ValueError, match=r"^beta must be a number in \(0, 2\] or 'fit'; got 'steep'$"):
+    with pytest.raises(ValueError, match=r"beta .*\(0, 2\] or 'fit'; got 'steep'"):
         semivariogram(h, beta="steep")
-    with pytest.raises(ValueError, match=r"^beta must be a number in \(0, 2\] or 'fit'; got None$"):
+    with pytest.raises(ValueError, match=r"beta .*\(0, 2\] or 'fit'; got None"):
         semivariogram(h, beta=None)

@@ -356,8 +356,9 @@ class PODKriging:
         kr = self.kriging_
         settings = {
             "pod": self.pod_.get_params(),
-            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple)) else v)
-                        for k, v in kr.get_params().items()},
+            "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple))
+                            else f"callable {getattr(v, '__qualname__', type(v).__name__)}" if callable(v) else v)
+                        for k, v in kr.get_params().items()},  # a callable optimizer: its name only
         }
         pod_arrays, pod_attrs = self.pod_.to_arrays()
         kr_arrays, kr_attrs = kr.to_arrays()
@@ -416,7 +417,7 @@ def training_data(store, output="readings"):
 
     Parameters
     ----------
-    store : podkrig.store.SnapshotStore
+    store : podkrig.offline.store.SnapshotStore
         An open store.
     output : {"readings", "field"}
         Sensor readings ``(n, n_loads, n_sensors)`` or displacement fields
@@ -444,7 +445,7 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
 
     Parameters
     ----------
-    store : podkrig.store.SnapshotStore
+    store : podkrig.offline.store.SnapshotStore
         An open store; its parameter space scales the inputs.
     pod, kriging : optional
         Templates, as in :class:`PODKriging`.

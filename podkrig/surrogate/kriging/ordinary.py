@@ -145,7 +145,7 @@ class KrigingHyperparameters:
     Attributes
     ----------
     variogram : {"exponential", "power"}
-        Semivariogram model (:mod:`podkrig.kriging.variogram`).
+        Semivariogram model (:mod:`podkrig.surrogate.kriging.variogram`).
     nugget : float
         Nugget relative to the sill (exponential) or scale (power), dimensionless.
     ranges : ndarray of shape (n_outputs, n_dims)
@@ -213,7 +213,7 @@ class OrdinaryKriging:
     Parameters
     ----------
     variogram : {"exponential", "power"}, default "exponential"
-        Semivariogram model, see :mod:`podkrig.kriging.variogram`.
+        Semivariogram model, see :mod:`podkrig.surrogate.kriging.variogram`.
     beta : float, "fit" or "fit-shared", default "fit-shared"
         Exponent of the semivariogram (bounded to [0.2, 2] for the exponential family, [0.2, 1.95]
         for the power model when fitted): a fixed value (the thesis compares 1.2, 1.5 and 1.8);
@@ -233,7 +233,7 @@ class OrdinaryKriging:
         (1.8: 4.2e-3 at n = 256). Exponents 1, 1.5 and 2 need no transcendental function in the
         prediction kernel, and exponents within about 0.01 below 2 (as fitted here) one logarithm
         per training point and dimension for all outputs together (see
-        :mod:`podkrig.kriging._kernels` and ``BENCHMARKS.md``).
+        :mod:`podkrig.surrogate.kriging._kernels` and ``BENCHMARKS.md``).
     ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
         Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
         the values used when ``optimizer=None``.
@@ -243,8 +243,18 @@ class OrdinaryKriging:
     criterion : {"ml", "loo"}, default "ml"
         Hyperparameters by maximum concentrated likelihood ([1]_; for the intrinsic power model,
         the likelihood of the n − 1 contrasts) or by the closed-form leave-one-out error [2]_.
-    optimizer : {"l-bfgs-b", None}, default "l-bfgs-b"
-        L-BFGS-B on the log-ranges (and beta) with analytic gradients; ``None`` keeps ``ranges``.
+    optimizer : "l-bfgs-b", callable or None, default "l-bfgs-b"
+        Minimiser of the criterion over the log-ranges (and beta), run from every starting point
+        (and for the polish of an exponent that ends near its upper bound).
+        ``"l-bfgs-b"``: :func:`l_bfgs_b` (SciPy's L-BFGS-B with the analytic gradient, at most 200
+        iterations). A callable ``optimizer(objective, x0, bounds) -> (x, f)``, as scikit-learn's
+        ``GaussianProcessRegressor(optimizer=...)`` allows: ``objective(x)`` returns the criterion
+        and its gradient ``(f, grad)`` at ``x`` (shape ``(n_params,)``; a singular system gives
+        :data:`~podkrig.surrogate.kriging.system.FAIL` and a zero gradient), ``x0`` is the
+        starting point and ``bounds`` a list of ``(lower, upper)`` per parameter; it returns the
+        best point found and its criterion. ``None`` keeps ``ranges`` (no search). A callable is
+        not written to a surrogate file (its name is); a loaded surrogate predicts but is not
+        refitted with it.
     n_restarts : int, default 1
         Extra random starting points of the optimiser, on top of ``ranges`` and the previous
         output's optimum.
@@ -366,8 +376,8 @@ class OrdinaryKriging:
         beta = None if fit_beta else check_beta(self.beta, self.variogram)
         if self.criterion not in CRITERIA:
             raise ValueError(f"criterion must be one of {CRITERIA}; got {self.criterion!r}")
-        if self.optimizer not in ("l-bfgs-b", None):
-            raise ValueError(f"optimizer must be 'l-bfgs-b' or None; got {self.optimizer!r}")
+        if not (callable(self.optimizer) or self.optimizer in ("l-bfgs-b", None)):
+            raise ValueError(f"optimizer must be 'l-bfgs-b', a callable or None; got {self.optimizer!r}")
         if fit_beta and self.optimizer is None:
             raise ValueError("beta='fit' needs an optimizer; give a fixed beta or optimizer='l-bfgs-b'")
         if not (np.isscalar(self.nugget) and np.isfinite(self.nugget) and self.nugget >= 0):
@@ -468,6 +478,7 @@ class OrdinaryKriging:
         self.loo_residuals_ = np.empty((n, n_out))
         self.loo_variance_ = np.empty((n, n_out))
         self.n_evaluations_ = np.zeros(n_out, dtype=int)
+        optimize = l_bfgs_b if self.optimizer == "l-bfgs-b" else self.optimizer
         previous = None
         beta0 = 1.8 if kind == EXPONENTIAL else 1.5
         shared = self.beta == "fit-shared"
@@ -494,26 +505,26 @@ class OrdinaryKriging:
                     s = rng.uniform(np.log(max(lo, 0.05)), np.log(min(hi, 5.0)), d)
                     starts.append(np.append(s, rng.uniform(bfit_lo, bfit_hi)) if fit_beta else s)
                 best = None
+                counted = _Counted(obj)
                 for s in starts:
-                    res = minimize(obj, s, jac=True, method="L-BFGS-B", bounds=bounds,
-                                   options={"maxiter": 200})
-                    self.n_evaluations_[col] += res.nfev
-                    if res.fun < FAIL and (best is None or res.fun < best.fun):
+                    res = optimize(counted, s, bounds)
+                    if res[1] < FAIL and (best is None or res[1] < best[1]):
                         best = res
+                self.n_evaluations_[col] += counted.calls
                 if best is None:
                     raise self._singular(X, col, start, d, None)
-                params = best.x
+                params = np.asarray(best[0], dtype=float)
                 if fit_beta and bfit_hi - params[-1] < 0.02:
                     # L-BFGS-B stops just short of an active upper bound: polish the ranges at the
                     # bound and keep it unless clearly worse (0.01 in -2 log L, or 0.1 % of the LOO
                     # error); an exact 2.0 also uses the fast kernel path
-                    fixed = Objective(pairs, y, kind, float(self.nugget), self.criterion, bfit_hi)
-                    res = minimize(fixed, params[:-1], jac=True, method="L-BFGS-B", bounds=bounds[:-1],
-                                   options={"maxiter": 50})
-                    self.n_evaluations_[col] += res.nfev
-                    tol = 0.01 if self.criterion == "ml" else 1e-3 * abs(best.fun)
-                    if res.fun <= best.fun + tol:
-                        params = np.append(res.x, bfit_hi)
+                    fixed = _Counted(Objective(pairs, y, kind, float(self.nugget), self.criterion, bfit_hi))
+                    x, fun = (l_bfgs_b(fixed, params[:-1], bounds[:-1], maxiter=50) if optimize is l_bfgs_b
+                              else optimize(fixed, params[:-1], bounds[:-1]))
+                    self.n_evaluations_[col] += fixed.calls
+                    tol = 0.01 if self.criterion == "ml" else 1e-3 * abs(best[1])
+                    if fun <= best[1] + tol:
+                        params = np.append(np.asarray(x, dtype=float), bfit_hi)
                 previous = params
                 st = obj.state(params)[0]
             psi, b = obj.split(params)
@@ -677,7 +688,7 @@ class OrdinaryKriging:
 
         - ``_theta``: :math:`a_k^{-\\beta}`, ``(n_outputs, n_dims)``;
         - ``_plan_unit``: the numba kernel's grouping of outputs for batches inside the unit cube
-          (:func:`podkrig.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
+          (:func:`podkrig.surrogate.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
         - ``_ones_weights``: :math:`w_j = K_j^{-1} 1 = L_j^{-T} L_j^{-1} 1` per output (exponential
           family), ``(n_outputs, n)``;
         - ``_L_inverse``: :math:`L_j^{-1}` per output, a list of ``(n, n)`` when it takes at most
@@ -901,6 +912,42 @@ class OrdinaryKriging:
             quad[j] = np.einsum("ip,ip->p", V, V)
         trend = 1.0 - np.einsum("jpi,ji->jp", K, self._ones_weights)
         return sigma2 * (1.0 - quad + trend**2 * self.c0_[:, None])
+
+
+def l_bfgs_b(objective, x0, bounds, maxiter=200):
+    """The default ``optimizer`` of :class:`OrdinaryKriging`: SciPy's L-BFGS-B from ``x0``.
+
+    Parameters
+    ----------
+    objective : callable
+        ``objective(x) -> (f, grad)``, the criterion and its analytic gradient.
+    x0 : ndarray of shape (n_params,)
+        Starting point (log-ranges, then the exponent when it is fitted).
+    bounds : list of (float, float)
+        Lower and upper bound of each parameter.
+    maxiter : int, default 200
+        Iterations at most (the polish of an exponent at its upper bound uses 50).
+
+    Returns
+    -------
+    x : ndarray of shape (n_params,)
+        The point L-BFGS-B stops at.
+    f : float
+        The criterion there.
+    """
+    res = minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=bounds, options={"maxiter": maxiter})
+    return res.x, res.fun
+
+
+class _Counted:
+    """An objective that counts its evaluations (``n_evaluations_`` whatever the optimiser)."""
+
+    def __init__(self, objective):
+        self.objective, self.calls = objective, 0
+
+    def __call__(self, x):
+        self.calls += 1
+        return self.objective(x)
 
 
 def _check_duplicates(X):
