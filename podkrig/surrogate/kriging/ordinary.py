@@ -64,7 +64,7 @@ EXPLICIT_INVERSE_BYTES = 64 * 2**20
 VARIANCE_BLOCK_BYTES = 16 * 2**20
 # why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
 # subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
-# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", issue 19, load
+# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", load
 # 7-12 on 2 cores, CPU seconds): the exact fit costs O(n^3) per likelihood evaluation and ~100-300
 # evaluations per output: 38 s at n = 512 (d = 8, 8 modes), 70 s at n = 1024 (FE, d = 5, 6 modes),
 # tens of minutes at n = 2048. A subset of 512 matched or beat the exact fit on all 1024 FE
@@ -794,7 +794,7 @@ class OrdinaryKriging:
         ok.n_outputs_ = ok.alpha_.shape[0]
         n = ok.X_.shape[0]
         ok.n_features_in_ = ok.X_.shape[1]
-        # files written before issue 19 have no record: their fit was exact
+        # files written before the subset fit existed have no record: their fit was exact
         ok.fit_method_ = (FitMethod.from_dict(json.loads(attrs["fit_method"])) if "fit_method" in attrs
                           else FitMethod("exact", n, n))
         ok.subset_index_ = (np.asarray(arrays["subset_index"][...]) if "subset_index" in arrays else np.arange(n))
