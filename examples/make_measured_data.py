@@ -5,7 +5,7 @@ shear_compression``: the same hidden values, the same noise model, seed 2027).
 It runs exactly ``podkrig simulate diagonal_compression --set E_b=10500 --set kN_bj=70
 --set kV_bj=28 --set r_hj=0.55 --format csv`` (the default mesh; ν_b = 0.15 is the default) and
 adds ``σ_i z`` to every reading d_i, with the LVDT noise of the study file (``instrument =
-"lvdt"``): σ_i² = σ_res² + (δ d_i)², σ_res = 1 µm, δ = 1 % (issue 14: a purely relative 1 %
+"lvdt"``): σ_i² = σ_res² + (δ d_i)², σ_res = 1 µm, δ = 1 % (a purely relative 1 %, used before,
 gave the ~2 µm U1 gauge σ ≈ 0.02 µm, finer than any instrument), and ``z`` standard normal from
 ``numpy.random.default_rng(2026)``, drawn in the file's order (load-major: all gauges at 25 kN,
 then at 50 kN, ...). Readings are written with 6 significant digits (0.1 µm and finer), under

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 #: Region-of-equivalence samples per round: below 1024 the sampled region is far too narrow (a
-#: 16-sample "region" called an unidentifiable parameter identified, issue 13 #5); above 2^24 one
+#: 16-sample "region" called an unidentifiable parameter identified); above 2^24 one
 #: round's predictions (n × outputs × 8 B, ~100 outputs) exceed ~13 GiB.
 REGION_SAMPLES_MIN = 1024
 REGION_SAMPLES_MAX = 2**24

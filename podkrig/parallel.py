@@ -4,7 +4,7 @@ The online numerics are many small calls (a GA population of 100 points, a 24-re
 and a few large ones (a region of 10⁶ points). Splitting a small call over threads only adds a
 barrier: on a machine where another process keeps one core busy, every split call waits for a
 thread the operating system has parked behind that process, and an inversion took 9-12 s with two
-numba threads against 0.65 s with one (issue 20). The rules of this module:
+numba threads against 0.65 s with one. The rules of this module:
 
 - **Cores actually available** (:func:`available_cores`): the smaller of the CPU affinity of the
   process (``os.sched_getaffinity``) and the cgroup CPU quota (v2 ``cpu.max``, v1

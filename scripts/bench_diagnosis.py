@@ -7,7 +7,7 @@ Usage::
     python scripts/bench_diagnosis.py --strong 10 --strong-pairs 6   # only effects ≥ 3σ (the targets' population)
 
 Trials (issue 7): pseudo-experimental data from the FE model with one candidate cause switched on
-at a seeded-random location and strength (:mod:`podkrig.diagnosis.trials`), noise σ = 1 % of the
+at a seeded-random location and strength (``tests/diagnosis_trials.py``), noise σ = 1 % of the
 largest reading (≥ 1 µm); the diagnosis never sees the cause. Three negative controls: no effect;
 no effect but other free-parameter values; data from an independent discretisation (Q4 elements,
 12 × 4 per unit, against the default Q8 6 × 2 model: 0.4–0.9 % apart on the diagonals). The diagonal test is instrumented with its six gauges and a
@@ -39,7 +39,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))  
 from diagnosis_trials import make_trial, make_two_cause_trial, noise_sigma  # noqa: E402
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
-from podkrig.diagnosis import CANDIDATES, FEContext, build_base_surrogate, diagnose
+from podkrig.diagnosis import CANDIDATES, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
 from podkrig.parameters import ParameterSpace
 
 BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
@@ -79,7 +79,8 @@ class Setup:
         self.surrogate = build_base_surrogate(self.scenario, self.space, self.scenario.resolve(), 64, 0)
 
     def run(self, trial, seed):
-        return diagnose(self.scenario, trial.measurement, trial.noise, self.space, surrogate=self.surrogate, rng=seed)
+        return diagnose(self.scenario, trial.measurement, trial.noise, self.space, DiagnosisSettings(seed=seed),
+                        surrogate=self.surrogate)
 
 
 #: pairs of hidden causes tried together (the demo's E_b and r_hj first)
@@ -332,7 +333,7 @@ def timing(rng):
         space = ParameterSpace.from_scenario(sc, BOUNDS)
         trial = make_trial(sc, space, {"kN_bj": 150.0, "kV_bj": 30.0}, "head_joint_stiffness", value=0.4, rng=rng)
         t0 = time.perf_counter()
-        d = diagnose(sc, trial.measurement, trial.noise, space, rng=0)
+        d = diagnose(sc, trial.measurement, trial.noise, space, DiagnosisSettings(seed=0))
         print(f"| {label} | {sc.n_dofs} | {d.n_fe_runs} | {time.perf_counter() - t0:.1f} |", flush=True)
     # two causes found in turn: the demo's hidden E_b and r_hj, gauges + DIC, σ = 2 µm, data from
     # the model's own mesh (model-form tolerance 0) and the grid's rigid motion kept (removed, it
@@ -343,7 +344,8 @@ def timing(rng):
                                  [("unit_stiffness", None, 10500.0), ("head_joint_stiffness", None, 0.55)],
                                  rng=rng, sigma=0.002, rigid_body="keep", model_tolerance=0.0)
     t0 = time.perf_counter()
-    d = diagnose(sc, trial.measurement, trial.noise, space, rng=0, rigid_body="keep", model_tolerance=0.0)
+    d = diagnose(sc, trial.measurement, trial.noise, space, DiagnosisSettings(seed=0, model_tolerance=0.0),
+                 rigid_body="keep")
     print(f"| six gauges + 9×9 DIC, two hidden effects (E_b, r_hj) -> {[c.name for c in d.causes]} | "
           f"{sc.n_dofs} | {d.n_fe_runs} | {time.perf_counter() - t0:.1f} |", flush=True)
 

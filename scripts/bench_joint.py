@@ -32,7 +32,6 @@ from podkrig.online.measurement import Measurement, instrument_noise
 from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
 from podkrig.online.region import likelihood_ratio_region
 from podkrig.study import load_study, run_study
-from podkrig.surrogate.podkriging import PODKriging
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "examples"))

@@ -10,7 +10,7 @@ Measures, on the default ``diagonal_compression`` scenario (default mesh) and on
 
 Every process runs one BLAS/MKL/OpenMP thread (threadpoolctl here, ``OMP_NUM_THREADS=1
 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1`` for the workers); local clusters use the runner's
-settings (:data:`podkrig.runner.LOCAL_DASK_CONFIG`: worker profiler off). The measurements are
+settings (:data:`podkrig.offline.runner.LOCAL_DASK_CONFIG`: worker profiler off). The measurements are
 repeated ``--repeat`` times, interleaved, and the best of each is kept. A fifth line runs the same
 FE loops in plain processes (no Dask, no store): the ceiling of any parallel executor on the
 machine. Prints Markdown.

@@ -34,7 +34,7 @@ from diagnosis_trials import make_trial
 from fe import build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from fe.sensors import DICGrid, Gauge, absolute_displacements
-from podkrig.diagnosis import build_base_surrogate, diagnose
+from podkrig.diagnosis import DiagnosisSettings, build_base_surrogate, diagnose
 from podkrig.online.measurement import Measurement
 from podkrig.online.rigid_body import rigid_body_modes
 from podkrig.parameters import ParameterSpace
@@ -69,7 +69,8 @@ def independent_series(n, seed):
         omega = modes.fit(diff.data)[-1, 2]
         for option in ("keep", "auto"):
             t = time.perf_counter()
-            d = diagnose(model, trial.measurement, trial.noise, space, surrogate=surrogate, rng=k, rigid_body=option)
+            d = diagnose(model, trial.measurement, trial.noise, space, DiagnosisSettings(seed=k), surrogate=surrogate,
+                         rigid_body=option)
             alarms[option] += d.verdict != "adequate"
             print(f"| {k} | {truth['kN_bj']:.1f}, {truth['kV_bj']:.1f} | {omega:.2e} | {option} | {d.base.chi2_dof:.2f} | "
                   f"{d.base.dof} | {d.verdict} | {', '.join(c.name for c in d.causes) or '—'} | "

@@ -2,7 +2,7 @@
 layouts L6, L18 and the DIC grid at the noise levels of reference §5.7 (issue 15).
 
 The region of equivalence {m : χ²(m) − χ²(m*) ≤ χ²_p(0.95)} is linearised at the truth (the
-Gauss–Newton curvature that :func:`podkrig.online.uncertainty.likelihood_ratio_region` starts
+Gauss–Newton curvature that :func:`podkrig.online.region.likelihood_ratio_region` starts
 from): with J the FE sensitivities of all readings (central differences, ±0.5 % of each value),
 F = Jᵀ J / σ² and the projection of the ellipsoid on parameter i has half-width
 √(χ²_p(0.95) (F⁻¹)_ii). Noise: Gaussian, independent, absolute σ per reading (LVDT: 1, 2, 5 µm;

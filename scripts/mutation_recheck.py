@@ -14,7 +14,7 @@ resumes where it stopped::
     python ../scripts/mutation_recheck.py podkrig/surrogate/podkriging.py.meta /tmp/recheck.json \\
         tests/test_surrogate.py tests/test_bitflips.py
 
-A developer tool, not a CI step (see BENCHMARKS.md "Mutation testing").
+A developer tool, not a CI step (the finished campaign: docs/benchmarks/mutation-testing.md).
 """
 
 import argparse

@@ -15,7 +15,7 @@ from podkrig.offline.store import SnapshotStore
 from podkrig.online.problem import SurrogateModel
 from podkrig.parameters import ParameterSpace
 from podkrig.surrogate.backends import make_backend
-from podkrig.surrogate.podkriging import PODKriging, fit_from_store, training_data
+from podkrig.surrogate.podkriging import fit_from_store, training_data
 
 runner = CliRunner()
 SPEC = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}

@@ -23,7 +23,7 @@ from podkrig.parameters import ParameterSpace
 from podkrig.surrogate import refine
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import PODKriging, fit_from_store
+from podkrig.surrogate.podkriging import fit_from_store
 from podkrig.surrogate.refine import refine_surrogate, select_batch
 
 BOUNDS = {"kN_bj": (10, 1000, "log"), "E_b": (5000, 20000)}

@@ -122,7 +122,7 @@ class QuadElement:
             Nodal coordinates, mm.
         D : ndarray of shape (3, 3)
             Constitutive matrix, MPa (any symmetric matrix: the affine parts of plane
-            stress are passed one at a time, see :func:`fe.materials.plane_stress_parts`).
+            stress are passed one at a time, see :func:`fe.materials.plane_stress_coefficients`).
         thickness : float
             Out-of-plane thickness, mm.
 

@@ -10,7 +10,7 @@ the top-right corner and each with resultant F/√2, integrated over exactly tha
 partly under a shoe is integrated over the part under it, so any length works at any mesh).
 Load levels 25, 50, 75, 100 kN.
 
-Supports (issue 18): two shoes over ``support_length`` = 130 mm from the bottom-left corner, on
+Supports: two shoes over ``support_length`` = 130 mm from the bottom-left corner, on
 the bottom and on the left face (:mod:`fe.supports`):
 
 - ``support = "rigid"`` (default): a rigid shoe bonded to the wall holds in x and y the nodes of
@@ -22,7 +22,7 @@ the bottom and on the left face (:mod:`fe.supports`):
   stiff bedding; normal and tangential, like an interface to a rigid base) over exactly the
   length, partial edges included.
 
-Until issue 18 every node within the length was pinned by its coordinates, the node of the
+Formerly every node within the length was pinned by its coordinates, the node of the
 second course at y = 130 mm included: a point constraint whose effect grows under refinement, so
 absolute displacements did not converge (``scripts/bench_support_convergence.py``).
 

@@ -16,7 +16,7 @@ same bed-joint parameters as the wall's own bed joints. The beams are rigid (eve
 bottom beam fixed; every node of the top beam on the top beam's u_x, u_y), one course high
 (:class:`~fe.mesh.BrickWallLayout` ``base_joints``). The rocking cracks then open where they did in
 the tests, in the joints against the beams. ``base_joints = false`` clamps the wall's bottom face
-and ties its top face directly (the model before issue 30: its rocking cracks open in the first
+and ties its top face directly (the earlier model: its rocking cracks open in the first
 interior joints, one course inside the wall). With the joints the default sensor ``top_ux`` reads
 the top beam (at mid-height of the beam, since the wall's top face is then a joint).
 

@@ -42,7 +42,6 @@ __all__ = [
     "configure_logging",
     "confirm_large_job",
     "error_message",
-    "number",
     "os_error_message",
     "parse_rigid_groups",
     "print_findings",
@@ -232,13 +231,6 @@ def settings_from_options(cls, options):
         value = given.get(key)
         raise ValueError(f"{option}{'' if value is None else f' {value!r}'}: {what}"
                          + (f"; allowed: {allowed}" if allowed else "")) from None
-
-
-def number(value, digits=4):
-    """``value`` with ``digits`` significant digits for a table, without an exponent below 10⁶
-    (``15934``, not ``1.593e+04``), so that the two ends of an interval read alike."""
-    text = f"{value:.{digits}g}"
-    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
 
 
 def print_findings(console, findings):

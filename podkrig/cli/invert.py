@@ -17,7 +17,6 @@ from podkrig.cli._common import (
     TableFormat,
     configure_logging,
     parse_rigid_groups,
-    number,
     print_findings,
     settings_from_options,
     user_errors,
@@ -35,12 +34,13 @@ from podkrig.online.nested import nested_analyses
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
 from podkrig.reports.findings import words
+from podkrig.reports.html import num
 from podkrig.reports.inverse import write_inversion_report
 
 _CALIBRATION = field_info(CalibrationSettings)
 _REGION = field_info(RegionSettings)
 _GA = field_info(InversionSettings)
-_SEED = _GA["seed"]["default"]
+_IMPORT = ImportSettings()  # the defaults of reading a measurement log
 
 
 def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None):
@@ -73,24 +73,24 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
     return noise.noise_model(sensor_names), noise.describe()
 
 
-def calibration_settings(*, seed=_SEED, population_size=_GA["population_size"]["default"],
-                         generations=_GA["generations"]["default"], n_starts=_GA["n_starts"]["default"],
-                         confidence=_CALIBRATION["confidence"]["default"], region_method=_REGION["method"]["default"], region_samples=_REGION["samples"]["default"],
-                         fe_check=_CALIBRATION["fe_check"]["default"], mcmc_steps=_CALIBRATION["mcmc_steps"]["default"],
-                         model_form_error="none"):
+def calibration_settings(*, seed=None, population_size=None, generations=None, n_starts=None, confidence=None,
+                         region_method=None, region_samples=None, fe_check=None, mcmc_steps=None,
+                         model_form_error=None):
     """The :class:`~podkrig.online.settings.CalibrationSettings` of the CLI options (a refused value
-    names its option)."""
-    check_region_samples(region_samples)
-    form_error = parse_model_form_error(model_form_error)
+    names its option; an option not given, None, keeps the settings' default)."""
+    if region_samples is not None:
+        check_region_samples(region_samples)
     inversion = settings_from_options(InversionSettings, {
         "seed": ("--seed", seed), "population_size": ("--population-size", population_size),
         "generations": ("--generations", generations), "n_starts": ("--n-starts", n_starts)})
-    region = settings_from_options(RegionSettings, {"method": ("--region-method", str(region_method)),
-                                                    "samples": ("--region-samples", region_samples)})
+    region = settings_from_options(RegionSettings, {
+        "method": ("--region-method", None if region_method is None else str(region_method)),
+        "samples": ("--region-samples", region_samples)})
     return settings_from_options(CalibrationSettings, {
-        "inversion": ("", inversion), "region": ("", region), "confidence": ("--confidence", float(confidence)),
+        "inversion": ("", inversion), "region": ("", region),
+        "confidence": ("--confidence", None if confidence is None else float(confidence)),
         "fe_check": ("--fe-check", fe_check), "mcmc_steps": ("--mcmc-steps", mcmc_steps),
-        "model_form_error": ("--model-form-error", "none" if form_error is None else form_error)})
+        "model_form_error": ("--model-form-error", parse_model_form_error(model_form_error))})
 
 
 def parse_load_range(text):
@@ -146,7 +146,8 @@ _NOISE_ABS = typer.Option([], "--noise-abs", help="Absolute noise (resolution fl
                           "or NAME=SIGMA per sensor (repeatable); with --noise-rel: σ² = σ_res² + (δ d)².")
 _NOISE_REL = typer.Option(None, "--noise-rel", help="Relative noise δ (σ_i = δ |d_i|, or combined with --noise-abs).")
 _NOISE_COV = typer.Option(None, "--noise-cov", help="Noise covariance matrix (CSV, mm², load-major order of the data).")
-_SEED_OPTION = typer.Option(_SEED, "--seed", help="Seed of the GA, the region sampling, the posterior and the RVC.")
+_SEED_OPTION = typer.Option(_GA["seed"]["default"], "--seed",
+                            help="Seed of the GA, the region sampling, the posterior and the RVC.")
 _CONFIDENCE_OPTION = typer.Option(_CALIBRATION["confidence"]["default"], "--confidence",
                                   help="Confidence of the region of equivalence (and of the posterior's intervals).")
 _INSTRUMENT = typer.Option(None, "--instrument", help="Noise of a typical instrument for every sensor: "
@@ -163,13 +164,15 @@ def register(app):
         noise_rel: float = _NOISE_REL,
         noise_cov: Path = _NOISE_COV,
         instrument: str = _INSTRUMENT,
-        load_column: str = typer.Option("load", "--load-column", help="Name of the load column (without its unit)."),
-        repeats: str = typer.Option("average", "--repeats", help="Several readings at one load step: average or keep."),
-        load_tolerance: float = typer.Option(0.0, "--load-tolerance",
+        load_column: str = typer.Option(_IMPORT.load_column, "--load-column",
+                                        help="Name of the load column (without its unit)."),
+        repeats: str = typer.Option(_IMPORT.repeats, "--repeats",
+                                    help="Several readings at one load step: average or keep."),
+        load_tolerance: float = typer.Option(_IMPORT.load_tolerance, "--load-tolerance",
                                              help="Rows within this of a step's first load form one step (load unit)."),
         zero: str = typer.Option(None, "--zero", help="Gauges zeroed at: first (row), a load, 'end of PHASE', or none "
                                                       "(default)."),
-        phase_column: str = typer.Option("phase", "--phase-column",
+        phase_column: str = typer.Option(_IMPORT.phase_column, "--phase-column",
                                          help="Column naming each row's phase (for --zero 'end of PHASE')."),
         load_range: str = typer.Option(None, "--load-range", help="LOWER,UPPER: use only these loads (load unit)."),
         delimiter: str = typer.Option(None, "--delimiter", help="CSV delimiter (default: detected)."),
@@ -179,7 +182,8 @@ def register(app):
         fix: list[str] = typer.Option([], "--fix", help="Fixed parameter NAME=VALUE (repeatable)."),
         rigid_body: RigidBody = typer.Option(RigidBody.auto, "--rigid-body", help=RIGID_BODY_HELP),
         rigid_group: list[str] = typer.Option([], "--rigid-group", help=RIGID_GROUP_HELP),
-        model_form_error: str = typer.Option("none", "--model-form-error", help=MODEL_FORM_ERROR_HELP),
+        model_form_error: str = typer.Option(_CALIBRATION["model_form_error"]["default"], "--model-form-error",
+                                             help=MODEL_FORM_ERROR_HELP),
         report: Path = typer.Option(None, "--report", help="Write an HTML report (index.html + figures) to this folder."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
         seed: int = _SEED_OPTION,
@@ -318,7 +322,7 @@ def parameters_table(calibration, title):
         table.add_column(col, justify="right")
     for j, name in enumerate(r.free):
         lo, hi = region.intervals[name]
-        table.add_row(name, units[name], number(r.x[j], 5), escape(f"[{number(lo)}, {number(hi)}]"),
+        table.add_row(name, units[name], num(r.x[j], 5), escape(f"[{num(lo)}, {num(hi)}]"),
                       "yes" if region.identifiability[name]["identifiable"] else "NO")
     return table
 

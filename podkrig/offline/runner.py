@@ -1,6 +1,6 @@
 """The offline runner: fills a snapshot store with FE responses, serially or on Dask, resumably.
 
-:func:`run_snapshots` creates (or reopens) a :class:`~podkrig.store.SnapshotStore` for a scenario,
+:func:`run_snapshots` creates (or reopens) a :class:`~podkrig.offline.store.SnapshotStore` for a scenario,
 a parameter space and a seeded design, then runs the scenario on every pending row. Executors:
 
 - ``workers=1``: in this process, no Dask;
@@ -140,7 +140,7 @@ class ChunkResult:
     ----------
     rows : ndarray of shape (k,)
     status : ndarray of shape (k,) int8
-        :data:`~podkrig.store.DONE` or :data:`~podkrig.store.FAILED`.
+        :data:`~podkrig.offline.store.DONE` or :data:`~podkrig.offline.store.FAILED`.
     readings : ndarray of shape (k, n_loads, n_sensors)
         mm; NaN for failed rows.
     errors : tuple of str

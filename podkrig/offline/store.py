@@ -1,7 +1,7 @@
 """The snapshot store: a self-describing, resumable HDF5 file of FE responses over a sampling design.
 
 One row per sample, in sample order. Every row exists from creation on (status ``pending``), with
-its parameter vector; the offline runner (:mod:`podkrig.runner`) fills rows in and marks them
+its parameter vector; the offline runner (:mod:`podkrig.offline.runner`) fills rows in and marks them
 ``done`` or ``failed``. Metadata lives in HDF5 attributes, which the h5py documentation calls
 "the official way to store metadata in HDF5" [1]_; bulk arrays live in datasets. Nothing is
 pickled: every attribute is a number, a string or JSON text.

@@ -29,7 +29,7 @@ import logging
 import time
 from dataclasses import dataclass
 
-from podkrig.online.findings import Finding, inversion_findings, measurement_findings
+from podkrig.online.findings import Finding, inversion_findings, measurement_findings, of_test
 from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
 from podkrig.online.model_error import DEFAULT_RATE, ModelError, discretisation_error, tolerance_error
@@ -207,13 +207,6 @@ def _region(problem, x, settings):
     return likelihood_ratio_region(problem, x, confidence=settings.confidence, n_samples=s.samples, rng=seed)
 
 
-def _named(name, findings):
-    """``findings`` of test ``name`` of a joint calibration (None: of the one test)."""
-    if name is None:
-        return findings
-    return [dataclasses.replace(f, test=name) for f in findings]
-
-
 def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, check_measurement=True,
               keep_field=False, calibration_rvc=True, progress=None):
     """Calibrate: model-form error, inversion, region, FE check, posterior, RVC and findings.
@@ -261,9 +254,10 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     refined = {name: _scenario_of(scenarios, name, p) for name, p in problems_by_test(problem).items()
                if settings.form_error(name) == "estimated"}
     first = invert(problem, **ga) if refined else None
-    errors = model_form_errors(problem, settings, first, scenarios=refined or scenarios)
+    errors = model_form_errors(problem, settings, first, scenarios=refined)
     n_fe += 2 * len(refined)
     problem = with_model_form_errors(problem, errors)
+    per_test = problems_by_test(problem)
     say("inversion", 1, 5)
     result = invert(problem, **ga)
     # 3. region of equivalence (with the model-form error)
@@ -272,7 +266,7 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     # 4. FE check at the optimum, per test
     responses = {}
     if settings.fe_check:
-        for name, p in problems_by_test(problem).items():
+        for name, p in per_test.items():
             one = result if name is None else result.tests[name]
             scenario = _scenario_of(scenarios, name, p)
             response = scenario.run(one.parameters, field=True) if keep_field else scenario.run(one.parameters)
@@ -289,7 +283,6 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     say("posterior", 4, 5)
     # 6. RVC of the calibration model(s) and the validation models
     seed = settings.inversion.seed
-    per_test = problems_by_test(problem)
     rvcs = {}
     for name, p in per_test.items() if calibration_rvc else ():
         key = "calibration" if name is None else f"calibration.{name}"
@@ -309,9 +302,9 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     found = []
     if check_measurement:
         for name, p in per_test.items():
-            found += _named(name, measurement_findings(p.measurement.check_summary(p.model.sensor_names, p.noise)))
+            found += of_test(name, measurement_findings(p.measurement.check_summary(p.model.sensor_names, p.noise)))
     found += inversion_findings(result, region)
     for name in result.tests:
-        found += _named(name, inversion_findings(result.tests[name], per_test=True))
+        found += of_test(name, inversion_findings(result.tests[name], per_test=True))
     return CalibrationResult(result, region, posterior, rvcs, found, settings, time.perf_counter() - t0, n_fe,
                              errors, responses)

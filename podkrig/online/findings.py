@@ -43,6 +43,7 @@ Codes and their ``values``
   ``chi2_dof_after`` (-, None without a refit).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 
 #: χ²/dof above which the calibrated model does not reproduce the data within the noise (-)
@@ -119,6 +120,14 @@ class Finding:
     @classmethod
     def from_dict(cls, d):
         return cls(d["code"], d["section"], dict(d.get("values", {})), d.get("level", "warning"), d.get("test"))
+
+
+def of_test(name, findings):
+    """``findings`` of test ``name`` of a joint calibration, each naming it (``name`` None: of the
+    study or its one test, as they are)."""
+    if name is None:
+        return list(findings)
+    return [dataclasses.replace(f, test=name) for f in findings]
 
 
 def is_identifiable(share):
@@ -271,6 +280,6 @@ def diagnosis_findings(d):
 __all__ = [
     "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding",
     "RESIDUAL_CONVENTION", "UNIDENTIFIABLE_SHARE", "at_bound", "chi2_basis", "diagnosis_findings", "fe_check_ok",
-    "held_out_findings", "inversion_findings", "is_identifiable", "measurement_findings", "offline_findings",
+    "held_out_findings", "inversion_findings", "is_identifiable", "measurement_findings", "of_test", "offline_findings",
     "sensitivity_findings",
 ]

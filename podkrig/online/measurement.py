@@ -47,7 +47,7 @@ INSTRUMENTS = {
             "text": "DIC point, per component: σ_res = 2.5 µm (§5.7: 2.5–5 µm, INFERRED), no relative part"},
 }
 #: Smallest credible σ of one reading, mm: half the finest resolution of the instruments above
-#: (1 µm). A smaller σ makes the region of equivalence optimistic (issue 14: a 1 %-relative model
+#: (1 µm). A smaller σ makes the region of equivalence optimistic (a 1 %-relative model
 #: gave the 2 µm U1 gauge σ ≈ 0.02 µm); :meth:`NoiseModel.below_floor` names such sensors.
 SIGMA_FLOOR_MM = 0.0005
 

@@ -135,7 +135,7 @@ class UnitCubeLeastSquares:
         """:meth:`polish` in the unit cube of the free space: from ``u0`` ``(n_free,)`` in [0, 1];
         returns ``(u, n_evaluations)``. The start is moved ``FACE_MARGIN`` inside the cube: started
         exactly on a face (a GA optimum clipped to the box), scipy's 'trf' takes one step of about
-        1e-10, meets its tolerance and stops there (found by mutation testing, issue 12)."""
+        1e-10, meets its tolerance and stops there (found by mutation testing)."""
         u0 = np.clip(np.asarray(u0, dtype=float), FACE_MARGIN, 1.0 - FACE_MARGIN)
         sol = optimize.least_squares(self.residuals_unit, u0, jac=self.jacobian_unit, bounds=(0.0, 1.0),
                                      x_scale=1.0, max_nfev=max_nfev, method="trf")
@@ -395,7 +395,7 @@ def _model_sensors(model, option):
 
 def check_dof(n_obs, free, source="measurement", removed=0):
     """Refuse a calibration without degrees of freedom: ``n_obs − n_removed − n_free ≤ 0`` fits
-    the data exactly whatever the model (χ²/dof is then undefined, issue 14; ``removed``: the dof
+    the data exactly whatever the model (χ²/dof is then undefined; ``removed``: the dof
     taken by removed rigid-body motions, :mod:`podkrig.online.rigid_body`). A prior-regularised
     problem built in code may have fewer; the study pipeline and the command line call this.
 

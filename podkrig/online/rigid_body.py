@@ -3,7 +3,7 @@
 Absolute displacement readings (DIC grid points, point displacement sensors) include the
 in-plane rigid motion of the specimen, which depends on details of the supports that a model
 rarely gets right: two FE codes of the same diagonal test differ by 3–8 % at the displacement
-points, nearly all of it a rigid rotation of 1.8e-5 rad (issue 18). DIC users remove it before
+points, nearly all of it a rigid rotation of 1.8e-5 rad. DIC users remove it before
 comparing fields; gauges (relative displacements of two points) are immune and never touched.
 
 For a *group* of readings (one DIC grid, or point sensors the user names together) at one load

@@ -18,6 +18,8 @@ Example
 
 from dataclasses import dataclass
 
+from podkrig.reports.html import num
+
 CONTEXTS = ("cli", "study")
 
 
@@ -55,13 +57,6 @@ class FindingText:
         return cls(d["code"], d["section"], d["what"], d["what_to_do"], d.get("level", "warning"))
 
 
-def number(value):
-    """4 significant digits without an exponent below 10⁶ (``15934``, not ``1.593e+04``): both ends
-    of an interval read alike."""
-    text = f"{value:.4g}"
-    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
-
-
 def _unit(unit):
     """`` unit`` to append to a number, or nothing for a dimensionless one."""
     return f" {unit}" if unit and unit != "-" else ""
@@ -84,9 +79,9 @@ def identifiability_text(name, interval, unit, verdict):
     share = verdict["share"]
     unit = unit if unit != "-" else ""
     msg = (
-        f"{name} is identified: [{number(lo)}, {number(hi)}] {unit} spans {100 * share:.0f} % of its search range"
+        f"{name} is identified: [{num(lo)}, {num(hi)}] {unit} spans {100 * share:.0f} % of its search range"
         if verdict["identifiable"] else
-        f"{name} is NOT pinned down by these data: values from {number(lo)} to {number(hi)} {unit} "
+        f"{name} is NOT pinned down by these data: values from {num(lo)} to {num(hi)} {unit} "
         f"({100 * share:.0f} % of its search range) fit equally well; fix it from other tests, "
         "add sensors sensitive to it, or report it as unidentified"
     )
@@ -129,7 +124,7 @@ def _chi2_dof(v, context, diagnosis_enabled):
 def _unidentified(v, context, diagnosis_enabled):
     name = v["parameter"]
     how = f"--fix {name}=VALUE" if context == "cli" else "[fixed]"
-    return (f"{name} is not pinned down by these data: values from {number(v['low'])} to {number(v['high'])}"
+    return (f"{name} is not pinned down by these data: values from {num(v['low'])} to {num(v['high'])}"
             f"{_unit(v['unit'])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
             f"fix {name} from other tests ({how})"
             + ("" if context == "cli" else " or calibrate jointly with a test that informs it ([[test]] tables)")
@@ -261,4 +256,4 @@ def words(findings, context="cli", *, diagnosis_enabled=False):
     return [word(f, context, diagnosis_enabled=diagnosis_enabled) for f in findings]
 
 
-__all__ = ["CONTEXTS", "WORDS", "FindingText", "identifiability_text", "number", "word", "words"]
+__all__ = ["CONTEXTS", "WORDS", "FindingText", "identifiability_text", "word", "words"]

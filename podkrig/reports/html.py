@@ -8,6 +8,8 @@ produces one HTML file with inline CSS.
 import html
 from pathlib import Path
 
+import numpy as np
+
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 h1{font-size:1.6em;border-bottom:2px solid #444}h2{font-size:1.25em;margin-top:2em;border-bottom:1px solid #bbb}
@@ -106,3 +108,24 @@ def fmt(value, digits=4):
     if isinstance(value, (int, float)):
         return f"{value:.{digits}g}"
     return str(value)
+
+
+def num(value, digits=4):
+    """A number for a table: ``digits`` significant digits, no exponent below 10⁶ (``15934``, not
+    ``1.593e+04``, so that the two ends of an interval read alike), an em dash for a missing or
+    non-finite one."""
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
+        return "—"
+    text = fmt(value, digits)
+    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
+
+
+def pct(value, digits=3):
+    """A share (-) in per cent for a table, ``digits`` significant digits; an em dash for a missing
+    or non-finite one."""
+    return "—" if value is None or not np.isfinite(value) else f"{100 * value:.{digits}g}"
+
+
+def unit_cell(unit):
+    """A unit for a table's unit column: ``-`` for a dimensionless one."""
+    return "-" if not unit else unit

@@ -12,7 +12,7 @@ from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.reports.findings import words
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
-from podkrig.reports.html import Page, fmt
+from podkrig.reports.html import Page, fmt, num, pct, unit_cell
 
 
 def _label(name, unit):
@@ -155,19 +155,6 @@ def plot_rvc(rvc_results, path):
     return path
 
 
-def _unit(unit):
-    return "-" if not unit else unit
-
-
-def _num(value, digits=4):
-    """A number for a table: ``digits`` significant digits, no exponent below 10⁶, an em dash for a
-    missing or non-finite one."""
-    if value is None or (isinstance(value, float) and not np.isfinite(value)):
-        return "—"
-    text = fmt(value, digits)
-    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
-
-
 # --------------------------------------------------------------------------------------------
 # the renderers of a calibration (CalibrationResult), shared by the inversion report of the CLI
 # and the study report: each writes one part on a Page, from the result objects alone
@@ -182,10 +169,10 @@ def render_parameters(page, calibration, caption="Identified parameters"):
     for j, name in enumerate(inv.free):
         lo, hi = region.intervals[name]
         ident = region.identifiability[name]
-        row = [name, _unit(units[name]), _num(float(inv.x[j])), f"[{_num(lo)}, {_num(hi)}]",
+        row = [name, unit_cell(units[name]), num(float(inv.x[j])), f"[{num(lo)}, {num(hi)}]",
                "yes" if ident["identifiable"] else "NO", f"{100 * ident['share']:.0f}"]
         if posterior is not None:
-            row.append(f"[{_num(posterior.intervals[name][0])}, {_num(posterior.intervals[name][1])}]")
+            row.append(f"[{num(posterior.intervals[name][0])}, {num(posterior.intervals[name][1])}]")
         rows.append(row)
     page.table(["parameter", "unit", "best fit", f"region of equivalence ({100 * region.confidence:.0f} %)",
                 "identified", "share of search range (%)"]
@@ -199,12 +186,12 @@ def render_joint(page, inv):
     page.paragraph("One set of parameters fitted to every test at once: the misfit is the sum of the tests' "
                    "misfits (thesis eq. 2.13 per test, independent noise between tests).")
     page.table(["parameter", "unit", "best fit", "tests that depend on it"],
-               [[n, _unit(units[n]), _num(v), ", ".join(t for t, one in inv.tests.items() if n in one.free)]
+               [[n, unit_cell(units[n]), num(v), ", ".join(t for t, one in inv.tests.items() if n in one.free)]
                 for n, v in inv.free_parameters.items()])
     page.table(["test", "readings", "χ² (-)", "dof", "χ²/dof (-)", "χ² includes"],
-               [[name, one.measurement["n_obs"], _num(one.chi2), one.dof, _num(one.chi2_dof, 3), one.chi2_basis]
+               [[name, one.measurement["n_obs"], num(one.chi2), one.dof, num(one.chi2_dof, 3), one.chi2_basis]
                 for name, one in inv.tests.items()]
-               + [["all tests", inv.measurement["n_obs"], _num(inv.chi2), inv.dof, _num(inv.chi2_dof, 3),
+               + [["all tests", inv.measurement["n_obs"], num(inv.chi2), inv.dof, num(inv.chi2_dof, 3),
                    inv.chi2_basis]],
                caption="Each test's share of the joint fit")
 
@@ -219,17 +206,17 @@ def render_fit(page, inv, folder="", deformed=False):
         f"{', '.join(f'{v:g}' for v in m['load_levels'])} {m['load_unit']})."
     )
     units = dict(zip(inv.free, inv.units))
-    page.table(["parameter", "unit", "best fit"], [[n, _unit(units[n]), _num(v)] for n, v in inv.free_parameters.items()])
+    page.table(["parameter", "unit", "best fit"], [[n, unit_cell(units[n]), num(v)] for n, v in inv.free_parameters.items()])
     page.table(["misfit ω (-)", "χ² (-)", "degrees of freedom", "χ²/dof (-)", "χ² includes", "surrogate evaluations",
                 "time (s)"],
-               [[_num(inv.misfit), _num(inv.chi2), inv.dof, _num(inv.chi2_dof, 3), inv.chi2_basis, inv.n_evaluations,
-                 _num(inv.seconds, 3)]])
+               [[num(inv.misfit), num(inv.chi2), inv.dof, num(inv.chi2_dof, 3), inv.chi2_basis, inv.n_evaluations,
+                 num(inv.seconds, 3)]])
     fe = inv.fe_check
     if fe is not None:
         page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
                     "χ²/dof of the FE model (-)", "χ² includes"],
-                   [[_num(fe.max_abs_diff, 3), _num(fe.max_diff_over_noise, 3), _num(fe.rel_diff, 3),
-                     _num(fe.chi2_dof_fe, 3), chi2_basis("fe_check")]],
+                   [[num(fe.max_abs_diff, 3), num(fe.max_diff_over_noise, 3), num(fe.rel_diff, 3),
+                     num(fe.chi2_dof_fe, 3), chi2_basis("fe_check")]],
                    caption="FE check at the best fit")
         if fe.ok:
             page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
@@ -263,7 +250,7 @@ def render_region(page, region, posterior=None):
     for j, name in enumerate(region.names):
         lo, hi = region.intervals[name]
         ident = region.identifiability[name]
-        rows.append([name, _unit(region.units[j]), _num(lo), _num(hi), f"{100 * ident['share']:.0f}",
+        rows.append([name, unit_cell(region.units[j]), num(lo), num(hi), f"{100 * ident['share']:.0f}",
                      "yes" if ident["identifiable"] else "NO"])
     page.table(["parameter", "unit", "low", "high", "share of search range (%)", "identified"], rows)
     page.figure("region.png", "2-D projections of the region of equivalence, with the best fit (star)"
@@ -289,15 +276,11 @@ def render_rvc(page, rvc_results, intro=""):
     rows = []
     for model, x in rvc_results.items():
         for k, out in enumerate(x.outputs):
-            rows.append([model, out, _num(float(x.mean[k])), _num(float(x.min[k])), _num(float(x.max[k])),
-                         _pct(x.cv[k]), _pct(x.range_ratio[k])])
+            rows.append([model, out, num(float(x.mean[k])), num(float(x.min[k])), num(float(x.max[k])),
+                         pct(x.cv[k]), pct(x.range_ratio[k])])
     page.table(["model", "output (sensor@load)", "mean (mm)", "min (mm)", "max (mm)", "CV (%)", "(max − min)/mean (%)"],
                rows)
     page.figure("rvc.png", "Spread of each output over the region of equivalence, relative to its mean.")
-
-
-def _pct(value, digits=3):
-    return "—" if value is None or not np.isfinite(value) else f"{100 * value:.{digits}g}"
 
 
 def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="", rvc=True):

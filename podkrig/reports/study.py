@@ -18,7 +18,7 @@ from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
 from podkrig.reports.diagnosis import fitted_parameter_text
-from podkrig.reports.html import Page, fmt
+from podkrig.reports.html import Page, num, pct, unit_cell
 from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
 from podkrig.reports.surrogate import fit_tables, held_out_tables
@@ -38,23 +38,6 @@ SECTIONS = (
     ("diagnosis", "Model diagnosis"),
     ("provenance", "Provenance and cache"),
 )
-
-
-def _unit(unit):
-    return "-" if not unit else unit
-
-
-def _num(value, digits=4):
-    """A number for a table: ``digits`` significant digits, no exponent below 10⁶, an em dash for
-    a missing or non-finite one."""
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return "—"
-    text = fmt(value, digits)
-    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
-
-
-def _pct(value, digits=3):
-    return "—" if value is None or not math.isfinite(value) else f"{100 * value:.{digits}g}"
 
 
 def _finite(obj):
@@ -175,14 +158,14 @@ def _summary(page, study, res, calibration, warnings):
         held = res[t.stage("held_out_validation")]
         fe = calibration.tests[t.name].fe_check
         numbers += [
-            [f"{label}surrogate median error on held-out FE runs (%)", _pct(held["rel_error"]["median"]),
+            [f"{label}surrogate median error on held-out FE runs (%)", pct(held["rel_error"]["median"]),
              f"{held['n_held_out']} runs, {held['n_train']} training snapshots, {held['n_modes']} POD modes"],
             [f"{label}max |FE − surrogate| at the best fit / noise σ (-)",
-             _num(fe.max_diff_over_noise, 3) if fe else "—",
+             num(fe.max_diff_over_noise, 3) if fe else "—",
              "below 1: the surrogate is as good as the data there" if fe else "FE check switched off"],
         ]
     for model, r in calibration.rvc.items():
-        numbers.append([f"largest output CV over the region, {model} (%)", _pct(float(max(r.cv))),
+        numbers.append([f"largest output CV over the region, {model} (%)", pct(float(max(r.cv))),
                         f"{len(r.outputs)} outputs, {r.n_samples} members of the region"])
     page.table(["quantity", "value", "note"], numbers, caption="Key numbers")
     page.paragraph("Each χ²/dof is about 1 when its model explains the data within what its C_D allows; they differ "
@@ -205,12 +188,12 @@ def chi2_rows(calibration, diagnoses=None):
     in a joint calibration, the joint inversion and then each test's rows."""
     inv = calibration.inversion
     diagnoses = diagnoses or {}
-    rows = [("inversion (surrogate)" + (", all tests" if inv.tests else ""), _num(inv.chi2_dof, 3), inv.chi2_basis,
+    rows = [("inversion (surrogate)" + (", all tests" if inv.tests else ""), num(inv.chi2_dof, 3), inv.chi2_basis,
              f"dof = {inv.dof}; the number the inversion minimised")]
     if not inv.tests:
         return rows + _test_chi2_rows(inv, diagnoses.get(None), "")
     for name, one in inv.tests.items():
-        rows.append((f"test {name}: inversion (surrogate)", _num(one.chi2_dof, 3), one.chi2_basis,
+        rows.append((f"test {name}: inversion (surrogate)", num(one.chi2_dof, 3), one.chi2_basis,
                      f"dof = {one.dof} (its readings − the free parameters it depends on)"))
         rows += _test_chi2_rows(one, diagnoses.get(name), f"test {name}: ")
     return rows
@@ -220,12 +203,12 @@ def _test_chi2_rows(inv, d, label):
     rows = []
     fe = inv.fe_check
     if fe is not None:
-        rows.append((f"{label}FE check", _num(fe.chi2_dof_fe, 3), chi2_basis("fe_check"),
+        rows.append((f"{label}FE check", num(fe.chi2_dof_fe, 3), chi2_basis("fe_check"),
                      "no surrogate error: only the FE model against the data"))
     if d is not None:
         a = d["adequacy"]
-        rows.append((f"{label}diagnosis (FE refit)", _num(a["chi2_dof"], 3),
-                     a.get("basis", chi2_basis("diagnosis")), f"dof = {a['dof']}; p = {_num(a['p_value'], 3)}"))
+        rows.append((f"{label}diagnosis (FE refit)", num(a["chi2_dof"], 3),
+                     a.get("basis", chi2_basis("diagnosis")), f"dof = {a['dof']}; p = {num(a['p_value'], 3)}"))
     return rows
 
 
@@ -238,7 +221,7 @@ def _test_heading(page, test):
 def _study(page, study):
     if study.tests:
         page.table(["shared free parameter", "unit", "lower", "upper", "scale"],
-                   [[p.name, _unit(p.unit), _num(p.lower), _num(p.upper), p.scale] for p in study.space.parameters])
+                   [[p.name, unit_cell(p.unit), num(p.lower), num(p.upper), p.scale] for p in study.space.parameters])
     designs = []
     for t in study.calibration_tests:
         _test_heading(page, t)
@@ -248,9 +231,9 @@ def _study(page, study):
         page.paragraph(f"Scenario {name}; options: " + ", ".join(f"{k} = {v}" for k, v in spec.items() if v is not None)
                        + ".")
         page.table(["free parameter", "unit", "lower", "upper", "scale"],
-                   [[p.name, _unit(p.unit), _num(p.lower), _num(p.upper), p.scale] for p in t.space.parameters])
+                   [[p.name, unit_cell(p.unit), num(p.lower), num(p.upper), p.scale] for p in t.space.parameters])
         if fixed:
-            page.table(["fixed parameter", "value"], [[k, _num(v)] for k, v in fixed.items()])
+            page.table(["fixed parameter", "value"], [[k, num(v)] for k, v in fixed.items()])
         m = t.measurement
         page.table(["setting", "value"], [["measurement", f"{m.file.name} ({m.file})"], ["noise model", m.noise.describe()]])
         label = "" if t.name is None else f" ({t.name})"
@@ -315,7 +298,7 @@ def _sensitivity(page, study, r):
             if name in one["parameters"]:
                 k = one["parameters"].index(name)
                 best.append(max((t[k] for t in one["total"] if t[k] is not None and math.isfinite(t[k])), default=0.0))
-        rows.append([name, _num(max(best, default=0.0), 3), _num(m["total"][0][j], 3), _num(m["first"][0][j], 3),
+        rows.append([name, num(max(best, default=0.0), 3), num(m["total"][0][j], 3), num(m["first"][0][j], 3),
                      "yes" if name in r["propose_fixing"] else ""])
     page.table(["parameter", "largest total index over the readings (-)", "total index of the misfit (-)",
                 "first-order index of the misfit (-)", f"propose fixing (< {r['threshold']:g})"], rows)
@@ -345,23 +328,23 @@ def _diagnosis(page, r, folder=""):
         page.paragraph("Switched off for this study: set [diagnosis] enabled = true in the study file to run it.")
         return
     a = r["adequacy"]
-    adequacy = f"{_num(a['chi2_dof'], 3)} (p = {_num(a['p_value'], 3)}, significance level {a['alpha']:g})"
+    adequacy = f"{num(a['chi2_dof'], 3)} (p = {num(a['p_value'], 3)}, significance level {a['alpha']:g})"
     rows = [["verdict", r["verdict"]], ["χ²/dof of the FE model at the base fit (-)", adequacy],
             ["χ² includes", a.get("basis", chi2_basis("diagnosis"))],
             ["cause", r["cause"] or "none"]]
     d = r["detail"]
     if d:
         unit = "" if d["unit"] == "-" else f" {d['unit']}"
-        where = f"{d['location']}: {d['parameter']} = {_num(d['value'])}{unit} (neutral {_num(d['neutral'])}{unit})"
+        where = f"{d['location']}: {d['parameter']} = {num(d['value'])}{unit} (neutral {num(d['neutral'])}{unit})"
         rows.append(["where, and how strong", where])
     g = r["gain"]
     if g:
-        rows.append(["χ²/dof before → after (-)", f"{_num(g['chi2_dof_before'], 3)} → {_num(g['chi2_dof_after'], 3)}"])
-        rows.append(["AIC / BIC drop (-)", f"{_num(g['aic_drop'], 3)} / {_num(g['bic_drop'], 3)}"])
+        rows.append(["χ²/dof before → after (-)", f"{num(g['chi2_dof_before'], 3)} → {num(g['chi2_dof_after'], 3)}"])
+        rows.append(["AIC / BIC drop (-)", f"{num(g['aic_drop'], 3)} / {num(g['bic_drop'], 3)}"])
         if "held_out_rms_before" in g:
             rows.append(["held-out RMS residual before → after (σ)",
-                         f"{_num(g['held_out_rms_before'], 3)} → {_num(g['held_out_rms_after'], 3)}"])
-    rows.append(["FE runs, time (s)", f"{r['n_fe_runs']}, {_num(r['seconds'], 3)}"])
+                         f"{num(g['held_out_rms_before'], 3)} → {num(g['held_out_rms_after'], 3)}"])
+    rows.append(["FE runs, time (s)", f"{r['n_fe_runs']}, {num(r['seconds'], 3)}"])
     page.table(["quantity", "value"], rows)
     if r["verdict"] == "adequate":
         page.success("The calibrated model explains the data within the noise; no candidate cause improves the fit "
@@ -375,8 +358,8 @@ def _diagnosis(page, r, folder=""):
             page.paragraph(f"Nothing significant: no candidate cause improves the fit beyond chance (every corrected "
                            f"p ≥ α = {alpha:g}); the fitted values below only show where each fit went.")
         page.table(["candidate cause", "best location", "fitted parameter", "Δχ² (-)", "corrected p (-)"],
-                   [[c["name"], c["location"] or "—", fitted_parameter_text(c, alpha), _num(c["delta_chi2"], 3),
-                     _num(c["p_corrected"], 3)] for c in cands],
+                   [[c["name"], c["location"] or "—", fitted_parameter_text(c, alpha), num(c["delta_chi2"], 3),
+                     num(c["p_corrected"], 3)] for c in cands],
                    caption="Candidate causes, as ranked by the diagnosis")
     page.links([(f"{folder}diagnosis/index.html",
                  "The diagnosis report: residuals on the specimen and against load, candidate scores, before and after")])
@@ -386,7 +369,7 @@ def _provenance(page, records):
     page.paragraph("Each stage is cached by a hash of its inputs (settings and the files it reads); a cached stage "
                    "was not run again. Manifests: stages/STAGE.json beside this report's folder.")
     page.table(["stage", "this run", "time when run (s)", "FE runs when run", "finished", "input hash"],
-               [[r.title, "cached" if r.cached else "ran", _num(r.manifest["seconds"], 3), r.manifest["fe_runs"],
+               [[r.title, "cached" if r.cached else "ran", num(r.manifest["seconds"], 3), r.manifest["fe_runs"],
                  r.manifest["finished"], r.manifest["input_hash"][:12]] for r in records])
     notes = [f"{r.title}: {n}" for r in records if _store_result(r) is None for n in r.result.get("notes", [])]
     for note in notes:

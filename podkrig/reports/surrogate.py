@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.reports.figures import pyplot, save
-from podkrig.reports.html import Page, fmt
+from podkrig.reports.html import Page, num, pct
 
 logger = logging.getLogger(__name__)
 
@@ -125,19 +125,6 @@ def plot_predicted_vs_fe(report, path, unit="mm"):
     return Path(path)
 
 
-def _num(value, digits=4):
-    """A number for a table: ``digits`` significant digits, no exponent below 10⁶, an em dash for
-    a missing one."""
-    if value is None:
-        return "—"
-    text = fmt(value, digits)
-    return f"{value:.0f}" if "e+" in text and abs(value) < 1e6 else text
-
-
-def _pct(value, digits=3):
-    return "—" if value is None or not np.isfinite(value) else f"{100 * value:.{digits}g}"
-
-
 def fit_tables(page, result):
     """A surrogate fit (:class:`~podkrig.surrogate.results.SurrogateFitResult`) as a table on ``page``:
     training snapshots, POD modes, retained energy, the exponents per mode (our kriging) or the
@@ -147,7 +134,7 @@ def fit_tables(page, result):
     page.table(["training snapshots", "POD modes", "retained energy (-)",
                 "β per mode (-)" if result.beta is not None else "backend", "training time (s)"],
                [[result.n_train, result.n_modes, f"{result.retained_energy:.10f}", regression,
-                 _num(result.training_seconds, 3)]])
+                 num(result.training_seconds, 3)]])
 
 
 def held_out_tables(page, result):
@@ -161,10 +148,10 @@ def held_out_tables(page, result):
     errors = (("total", result.rel_error), ("POD truncation", result.pod_error),
               ("interpolation", result.interp_error), ("leave-one-out (training)", result.loo_error))
     page.table(["error (%)", "median", "95th percentile", "max"],
-               [[label] + [_pct(e[q]) for q in ("median", "p95", "max")] for label, e in errors if e is not None])
+               [[label] + [pct(e[q]) for q in ("median", "p95", "max")] for label, e in errors if e is not None])
     page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
-               [[result.n_held_out, _num(result.rms_abs_error_mm, 3), _num(result.max_abs_error_mm, 3),
-                 _pct(result.coverage_2sigma)]])
+               [[result.n_held_out, num(result.rms_abs_error_mm, 3), num(result.max_abs_error_mm, 3),
+                 pct(result.coverage_2sigma)]])
     if result.fit_description is not None:
         page.paragraph(f"Kriging: {result.fit_description}.")
 

@@ -1,5 +1,5 @@
 """Optimal sensor placement (design stage): where to put the gauges so that the identification is
-as sharp as the noise allows (issue 16; thesis ch. 5; Chisari et al., Struct. Multidisc. Optim. 2017).
+as sharp as the noise allows (thesis ch. 5; Chisari et al., Struct. Multidisc. Optim. 2017).
 
 - :mod:`podkrig.sensors.candidates` — candidate gauges on a grid, DIC points, user lists, zones;
 - :mod:`podkrig.sensors.sensitivity` — readings and exact parameter sensitivities of every candidate

@@ -12,7 +12,6 @@ Finally the report ``DIR/report/index.html`` is written from the manifests (alwa
 and ``DIR/summary.json`` gathers every stage's results and the findings.
 """
 
-import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from podkrig.online.findings import (
     diagnosis_findings,
     held_out_findings,
     measurement_findings,
+    of_test,
     offline_findings,
     sensitivity_findings,
 )
@@ -148,12 +148,12 @@ def run_study(study, out, *, progress=None, confirm=None):
         stages.surrogate(run, test)
         stages.held_out_validation(run, test)
     stages.calibration(run)
+    calibration = stages.load_calibration(run)
     if study.sensitivity.enabled:  # with the calibration's model-form error
-        stages.sensitivity(run)
+        stages.sensitivity(run, calibration.model_form_errors)
     if study.diagnosis.enabled:
         for test in tests:
             stages.diagnosis(run, test)
-    calibration = stages.load_calibration(run)
     found = words(study_findings(run, calibration), "study", diagnosis_enabled=study.diagnosis.enabled)
     report = write_study_report(run.figures / "index.html", study, run.records, calibration, found)
     write_json(run.out / "summary.json", {
@@ -175,28 +175,21 @@ def study_findings(run, calibration):
     tests = study.calibration_tests
     found = []
     for t in tests:
-        found += _named(t, measurement_findings(run.manifest(t.stage("measurement"))["result"]))
+        found += of_test(t.name, measurement_findings(run.manifest(t.stage("measurement"))["result"]))
     for record in run.records:
         if "failed" in record.result:  # the FE stages
             found += offline_findings(record.title, record.result)
     for t in tests:
         noise_rel, noise_abs = t.measurement.noise.levels()
-        found += _named(t, held_out_findings(run.manifest(t.stage("held_out_validation"))["result"],
+        found += of_test(t.name, held_out_findings(run.manifest(t.stage("held_out_validation"))["result"],
                                              noise_rel=noise_rel, noise_abs=noise_abs))
     if study.sensitivity.enabled:
         found += sensitivity_findings(run.manifest("sensitivity")["result"])
     found += calibration.findings
     if study.diagnosis.enabled:
         for t in tests:
-            found += _named(t, diagnosis_findings(run.manifest(t.stage("diagnosis"))["result"]))
+            found += of_test(t.name, diagnosis_findings(run.manifest(t.stage("diagnosis"))["result"]))
     return found
-
-
-def _named(test, findings):
-    """``findings`` of one test of a joint calibration, naming the test (their words begin with it)."""
-    if test.name is None:
-        return findings
-    return [dataclasses.replace(f, test=test.name) for f in findings]
 
 
 __all__ = ["Progress", "StageRecord", "StudyResult", "run_study", "study_findings"]

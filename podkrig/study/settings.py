@@ -77,6 +77,9 @@ def _raise():
 # ---------------------------------------------------------------------------------------------
 # measurement
 
+#: the defaults of reading a measurement log (:class:`~podkrig.io.measurement_log.ImportSettings`)
+_IMPORT = ImportSettings()
+
 _FILE_ALLOWED = ("a CSV (.csv, .txt) or Excel (.xlsx) log, relative to the study file: a load column and one "
                  "column per sensor, units in the headers (e.g. 'load [kN]', 'D1 [µm]'; mm without one)")
 
@@ -147,8 +150,8 @@ class MeasurementSettings:
     (:mod:`podkrig.online.rigid_body`; "auto": each DIC grid and the ``rigid_groups``).
     ``model_form_error``: the FE model's own discretisation error added to C_D in the inversion
     (thesis eq. 2.10): "none", "estimated" (per reading from the mesh refined twice, at a first
-    optimum: the ``model_form_error`` stage) or a relative tolerance ε
-    (:mod:`podkrig.online.model_error`). Validating a table
+    optimum, by the calibration stage: :func:`~podkrig.online.calibrate.model_form_errors`) or a
+    relative tolerance ε (:mod:`podkrig.online.model_error`). Validating a table
     needs the study file's folder in the context (``{"folder": Path}``); constructing one in
     code takes an existing file.
     """
@@ -158,13 +161,14 @@ class MeasurementSettings:
     noise_abs: NoiseAbs = None
     instrument: Instrument = None
     load_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
-                           _allowed("the name of the load column (without its unit)")] = "load"
-    repeats: _choice(REPEATS) = "average"
+                           _allowed("the name of the load column (without its unit)")] = _IMPORT.load_column
+    repeats: _choice(REPEATS) = _IMPORT.repeats
     load_tolerance: Annotated[StrictFloat, AfterValidator(_finite),
-                              _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = 0.0
+                              _allowed("a number >= 0 (the scenario's load unit)", ge=0)] = _IMPORT.load_tolerance
     zero: Annotated[Any, AfterValidator(_zero)] = None
     phase_column: Annotated[StrictStr, AfterValidator(lambda v: v if v.strip() else _raise()),
-                            _allowed("the name of the phase column (read for zero = \"end of PHASE\")")] = "phase"
+                            _allowed("the name of the phase column (read for zero = \"end of PHASE\")")] = (
+        _IMPORT.phase_column)
     load_range: Annotated[Any, AfterValidator(lambda v: None if v is None else _load_range(v))] = None
     delimiter: _choice((",", ";", "\t"), '",", ";" or "\\t" (default: detected)') | None = None
     decimal: _choice((".", ","), '"." or "," (default: detected)') | None = None
@@ -244,9 +248,10 @@ def _power_of_two(value):
 
 @_settings
 class SensitivitySettings:
-    """Global sensitivity before the inversion (:mod:`podkrig.online.sensitivity`): Sobol' indices of
-    every reading and of the misfit on the surrogate(s), ``n`` base samples (``n (d + 2)``
-    evaluations), and the free parameters proposed for fixing because nothing is sensitive to them."""
+    """Global sensitivity (:mod:`podkrig.online.sensitivity`), after the calibration: Sobol' indices
+    of every reading and of the misfit (with the calibration's model-form error) on the
+    surrogate(s), ``n`` base samples (``n (d + 2)`` evaluations), and the free parameters proposed
+    for fixing in the next calibration because nothing is sensitive to them."""
 
     enabled: StrictBool = True
     n: Annotated[StrictInt, AfterValidator(_power_of_two),

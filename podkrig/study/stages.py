@@ -54,7 +54,6 @@ from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.joint import JointProblem
-from podkrig.online.model_error import ModelError
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.rigid_body import rigid_body_modes
 from podkrig.online.sensitivity import (
@@ -485,15 +484,6 @@ def held_out_validation(run, test):
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 
 
-def _form_errors(run):
-    """The model-form error the calibration put in each test's C_D, ``{test name: ModelError}``
-    (empty when no test asks for one)."""
-    if all(t.measurement.model_form_error == "none" for t in run.study.calibration_tests):
-        return {}
-    stored = run.manifest("calibration")["result"]["model_form_errors"]
-    return {None if name == "calibration" else name: ModelError.from_dict(e) for name, e in stored.items()}
-
-
 def _online_inputs(run):
     """Inputs shared by the online stages: each test's surrogate, measurement file and noise."""
     inputs = {}
@@ -570,13 +560,12 @@ def load_calibration(run):
                                            omega=f["omega"])
 
 
-def sensitivity(run):
+def sensitivity(run, errors):
     """Sobol' indices on the surrogate(s): every reading of each test and the misfit of the
-    calibration (with its model-form error), and the free parameters proposed for fixing (total
-    index below :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and
-    the misfit)."""
+    calibration with its model-form error (``errors``: :attr:`CalibrationResult.model_form_errors`),
+    and the free parameters proposed for fixing (total index below
+    :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and the misfit)."""
     s = run.study.sensitivity
-    errors = _form_errors(run)
     estimate = {"model_form_error": {str(n): e.std.tolist() for n, e in errors.items()}} if errors else {}
     inputs = {**_online_inputs(run), **estimate, "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
 

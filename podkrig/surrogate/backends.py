@@ -4,7 +4,7 @@
 (inputs in the unit cube, ``(n_samples, n_dims)``; outputs ``(n_samples, n_modes)``), so that a
 user can compare them on their own data with the same held-out report and invert with any of them:
 
-- ``"podkrig"``: :class:`~podkrig.kriging.OrdinaryKriging`, ours (default);
+- ``"podkrig"``: :class:`~podkrig.surrogate.kriging.OrdinaryKriging`, ours (default);
 - ``"smt-krg"``: SMT's ``KRG`` (ordinary kriging, constant trend), one model per POD mode [1]_;
 - ``"smt-kpls"``: SMT's ``KPLS`` (kriging with partial-least-squares reduced correlation
   hyperparameters), one model per POD mode [2]_;
@@ -40,7 +40,6 @@ from podkrig.parallel import one_blas_thread
 from podkrig.exceptions import NotFittedError
 from podkrig.surrogate.kriging import FitMethod, OrdinaryKriging
 
-DEFAULT_BACKEND = "podkrig"
 _SMT_NUGGET = 100.0 * float(np.finfo(float).eps)  # SMT's own default jitter
 
 

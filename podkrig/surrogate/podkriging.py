@@ -417,7 +417,7 @@ def training_data(store, output="readings"):
 
     Parameters
     ----------
-    store : podkrig.store.SnapshotStore
+    store : podkrig.offline.store.SnapshotStore
         An open store.
     output : {"readings", "field"}
         Sensor readings ``(n, n_loads, n_sensors)`` or displacement fields
@@ -445,7 +445,7 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
 
     Parameters
     ----------
-    store : podkrig.store.SnapshotStore
+    store : podkrig.offline.store.SnapshotStore
         An open store; its parameter space scales the inputs.
     pod, kriging : optional
         Templates, as in :class:`PODKriging`.

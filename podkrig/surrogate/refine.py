@@ -3,8 +3,8 @@
 Each round fits the surrogate on the finished rows of the training store, measures the held-out
 median relative error, and, unless the target or the budget is reached, appends the ``batch``
 candidates of largest predictive variance (summed over the outputs, mm²) from a scrambled Sobol'
-candidate set to the store (:meth:`~podkrig.store.SnapshotStore.extend`) and runs them with the
-offline runner (:func:`~podkrig.runner.run_pending`), so that every new snapshot is saved and an
+candidate set to the store (:meth:`~podkrig.offline.store.SnapshotStore.extend`) and runs them with the
+offline runner (:func:`~podkrig.offline.runner.run_pending`), so that every new snapshot is saved and an
 interrupted refinement resumes from the store. Selected points keep a minimum distance from each
 other (half the mean nearest-neighbour distance of the training design) so that a batch does not
 cluster around one variance peak.

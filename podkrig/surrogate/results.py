@@ -89,10 +89,6 @@ class SurrogateFitResult:
                    training_seconds=None if d.get("training_seconds") is None else float(d["training_seconds"]))
 
 
-#: the error statistics of a :class:`HeldOutResult` (relative errors, -)
-ERRORS = ("rel_error", "pod_error", "interp_error", "loo_error")
-
-
 @dataclass(frozen=True)
 class HeldOutResult:
     """A surrogate's errors on held-out FE runs: the summary of a

@@ -238,7 +238,7 @@ def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
     X, Y : training parameters ``(n, n_params)`` and snapshots ``(n, ...)``
     X_held, Y_held : held-out parameters and snapshots
     settings : sequence of dict
-        Keyword arguments of :class:`~podkrig.kriging.OrdinaryKriging`, e.g.
+        Keyword arguments of :class:`~podkrig.surrogate.kriging.OrdinaryKriging`, e.g.
         ``[{"variogram": "exponential", "beta": 1.2}, ...]``.
     space : ParameterSpace, optional
     pod : POD, optional

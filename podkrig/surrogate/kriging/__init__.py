@@ -1,8 +1,8 @@
 """Ordinary kriging with the semivariograms of the thesis (ch. 4): exponential family and power.
 
-- :mod:`~podkrig.kriging.variogram`: the models, :math:`\\gamma(h) = \\sigma^2 (1 - e^{-(h/a)^\\beta})`
+- :mod:`~podkrig.surrogate.kriging.variogram`: the models, :math:`\\gamma(h) = \\sigma^2 (1 - e^{-(h/a)^\\beta})`
   and :math:`\\gamma(h) = s h^\\beta`, with a range per input dimension;
-- :mod:`~podkrig.kriging.ordinary`: :class:`OrdinaryKriging`, one interpolant per output column,
+- :mod:`~podkrig.surrogate.kriging.ordinary`: :class:`OrdinaryKriging`, one interpolant per output column,
   hyperparameters by concentrated likelihood or closed-form leave-one-out error.
 """
 

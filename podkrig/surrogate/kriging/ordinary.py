@@ -64,7 +64,7 @@ EXPLICIT_INVERSE_BYTES = 64 * 2**20
 VARIANCE_BLOCK_BYTES = 16 * 2**20
 # why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
 # subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
-# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", issue 19, load
+# output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", load
 # 7-12 on 2 cores, CPU seconds): the exact fit costs O(n^3) per likelihood evaluation and ~100-300
 # evaluations per output: 38 s at n = 512 (d = 8, 8 modes), 70 s at n = 1024 (FE, d = 5, 6 modes),
 # tens of minutes at n = 2048. A subset of 512 matched or beat the exact fit on all 1024 FE
@@ -145,7 +145,7 @@ class KrigingHyperparameters:
     Attributes
     ----------
     variogram : {"exponential", "power"}
-        Semivariogram model (:mod:`podkrig.kriging.variogram`).
+        Semivariogram model (:mod:`podkrig.surrogate.kriging.variogram`).
     nugget : float
         Nugget relative to the sill (exponential) or scale (power), dimensionless.
     ranges : ndarray of shape (n_outputs, n_dims)
@@ -213,7 +213,7 @@ class OrdinaryKriging:
     Parameters
     ----------
     variogram : {"exponential", "power"}, default "exponential"
-        Semivariogram model, see :mod:`podkrig.kriging.variogram`.
+        Semivariogram model, see :mod:`podkrig.surrogate.kriging.variogram`.
     beta : float, "fit" or "fit-shared", default "fit-shared"
         Exponent of the semivariogram (bounded to [0.2, 2] for the exponential family, [0.2, 1.95]
         for the power model when fitted): a fixed value (the thesis compares 1.2, 1.5 and 1.8);
@@ -233,7 +233,7 @@ class OrdinaryKriging:
         (1.8: 4.2e-3 at n = 256). Exponents 1, 1.5 and 2 need no transcendental function in the
         prediction kernel, and exponents within about 0.01 below 2 (as fitted here) one logarithm
         per training point and dimension for all outputs together (see
-        :mod:`podkrig.kriging._kernels` and ``BENCHMARKS.md``).
+        :mod:`podkrig.surrogate.kriging._kernels` and ``BENCHMARKS.md``).
     ranges : float or array_like of shape (n_dims,) or (n_outputs, n_dims), default 0.5
         Correlation ranges :math:`a_k` in unit-cube units: the starting point of the optimiser, or
         the values used when ``optimizer=None``.
@@ -688,7 +688,7 @@ class OrdinaryKriging:
 
         - ``_theta``: :math:`a_k^{-\\beta}`, ``(n_outputs, n_dims)``;
         - ``_plan_unit``: the numba kernel's grouping of outputs for batches inside the unit cube
-          (:func:`podkrig.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
+          (:func:`podkrig.surrogate.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
         - ``_ones_weights``: :math:`w_j = K_j^{-1} 1 = L_j^{-T} L_j^{-1} 1` per output (exponential
           family), ``(n_outputs, n)``;
         - ``_L_inverse``: :math:`L_j^{-1}` per output, a list of ``(n, n)`` when it takes at most
@@ -794,7 +794,7 @@ class OrdinaryKriging:
         ok.n_outputs_ = ok.alpha_.shape[0]
         n = ok.X_.shape[0]
         ok.n_features_in_ = ok.X_.shape[1]
-        # files written before issue 19 have no record: their fit was exact
+        # files written before the subset fit existed have no record: their fit was exact
         ok.fit_method_ = (FitMethod.from_dict(json.loads(attrs["fit_method"])) if "fit_method" in attrs
                           else FitMethod("exact", n, n))
         ok.subset_index_ = (np.asarray(arrays["subset_index"][...]) if "subset_index" in arrays else np.arange(n))
