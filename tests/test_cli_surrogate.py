@@ -9,6 +9,8 @@ from numpy.testing import assert_array_equal
 from typer.testing import CliRunner
 
 from podkrig.cli import app
+from podkrig.online.settings import SensitivitySettings
+from podkrig.study.settings import SensitivityTable
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.store import SnapshotStore
@@ -169,3 +171,8 @@ def test_sensitivity_command_writes_indices_figure_and_proposal(stores, tmp_path
     assert (out / "sensitivity.png").is_file() and (out / "sensitivity.json").is_file()
     refused = runner.invoke(app, ["sensitivity", str(sur), "--noise-rel", "0.01", "--out", str(out)])
     assert refused.exit_code != 0 and "needs --data" in refused.output
+    # the defaults are the library's (SensitivitySettings), also the study's [sensitivity] table's
+    default = json.loads(runner.invoke(app, ["sensitivity", str(sur), "--out", str(out), "--format", "json"]).output)
+    assert default["readings"]["n_base"] == SensitivitySettings().n == SensitivityTable().n
+    bad = runner.invoke(app, ["sensitivity", str(sur), "--n", "300", "--out", str(out)])
+    assert bad.exit_code != 0 and "--n" in bad.output and "300" in bad.output and "power of two" in bad.output

@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose
 from podkrig.online.measurement import NoiseModel
 from podkrig.online.problem import InverseProblem
 from podkrig.online.sensitivity import SensitivityResult, misfit_sensitivity, reading_sensitivity, sobol_indices
+from podkrig.online.settings import SensitivitySettings
 from podkrig.parameters import Parameter, ParameterSpace
 from tests.test_inverse import AnalyticModel, measured
 
@@ -157,7 +158,7 @@ def test_an_exceedance_indicator_is_a_valid_output():
 def test_the_smallest_allowed_settings_are_accepted(kw):
     """n = 2 (the smallest power of two ≥ 2 the message allows) and 10 replicates (≥ 10) run."""
     res = sobol_indices(lambda U: U, ("a", "b"), ("y", "z"), **kw)
-    assert res.n_base == kw.get("n", 2**14) and res.first.shape == (2, 2)
+    assert res.n_base == kw.get("n", SensitivitySettings().n) and res.first.shape == (2, 2)
 
 
 def test_one_parameter_and_one_output_explain_all_the_variance():

@@ -5,8 +5,9 @@ from pathlib import Path
 
 import typer
 
-from podkrig.cli._common import TableFormat, configure_logging, user_errors
+from podkrig.cli._common import TableFormat, configure_logging, settings_from_options, user_errors
 from podkrig.cli.simulate import parse_assignment
+from podkrig.online.settings import SENSITIVITY, SensitivitySettings
 
 
 def register(app):
@@ -18,9 +19,11 @@ def register(app):
         data: Path = typer.Option(None, "--data", help="Measurement CSV: also the indices of the misfit ω (needs a noise model)."),
         noise_abs: list[str] = typer.Option([], "--noise-abs", help="σ in mm, or NAME=SIGMA per sensor (with --data)."),
         noise_rel: float = typer.Option(None, "--noise-rel", help="Relative noise δ (with --data)."),
-        n: int = typer.Option(2**14, "--n", help="Base samples (a power of two); n (d + 2) surrogate evaluations."),
-        seed: int = typer.Option(0, "--seed"),
-        confidence: float = typer.Option(0.95, "--confidence", help="Level of the bootstrap intervals."),
+        n: int = typer.Option(SENSITIVITY.n, "--n", help="Base samples (a power of two in [256, 65536]); "
+                              "n (d + 2) surrogate evaluations."),
+        seed: int = typer.Option(SENSITIVITY.seed, "--seed", help="Seed of the Sobol' matrices and the bootstrap."),
+        confidence: float = typer.Option(SENSITIVITY.confidence, "--confidence",
+                                         help="Level of the bootstrap intervals."),
         out: Path = typer.Option(Path("out/sensitivity"), "--out", help="Output folder (sensitivity.json, sensitivity.png)."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
@@ -43,7 +46,8 @@ def register(app):
             free_names = tuple(x.strip() for item in free for x in item.split(",") if x.strip()) or None
             fixed = dict(parse_assignment(t, "--fix") for t in fix)
             model = SurrogateModel(load_surrogate(surrogate))
-            options = {"n": n, "rng": seed, "confidence": confidence}
+            options = settings_from_options(SensitivitySettings, {"n": ("--n", n), "seed": ("--seed", seed),
+                                                                  "confidence": ("--confidence", confidence)}).options()
             readings = reading_sensitivity(model, free=free_names, fixed=fixed, **options)
             misfit = None
             if data is not None:

@@ -33,6 +33,7 @@ from scipy import stats
 
 from podkrig._qmc import scrambled_sobol
 from podkrig.online.problem import fix_from_scenario, unit_template
+from podkrig.online.settings import SENSITIVITY
 
 #: total index below which a parameter is proposed for fixing (1 % of an output's variance)
 NEGLIGIBLE_TOTAL_INDEX = 0.01
@@ -107,7 +108,8 @@ class SensitivityResult:
                    float(d["confidence"]), int(d["n_base"]), float(d["seconds"]))
 
 
-def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, rng=0, confidence=0.95, n_resamples=200):
+def sobol_indices(fun_unit, parameters, outputs, *, n=SENSITIVITY.n, rng=SENSITIVITY.seed,
+                  confidence=SENSITIVITY.confidence, n_resamples=200):
     """Sobol' indices of a batched function of the unit cube.
 
     Parameters
@@ -120,7 +122,7 @@ def sobol_indices(fun_unit, parameters, outputs, *, n=2**14, rng=0, confidence=0
     outputs : sequence of str
         Names of the ``s`` outputs.
     n : int
-        Base samples, a power of two (2^14 by default: indices to ~±0.01 for smooth responses).
+        Base samples, a power of two (default: :class:`~podkrig.online.settings.SensitivitySettings`).
     rng : int or numpy.random.Generator
         Source of the scrambled Sobol' matrices and of the bootstrap (an integer gives the same
         indices on every run).

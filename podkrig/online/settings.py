@@ -29,7 +29,8 @@ from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
 from podkrig.online.model_error import parse_model_form_error
 
 __all__ = [
-    "CONFIDENCE", "GA", "REGION_METHODS", "REGION_SAMPLES", "CalibrationSettings", "InversionSettings", "NoiseSettings", "RegionSettings",
+    "CONFIDENCE", "GA", "REGION_METHODS", "REGION_SAMPLES", "SENSITIVITY", "CalibrationSettings", "InversionSettings",
+    "NoiseSettings", "RegionSettings", "SensitivitySettings",
     "check_ga_budget", "check_noise",
 ]
 
@@ -242,6 +243,29 @@ class CalibrationSettings:
         return None if value == "none" else value
 
 
+def _power_of_two(value):
+    if value & (value - 1):
+        raise ValueError("not a power of two")
+    return value
+
+
+@settings
+class SensitivitySettings:
+    """Global sensitivity on the surrogate (:mod:`podkrig.online.sensitivity`): Sobol' indices of
+    every reading and of the misfit from ``n`` base samples (``n (d + 2)`` surrogate evaluations),
+    the seed of the scrambled Sobol' matrices and of the bootstrap, and the level of the
+    bootstrap intervals."""
+
+    n: Annotated[StrictInt, AfterValidator(_power_of_two),
+                 allowed("a power of two in [256, 65536] (base samples)", ge=256, le=65536)] = 2**12
+    seed: Seed = 0
+    confidence: Confidence = 0.95
+
+    def options(self):
+        """The keywords of :func:`~podkrig.online.sensitivity.sobol_indices`."""
+        return {"n": self.n, "rng": self.seed, "confidence": self.confidence}
+
+
 def _default(cls, name):
     return field_info(cls)[name]["default"]
 
@@ -251,3 +275,5 @@ def _default(cls, name):
 CONFIDENCE = _default(CalibrationSettings, "confidence")
 REGION_SAMPLES = _default(RegionSettings, "samples")
 GA = {name: info["default"] for name, info in field_info(InversionSettings).items()}
+#: the defaults of :func:`~podkrig.online.sensitivity.sobol_indices`
+SENSITIVITY = SensitivitySettings()

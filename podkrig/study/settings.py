@@ -54,6 +54,7 @@ from podkrig.online.settings import (
     PopulationSize,
     RegionSamples,
     RegionSettings,
+    SensitivitySettings,
     Starts,
     check_ga_budget,
     check_noise,
@@ -64,7 +65,7 @@ from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAM
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
     "CalibrationTest", "Design", "DiagnosisSettings", "InversionTable", "MeasurementSettings",
-    "SensitivitySettings", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error",
+    "SensitivityTable", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error",
     "type_name",
 ]
 
@@ -240,23 +241,14 @@ class InversionTable:
             model_form_error=model_form_error)
 
 
-def _power_of_two(value):
-    if value & (value - 1):
-        raise ValueError("not a power of two")
-    return value
-
-
 @_settings
-class SensitivitySettings:
-    """Global sensitivity (:mod:`podkrig.online.sensitivity`), after the calibration: Sobol' indices
-    of every reading and of the misfit (with the calibration's model-form error) on the
-    surrogate(s), ``n`` base samples (``n (d + 2)`` evaluations), and the free parameters proposed
-    for fixing in the next calibration because nothing is sensitive to them."""
+class SensitivityTable(SensitivitySettings):
+    """The ``[sensitivity]`` table: :class:`~podkrig.online.settings.SensitivitySettings` (after the
+    calibration: Sobol' indices of every reading and of the misfit with the calibration's
+    model-form error, and the free parameters proposed for fixing in the next calibration because
+    nothing is sensitive to them), on by default."""
 
     enabled: StrictBool = True
-    n: Annotated[StrictInt, AfterValidator(_power_of_two),
-                 _allowed("a power of two in [256, 65536] (base samples)", ge=256, le=65536)] = 2**12
-    seed: Seed = 0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -349,7 +341,7 @@ class StudyFile:
                           Field(json_schema_extra={"array": "an array of tables ([[validation]])"})] = (
         dataclasses.field(default_factory=list))
     diagnosis: DiagnosisSettings = dataclasses.field(default_factory=DiagnosisSettings)
-    sensitivity: SensitivitySettings = dataclasses.field(default_factory=SensitivitySettings)
+    sensitivity: SensitivityTable = dataclasses.field(default_factory=SensitivityTable)
 
     def __post_init__(self):
         if self.test:
@@ -412,7 +404,7 @@ class Study:
     inversion : InversionTable
     validation : tuple of ValidationModel
     diagnosis : DiagnosisSettings
-    sensitivity : SensitivitySettings
+    sensitivity : SensitivityTable
     tests : tuple of CalibrationTest
         The tests of a joint calibration (``[[test]]`` tables); empty for a study of one test, whose
         scenario, designs and measurement are :attr:`spec`, :attr:`train`, :attr:`held_out` and
@@ -434,7 +426,7 @@ class Study:
     inversion: InversionTable
     validation: tuple
     diagnosis: DiagnosisSettings
-    sensitivity: SensitivitySettings = SensitivitySettings()
+    sensitivity: SensitivityTable = SensitivityTable()
     tests: tuple = ()
 
     def calibration_settings(self):

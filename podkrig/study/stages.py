@@ -567,10 +567,10 @@ def sensitivity(run, errors):
     :data:`~podkrig.online.sensitivity.NEGLIGIBLE_TOTAL_INDEX` for every reading and the misfit)."""
     s = run.study.sensitivity
     estimate = {"model_form_error": {str(n): e.std.tolist() for n, e in errors.items()}} if errors else {}
-    inputs = {**_online_inputs(run), **estimate, "n": s.n, "seed": s.seed, "threshold": NEGLIGIBLE_TOTAL_INDEX}
+    inputs = {**_online_inputs(run), **estimate, "settings": s.options(), "threshold": NEGLIGIBLE_TOTAL_INDEX}
 
     def compute():
-        options = {"n": s.n, "rng": s.seed}
+        options = s.options()
         problem = with_model_form_errors(run.calibration_problem(), errors)
         misfit = misfit_sensitivity(problem, **options)
         readings, files = {}, []
