@@ -1,6 +1,8 @@
 """``podkrig simulate`` through typer's CliRunner."""
 
 import json
+import shlex
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -8,6 +10,7 @@ from typer.testing import CliRunner
 from podkrig.cli import app
 
 runner = CliRunner()
+DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
 def test_help():
@@ -31,6 +34,25 @@ def test_json_output_keys(tmp_path):
     assert len(out["readings"]["D1"]) == 4 and out["readings"]["D1"][-1] < 0
     header = field.read_text().splitlines()[0]
     assert header.startswith("node,x_mm,y_mm,ux_mm@25kN")
+
+
+def test_scenario_options_on_the_command_line(tmp_path):
+    """--option sets a scenario option (a TOML value, or plain text) on top of --spec: the same run
+    as a spec file that says so; an option given to --set is refused naming --option."""
+    spec = tmp_path / "coarse.toml"
+    spec.write_text('scenario = "diagonal_compression"\nnx = 2\nny = 1\n')
+    by_file = json.loads(runner.invoke(app, ["simulate", "diagonal_compression", "--spec", str(spec),
+                                             "--format", "json"]).output)
+    by_option = json.loads(runner.invoke(app, ["simulate", "diagonal_compression", "--option", "nx=2",
+                                               "--option", "ny=1", "--format", "json"]).output)
+    assert by_option["n_dofs"] == by_file["n_dofs"] and by_option["readings"] == by_file["readings"]
+    finer = json.loads(runner.invoke(app, ["simulate", "diagonal_compression", "--spec", str(spec),
+                                           "--option", "nx=4", "--format", "json"]).output)
+    assert finer["n_dofs"] > by_file["n_dofs"]
+    misplaced = runner.invoke(app, ["simulate", "diagonal_compression", "--set", "nx=3"])
+    assert misplaced.exit_code == 2 and "--option nx=3" in misplaced.output
+    unknown = runner.invoke(app, ["simulate", "diagonal_compression", "--option", "nz=3"])
+    assert unknown.exit_code == 2 and "nz" in unknown.output and "nx" in unknown.output
 
 
 def test_csv_and_table_output(tmp_path):
@@ -91,3 +113,28 @@ def test_flat_jack_report(tmp_path):
     names = {p.name for p in out.iterdir()}
     assert {"index.html", "setup.png", "readings.png", "deformed_step1.png", "deformed_step13.png"} <= names
     assert "loading steps" in (out / "index.html").read_text()
+
+
+def _doc_commands(path):
+    """The ``podkrig ...`` lines of the bash blocks of a markdown page, as argument lists (comments
+    dropped)."""
+    commands, in_bash = [], False
+    for line in path.read_text().splitlines():
+        if line.startswith("```"):
+            in_bash = line.strip() == "```bash"
+            continue
+        if in_bash and line.startswith("podkrig "):
+            commands.append(shlex.split(line, comments=True)[1:])
+    return commands
+
+
+@pytest.mark.slow
+def test_the_nonlinear_page_examples_run_as_written(tmp_path, monkeypatch):
+    """Every ``podkrig`` command of docs/nonlinear.md runs and ends with exit code 0 (output folders
+    inside a scratch folder)."""
+    commands = _doc_commands(DOCS / "nonlinear.md")
+    assert len(commands) >= 3
+    monkeypatch.chdir(tmp_path)
+    for args in commands:
+        result = runner.invoke(app, args)
+        assert result.exit_code == 0, (args, result.output[-2000:])

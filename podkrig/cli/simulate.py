@@ -1,7 +1,9 @@
 """``podkrig simulate``: run one FE virtual test and print its readings."""
 
+import dataclasses
 import json
 import time
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -21,16 +23,29 @@ def parse_assignment(text, option="--set"):
         raise ValueError(f"{option} {text!r}: value {value!r} is not a number") from None
 
 
-def load_spec(scenario, spec_file):
-    """The spec of ``scenario``, optionally read from a TOML/JSON file."""
+def parse_option(text):
+    """``"NAME=VALUE"`` → ``(name, value)`` for a scenario option: the value as a TOML value
+    (``0.5``, ``3``, ``true``, ``"constant_force"``, ``[10, 20]``), or else the text itself (so
+    ``top=constant_force`` needs no quotes)."""
+    name, sep, value = text.partition("=")
+    if not sep or not name.strip() or not value.strip():
+        raise ValueError(f"--option {text!r}: expected NAME=VALUE, e.g. --option precompression=0.5")
+    try:
+        return name.strip(), tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        return name.strip(), value.strip()
+
+
+def load_spec(scenario, spec_file, options=()):
+    """The spec of ``scenario``, optionally read from a TOML/JSON file, with the scenario
+    ``options`` (``NAME=VALUE`` texts, :func:`parse_option`) set on top."""
     from fe.scenarios import ScenarioSpec
 
-    if spec_file is None:
-        return ScenarioSpec(scenario)
-    spec = ScenarioSpec.from_file(spec_file)
+    spec = ScenarioSpec(scenario) if spec_file is None else ScenarioSpec.from_file(spec_file)
     if spec.scenario != scenario:
         raise ValueError(f"{spec_file}: spec is for scenario {spec.scenario!r}, not {scenario!r}")
-    return spec
+    given = dict(parse_option(t) for t in options)
+    return ScenarioSpec(scenario, {**spec.options, **given}, spec.parameters) if given else spec
 
 
 def write_field(path, scenario, response):
@@ -50,6 +65,8 @@ def register(app):
         scenario: str = typer.Argument(..., help="Scenario name, e.g. diagonal_compression."),
         spec: Path = typer.Option(None, "--spec", help="Scenario spec file (TOML or JSON)."),
         set_: list[str] = typer.Option([], "--set", help="Parameter value NAME=VALUE (repeatable)."),
+        option: list[str] = typer.Option([], "--option", help="Scenario option NAME=VALUE (repeatable), e.g. "
+                                         "precompression=0.5 or top=constant_force; on top of --spec."),
         format: ResponseFormat = typer.Option(ResponseFormat.table, "--format", help="Output format: table, json or csv."),
         field: Path = typer.Option(None, "--field", help="Also write the displacement field to this CSV file."),
         solver: LinearSolver = typer.Option(LinearSolver.auto, "--solver", help="Linear solver: auto, pardiso or superlu."),
@@ -67,7 +84,12 @@ def register(app):
                 raise ValueError(f"unknown scenario {scenario!r}; available: {sorted(SCENARIOS)}")
             params = dict(parse_assignment(s) for s in set_)
             t0 = time.perf_counter()
-            sc = build_scenario(load_spec(scenario, spec), solver=solver.value)
+            sc = build_scenario(load_spec(scenario, spec, option), solver=solver.value)
+            misplaced = sorted(set(params) & {f.name for f in dataclasses.fields(sc.options)})
+            if misplaced:
+                name = misplaced[0]
+                raise ValueError(f"--set {name}: {name!r} is an option of {scenario}, not a parameter; use "
+                                 f"--option {name}={params[name]:g}")
             nonlinear = hasattr(sc, "force_unit")
             response = sc.run(params, field=field is not None or report is not None)
             seconds = time.perf_counter() - t0
