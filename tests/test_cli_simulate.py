@@ -55,6 +55,15 @@ def test_scenario_options_on_the_command_line(tmp_path):
     assert unknown.exit_code == 2 and "nz" in unknown.output and "nx" in unknown.output
 
 
+def test_a_nonlinear_run_that_stops_early_fails(tmp_path):
+    """A run ended by its budget prints what it reached and exits 1 (its missing levels are NaN,
+    not a result); the same run with the default budget exits 0."""
+    stopped = runner.invoke(app, ["simulate", "couplet_tension", "--option", "max_total_iterations=3",
+                                  "--format", "json"])
+    assert stopped.exit_code == 1 and "iterations limit" in stopped.output
+    assert runner.invoke(app, ["simulate", "couplet_tension", "--format", "json"]).exit_code == 0
+
+
 def test_csv_and_table_output(tmp_path):
     spec = tmp_path / "coarse.toml"
     spec.write_text('scenario = "shear_compression"\nnx = 2\nny = 1\n')

@@ -109,6 +109,11 @@ def register(app):
         _print(sc, response, values, seconds, format)
         if report is not None and format == "table":
             typer.echo(f"report: {page}")
+        if nonlinear and not response.converged:  # the readings past the reach are NaN: not a result
+            typer.echo(f"error: {scenario} stopped early ({response.status}"
+                       + (f", {response.limit} limit" if response.limit else "") + f"): {response.message}; the "
+                       "levels it did not reach read NaN", err=True)
+            raise typer.Exit(1)
 
     return simulate
 
