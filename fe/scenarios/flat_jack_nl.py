@@ -24,10 +24,12 @@ Phases (all on one path, :class:`fe.solvers.nonlinear.PathFollower`):
   are levels of that slip; the load is the V1 gauge pressure p_V1 (MPa); ``delta_p_V`` = p_V1 −
   p_V2 per level. The reported peak is the critical pressure, refined to the solver's
   ``peak_tolerance`` (:class:`fe.solvers.nonlinear.Peak`).
-- ``3'`` (``further_p_H``, optional): for each further p_H, unload V1 to ``p_V2``, then take H to
-  that p_H (load control, phases ``"3'(p_H=…) unload"`` and ``"… p_H"``), then phase 3 again on the joint as the first slide left it (slip
-  levels counted from the slip at the start of the repeat); its p_V1 per level is the extra output
-  ``p_V1(p_H=…)`` and its peak in :meth:`FlatJackShearNonlinear.critical_pressures`.
+- ``3'`` (``further_p_H``, optional): for each further p_H, unload V1 to ``p_V2`` (phase
+  ``"3'(p_H=…) unload"``: indirect control on V1's opening, where load control stalls, then load
+  control), take H to that p_H with the vertical jacks equal (``"3'(p_H=…) p_H"``), then phase 3
+  again on the joint as the first slide left it (slip levels counted from the slip at the start of
+  the repeat); its p_V1 per level is the extra output ``p_V1(p_H=…)`` and its peak in
+  :meth:`FlatJackShearNonlinear.critical_pressures`.
 
 Statics (the reference's §5.4, assuming frictionless jack faces): the block's top joint carries the
 normal force Km p_H Ka L_H t and the shear Km (p_V1 − p_V2) Ka h_V t, so sliding starts at
@@ -158,7 +160,10 @@ class CriticalPressure:
 
 class FlatJackShearNonlinear(NonlinearScenario):
     """Flat-jack shear test: phases 0a–2 of ``flat_jack`` then sliding of the block's top bed joint
-    (phase 3, and the repeats 3'); see the module docstring."""
+    (phase 3, and the repeats 3'); see the module docstring.
+
+    ``linear`` is the linear ``flat_jack`` scenario of the same panel (its mesh, slots, gauges,
+    steps and load patterns are this scenario's); ``steps`` its steps 0b–2."""
 
     name = "flat_jack_shear_nl"
     Options = FlatJackShearOptions
@@ -253,7 +258,8 @@ class FlatJackShearNonlinear(NonlinearScenario):
     def phases(self, values, follower=None, issued=None):
         """The loading phases, generated as the run goes (see the module docstring).
 
-        The repeats 3' start from where the follower is (its slip and load); ``issued`` (a list)
+        The repeats 3' start from where ``follower`` (the :class:`PathFollower` running them; needed
+        only with ``further_p_H``) is, its slip and load; ``issued`` (a list)
         collects the phases as they are generated. The path parameter λ of the elastic steps is a
         step counter (step k of the schedule ends at λ = k + 1, 0a at λ = 1) except that the last
         one ends at λ = p_V1, so that phase 3's λ is V1's gauge pressure.
@@ -267,7 +273,7 @@ class FlatJackShearNonlinear(NonlinearScenario):
         o = self.options
         sigma0 = values["sigma0"]
         f_pre = sigma0 * (self._top - self._release)  # the uncut panel's state: the slots carry σ0
-        yield emit(Phase("0a", "load", target=1.0, increment=1.0, f_const=0.0 * f_pre, f_ref=f_pre, levels=(1.0,)))
+        yield emit(Phase("0a", "load", target=1.0, increment=1.0, f_const=np.zeros_like(f_pre), f_ref=f_pre, levels=(1.0,)))
         previous, lam = f_pre, 1.0
         for k, step in enumerate(self.steps, start=1):
             now = self._load(values, step.pressures)
