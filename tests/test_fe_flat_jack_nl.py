@@ -105,7 +105,7 @@ def test_block_equilibrium_jack_forces_against_the_top_joint():
 
 
 @pytest.mark.slow
-def test_critical_pressure_against_the_statics_estimate_at_two_p_H(runs):
+def test_critical_pressure_against_the_statics_estimate_at_three_p_H(runs):
     """Δp_V,crit of the refined peak lies within 25 % of the statics estimate
     (L_H/h_V)(c + Km p_H tanφ)/Km of the reference scenario at p_H = 0.5 and 1.5 MPa (the estimate
     is an average; the shear concentrated at the block's corners makes sliding progressive, so the
