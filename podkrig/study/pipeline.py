@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig import __version__
+from podkrig.locks import folder_lock
 from podkrig.online.calibrate import CalibrationResult
 from podkrig.online.findings import (
     CHI2_BASIS,
@@ -122,11 +123,20 @@ def run_study(study, out, *, progress=None, confirm=None):
 
     Raises
     ------
+    InUseError
+        Another run (process or thread) holds the output folder: the message names its PID and the
+        folder, and nothing in the folder was changed. The lock (``out/.podkrig.lock``) is released
+        when this call returns or raises.
     ValueError, PodkrigError, fe.FEError
         A measurement file that does not match the scenario, a store that cannot be used, too
         few finished FE runs for a surrogate, ...; finished stages stay cached.
     """
     t0 = time.perf_counter()
+    with folder_lock(out):  # one run per folder: a second one is refused here, before it reads or writes
+        return _run_locked(study, out, progress, confirm, t0)
+
+
+def _run_locked(study, out, progress, confirm, t0):
     run = stages.StudyRun(study, out, progress or Progress())
     if confirm is not None:  # before anything is written
         confirm(*stages.fe_work(run))

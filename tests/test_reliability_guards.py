@@ -1,0 +1,125 @@
+"""Guards at the edges of a run: one run per output folder, bounded reads of every input file,
+measurement paths kept inside the study folder, error messages that quote no file content, and a
+disk-full message whose numbers add up."""
+
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from podkrig.cli import app
+from podkrig.exceptions import InUseError
+from podkrig.locks import FOLDER_LOCK_NAME, folder_lock
+from podkrig.study import load_study, run_study
+
+runner = CliRunner()
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+DEMO = EXAMPLES / "diagonal_compression.toml"
+
+
+def _contents(folder):
+    """Every file under ``folder`` with its bytes (what a refused run must not change)."""
+    return {p.relative_to(folder): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def _holder(folder):
+    """A subprocess holding the output-folder lock of ``folder`` until killed."""
+    code = (f"from podkrig.locks import folder_lock\nwith folder_lock({str(folder)!r}):\n"
+            "    print('ready', flush=True)\n    import time; time.sleep(120)")
+    job = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True,
+                           env=dict(os.environ, PYTHONPATH=os.getcwd()))
+    assert job.stdout.readline().strip() == "ready"
+    return job
+
+
+# ----------------------------------------------------------------------------- output-folder lock
+def test_second_run_into_a_held_folder_is_refused_with_the_pid_and_changes_nothing(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text('{"name": "the first run"}')
+    job = _holder(out)
+    try:
+        before = _contents(out)
+        result = runner.invoke(app, ["run", str(DEMO), "--out", str(out)])
+        assert result.exit_code == 2
+        assert f"PID {job.pid}" in result.output and str(out) in result.output and "in use" in result.output
+        assert "Traceback" not in result.output
+        assert _contents(out) == before
+    finally:
+        job.kill()
+        job.wait()
+        job.stdout.close()
+
+
+def test_a_second_job_in_the_same_process_is_refused(tmp_path):
+    """A front end running jobs in threads of one process: flock belongs to an open file, so the
+    folder lock is not re-entrant."""
+    out = tmp_path / "job"
+    with folder_lock(out):
+        errors = []
+
+        def second():
+            try:
+                with folder_lock(out):
+                    pass
+            except InUseError as e:
+                errors.append(str(e))
+
+        t = threading.Thread(target=second)
+        t.start()
+        t.join()
+        assert len(errors) == 1 and f"PID {os.getpid()}" in errors[0] and str(out) in errors[0]
+        assert (out / FOLDER_LOCK_NAME).exists()
+    assert not (out / FOLDER_LOCK_NAME).exists()  # released on leaving the block
+
+
+def test_stale_lock_of_a_dead_process_is_taken_over(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    (out / FOLDER_LOCK_NAME).write_text(f"PID {dead.stdout.strip()} on a-machine-before-its-reboot\n")
+    with folder_lock(out):
+        assert (out / FOLDER_LOCK_NAME).read_text().startswith(f"PID {os.getpid()} on ")
+    assert not (out / FOLDER_LOCK_NAME).exists()
+
+
+def test_lock_is_released_when_the_run_raises(tmp_path):
+    """run_study holds the lock from its start: an exception (here the confirmation refused) releases it,
+    and a folder the refused run created is removed again (it wrote nothing)."""
+    study = load_study(DEMO)
+    out = tmp_path / "new"
+
+    def refuse(text, large):
+        assert (out / FOLDER_LOCK_NAME).exists()  # held while the run decides
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_study(study, out, confirm=refuse)
+    assert not out.exists()
+    with folder_lock(out):  # free again
+        pass
+
+
+def test_refused_lock_in_a_new_folder_leaves_no_folder(tmp_path):
+    out = tmp_path / "a"
+    with folder_lock(out):
+        with pytest.raises(InUseError, match="nothing was changed"):
+            with folder_lock(tmp_path / "a" / ".." / "a"):
+                pass
+    assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- disk full
+def test_disk_full_message_states_the_margin_so_the_numbers_add_up(tmp_path, monkeypatch):
+    from podkrig.exceptions import StoreError
+    from podkrig.offline import files
+
+    monkeypatch.setattr(files, "free_bytes", lambda folder: 136 * 1024)
+    with pytest.raises(StoreError, match=r"needs about 77\.0 KiB plus a safety margin of 256\.0 KiB.* 333\.0 KiB "
+                                         r"in all.* 136\.0 KiB free"):
+        files.check_disk_space(tmp_path, 77 * 1024, "the store")
+    files.check_disk_space(tmp_path, 136 * 1024 - files.DISK_MARGIN, "the store")  # fits exactly: no error
