@@ -123,3 +123,64 @@ def test_disk_full_message_states_the_margin_so_the_numbers_add_up(tmp_path, mon
                                          r"in all.* 136\.0 KiB free"):
         files.check_disk_space(tmp_path, 77 * 1024, "the store")
     files.check_disk_space(tmp_path, 136 * 1024 - files.DISK_MARGIN, "the store")  # fits exactly: no error
+
+
+# ----------------------------------------------------------------------------- bounded reads
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="no /dev/zero")
+@pytest.mark.parametrize("args, what", [
+    (["run", "/dev/zero"], "study file"),
+    (["simulate", "diagonal_compression", "--spec", "/dev/zero"], "scenario spec"),
+    (["snapshots", "run", "--spec", "/dev/zero", "--param", "kN_bj=10:1000", "--n", "4", "--seed", "0",
+      "--store", "{tmp}/s.h5"], "scenario spec"),
+])
+def test_endless_input_is_refused_at_the_cap(tmp_path, args, what):
+    result = runner.invoke(app, [a.format(tmp=tmp_path) for a in args])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    for fragment in ("/dev/zero", "larger than 1 MiB (1048576 bytes)", f"the cap for a {what}",
+                     "more than 1048576 bytes read"):
+        assert fragment in result.output
+    assert not (tmp_path / "s.h5").exists()
+
+
+@pytest.mark.parametrize("args", [["run", "{fifo}"], ["simulate", "diagonal_compression", "--spec", "{fifo}"]])
+def test_a_fifo_is_refused_at_once_without_waiting_for_a_writer(tmp_path, args):
+    fifo = tmp_path / "in.toml"
+    os.mkfifo(fifo)
+    result = runner.invoke(app, [a.format(fifo=fifo) for a in args])  # a blocking open would hang here
+    assert result.exit_code == 2
+    for fragment in (str(fifo), "not a regular file", "at most 1 MiB"):
+        assert fragment in result.output
+
+
+def test_study_file_over_the_cap_is_refused_by_its_size(tmp_path):
+    from podkrig.limits import MAX_STUDY_FILE_BYTES
+    from podkrig.study.schema import StudyError
+
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"# " + b"x" * MAX_STUDY_FILE_BYTES + b"\n")
+    with pytest.raises(StudyError, match=r"big\.toml: larger than 1 MiB \(1048576 bytes\), the cap .*it is 1\.0 MiB"):
+        load_study(big)
+
+
+def test_damaged_artefacts_are_refused_naming_the_cap(tmp_path, monkeypatch, caplog):
+    """The files podkrig reads back from its output folder: an array file over the cap (also once
+    unpacked: a zip bomb) and a manifest over the cap (the stage reruns, the log says why)."""
+    import numpy as np
+
+    from podkrig.study import cache
+
+    np.savez_compressed(tmp_path / "region.npz", samples=np.zeros((1000, 4)))  # 32 kB unpacked, ~100 B packed
+    assert cache.read_arrays(tmp_path / "region.npz")["samples"].shape == (1000, 4)
+    monkeypatch.setattr(cache, "MAX_ARRAY_FILE_BYTES", 10_000)
+    with pytest.raises(ValueError, match=r"region\.npz: larger than .*10000 bytes.*the cap for an array file: its "
+                                         r"arrays unpack to"):
+        cache.read_arrays(tmp_path / "region.npz")
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match=r"bad\.npz: not an \.npz"):
+        cache.read_arrays(tmp_path / "bad.npz")
+    (tmp_path / "m.json").write_text('{"stage": "x"}')
+    assert cache.read_manifest(tmp_path / "m.json") == {"stage": "x"}
+    monkeypatch.setattr(cache, "MAX_JSON_BYTES", 5)
+    with caplog.at_level("WARNING", logger="podkrig.study.cache"):
+        assert cache.read_manifest(tmp_path / "m.json") is None
+    assert "m.json: larger than 5 B (5 bytes), the cap for a stage manifest" in caplog.text

@@ -42,11 +42,12 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.limits import MAX_ABS_READING_MM
+from podkrig.limits import MAX_ABS_READING_MM, MAX_LOG_BYTES, read_bounded
 from podkrig.online.measurement import LOAD_RESPONSES, Measurement, level_weights
 
-#: Largest log read, bytes: 100 000 rows of a dozen channels is ~10 MiB; 256 MiB bounds memory.
-MAX_FILE_BYTES = 256 * 2**20
+#: Largest log read, bytes (:data:`podkrig.limits.MAX_LOG_BYTES`): 100 000 rows of a dozen
+#: channels is ~10 MiB; 256 MiB bounds memory.
+MAX_FILE_BYTES = MAX_LOG_BYTES
 #: Longest cell, characters (a number needs < 30).
 MAX_CELL_CHARS = 4096
 #: Rows of an Excel sheet read at most (a 1 Hz log of 12 days).
@@ -218,14 +219,11 @@ def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN", load_r
 def _read_text(path, notes):
     """The text of a CSV log, bounded in size; UTF-8 (with or without BOM), UTF-16 with a BOM, or
     Windows-1252 (which lab software writes, µ as byte 0xB5) — the notes say which."""
-    try:
-        with path.open("rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)  # bounded: /dev/zero or a huge log stops here
+    try:  # bounded: /dev/zero or a huge log stops here
+        raw = read_bounded(path, MAX_FILE_BYTES, "measurement file",
+                           "thin the log (e.g. one row per second) or pass the load steps only")
     except OSError as e:
         raise ValueError(f"cannot read measurement file {path}: {e.strerror or e}") from e
-    if len(raw) > MAX_FILE_BYTES:
-        raise ValueError(f"{path}: larger than {MAX_FILE_BYTES // 2**20} MiB; thin the log (e.g. one row per "
-                         "second) or pass the load steps only")
     if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
         try:
             return raw.decode("utf-16")
@@ -285,8 +283,8 @@ def _xlsx_rows(path, sheet):
         raise ValueError(f"{path}: reading Excel files needs openpyxl: pip install 'openpyxl>=3.1' "
                          "(or save the sheet as CSV)") from None
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise ValueError(f"{path}: larger than {MAX_FILE_BYTES // 2**20} MiB")
+        if not path.is_file() or path.stat().st_size > MAX_FILE_BYTES:  # a workbook is a zip: its size is on disk
+            read_bounded(path, MAX_FILE_BYTES, "measurement file", "thin the log or save one sheet as CSV")
         book = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except ValueError:
         raise

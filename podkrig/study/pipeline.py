@@ -16,8 +16,6 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from podkrig import __version__
 from podkrig.locks import folder_lock
 from podkrig.online.calibrate import CalibrationResult
@@ -34,7 +32,7 @@ from podkrig.online.findings import (
 from podkrig.reports.findings import words
 from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
-from podkrig.study.cache import Progress, StageRecord, now, write_json
+from podkrig.study.cache import Progress, StageRecord, now, read_arrays, write_json
 
 
 @dataclass(frozen=True)
@@ -84,9 +82,8 @@ class StudyResult:
     def calibration(self):
         """The calibration (:class:`~podkrig.online.calibrate.CalibrationResult`), read back from its
         manifest and ``region.npz``."""
-        with np.load(self.out / "region.npz") as f:
-            return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"],
-                                               omega=f["omega"])
+        f = read_arrays(self.out / "region.npz")
+        return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"], omega=f["omega"])
 
     def diagnoses(self):
         """Each test's diagnosis result dict (None when the diagnosis is off), by test name."""

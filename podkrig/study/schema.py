@@ -77,6 +77,7 @@ from pydantic import TypeAdapter, ValidationError
 from fe.exceptions import FEError, SpecError
 from fe.scenarios import SCENARIOS, ScenarioSpec
 from podkrig.exceptions import PodkrigError
+from podkrig.limits import MAX_STUDY_FILE_BYTES, read_bounded
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
     CalibrationTest,
@@ -269,11 +270,13 @@ def load_study(path):
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_bounded(path, MAX_STUDY_FILE_BYTES, "study file", "is this the study file?").decode("utf-8")
     except OSError as e:
         raise StudyError(f"cannot read study file {path}: {e.strerror}") from e
     except UnicodeDecodeError as e:
         raise StudyError(f"{path}: not UTF-8 text at byte {e.start}; save it as UTF-8") from None
+    except ValueError as e:
+        raise StudyError(str(e)) from None
     try:
         data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, RecursionError) as e:
