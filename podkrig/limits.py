@@ -71,6 +71,9 @@ MAX_STUDY_FILE_BYTES = 2**20
 MAX_LOG_BYTES = 256 * 2**20
 MAX_JSON_BYTES = 64 * 2**20
 MAX_ARRAY_FILE_BYTES = 8 * 2**30
+#: Characters of a file's content an error message may quote (:func:`quote`, :func:`quote_cells`):
+#: enough to identify a cell, a header or a unit, never a whole line of a file that was not meant.
+QUOTE_CHARS = 80
 
 
 def human_duration(seconds):
@@ -90,6 +93,56 @@ def human_bytes(nbytes):
         if abs(nbytes) < 1024 or unit == "PiB":
             return f"{nbytes:.0f} {unit}" if unit == "B" else f"{nbytes:.1f} {unit}"
         nbytes /= 1024
+
+
+def quote(text, limit=QUOTE_CHARS):
+    r"""A piece of a file's content for a message (a string, else any value's ``repr``): its first
+    line as Python writes a string (so a
+    NUL byte or a non-breaking space shows as ``\x00``, ``\xa0``), at most ``limit`` characters in
+    all — cut with ``…`` after the closing quote.
+
+    >>> quote("load [kN]")
+    "'load [kN]'"
+    >>> quote("l\x00o\x00a\x00d")
+    "'l\\x00o\\x00a\\x00d'"
+    >>> quote("x" * 100, limit=10)
+    "'xxxxxxx'…"
+    >>> quote(list(range(100)), limit=12)
+    '[0, 1, 2, 3…'
+    """
+    if not isinstance(text, str):  # a value of a file (a number, an array): its repr, cut
+        shown = repr(text)
+        return shown if len(shown) <= limit and "\n" not in shown else shown.splitlines()[0][:limit - 1] + "…"
+    lines = text.splitlines()
+    line = lines[0] if lines else ""
+    shown = repr(line)
+    if len(shown) <= limit and len(lines) <= 1:
+        return shown
+    for k in range(min(len(line), limit), -1, -1):
+        shown = repr(line[:k]) + "…"
+        if len(shown) <= limit:
+            return shown
+    return "…"
+
+
+def quote_cells(cells, limit=QUOTE_CHARS):
+    """Cells of a row (a header) for a message, each as :func:`quote` gives it, as many as fit in
+    ``limit`` characters: ``['load', 'D1', …]``.
+
+    >>> quote_cells(["load", "D1", "D2"])
+    "['load', 'D1', 'D2']"
+    >>> quote_cells(f"column {k}" for k in range(20))
+    "['column 0', 'column 1', 'column 2', 'column 3', 'column 4', 'column 5', …]"
+    """
+    shown, used = [], 2
+    for cell in cells:
+        q = quote(cell, limit=24)
+        if used + len(q) + 3 > limit:
+            shown.append("…")
+            break
+        shown.append(q)
+        used += len(q) + 2
+    return "[" + ", ".join(shown) + "]"
 
 
 def read_bounded(path, cap, what, remedy=None):

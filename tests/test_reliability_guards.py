@@ -3,6 +3,7 @@ measurement paths kept inside the study folder, error messages that quote no fil
 disk-full message whose numbers add up."""
 
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -184,3 +185,83 @@ def test_damaged_artefacts_are_refused_naming_the_cap(tmp_path, monkeypatch, cap
     with caplog.at_level("WARNING", logger="podkrig.study.cache"):
         assert cache.read_manifest(tmp_path / "m.json") is None
     assert "m.json: larger than 5 B (5 bytes), the cap for a stage manifest" in caplog.text
+
+
+# ----------------------------------------------------------------------------- measurement paths, quoting
+def _study_with_measurement(folder, file_value):
+    """The demo study copied to ``folder`` with its scenario and validation spec inline and its
+    measurement ``file = file_value``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    text = DEMO.read_text(encoding="utf-8").replace('file = "diagonal_compression_measured.csv"',
+                                                    f"file = {file_value!r}".replace("'", '"'))
+    (folder / "diagonal_compression_measured.csv").write_bytes((EXAMPLES / "diagonal_compression_measured.csv")
+                                                               .read_bytes())
+    study = folder / "study.toml"
+    study.write_text(text, encoding="utf-8")
+    return study
+
+
+def test_a_relative_measurement_path_leaving_the_study_folder_is_refused_unread(tmp_path):
+    secret = tmp_path / "secret.csv"
+    secret.write_text("TOP-SECRET-FIRST-LINE\n")
+    study = _study_with_measurement(tmp_path / "a" / "b", "../../secret.csv")
+    result = runner.invoke(app, ["run", str(study), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 2 and "Traceback" not in result.output
+    for fragment in (str(study), "measurement.file", "'../../secret.csv'", "leads outside", str(secret),
+                     "an absolute path if the file is elsewhere on purpose"):
+        assert fragment in result.output
+    assert "TOP-SECRET" not in result.output and not (tmp_path / "out").exists()
+    from podkrig.study.schema import StudyError
+
+    with pytest.raises(StudyError, match=r"line 30: measurement\.file: '\.\./\.\./\.\./\.\./etc/passwd' leads outside"):
+        load_study(_study_with_measurement(tmp_path / "c", "../../../../etc/passwd"))
+
+
+def test_an_absolute_measurement_path_is_followed_on_purpose(tmp_path):
+    log = tmp_path / "lab" / "log.csv"
+    log.parent.mkdir()
+    log.write_bytes((EXAMPLES / "diagonal_compression_measured.csv").read_bytes())
+    study = load_study(_study_with_measurement(tmp_path / "study", str(log)))
+    assert study.measurement.file == log.resolve()
+    inside = load_study(_study_with_measurement(tmp_path / "in", "sub/../diagonal_compression_measured.csv"))
+    assert inside.measurement.file == (tmp_path / "in" / "diagonal_compression_measured.csv").resolve()
+
+
+def test_a_utf16_log_without_its_byte_order_mark_is_refused_without_echoing_nul_bytes(tmp_path):
+    from podkrig.io.measurement_log import read_measurement
+
+    body = "load [kN],D1 [mm],D2 [mm]\n" + "".join(f"{10 * i},{0.001 * i},{0.002 * i}\n" for i in range(1, 200))
+    for name, raw in (("le.csv", body.encode("utf-16-le")), ("be.csv", body.encode("utf-16-be")),
+                      ("twice.csv", b"\xff\xfe" + body.encode("utf-16-le").decode("latin-1").encode("utf-16-le"))):
+        path = tmp_path / name
+        path.write_bytes(raw)
+        with pytest.raises(ValueError, match=r"not a text file \(NUL characters from line 1") as info:
+            read_measurement(path, ("D1", "D2"), (10.0, 20.0))
+        message = str(info.value)
+        assert "\x00" not in message and "\\x00" not in message and "save it as UTF-8" in message
+        assert len(message) <= len(str(path)) + 160
+
+
+def test_file_content_in_a_message_is_one_line_of_at_most_80_characters(tmp_path):
+    """A header without the load column is quoted to identify it, cut at 80 characters; a long cell,
+    a binary cell and a unit likewise."""
+    from podkrig.io.measurement_log import read_measurement
+
+    cases = {  # content, a fragment, the quoted content (group 1)
+        "header.csv": ("force," + ",".join(f"channel_{k:03d}_" + "x" * 40 for k in range(100)) + "\n10,1\n",
+                       "no load column 'load' in the header ['force', 'channel_000_", r"header (\[.*\]) \(set"),
+        "cell.csv": ("load,D1\n10," + "7" * 20 + "z" * 4000 + "\n", "'77777", r"\(D1\): ('.*) is not a number"),
+        "unit.csv": ("load,D1 [" + "q" * 3000 + "]\n10,1\n", "unknown unit 'qqqq", r"unknown unit ('.*) \(use"),
+        "ctrl.csv": ("load,D1\n10,\x01\x02\x03\x1b[2J" + "\x07" * 500 + "\n", r"'\x01\x02\x03\x1b[2J\x07",
+                     r"\(D1\): ('.*) is not a number"),
+    }
+    for name, (content, fragment, pattern) in cases.items():
+        path = tmp_path / name
+        path.write_text(content, encoding="utf-8")
+        with pytest.raises(ValueError) as info:
+            read_measurement(path, ("D1",), (10.0,))
+        message = str(info.value)
+        assert fragment in message, message
+        assert "\n" not in message and all(c.isprintable() for c in message)
+        quoted = re.search(pattern, message).group(1)
+        assert len(quoted) <= 80, quoted

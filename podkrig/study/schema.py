@@ -77,7 +77,7 @@ from pydantic import TypeAdapter, ValidationError
 from fe.exceptions import FEError, SpecError
 from fe.scenarios import SCENARIOS, ScenarioSpec
 from podkrig.exceptions import PodkrigError
-from podkrig.limits import MAX_STUDY_FILE_BYTES, read_bounded
+from podkrig.limits import MAX_STUDY_FILE_BYTES, quote, read_bounded
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
     CalibrationTest,
@@ -192,7 +192,7 @@ class _Reader:
         """Check that ``value`` is a table with only ``allowed`` keys (for tables whose keys
         depend on the scenario; the others are declared in :mod:`podkrig.study.settings`)."""
         if not isinstance(value, dict):
-            self.fail(path, f"must be a table; got {type_name(value)} {value!r}")
+            self.fail(path, f"must be a table; got {type_name(value)} {quote(value)}")
         for key in value:
             if key not in allowed:
                 self.unknown_key(path, key, allowed)
@@ -221,12 +221,12 @@ class _Reader:
             ctx = e["ctx"]
             self.fail((*loc, *ctx["key"]), ctx["message"], ctx["allowed"])
         if kind in _EXPECTED:
-            self.fail(loc, f"must be {_EXPECTED[kind]}; got {type_name(value)} {value!r}", extra.get("allowed"))
+            self.fail(loc, f"must be {_EXPECTED[kind]}; got {type_name(value)} {quote(value)}", extra.get("allowed"))
         if kind in _TABLE_ERRORS:
-            self.fail(loc, f"must be {extra.get('table', 'a table')}; got {type_name(value)} {value!r}")
+            self.fail(loc, f"must be {extra.get('table', 'a table')}; got {type_name(value)} {quote(value)}")
         if kind == "list_type":
             self.fail(loc, f"must be {extra.get('array', 'an array')}; got {type_name(value)}")
-        self.fail(loc, f"{value!r} is out of range", extra.get("allowed"))
+        self.fail(loc, f"{quote(value)} is out of range", extra.get("allowed"))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -369,7 +369,7 @@ def _scenario(r, value, path, folder, fixed, fixed_paths=None):
             except FEError as e:
                 r.fail(path, str(e))
     if not isinstance(value, dict):
-        r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {value!r}", allowed)
+        r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {quote(value)}", allowed)
     name = value.get("scenario")
     if not isinstance(name, str) or name not in SCENARIOS:  # a list is unhashable: check the type first
         r.fail((*path, "scenario"), "missing key 'scenario'" if name is None else f"unknown scenario {name!r}", names)

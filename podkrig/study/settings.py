@@ -17,6 +17,7 @@ FE scenario registry; here only their shape is declared.
 
 import dataclasses
 import math
+import os
 import re
 from pathlib import Path
 from typing import Annotated, Any
@@ -39,6 +40,7 @@ from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
 from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
 from podkrig.offline.settings import training_rows as _training_rows
 from podkrig.io.measurement_log import REPEATS, ImportSettings, zero_phase
+from podkrig.limits import quote
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.online.settings import (
     REGION_METHODS,
@@ -89,10 +91,16 @@ def _measurement_file(value, info):
     """The measurement file, resolved against the study file's folder (validation context
     ``{"folder": Path}``; the working folder without one)."""
     if not isinstance(value, str | Path):
-        raise study_error(f"must be a string; got {type_name(value)} {value!r}")
+        raise study_error(f"must be a string; got {type_name(value)} {quote(value)}")
     folder = (info.context or {}).get("folder", Path.cwd())
+    inside = os.path.normpath(Path(folder).absolute())
+    given = os.path.normpath(Path(inside) / value)  # an absolute value stays itself: outside on purpose
+    if not Path(value).is_absolute() and os.path.commonpath([inside, given]) != inside:
+        raise study_error(f"{quote(str(value))} leads outside the study file's folder ({given}); nothing was read",
+                          allowed="a path inside the study file's folder, or an absolute path if the file is "
+                                  "elsewhere on purpose")
     try:
-        full = (Path(folder) / value).resolve()
+        full = Path(given).resolve()
         exists = full.is_file()
     except (OSError, ValueError) as e:
         raise study_error(f"not a usable path ({e})", allowed=_FILE_ALLOWED) from None
