@@ -217,6 +217,23 @@ def test_a_relative_measurement_path_leaving_the_study_folder_is_refused_unread(
         load_study(_study_with_measurement(tmp_path / "c", "../../../../etc/passwd"))
 
 
+def test_a_relative_scenario_spec_path_leaving_the_study_folder_is_refused(tmp_path):
+    from podkrig.study.schema import StudyError
+
+    (tmp_path / "spec.toml").write_text('scenario = "diagonal_compression"\n')
+    study = _study_with_measurement(tmp_path / "s", "diagonal_compression_measured.csv")
+    text = study.read_text(encoding="utf-8").replace('[scenario]                       # the scenario spec (options as '
+                                                     'in `podkrig simulate --spec`)\nscenario = "diagonal_compression"'
+                                                     '\nnx = 6', 'scenario = "../spec.toml"\n[scenario_unused]\nnx = 6')
+    text = text.replace("[scenario_unused]\nnx = 6                           # Q8 elements along a full unit\n"
+                        "ny = 2                           # ... and across its height (9360 dofs)\n", "")
+    study.write_text(text, encoding="utf-8")
+    with pytest.raises(StudyError, match=r"line 7: scenario: '\.\./spec\.toml' leads outside .*absolute path"):
+        load_study(study)
+    study.write_text(text.replace("../spec.toml", str(tmp_path / "spec.toml")), encoding="utf-8")
+    assert load_study(study).spec.scenario == "diagonal_compression"  # an absolute path: on purpose
+
+
 def test_an_absolute_measurement_path_is_followed_on_purpose(tmp_path):
     log = tmp_path / "lab" / "log.csv"
     log.parent.mkdir()

@@ -68,6 +68,7 @@ Example
 import dataclasses
 import difflib
 import math
+import os
 import tomllib
 import typing
 from pathlib import Path
@@ -80,11 +81,13 @@ from podkrig.exceptions import PodkrigError
 from podkrig.limits import MAX_STUDY_FILE_BYTES, quote, read_bounded
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
+    OUTSIDE,
     CalibrationTest,
     Study,
     StudyFile,
     TrainingDesign,
     ValidationModel,
+    path_in_folder,
     type_name,
 )
 from podkrig.study.toml_lines import key_lines, show_key
@@ -361,7 +364,10 @@ def _scenario(r, value, path, folder, fixed, fixed_paths=None):
         if value in SCENARIOS:
             value = {"scenario": value}
         else:
-            source = folder / value
+            source = path_in_folder(folder, value)
+            if source is None:
+                r.fail(path, f"{quote(value)} leads outside the study file's folder "
+                             f"({os.path.normpath(folder.absolute() / value)}); nothing was read", OUTSIDE)
             if not source.is_file():
                 r.fail(path, f"{value!r} is neither a scenario name nor a spec file (looked for {source})", allowed)
             try:
