@@ -231,10 +231,11 @@ class Violation:
             return f"{n} = {self.point[n]:g}{u}"
 
         unit = "" if c.inequality.unit == "-" else f" {c.inequality.unit}"
-        where = (f"worst corner of the sampling box: {', '.join(value(n) for n in c.parameters)}"
-                 if self.sampled else f"fails at {', '.join(value(n) for n in c.parameters)}")
+        at = ", ".join(value(n) for n in c.parameters)
         if self.grid_points:
-            where = f"worst of {self.grid_points} grid points of the sampling box (not monotone): " + where
+            where = f"worst of {self.grid_points} grid points of the sampling box (not monotone): {at}"
+        else:
+            where = f"worst corner of the sampling box: {at}" if self.sampled else f"fails at {at}"
         sides = f"{self.lhs:.4g}{unit} {'≥' if c.inequality.strict else '>'} {self.rhs:.4g}{unit}"
         text = f"{c.formula} is required ({c.where}: {c.inequality.reason}); {where}, where {sides}"
         if self.remedies:

@@ -75,6 +75,8 @@ class Scenario(abc.ABC):
     """
 
     name = None
+    #: One line in plain text saying what the test is (``podkrig scenarios`` lists it).
+    summary = None
     Options = None
     PARAMETERS = ()
     load_unit = "kN"
@@ -158,6 +160,22 @@ class Scenario(abc.ABC):
         a tuple of :class:`fe.admissibility.ParameterConstraint`; none for a linear scenario, whose
         parameters are independent (each has its physical range)."""
         return ()
+
+    @classmethod
+    def check_spec_box(cls, spec, bounds=None):
+        """:meth:`check_box` from a spec (:class:`ScenarioSpec` of this scenario: its options and
+        fixed parameter values), without building the scenario (no mesh).
+
+        Raises
+        ------
+        SpecError
+            Invalid options.
+        ConstraintError
+            As :meth:`check_box`.
+        """
+        parameters = {p.name: dataclasses.replace(p, default=spec.parameters.get(p.name, p.default))
+                      for p in cls.PARAMETERS}
+        check_box(cls.parameter_constraints(cls._parse_options(spec.options)), parameters, bounds, where=cls.name)
 
     @property
     def constraints(self):
