@@ -216,3 +216,68 @@ def test_scenario_listing_is_plain_text_and_says_what_each_test_is():
                         "flat_jack": "flat-jack", "diagonal_compression_nl": "failure"}.items():
         assert words in summaries[name].lower()
     assert "couplet" not in summaries["prism_compression"].lower()
+
+
+JOINT = """
+[parameters]
+c_bj = { lower = 0.3, upper = 0.6 }
+
+[fixed]
+ft_bj = 0.25
+
+[sampling]
+train = { n = 8, seed = 0 }
+held_out = { n = 4, seed = 1 }
+
+[[test]]
+name = "triplet"
+scenario = { scenario = "triplet_shear", nx = 2, ny = 1 }
+measurement = { file = "t.csv", noise_abs = 0.001 }
+
+[[test]]
+name = "couplet"
+scenario = { scenario = "couplet_tension", nx = 2, ny = 1 }
+measurement = { file = "c.csv", noise_abs = 0.001 }
+fixed = { ft_bj = 0.3 }
+parameters = { tanphi_bj = { lower = 0.5, upper = 1.2 } }
+"""
+
+VALIDATION = """
+[scenario]
+scenario = "couplet_tension"
+nx = 2
+ny = 1
+
+[parameters]
+c_bj = { lower = 0.3, upper = 0.6 }
+
+[sampling]
+train = { n = 8, seed = 0 }
+held_out = { n = 4, seed = 1 }
+
+[measurement]
+file = "c.csv"
+noise_abs = 0.001
+
+[[validation]]
+name = "tri"
+scenario = { scenario = "triplet_shear", nx = 2, ny = 1, parameters = { ft_bj = 0.5 } }
+n = 4
+seed = 2
+"""
+
+
+@pytest.mark.parametrize("text, fragments", [
+    # the couplet test's own ft_bj = 0.3 MPa and tanphi_bj up to 1.2: c ≥ 0.36 MPa (the triplet's box passes)
+    (JOINT, ("line 3: parameters.c_bj", "test 'couplet'", "tanphi_bj = 1.2", "raise c_bj's lower bound to 0.36 MPa")),
+    # the validation model's ft_bj = 0.5 MPa over the calibrated c_bj box: c ≥ 0.375 MPa
+    (VALIDATION, ("validation[1].scenario", "validation model 'tri'", "raise c_bj's lower bound to 0.38 MPa")),
+])
+def test_joint_tests_and_validation_models_are_checked_over_their_boxes(tmp_path, text, fragments):
+    (tmp_path / "t.csv").write_text("load,middle_ux,V_top\n0.01,0.01,0.0\n", encoding="utf-8")
+    (tmp_path / "c.csv").write_text("load,joint_opening,top_uy\n0.01,0.01,0.0\n", encoding="utf-8")
+    (tmp_path / "study.toml").write_text(text, encoding="utf-8")
+    with pytest.raises(StudyError, match=re.escape(fragments[0])) as info:
+        load_study(tmp_path / "study.toml")
+    for fragment in fragments[1:]:
+        assert fragment in str(info.value)

@@ -344,7 +344,7 @@ def _tests(r, data, f, folder):
         space = ParameterSpace(tuple(mine))
         keys = {n: ("parameters", n) if n in shared.names else (*where, "parameters", n) for n in space.names}
         keys.update({n: (*where, "fixed", n) if n in t.fixed else ("fixed", n) for n in spec.parameters})
-        _constraints(r, spec, space, keys, where)
+        _constraints(r, spec, space, keys, where, f"test {t.name!r}: ")
         d = t.sampling
         tests.append(CalibrationTest(t.name, spec, space,
                                      {**{n: v for n, v in f.fixed.items() if n in info}, **t.fixed},
@@ -427,17 +427,17 @@ def _parameters(r, raw, bounds, spec, known=None, *, allow_empty=False, path=("p
     return ParameterSpace(tuple(params))
 
 
-def _constraints(r, spec, space, keys, default=("parameters",)):
+def _constraints(r, spec, space, keys, default=("parameters",), label=""):
     """The scenario's constraints between parameters over the sampling box of ``space`` and the
     spec's fixed values (:meth:`fe.Scenario.check_spec_box`), before any FE run; a failure is
-    reported at the key (``keys``: parameter → key path; else ``default``) of the first parameter
-    of the violated constraint that is sampled, else fixed."""
+    reported, after ``label``, at the key (``keys``: parameter → key path; else ``default``) of the
+    first parameter of the violated constraint that is sampled, else fixed."""
     try:
         SCENARIOS[spec.scenario].check_spec_box(spec, {p.name: (p.lower, p.upper, p.scale) for p in space.parameters})
     except ConstraintError as e:
         involved = e.violations[0].constraint.parameters
         named = [n for n in involved if n in space.names] + [n for n in involved if n in keys]
-        r.fail(keys[named[0]] if named else default, str(e))
+        r.fail(keys.get(named[0], default) if named else default, f"{label}{e}")
 
 
 def _admissible(info, value):
@@ -464,7 +464,7 @@ def _validation(r, entries, folder, fixed, space):
             r.fail((*path, "scenario"), f"scenario {spec.scenario} has no parameter(s) {missing} to propagate")
         # the validation model is made of the calibrated material: the fixed values hold there too
         spec = ScenarioSpec(spec.scenario, spec.options, {**spec.parameters, **{k: v for k, v in fixed.items() if k in known}})
-        _constraints(r, spec, space, {}, (*path, "scenario"))
+        _constraints(r, spec, space, {}, (*path, "scenario"), f"validation model {item.name!r}: ")
         design = TrainingDesign(n=item.n, seed=item.seed, method=item.method)
         models.append(ValidationModel(item.name, spec, design, item.outputs))
     return tuple(models)
