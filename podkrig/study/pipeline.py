@@ -134,8 +134,9 @@ def run_study(study, out, *, progress=None, confirm=None):
 
 
 def _run_locked(study, out, progress, confirm, t0):
+    """:func:`run_study` with the output folder's lock held."""
     run = stages.StudyRun(study, out, progress or Progress())
-    if confirm is not None:  # before anything is written
+    if confirm is not None:  # before anything but the lock is written
         confirm(*stages.fe_work(run))
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)
