@@ -257,6 +257,10 @@ def test_a_utf16_log_without_its_byte_order_mark_is_refused_without_echoing_nul_
         message = str(info.value)
         assert "\x00" not in message and "\\x00" not in message and "save it as UTF-8" in message
         assert len(message) <= len(str(path)) + 160
+    cut = tmp_path / "cut.csv"  # with its byte-order mark, cut in the middle of a character
+    cut.write_bytes(b"\xff\xfe" + body.encode("utf-16-le")[:-1])
+    with pytest.raises(ValueError, match=r"cut\.csv: damaged UTF-16 text at byte \d+; save it as UTF-8"):
+        read_measurement(cut, ("D1", "D2"), (10.0, 20.0))
 
 
 def test_file_content_in_a_message_is_one_line_of_at_most_80_characters(tmp_path):
