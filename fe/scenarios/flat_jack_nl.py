@@ -166,6 +166,8 @@ class FlatJackShearNonlinear(NonlinearScenario):
     steps and load patterns are this scenario's); ``steps`` its steps 0b–2."""
 
     name = "flat_jack_shear_nl"
+    summary = ("In-situ flat-jack shear test: after the elastic flat-jack phases, one vertical jack pushes "
+               "the block until its top bed joint slides, up to and past the critical jack pressure.")
     Options = FlatJackShearOptions
     PARAMETERS = nonlinear_parameters(FLAT_JACK_NL_DEFAULTS) + FLAT_JACK_PARAMETERS[-2:]  # + Km, sigma0
     force_unit = "MPa"
