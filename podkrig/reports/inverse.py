@@ -324,27 +324,31 @@ def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="
         plot_rvc(calibration.rvc, out / "rvc.png")
         render_rvc(page, calibration.rvc)
     page.heading("Genetic algorithm")
-    plot_ga_history(result.ga, out / "ga_history.png")
-    plot_ga_parameters(result.ga, out / "ga_parameters.png", problem.free_space)
+    plot_ga_history(result, out / "ga_history.png")
+    plot_ga_parameters(result, out / "ga_parameters.png")
     render_ga(page)
     return page.write(out / "index.html")
 
 
-def plot_ga_history(ga, path):
-    """The GA's history: every evaluated misfit by generation, and population statistics."""
+def plot_ga_history(inversion, path):
+    """The GA of an inversion (:class:`~podkrig.online.invert.InverseResult`): every evaluated
+    misfit by generation with the reported optimum's misfit, and population statistics."""
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    plot_history(ga, ax=axes[0])
-    plot_statistics(ga, ax=axes[1])
+    plot_history(inversion.ga, ax=axes[0], optimum=inversion.misfit)
+    plot_statistics(inversion.ga, ax=axes[1])
     fig.tight_layout()
     save(fig, path, dpi=110)
     return path
 
 
-def plot_ga_parameters(ga, path, space=None):
+def plot_ga_parameters(inversion, path):
     """Parameter values of the GA's evaluated individuals against their misfit, coloured by
-    generation; a log axis for each parameter the search space samples on a log scale."""
+    generation, with the inversion's reported optimum (after its least-squares polishes: ``x``,
+    ``misfit``) marked and the GA's own best where it differs; a log axis for each parameter the
+    search space samples on a log scale."""
     pyplot()
-    fig = np.ravel(plot_parameters(ga, xscale=None if space is None else list(space.scales)))[0].figure
-    save(fig, path, dpi=110)
+    space = inversion.problem.free_space
+    axes = plot_parameters(inversion.ga, xscale=list(space.scales), optimum=(inversion.x, inversion.misfit))
+    save(axes[0].figure, path, dpi=110)
     return path

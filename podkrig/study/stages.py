@@ -544,8 +544,8 @@ def _draw_calibration(run, result):
             drawn.append("deformed.png")
         files += [f"report/{test.file(f)}" for f in drawn]
     inv = result.inversion
-    inverse_figures.plot_ga_history(inv.ga, run.figures / "ga_history.png")
-    inverse_figures.plot_ga_parameters(inv.ga, run.figures / "ga_parameters.png", inv.problem.free_space)
+    inverse_figures.plot_ga_history(inv, run.figures / "ga_history.png")
+    inverse_figures.plot_ga_parameters(inv, run.figures / "ga_parameters.png")
     inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
                                 space=inv.problem.free_space)
     inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
