@@ -66,3 +66,35 @@ def test_ga_parameters_without_an_optimum_marks_the_ga_best_only(polished):
     with pytest.raises(ValueError, match="optimum x must hold 1 values"):
         plot_parameters(polished.ga, optimum=(np.zeros(3), 0.0))
     pyplot().close("all")
+
+
+# --- the diagnosis section: one α, the settings' -----------------------------------------------
+
+def _diagnosis_report(alpha):
+    """A diagnosis's report numbers (``DiagnosisResult.to_dict`` keys the section reads) with the
+    settings' ``alpha``; the χ² test ran at α × CHI2_ALPHA_SHARE, as the diagnosis records it."""
+    from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
+
+    candidate = {"name": "weak_joint", "applicable": True, "location": "bed joint 3", "delta_chi2": 0.4,
+                 "p_corrected": 0.7, "parameter": {"name": "f", "value": 0.5, "unit": "-"}}
+    return {"verdict": "adequate", "alpha": alpha, "cause": None, "detail": None, "gain": None,
+            "n_fe_runs": 10, "seconds": 1.0, "candidates": [candidate],
+            "adequacy": {"chi2_dof": 1.1, "p_value": 0.3, "alpha": alpha * CHI2_ALPHA_SHARE, "basis": "noise"}}
+
+
+def test_diagnosis_section_states_one_alpha_the_settings_value():
+    import re
+
+    from podkrig.diagnosis.settings import DiagnosisSettings
+    from podkrig.reports.html import Page
+    from podkrig.reports.study import _diagnosis
+
+    alpha = DiagnosisSettings().alpha
+    page = Page("t")
+    _diagnosis(page, _diagnosis_report(alpha))
+    text = page.markup()
+    cells = re.findall(r"<td>significance level α \(-\)</td><td[^>]*>([^<]+)</td>", text)
+    assert [float(c) for c in cells] == [alpha]
+    stated = {float(v) for v in re.findall(r"α = ([0-9.eE+-]+[0-9])", text)}
+    assert stated == {alpha}, stated  # the text's α (the candidates' level) is the table's
+    assert f"{alpha * 0.1:g}" not in text  # the χ² test's level appears only as a share of α

@@ -121,8 +121,10 @@ def _stderr_console():
 
 
 def _print_text(out):
+    from podkrig.reports.diagnosis import chi2_level_text  # the report's words; imported with the report code
+
     a = out["adequacy"]
-    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}, χ² test at α = {a['alpha']:g})")
+    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}; α = {out['alpha']:g}, {chi2_level_text()})")
     typer.echo(f"  χ² includes: {a['basis']}; residuals {out['residual_convention']}")
     typer.echo("base fit: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["base"]["parameters"].items()))
     if out["cause"] is not None:

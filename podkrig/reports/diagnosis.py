@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
+from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import RESIDUAL_CONVENTION
 from podkrig.reports.figures import colourbar, pyplot, save
 from podkrig.reports.html import Page, fmt
@@ -188,6 +189,12 @@ def plot_candidate_scores(diagnosis, path):
     fig.tight_layout()
     save(fig, path, dpi=110)
     return path
+
+
+def chi2_level_text():
+    """The level of the χ² test in terms of the one significance level α of the settings
+    (``[diagnosis] alpha``): a share of α, never a second α."""
+    return f"χ² test at α × {CHI2_ALPHA_SHARE:g}"
 
 
 def fitted_parameter_text(candidate, alpha):

@@ -17,7 +17,7 @@ from pathlib import Path
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
-from podkrig.reports.diagnosis import fitted_parameter_text
+from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text
 from podkrig.reports.html import Page, num, pct, unit_cell
 from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
@@ -328,8 +328,10 @@ def _diagnosis(page, r, folder=""):
         page.paragraph("Switched off for this study: set [diagnosis] enabled = true in the study file to run it.")
         return
     a = r["adequacy"]
-    adequacy = f"{num(a['chi2_dof'], 3)} (p = {num(a['p_value'], 3)}, significance level {a['alpha']:g})"
-    rows = [["verdict", r["verdict"]], ["χ²/dof of the FE model at the base fit (-)", adequacy],
+    alpha = r.get("alpha", a["alpha"] / CHI2_ALPHA_SHARE)  # the settings' α (older manifests lack it)
+    adequacy = f"{num(a['chi2_dof'], 3)} (p = {num(a['p_value'], 3)}; {chi2_level_text()})"
+    rows = [["verdict", r["verdict"]], ["significance level α (-)", f"{alpha:g}"],
+            ["χ²/dof of the FE model at the base fit (-)", adequacy],
             ["χ² includes", a.get("basis", chi2_basis("diagnosis"))],
             ["cause", r["cause"] or "none"]]
     d = r["detail"]
@@ -350,7 +352,6 @@ def _diagnosis(page, r, folder=""):
         page.success("The calibrated model explains the data within the noise; no candidate cause improves the fit "
                      "significantly.")
     cands = [c for c in r["candidates"] if c["applicable"]]
-    alpha = r.get("alpha", r["adequacy"]["alpha"] / CHI2_ALPHA_SHARE)  # candidates' α (older manifests lack it)
     if not cands:
         page.paragraph("No candidate cause applies to this scenario and these sensors.")
     else:
