@@ -98,3 +98,62 @@ def test_diagnosis_section_states_one_alpha_the_settings_value():
     stated = {float(v) for v in re.findall(r"α = ([0-9.eE+-]+[0-9])", text)}
     assert stated == {alpha}, stated  # the text's α (the candidates' level) is the table's
     assert f"{alpha * 0.1:g}" not in text  # the χ² test's level appears only as a share of α
+
+
+# --- negative Sobol' indices: noise or flagged -------------------------------------------------
+
+def test_a_negative_index_is_noise_inside_its_interval_and_flagged_beyond_it():
+    from podkrig.reports.sensitivity import NEGATIVE_INDEX, index_notes, negative_index
+
+    assert negative_index(-0.0009, -0.004, 0.003) == "noise"
+    assert negative_index(-0.05, -0.08, -0.02) == "suspect"  # the whole interval below 0
+    assert negative_index(0.2, 0.1, 0.3) is None and negative_index(float("nan"), None, None) is None
+    assert negative_index(-0.01, None, None) == "suspect"  # no interval: cannot be called noise
+    assert index_notes((0.2, 0.1, 0.3), (-0.0009, -0.004, 0.003)) == NEGATIVE_INDEX["noise"]
+    both = index_notes((-0.0009, -0.004, 0.003), (-0.05, -0.08, -0.02))
+    assert both.startswith(NEGATIVE_INDEX["suspect"]) and NEGATIVE_INDEX["noise"] in both
+    assert index_notes((0.2, 0.1, 0.3)) == ""
+
+
+def _sensitivity_report(first, first_low, first_high):
+    """The study's sensitivity numbers for one test with two parameters: the misfit's indices."""
+    misfit = {"parameters": ["E_b", "r_hj"], "total": [[0.9, 0.01]], "total_low": [[0.85, 0.0]],
+              "total_high": [[0.95, 0.02]], "first": [[0.85, first]], "first_low": [[0.8, first_low]],
+              "first_high": [[0.9, first_high]]}
+    readings = {"parameters": ["E_b", "r_hj"], "total": [[0.9, 0.05]]}
+    return {"misfit": misfit, "readings": {None: readings}, "propose_fixing": [], "threshold": 0.01}
+
+
+def _table(markup):
+    import re
+
+    head = re.findall(r"<th>([^<]*)</th>", markup)
+    rows = [re.findall(r"<td[^>]*>([^<]*)</td>", row) for row in re.findall(r"<tr>(<td.*?)</tr>", markup)]
+    return head, rows
+
+
+def test_study_sensitivity_table_explains_a_negative_first_order_index():
+    from types import SimpleNamespace
+
+    from podkrig.reports.html import Page
+    from podkrig.reports.sensitivity import NEGATIVE_INDEX
+    from podkrig.reports.study import _sensitivity
+
+    study = SimpleNamespace(calibration_tests=[], tests=[])
+    page = Page("t")
+    _sensitivity(page, study, _sensitivity_report(-0.0009, -0.004, 0.003))
+    head, rows = _table(page.markup())
+    assert head[-1] == "note"
+    notes = {row[0]: row[-1] for row in rows}
+    assert notes == {"E_b": "", "r_hj": NEGATIVE_INDEX["noise"]}
+    assert float(rows[1][3]) == pytest.approx(-0.0009, rel=1e-12)  # the estimate is shown as it is
+
+    page = Page("t")
+    _sensitivity(page, study, _sensitivity_report(-0.05, -0.08, -0.02))
+    head, rows = _table(page.markup())
+    assert rows[1][-1] == NEGATIVE_INDEX["suspect"]
+
+    page = Page("t")
+    _sensitivity(page, study, _sensitivity_report(0.004, -0.001, 0.01))
+    head, rows = _table(page.markup())
+    assert "note" not in head and all(len(row) == len(head) for row in rows)

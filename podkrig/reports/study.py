@@ -21,6 +21,7 @@ from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text
 from podkrig.reports.html import Page, num, pct, unit_cell
 from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
+from podkrig.reports.sensitivity import index_notes
 from podkrig.reports.surrogate import fit_tables, held_out_tables
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 
@@ -298,10 +299,14 @@ def _sensitivity(page, study, r):
             if name in one["parameters"]:
                 k = one["parameters"].index(name)
                 best.append(max((t[k] for t in one["total"] if t[k] is not None and math.isfinite(t[k])), default=0.0))
+        estimates = [(m[k][0][j], m[f"{k}_low"][0][j], m[f"{k}_high"][0][j]) for k in ("total", "first")]
         rows.append([name, num(max(best, default=0.0), 3), num(m["total"][0][j], 3), num(m["first"][0][j], 3),
-                     "yes" if name in r["propose_fixing"] else ""])
-    page.table(["parameter", "largest total index over the readings (-)", "total index of the misfit (-)",
-                "first-order index of the misfit (-)", f"propose fixing (< {r['threshold']:g})"], rows)
+                     "yes" if name in r["propose_fixing"] else "", index_notes(*estimates)])
+    header = ["parameter", "largest total index over the readings (-)", "total index of the misfit (-)",
+              "first-order index of the misfit (-)", f"propose fixing (< {r['threshold']:g})", "note"]
+    if not any(row[-1] for row in rows):  # the note column only when an index needs one
+        header, rows = header[:-1], [row[:-1] for row in rows]
+    page.table(header, rows)
     if not r["propose_fixing"]:
         page.success(f"Every free parameter explains at least {r['threshold']:g} of the variance of some reading and "
                      "of the misfit.")
