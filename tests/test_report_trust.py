@@ -157,3 +157,81 @@ def test_study_sensitivity_table_explains_a_negative_first_order_index():
     _sensitivity(page, study, _sensitivity_report(0.004, -0.001, 0.01))
     head, rows = _table(page.markup())
     assert "note" not in head and all(len(row) == len(head) for row in rows)
+
+
+# --- flat-jack fits against the jack pressure, phase by phase ----------------------------------
+
+@pytest.fixture(scope="module")
+def flat_jack_steps():
+    """The steps of the example flat-jack study's test (chisari preset, phases 0b, 1 and 2)."""
+    from fe.scenarios import build_scenario
+
+    sc = build_scenario({"scenario": "flat_jack", "phases": ["0b", "1", "2"], "layout": "L6"})
+    return sc.steps
+
+
+def test_jack_pressures_follow_the_jack_each_phase_raises(flat_jack_steps):
+    from podkrig.reports.flat_jack import jack_pressures
+
+    levels = np.arange(1.0, 21.0)
+    pressure, phases, labels = jack_pressures(flat_jack_steps, levels)
+    assert list(labels) == ["0b", "1", "2"]
+    assert list(phases) == ["0b"] + ["1"] * 10 + ["2"] * 9
+    # phase 1 raises p_H 0.1 → 1.0 MPa with the vertical jacks seated; phase 2 raises p_V1 = p_V2 0.1 → 0.5
+    np.testing.assert_allclose(pressure, [0.0] + list(np.arange(1, 11) / 10) + list(np.arange(2, 11) / 20),
+                               rtol=0, atol=1e-12)  # the schedule's decimal pressures, exactly as written
+    assert "p_H" in labels["1"] and "p_V1" in labels["2"] and "p_V2" in labels["2"]
+    subset, _, _ = jack_pressures(flat_jack_steps, [3.0, 12.0])  # measured at some steps only
+    np.testing.assert_allclose(subset, [0.2, 0.1], rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="load levels .*21"):
+        jack_pressures(flat_jack_steps, [21.0])
+
+
+class _FlatJackFit:
+    """What ``plot_fit`` reads of an inversion: measurement, noise and prediction, two gauges."""
+
+    def __init__(self, n_levels):
+        from types import SimpleNamespace
+
+        levels = np.arange(1.0, n_levels + 1)
+        self.values = np.column_stack([levels, -levels]) * 1e-3
+        sd = np.full_like(self.values, 1e-4)
+        measurement = SimpleNamespace(sensor_names=("G1", "G2"), load_levels=levels, values=self.values,
+                                      grid=lambda flat: sd)
+        self.problem = SimpleNamespace(measurement=measurement, misfit=SimpleNamespace(noise_std=sd.ravel()))
+
+    def predicted(self):
+        return self.values * 1.01, None
+
+
+def test_flat_jack_fit_is_drawn_against_the_jack_pressure_with_each_phase(flat_jack_steps, tmp_path, monkeypatch):
+    from podkrig.reports.flat_jack import jack_pressures
+
+    drawn = {}
+    monkeypatch.setattr(inverse_report, "save", lambda fig, path, dpi=110: drawn.setdefault("fig", fig))
+    fit = _FlatJackFit(20)
+    inverse_report.plot_fit(fit, tmp_path / "fit.png", load_unit="step", steps=flat_jack_steps)
+    ax = drawn["fig"].axes[0]
+    assert ax.get_ylabel() == "jack pressure (MPa)"
+    pressure, phases, labels = jack_pressures(flat_jack_steps, np.arange(1.0, 21.0))
+    measured = {c.get_label(): c.lines[0] for c in ax.containers}
+    assert len(measured) == 3  # one series per phase
+    for phase, label in labels.items():
+        line = next(ln for lab, ln in measured.items() if lab.startswith(label))
+        np.testing.assert_array_equal(line.get_ydata(), pressure[phases == phase])
+        np.testing.assert_array_equal(line.get_xdata(), fit.values[phases == phase, 0])
+    drawn.clear()
+    inverse_report.plot_residuals(fit, tmp_path / "residuals.png", load_unit="step", steps=flat_jack_steps)
+    ticks = [t.get_text() for t in drawn["fig"].axes[0].get_yticklabels()]
+    assert [f"phase {ph}," in t and f"{p:g} MPa" in t for t, ph, p in zip(ticks, phases, pressure)] == [True] * 20
+    pyplot().close("all")
+
+
+def test_fit_of_a_load_test_keeps_the_load_axis(tmp_path, monkeypatch):
+    drawn = {}
+    monkeypatch.setattr(inverse_report, "save", lambda fig, path, dpi=110: drawn.setdefault("fig", fig))
+    inverse_report.plot_fit(_FlatJackFit(4), tmp_path / "fit.png", load_unit="kN")
+    ax = drawn["fig"].axes[0]
+    assert ax.get_ylabel() == "load (kN)"
+    np.testing.assert_array_equal(ax.containers[0].lines[0].get_ydata(), [1.0, 2.0, 3.0, 4.0])
+    pyplot().close("all")

@@ -534,8 +534,9 @@ def _draw_calibration(run, result):
     for test in run.study.calibration_tests:
         one = result.tests[test.name]
         unit = one.problem.model.load_unit
-        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit)
-        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit)
+        steps = getattr(run.scenario(test), "steps", None) if unit == "step" else None  # flat jack: vs pressure
+        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit, steps=steps)
+        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit, steps=steps)
         drawn = ["fit.png", "residuals.png"]
         response = result.responses.get(test.name)
         if getattr(response, "field", None) is not None:
