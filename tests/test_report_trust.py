@@ -235,3 +235,87 @@ def test_fit_of_a_load_test_keeps_the_load_axis(tmp_path, monkeypatch):
     assert ax.get_ylabel() == "load (kN)"
     np.testing.assert_array_equal(ax.containers[0].lines[0].get_ydata(), [1.0, 2.0, 3.0, 4.0])
     pyplot().close("all")
+
+
+# --- the nonlinear report: units everywhere, and the first line of a run that stopped early -----
+
+def test_every_solver_setting_has_a_unit():
+    """Fails when the solver gains a setting the report's table would show without a unit."""
+    import dataclasses
+
+    from fe.solvers.nonlinear import PathSettings
+    from podkrig.reports.nonlinear import SETTING_UNITS
+
+    assert set(SETTING_UNITS) == {f.name for f in dataclasses.fields(PathSettings)}
+    assert all(SETTING_UNITS.values())
+
+
+@pytest.fixture(scope="module")
+def stopped_run():
+    """couplet_tension ended by its step limit (5 increments) before its last control level."""
+    from fe.scenarios import build_scenario
+
+    sc = build_scenario({"scenario": "couplet_tension", "max_steps": 5})
+    r = sc.run(field=True)
+    assert r.status == "budget_exhausted" and r.limit == "steps" and r.reached < r.load_levels[-1]
+    return sc, r
+
+
+def _tables(page):
+    """Every table of an HTML page: (caption, header, rows)."""
+    import re
+
+    out = []
+    for body in re.findall(r"<table>(.*?)</table>", page, re.DOTALL):
+        caption = re.search(r"<caption>(.*?)</caption>", body)
+        head = re.findall(r"<th>([^<]*)</th>", body)
+        rows = [re.findall(r"<td[^>]*>([^<]*)</td>", row) for row in re.findall(r"<tr>(<td.*?)</tr>", body)]
+        out.append((caption.group(1) if caption else None, head, rows))
+    return out
+
+
+def test_nonlinear_page_says_first_how_far_a_stopped_run_got(stopped_run, tmp_path):
+    import re
+
+    from podkrig.reports.nonlinear import write_nonlinear_report
+
+    sc, r = stopped_run
+    page = write_nonlinear_report(sc, r, sc.resolve(None), tmp_path).read_text(encoding="utf-8")
+    first = re.search(r"</h1>\s*(<[^>]+>.*?)</div>", page, re.DOTALL).group(1)
+    assert first.startswith('<div class="warn">')
+    for fragment in (r.status, "max_steps", f"{r.reached:.4g}", f"{r.load_levels[-1]:.4g} {r.load_unit}"):
+        assert fragment in first, fragment
+
+
+def test_nonlinear_page_tables_carry_units_and_no_raw_dicts(stopped_run, tmp_path):
+    from fe.solvers.nonlinear import PathSettings
+    from podkrig.reports.nonlinear import SETTING_UNITS, write_nonlinear_report
+
+    sc, r = stopped_run
+    values = sc.resolve(None)
+    tables = {cap: (head, rows) for cap, head, rows in
+              _tables(write_nonlinear_report(sc, r, values, tmp_path).read_text(encoding="utf-8"))}
+    head, rows = tables["Parameters"]
+    assert head == ["parameter", "value", "unit"]
+    assert {row[0]: row[2] for row in rows} == {k: sc.parameters[k].unit for k in values}
+    head, rows = next(v for k, v in tables.items() if k.startswith("Solver settings"))
+    assert head == ["setting", "value", "unit"]
+    assert {row[0] for row in rows} == set(PathSettings().to_dict())
+    assert all(row[2] == SETTING_UNITS[row[0]] for row in rows)
+    head, rows = tables["Path following"]
+    assert head[-1] == "unit" and all(row[2] for row in rows)
+    cells = [c for head, rows in tables.values() for row in rows for c in row]
+    assert not [c for c in cells if "{" in c or "&#x27;" in c]  # no Python dict or repr in a cell
+
+
+def test_simulate_table_output_says_first_that_the_run_stopped(stopped_run):
+    from typer.testing import CliRunner
+
+    from podkrig.cli import app
+
+    _, r = stopped_run
+    result = CliRunner().invoke(app, ["simulate", "couplet_tension", "--option", "max_steps=5"])
+    assert result.exit_code == 1
+    first = result.stdout.splitlines()[0]
+    for fragment in (r.status, "max_steps", f"{r.reached:.4g}", f"{r.load_levels[-1]:.4g} {r.load_unit}"):
+        assert fragment in first, fragment

@@ -33,10 +33,10 @@ def register(app):
         sensitive to them (total index < 0.01 everywhere)."""
         configure_logging(verbose)
         # imported here: see podkrig.cli (the surrogate and online stacks and matplotlib take seconds)
-        from rich.console import Console
         from rich.markup import escape
         from rich.table import Table
 
+        from podkrig.cli._terminal import console as command_console
         from podkrig.cli.invert import build_problem
         from podkrig.online.problem import SurrogateModel
         from podkrig.online.sensitivity import NEGLIGIBLE_TOTAL_INDEX, misfit_sensitivity, reading_sensitivity
@@ -66,7 +66,7 @@ def register(app):
         if format == TableFormat.json:
             typer.echo(json.dumps(result, indent=2))
             return
-        console = Console()
+        console = command_console()
         table = Table(title=f"Sobol' indices over the box ({readings.n_evaluations} surrogate evaluations, "
                             f"{readings.seconds:.1f} s; largest over {len(readings.outputs)} readings)")
         T = readings.total

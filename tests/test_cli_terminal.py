@@ -1,0 +1,167 @@
+"""What the command line prints outside a terminal: help texts with their brackets, tables whole
+when piped, a progress line at least every 20 s (checked with a fake clock), the serial-run hint
+only when it is worth saying, and no Dask traceback at the end of a run on a local cluster."""
+
+import io
+import re
+
+import numpy as np
+import pytest
+import typer.main
+from typer.testing import CliRunner
+
+from podkrig.cli import app
+from podkrig.cli._terminal import HEARTBEAT_S, LINE_INTERVAL_S, Progress, console
+
+runner = CliRunner()
+
+
+# --- help texts: brackets are text, not markup --------------------------------------------------
+
+def _commands(group, path=()):
+    """Every command of the app: (argv path, click command)."""
+    for name, cmd in group.commands.items():
+        if hasattr(cmd, "commands"):
+            yield from _commands(cmd, (*path, name))
+        else:
+            yield (*path, name), cmd
+
+
+def test_bracketed_words_of_every_help_text_survive_in_help_output():
+    """``[kN]``, ``[µm]``, ``[scenario]``, ``[[scenario.sensors]]``: rich markup took them for style
+    tags and dropped them."""
+    root = typer.main.get_command(app)
+    checked = 0
+    for path, cmd in _commands(root):
+        texts = [cmd.help or ""] + [getattr(p, "help", None) or "" for p in cmd.params]
+        tokens = {t for text in texts for t in re.findall(r"\[[^\]\s]+\]", text)}
+        if not tokens:
+            continue
+        result = runner.invoke(app, [*path, "--help"], terminal_width=200)
+        assert result.exit_code == 0, result.output
+        for token in tokens:
+            assert token in result.output, (path, token)
+        checked += len(tokens)
+    assert checked >= 3  # the premise: help texts with brackets exist ([kN], [µm], [scenario] at least)
+    help_text = runner.invoke(app, ["invert", "--help"], terminal_width=200).output
+    assert "[kN]" in help_text and "[µm]" in help_text
+
+
+# --- tables are printed whole outside a terminal ------------------------------------------------
+
+def test_console_outside_a_terminal_is_wide():
+    c = console()
+    assert not c.is_terminal and c.width > 1000
+
+
+def test_a_wide_table_is_printed_whole_when_piped():
+    """45 load steps × 6 gauges of the flat-jack test: every reading in full, no ellipsis."""
+    args = ["simulate", "flat_jack", "--option", "layout=L6"]
+    table = runner.invoke(app, args, terminal_width=80)
+    assert table.exit_code == 0, table.output
+    data = runner.invoke(app, [*args, "--format", "csv"])
+    lines = data.stdout.strip().splitlines()
+    sensors = lines[0].split(",")[1:]
+    readings = np.array([[float(v) for v in line.split(",")[1:]] for line in lines[1:]])
+    assert "…" not in table.stdout
+    for j, name in enumerate(sensors):
+        row = next(line for line in table.stdout.splitlines() if re.search(rf"\b{name}\b", line))
+        cells = re.findall(r"[+-]\d+\.\d{5}", row)
+        assert cells == [f"{v:+.5f}" for v in readings[:, j]], name
+
+
+# --- progress lines outside a terminal ----------------------------------------------------------
+
+class FakeClock:
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def _progress(clock, **kwargs):
+    stream = io.StringIO()
+    return Progress("sensors", terminal=False, stream=stream, clock=clock, **kwargs), stream
+
+
+def test_progress_writes_a_line_once_the_interval_has_passed_and_not_before():
+    clock = FakeClock()
+    progress, stream = _progress(clock)
+    for t in np.arange(0.0, LINE_INTERVAL_S, HEARTBEAT_S):  # the heartbeat's ticks within the first interval
+        clock.now = 1000.0 + t
+        progress.tick()
+    assert stream.getvalue() == ""  # a short command prints no progress
+    clock.now = 1000.0 + LINE_INTERVAL_S
+    progress.tick()
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("sensors:") and f"{LINE_INTERVAL_S:.0f} s" in lines[0]
+
+
+def test_progress_silent_work_still_gets_a_line_every_interval():
+    """No update for 7 minutes (one long computation): the heartbeat's ticks write a line at
+    least every LINE_INTERVAL_S + HEARTBEAT_S, and at most one per interval."""
+    clock = FakeClock()
+    progress, stream = _progress(clock)
+    progress.update("sensitivities", 3, 64)
+    times = []
+    for t in np.arange(0.0, 420.0 + HEARTBEAT_S, HEARTBEAT_S):
+        clock.now = 1000.0 + t
+        before = stream.getvalue().count("\n")
+        progress.tick()
+        if stream.getvalue().count("\n") > before:
+            times.append(t)
+    gaps = np.diff([0.0] + times)
+    assert len(times) >= 420.0 // (LINE_INTERVAL_S + HEARTBEAT_S)
+    assert gaps.max() <= 30.0 and gaps.min() >= LINE_INTERVAL_S
+    assert all(line.startswith("sensitivities: 3/64 (5 %)") for line in stream.getvalue().splitlines())
+
+
+def test_progress_updates_are_rate_limited_and_name_the_task_and_count():
+    clock = FakeClock()
+    progress, stream = _progress(clock, rate="snapshots/s")
+    for done in range(1, 101):  # a report every 0.5 s over 50 s
+        clock.now += 0.5
+        progress.update("snapshots", done, 100)
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 2  # at 20 s and 40 s
+    assert lines[0].startswith("snapshots: 40/100 (40 %), ")
+    rate = float(re.search(r"([\d.]+) snapshots/s", lines[0]).group(1))
+    assert rate == pytest.approx(40 / 19.5, abs=0.05)  # the task started at its first report, 0.5 s in
+
+
+def test_progress_finish_prints_its_line_and_returns_to_the_command_task():
+    clock = FakeClock()
+    progress, stream = _progress(clock)
+    progress.update("Training snapshots (FE)", 10, 10)
+    progress.finish("✓ Training snapshots (FE): 3.0 s")
+    clock.now += LINE_INTERVAL_S
+    progress.tick()
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "✓ Training snapshots (FE): 3.0 s" and lines[1].startswith("sensors:")
+
+
+def test_progress_heartbeat_thread_runs_inside_the_block_only():
+    progress, _ = _progress(FakeClock())
+    with progress:
+        assert progress._thread.is_alive()
+    assert progress._thread is None
+    bar = Progress("x", terminal=True, stream=io.StringIO())
+    with bar:
+        assert bar._thread is None  # a terminal gets a bar, redrawn by rich: no heartbeat
+
+
+def test_piped_long_command_reports_progress_on_stderr(tmp_path, monkeypatch):
+    """``podkrig snapshots run`` not on a terminal: plain progress lines on stderr (the interval set
+    to 0 so that every report writes one), the result on stdout."""
+    import podkrig.cli._terminal as terminal
+
+    monkeypatch.setattr(terminal, "LINE_INTERVAL_S", 0.0)
+    spec = tmp_path / "coarse.toml"
+    spec.write_text('scenario = "diagonal_compression"\nnx = 2\nny = 1\n')
+    result = runner.invoke(app, ["snapshots", "run", "--store", str(tmp_path / "s.h5"), "--spec", str(spec),
+                                 "--param", "E_b=5000:20000", "--n", "4", "--seed", "0", "--workers", "1"])
+    assert result.exit_code == 0, result.output
+    counts = re.findall(r"^snapshots: (\d+)/4 ", result.stderr, re.MULTILINE)
+    assert counts and counts[-1] == "4" and [int(c) for c in counts] == sorted(int(c) for c in counts)
+    assert "snapshots:" not in result.stdout
