@@ -88,6 +88,10 @@ MAX_CHUNK = 32
 #: (57 ms/run; end to end 8 runs: 0.46 s serial vs 7.4 s on the cluster, 64 runs: 1.9 vs 7.5 s).
 #: Below it, :func:`run_pending` runs serially and says so in :attr:`RunSummary.executor`.
 LOCAL_CLUSTER_STARTUP_S = 6.0
+#: Serial time a cluster would have saved, s, from which a job run serially despite ``workers > 1``
+#: says why (:attr:`RunSummary.executor` ``"serial: ..."``, a note of the study's stage): below
+#: it the job is over before the reason could matter, and the executor is plain ``"serial"``.
+SERIAL_REASON_MIN_SAVING_S = 2.0
 
 _SCENARIO_CACHE = {}  # (spec JSON, thread id) -> Scenario: each worker thread builds a scenario once
 _SCENARIO_CACHE_SIZE = 8
@@ -529,8 +533,9 @@ def _serial_if_small(spec_json, store, todo, X, workers):
     """Run the first two pending rows here to time an FE run, and decide whether a local cluster of
     ``workers`` pays for the rest: the serial time saved, ``n t (1 − 1/K)``, must exceed
     :data:`LOCAL_CLUSTER_STARTUP_S`. Returns (the first row's :class:`ChunkResult`, the executor
-    text: ``"serial (...)"`` with the reason, or the local cluster's); (None, "") when the cluster
-    start-up is set to 0 (always use the cluster)."""
+    text: ``"serial: ..."`` with the reason when the saving is at least
+    :data:`SERIAL_REASON_MIN_SAVING_S`, ``"serial"`` below, or the local cluster's); (None, "")
+    when the cluster start-up is set to 0 (always use the cluster)."""
     if LOCAL_CLUSTER_STARTUP_S <= 0:
         return None, ""
     # two rows: the first FE run in a process also pays one-off set-up (caches, JIT compilation)
@@ -538,6 +543,8 @@ def _serial_if_small(spec_json, store, todo, X, workers):
     t = float(np.min(probe.wall_times))
     rest = len(todo) - len(probe.rows)
     saved = rest * t * (1 - 1 / workers)
+    if saved < SERIAL_REASON_MIN_SAVING_S:
+        return probe, "serial"
     if saved < LOCAL_CLUSTER_STARTUP_S:
         return probe, (f"serial: {workers} workers asked, but {len(todo)} runs × {1000 * t:.0f} ms per run would save "
                        f"{saved:.1f} s on {workers} processes, less than a local cluster takes to start "
