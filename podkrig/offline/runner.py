@@ -63,6 +63,7 @@ from podkrig.limits import check_chunk_size, check_workers
 from podkrig.offline.files import acquire_lock, release_lock
 from podkrig.offline.sampling import METHODS, sample
 from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore
+from podkrig.parallel import close_local_cluster
 from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
@@ -511,10 +512,10 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
         finally:  # also on Ctrl-C: cancel what is left, stop a local cluster
             if results is not None:
                 results.close()
-            if client is not None:
+            if cluster is not None:  # a local cluster: in order, without its shutdown noise
+                close_local_cluster(client, cluster)
+            elif client is not None:  # an existing scheduler stays up; its workers are not ours
                 client.close()
-            if cluster is not None:
-                cluster.close()
         counts = store.counts()
     return RunSummary(path, counts["total"], counts["done"], counts["failed"], counts["pending"],
                       n_todo, n_failed, time.perf_counter() - t0, executor)
