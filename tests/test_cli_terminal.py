@@ -281,3 +281,31 @@ def test_a_run_on_a_local_cluster_ends_without_dask_noise_on_stderr(tmp_path):
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["local", "Dask", "cluster,", "2", "workers", "8"]
     assert result.stderr == ""
+
+
+# --- podkrig sensitivity: a negative index is explained in its table ----------------------------
+
+def test_sensitivity_table_explains_a_negative_first_order_index(tmp_path, monkeypatch):
+    """The command's table for indices where r_hj's first-order estimate is −0.0009 inside its
+    interval: a note column, the noise words on r_hj's row only (the indices are injected: the
+    table is what is tested, not the estimator)."""
+    import podkrig.io.surrogate_file as surrogate_file
+    import podkrig.online.problem as problem
+    import podkrig.online.sensitivity as sensitivity
+    from podkrig.reports.sensitivity import NEGATIVE_INDEX
+
+    indices = sensitivity.SensitivityResult(
+        ("E_b", "r_hj"), ("D1@100",), first=np.array([[0.9, -0.0009]]), total=np.array([[0.95, 0.02]]),
+        first_low=np.array([[0.85, -0.004]]), first_high=np.array([[0.95, 0.003]]),
+        total_low=np.array([[0.9, 0.01]]), total_high=np.array([[0.99, 0.03]]), variance=np.array([1e-6]),
+        confidence=0.95, n_base=256, seconds=0.1)
+    monkeypatch.setattr(surrogate_file, "load_surrogate", lambda path: None)
+    monkeypatch.setattr(problem, "SurrogateModel", lambda surrogate: None)
+    monkeypatch.setattr(sensitivity, "reading_sensitivity", lambda model, **kwargs: indices)
+    result = runner.invoke(app, ["sensitivity", str(tmp_path / "s.h5"), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert any("note" in line for line in lines)
+    rows = {name: next(line for line in lines if re.search(rf"\b{name}\b", line) and "[" in line)
+            for name in ("E_b", "r_hj")}
+    assert NEGATIVE_INDEX["noise"] in rows["r_hj"] and "negative" not in rows["E_b"]
