@@ -309,3 +309,39 @@ def test_sensitivity_table_explains_a_negative_first_order_index(tmp_path, monke
     rows = {name: next(line for line in lines if re.search(rf"\b{name}\b", line) and "[" in line)
             for name in ("E_b", "r_hj")}
     assert NEGATIVE_INDEX["noise"] in rows["r_hj"] and "negative" not in rows["E_b"]
+
+
+def test_every_command_reports_that_it_is_alive_when_piped(monkeypatch):
+    """A command without progress reports of its own (``simulate``) still writes progress lines
+    on stderr outside a terminal: the heartbeat every command runs in (interval and heartbeat
+    shortened so that the short run writes some)."""
+    import podkrig.cli._terminal as terminal
+
+    monkeypatch.setattr(terminal, "LINE_INTERVAL_S", 0.0)
+    monkeypatch.setattr(terminal, "HEARTBEAT_S", 0.001)
+    result = runner.invoke(app, ["simulate", "diagonal_compression", "--option", "nx=2", "--option", "ny=1",
+                                 "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    assert re.search(r"^podkrig: .*elapsed$", result.stderr, re.MULTILINE)
+    assert result.stdout.startswith("load,")  # the output itself is untouched
+
+
+def test_an_inner_display_speaks_for_the_command():
+    """``podkrig run``'s stage display inside the command's heartbeat: one line per interval, the
+    inner one's, and a line of either counts for both."""
+    clock = FakeClock()
+    outer_stream, inner_stream = io.StringIO(), io.StringIO()
+    with Progress("podkrig run", terminal=False, stream=outer_stream, clock=clock) as outer:
+        with Progress("study", terminal=False, stream=inner_stream, clock=clock) as inner:
+            inner.update("Training snapshots (FE)", 3, 256)
+            clock.now += LINE_INTERVAL_S
+            outer.tick()
+            inner.tick()
+            outer.tick()
+        clock.now += LINE_INTERVAL_S - 1
+        outer.tick()  # the inner line was written LINE_INTERVAL_S - 1 ago: nothing yet
+        clock.now += 1
+        outer.tick()
+    assert inner_stream.getvalue().splitlines()[0].startswith("Training snapshots (FE): 3/256")
+    assert len(inner_stream.getvalue().splitlines()) == 1
+    assert len(outer_stream.getvalue().splitlines()) == 1 and outer_stream.getvalue().startswith("podkrig run:")

@@ -4,11 +4,13 @@
   window; anywhere else (a pipe, a file, a batch job's log, a test runner) rich would assume 80
   columns and cut table cells (``+0.25…``) and wrap lines, so the console is as wide as the
   widest line: tables print whole.
-- :class:`Progress`: the one progress display of every long command (``run``, ``demo``,
-  ``snapshots run``, ``sensors``, ``diagnose``). On a terminal a rich bar on stderr; anywhere
-  else, where a bar cannot be redrawn, a plain line on stderr at least every
+- :class:`Progress`: the one progress display of the command line. On a terminal a rich bar on
+  stderr; anywhere else, where a bar cannot be redrawn, a plain line on stderr at least every
   :data:`LINE_INTERVAL_S` seconds — the task, its count done, its elapsed time — whether or not
   the work reported progress in between (a heartbeat thread), so a log shows the job is alive.
+  Every command runs inside one (``user_errors`` in :mod:`podkrig.cli._common`: ``podkrig: 40 s
+  elapsed``); the commands that report progress (``run``, ``demo``, ``snapshots
+  run``, ``sensors``, ``diagnose``) open their own inside it, which then speaks for them.
 """
 
 import sys
@@ -23,6 +25,11 @@ LINE_INTERVAL_S = 20.0
 HEARTBEAT_S = 1.0
 #: the width of a console that is not a terminal, characters: no table of podkrig comes near it
 WIDE = 10_000
+
+#: the plain-line displays whose blocks are running, innermost last: a command's own display (e.g.
+#: the stages of ``podkrig run``) inside the heartbeat every command gets from ``user_errors``;
+#: only the innermost writes heartbeat lines, and a line of any of them counts for all
+_ACTIVE = []
 
 
 def console(stderr=False, highlight=True):
@@ -75,6 +82,7 @@ class Progress:
     # --- the command's side -------------------------------------------------------------------
     def __enter__(self):
         if not self.terminal:
+            _ACTIVE.append(self)
             self._thread = threading.Thread(target=self._beat, name="podkrig-progress", daemon=True)
             self._thread.start()
         return self
@@ -126,6 +134,8 @@ class Progress:
         if self._thread is not None:
             self._thread.join()
             self._thread = None
+        if self in _ACTIVE:
+            _ACTIVE.remove(self)
         if self._bar is not None:
             self._bar.stop()
             self._bar = None
@@ -143,6 +153,8 @@ class Progress:
     def tick(self):
         """Write the progress line when :attr:`interval` has passed since the last line (the
         heartbeat calls this every :data:`HEARTBEAT_S`, :meth:`update` at every report)."""
+        if self in _ACTIVE and _ACTIVE[-1] is not self:  # an inner display speaks for the command
+            return
         with self._lock:
             if self._clock() - self._last >= self.interval:
                 self._write(self.line())
@@ -151,7 +163,8 @@ class Progress:
         stream = self._stream or sys.stderr
         stream.write(text + "\n")
         stream.flush()
-        self._last = self._clock()
+        for display in [self, *_ACTIVE]:
+            display._last = display._clock()
 
     def _beat(self):
         while not self._stop.wait(HEARTBEAT_S):
@@ -173,3 +186,4 @@ class Progress:
         elapsed = self._clock() - self._started
         rate = f"{self._done / elapsed:.1f} {self._rate}" if self._rate and elapsed > 0 else ""
         self._bar.update(self._bar_task, completed=self._done, total=self._total, rate=rate)
+
