@@ -319,3 +319,9 @@ def test_simulate_table_output_says_first_that_the_run_stopped(stopped_run):
     first = result.stdout.splitlines()[0]
     for fragment in (r.status, "max_steps", f"{r.reached:.4g}", f"{r.load_levels[-1]:.4g} {r.load_unit}"):
         assert fragment in first, fragment
+
+
+def test_a_step_axis_is_not_labelled_as_a_load():
+    from podkrig.reports.figures import load_label
+
+    assert load_label("step") == "step" and load_label("kN") == "load (kN)"

@@ -107,8 +107,9 @@ def plot_setup(scenario, path):
     return Path(path)
 
 
-def _phase_bands(ax, scenario):
-    """Shade the steps of each loading phase alternately and name the phase above the axes."""
+def shade_phases(ax, scenario, labels=True):
+    """Shade the steps of each loading phase alternately on an axis of step numbers (x) and, with
+    ``labels``, name the phase above the axes."""
     steps = getattr(scenario, "steps", None)
     if not steps:
         return
@@ -116,8 +117,9 @@ def _phase_bands(ax, scenario):
     bounds = [0] + [i for i in range(1, len(phases)) if phases[i] != phases[i - 1]] + [len(phases)]
     for k, (i, j) in enumerate(itertools.pairwise(bounds)):
         ax.axvspan(i + 0.5, j + 0.5, color=("#f2f2f2", "#dedede")[k % 2], zorder=0)
-        ax.text(0.5 * (i + j) + 0.5, 1.0, f"phase {phases[i]}", transform=ax.get_xaxis_transform(),
-                ha="center", va="bottom", fontsize=8)
+        if labels:
+            ax.text(0.5 * (i + j) + 0.5, 1.0, f"phase {phases[i]}", transform=ax.get_xaxis_transform(),
+                    ha="center", va="bottom", fontsize=8)
 
 
 def jack_pressures(steps, load_levels):
@@ -178,7 +180,7 @@ def plot_readings(scenario, response, path):
     """Readings (µm) per step, phases shaded; grids (DIC) as the median and maximum |u| per step."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(10, 5))
-    _phase_bands(ax, scenario)
+    shade_phases(ax, scenario)
     steps = response.load_levels
     gauge_names = [n for s in scenario.sensors if s.kind != "dic" for n in s.channel_names]
     for name in gauge_names:
