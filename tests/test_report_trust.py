@@ -302,6 +302,11 @@ def test_nonlinear_page_tables_carry_units_and_no_raw_dicts(stopped_run, tmp_pat
     assert head == ["setting", "value", "unit"]
     assert {row[0] for row in rows} == set(PathSettings().to_dict())
     assert all(row[2] == SETTING_UNITS[row[0]] for row in rows)
+    settings = r.path.settings
+    assert {row[0]: row[1] for row in rows if type(settings[row[0]]) is int} == \
+        {k: str(v) for k, v in settings.items() if type(v) is int}  # counts in full, not 3e+04
+    head, rows = tables["Readings at the response levels"]
+    assert all(cell == "—" for row in rows[1:] for cell in row[1:])  # the levels it did not reach
     head, rows = tables["Path following"]
     assert head[-1] == "unit" and all(row[2] for row in rows)
     cells = [c for head, rows in tables.values() for row in rows for c in row]

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.reports.figures import pyplot, save
-from podkrig.reports.html import Page, fmt
+from podkrig.reports.html import Page, fmt, num
 from podkrig.reports.step_slider import build_step_slider, step_slider_html
 
 #: each limit of a run's budget (``response.limit``, :data:`fe.solvers.nonlinear.LIMITS`): its name in
@@ -126,7 +126,7 @@ def _cell(value):
     """A solver setting or count for the table: numbers as numbers, switches as on/off."""
     if isinstance(value, bool):
         return "on" if value else "off"
-    return "—" if value is None else fmt(value)
+    return str(value) if isinstance(value, int) else num(value)
 
 
 def _solver_tables(page, response):
@@ -169,7 +169,7 @@ def write_nonlinear_report(scenario, response, values, out_dir):
         page.heading("Step by step")
         page.fragment(step_slider_html(build_step_slider(scenario, response)))
     header = [f"level ({response.load_unit})", f"load ({response.force_unit})"] + [f"{n} (mm)" for n in response.sensor_names]
-    rows = [[fmt(lv), fmt(ld)] + [fmt(v) for v in row]
+    rows = [[fmt(lv), num(ld)] + [num(v) for v in row]  # "—" at the levels a stopped run did not reach
             for lv, ld, row in zip(response.load_levels, response.loads, response.readings)]
     page.table(header, rows, caption="Readings at the response levels")
     page.table(["parameter", "value", "unit"], [[k, fmt(v), scenario.parameters[k].unit] for k, v in values.items()],
