@@ -252,10 +252,12 @@ def render_fit(page, inv, folder="", deformed=False):
 
 def render_ga(page):
     """The GA's figures (``ga_history.png``, ``ga_parameters.png``)."""
-    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics "
-                                  "(thesis Fig. 3.17).")
+    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation with the reported "
+                                  "optimum's misfit (dashed), and population statistics (thesis Fig. 3.17).")
     page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, "
-                                     "coloured by generation (log axes for log-sampled parameters; thesis Fig. 3.23).")
+                                     "coloured by generation, with the reported optimum (star on a dashed line; dotted: "
+                                     "the GA's own best before the least-squares polish, where it differs) (log axes "
+                                     "for log-sampled parameters; thesis Fig. 3.23).")
 
 
 def render_region(page, region, posterior=None):
