@@ -91,9 +91,9 @@ def register(app):
         from rich.markup import escape
         from rich.table import Table
 
-        from podkrig.cli._terminal import Progress, console as command_console
-
         from fe.scenarios import SCENARIOS, build_scenario
+        from podkrig.cli._terminal import Progress
+        from podkrig.cli._terminal import console as command_console
         from podkrig.parameters import ParameterSpace, parse_params
         from podkrig.reports.sensors import comparison_markdown, comparison_rows, plot_layout
         from podkrig.sensors.candidates import Zone
