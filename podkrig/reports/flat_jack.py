@@ -159,7 +159,7 @@ def jack_pressures(steps, load_levels):
         alone = not same_phase and (k + 1 == len(steps) or steps[k + 1].phase != s.phase)
         jacks = drivers.setdefault(s.phase, [])
         if same_phase or alone:
-            jacks += [j for j in s.pressures if s.pressures[j] != before.get(j) and j not in jacks]
+            jacks += sorted(j for j in s.pressures if s.pressures[j] != before.get(j) and j not in jacks)
     labels = {}
     for phase, jacks in drivers.items():
         together = all(len({steps[k].pressures[j] for j in jacks}) == 1 for k in range(len(steps))

@@ -57,17 +57,18 @@ def plot_fit(result, path, *, load_unit="kN", steps=None):
         ylabel = f"load ({load_unit})"
     else:
         load, phases, labels = jack_pressures(steps, meas.load_levels)
-        groups = [(phases == ph, f"C{k}", f"C{k}", f"{labels[ph]}: ") for k, ph in enumerate(labels) if (phases == ph).any()]
+        groups = [(phases == ph, f"C{k}", f"C{k}", labels[ph]) for k, ph in enumerate(labels) if (phases == ph).any()]
         ylabel = "jack pressure (MPa)"
     for j, name in enumerate(meas.sensor_names):
         ax = axes.flat[j]
-        for sel, colour, line_colour, label in groups:
+        for sel, colour, line_colour, label in groups:  # with steps: the phase names the points, by colour
             ax.errorbar(meas.values[sel, j], load[sel], xerr=2 * sd[sel, j], fmt="o", color=colour, ms=4, capsize=3,
-                        label=f"{label}measured ±2σ noise")
-            ax.plot(pred[sel, j], load[sel], "-", color=line_colour, label=f"{label}calibrated model (surrogate)")
+                        label=label or "measured ±2σ noise")
+            ax.plot(pred[sel, j], load[sel], "-", color=line_colour,
+                    label=None if label else "calibrated model (surrogate)")
             if std is not None:
                 ax.fill_betweenx(load[sel], pred[sel, j] - 2 * std[sel, j], pred[sel, j] + 2 * std[sel, j],
-                                 color=line_colour, alpha=0.2, label=f"{label}surrogate ±2σ")
+                                 color=line_colour, alpha=0.2, label=None if label else "surrogate ±2σ")
         ax.set_title(name)
         ax.set_xlabel(f"{name} reading (mm)")
         ax.set_ylabel(ylabel)
@@ -75,6 +76,9 @@ def plot_fit(result, path, *, load_unit="kN", steps=None):
         ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
+    if steps is not None:  # what the marks are, once: points measured (±2σ), lines the surrogate (±2σ band)
+        axes.flat[0].plot([], [], "o", color="0.4", label="measured ±2σ noise")
+        axes.flat[0].plot([], [], "-", color="0.4", label="calibrated model (surrogate)" + ("" if std is None else " ±2σ"))
     axes.flat[0].legend(fontsize=7)
     fig.tight_layout()
     save(fig, path, dpi=110)
