@@ -83,6 +83,7 @@ import numpy as np
 
 from ..assembly import StiffnessPart, element_dofs
 from ..constraints import constraint_transform
+from ..display import Displayed
 from ..elements.interface import IL4, IL6
 from ..elements.quad import QUADS
 from ..exceptions import MeshError, SpecError
@@ -713,8 +714,8 @@ class FlatJack(Scenario):
 
 
 
-@dataclass(frozen=True, eq=False)
-class Phase3Check:
+@dataclass(frozen=True, eq=False, repr=False)
+class Phase3Check(Displayed):
     """Elastic phase-3 state of the block's top bed joint against the statics of reference §5.4.
 
     Per step (arrays ``(n_steps,)``): jack pressures ``p_H`` and ``delta_p_V = p_V1 − p_V2``

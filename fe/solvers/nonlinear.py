@@ -80,6 +80,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..display import Displayed
 from ..exceptions import SolverError
 
 logger = logging.getLogger(__name__)
@@ -282,8 +283,8 @@ class Phase:
             raise ValueError(f"phase {self.name!r}: increment must be > 0; got {self.increment}")
 
 
-@dataclass
-class PathResult:
+@dataclass(repr=False)
+class PathResult(Displayed):
     """The converged path of a run.
 
     Attributes (one entry per converged step, in order; phase boundaries in ``phase``)
@@ -373,8 +374,8 @@ class PathResult:
         }
 
 
-@dataclass
-class Peak:
+@dataclass(repr=False)
+class Peak(Displayed):
     """The largest load of a phase, refined to a stated tolerance (module docstring).
 
     Attributes

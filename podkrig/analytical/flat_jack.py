@@ -41,6 +41,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
+
 PLANES = ("stress", "strain")
 
 
@@ -346,8 +348,8 @@ def _ddm_kernels(x, y, a, nu):
     return ux, uy, sxx, syy, sxy
 
 
-@dataclass(frozen=True, eq=False)
-class DDMSolution:
+@dataclass(frozen=True, eq=False, repr=False)
+class DDMSolution(Displayed):
     """Displacement discontinuities of constant elements along slots in an infinite plate.
 
     Attributes

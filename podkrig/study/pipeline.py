@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig import __version__
+from podkrig.display import Displayed, summary
 from podkrig.online.calibrate import CalibrationResult
 from podkrig.online.findings import (
     CHI2_BASIS,
@@ -36,8 +37,8 @@ from podkrig.study import stages
 from podkrig.study.cache import Progress, StageRecord, now, write_json
 
 
-@dataclass(frozen=True)
-class StudyResult:
+@dataclass(frozen=True, repr=False)
+class StudyResult(Displayed):
     """Outcome of :func:`run_study`.
 
     Attributes
@@ -75,6 +76,15 @@ class StudyResult:
     def fe_runs(self):
         """FE runs done by this run, all stages."""
         return sum(r.fe_runs for r in self.stages)
+
+    def _repr_lines(self):
+        """The study, its stages (run or cached), FE runs, warnings and the report (repr)."""
+        ran = [r.name for r in self.stages if not r.cached]
+        return [f"StudyResult {self.study.name!r}: {len(self.stages)} stages ({len(ran)} run, "
+                f"{len(self.stages) - len(ran)} cached), {self.fe_runs} FE runs, {len(self.warnings)} warnings, "
+                f"{summary(self.seconds)} s",
+                f"  out: {self.out}", f"  report: {self.report}",
+                *(f"  warning: {summary(w.message, 100)}" for w in self.warnings)]
 
     #: report figures shown inline by :meth:`_repr_html_`, in this order (those that exist)
     INLINE_FIGURES = ("fit.png", "residuals.png", "region.png", "deformed.png")

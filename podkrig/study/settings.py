@@ -35,6 +35,7 @@ from podkrig.config import Seed, finite as _finite, settings as _settings, type_
 from podkrig.config import allowed as _allowed, choice as _choice, settings_error as study_error
 from podkrig.config import field_info
 from podkrig.diagnosis.settings import DiagnosisSettings
+from podkrig.display import Displayed, summary
 from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
 from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
 from podkrig.offline.settings import training_rows as _training_rows
@@ -60,6 +61,7 @@ from podkrig.online.settings import (
     check_noise,
 )
 from podkrig.parameters import SCALES, ParameterSpace
+from podkrig.reports.jupyter import study_html
 from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAMS, SurrogateSettings
 
 __all__ = [
@@ -378,8 +380,8 @@ class ValidationModel:
     outputs: tuple | None = None
 
 
-@dataclasses.dataclass(frozen=True)
-class Study:
+@dataclasses.dataclass(frozen=True, repr=False)
+class Study(Displayed):
     """A validated study file.
 
     Attributes
@@ -428,6 +430,21 @@ class Study:
     diagnosis: DiagnosisSettings
     sensitivity: SensitivityTable = SensitivityTable()
     tests: tuple = ()
+
+    def _repr_lines(self):
+        """The scenario, the designs and one line per free parameter (repr)."""
+        tests = f", tests {[t.name for t in self.tests]}" if self.tests else ""
+        return [f"Study {self.name!r}: scenario {self.spec.scenario}, {len(self.space)} free parameters, "
+                f"{self.train.n} training and {self.held_out.n} held-out FE runs, diagnosis "
+                f"{'on' if self.diagnosis.enabled else 'off'}{tests}",
+                f"  file: {self.path}",
+                *(f"  {p.name} in [{summary(p.lower)}, {summary(p.upper)}] {p.unit} ({p.scale})"
+                  for p in self.space.parameters)]
+
+    def _repr_html_(self):
+        """The scenario, designs, free and fixed parameters as HTML tables, for Jupyter
+        (:func:`podkrig.reports.jupyter.study_html`)."""
+        return study_html(self)
 
     def calibration_settings(self):
         """The :class:`~podkrig.online.settings.CalibrationSettings` of the study: its
