@@ -119,8 +119,31 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     for name, (lo, hi) in calibration["region"]["intervals"].items():
         assert lo <= params[name] <= hi
     assert calibration["rvc"]["shear"]["outputs"] == ["top_ux@40", "D1@40"]
-    with np.load(out / "region.npz") as f:
+    with np.load(out / "region.npz") as f:  # columns named, with their units, readable without pickle
         assert len(f["samples"]) == calibration["region"]["n_members"]
+        assert f["names"].tolist() == calibration["region"]["names"] == ["kN_bj", "kV_bj"]
+        assert f["units"].tolist() == calibration["region"]["units"]
+    with np.load(out / "probe.npz") as f:
+        assert f["names"].tolist() == ["kN_bj", "kV_bj"] and f["X"].shape == (5, 2)
+        assert f["readings"].shape == (5, len(f["load_levels"]), len(f["sensor_names"])) and str(f["load_unit"]) == "kN"
+
+
+def test_region_files_name_their_columns_and_old_files_still_read(tmp_path):
+    """``region.npz`` names its columns; a file written before it did (no ``names``) reads as it
+    is; a file naming other parameters (another study's) is refused, naming both lists and the
+    remedy."""
+    from podkrig.online.region import Region
+    from podkrig.study.stages import region_members, save_region
+
+    samples, omega = np.arange(6.0).reshape(3, 2), np.array([1.0, 2.0, 3.0])
+    region = Region("likelihood-ratio", 0.95, samples, omega, 4.0, {}, ("E_b", "c"), ("MPa", "MPa"), 10, 1.0, {})
+    save_region(tmp_path / "region.npz", region)
+    got = region_members(tmp_path / "region.npz", ["E_b", "c"])
+    assert all(np.array_equal(a, b) for a, b in zip(got, (samples, omega)))  # npz round trip is exact
+    np.savez(tmp_path / "old.npz", samples=samples, omega=omega)
+    assert np.array_equal(region_members(tmp_path / "old.npz", ["E_b", "c"])[0], samples)
+    with pytest.raises(ValueError, match=r"\['E_b', 'c'\].*\['E_b', 'ft'\].*--out"):
+        region_members(tmp_path / "region.npz", ["E_b", "ft"])
 
 
 def test_rerun_with_nothing_changed_does_no_fe_work(tiny, fe_counter):

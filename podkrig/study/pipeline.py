@@ -16,11 +16,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from podkrig import __version__
 from podkrig.display import Displayed, summary
-from podkrig.online.calibrate import CalibrationResult
 from podkrig.online.findings import (
     CHI2_BASIS,
     RESIDUAL_CONVENTION,
@@ -93,9 +90,7 @@ class StudyResult(Displayed):
     def calibration(self):
         """The calibration (:class:`~podkrig.online.calibrate.CalibrationResult`), read back from its
         manifest and ``region.npz``."""
-        with np.load(self.out / "region.npz") as f:
-            return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"],
-                                               omega=f["omega"])
+        return stages.calibration_result(self.out, self.stage("calibration").result)
 
     def diagnoses(self):
         """Each test's diagnosis result dict (None when the diagnosis is off), by test name."""
