@@ -146,6 +146,26 @@ def test_region_files_name_their_columns_and_old_files_still_read(tmp_path):
         region_members(tmp_path / "region.npz", ["E_b", "ft"])
 
 
+def test_a_first_look_without_the_diagnosis_then_the_diagnosis_alone(tiny, tmp_path, fe_counter):
+    """``podkrig run --skip-diagnosis`` leaves the model diagnosis out (no FE run, no diagnosis
+    stage, no diagnosis line); the same run without it then runs the diagnosis alone, every other
+    stage cached."""
+    study, out, _ = tiny
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    (copy / "stages" / "diagnosis.json").unlink()  # as if the study had never run its diagnosis
+    counter = fe_counter()
+    result = runner.invoke(app, ["run", str(study), "--out", str(copy), "--skip-diagnosis"])
+    assert result.exit_code == 0, result.output
+    assert counter.calls == 0 and re.search(r"\b0 FE runs in", result.output)  # the stages' count, all kinds
+    assert not (copy / "stages" / "diagnosis.json").exists() and "model diagnosis" not in result.output
+    assert "diagnosis" not in json.loads((copy / "summary.json").read_text())["stages"]
+    text = _run(study, copy)
+    ran = {name for name, m in _stages(copy).items() if m["finished"] != _stages(out)[name]["finished"]}
+    assert ran <= {"diagnosis", "measurement"} and "diagnosis" in ran  # the measurement check is 0 FE runs
+    assert re.search(rf"\b{_stages(copy)['diagnosis']['fe_runs']} FE runs in", text) and "model diagnosis" in text
+
+
 def test_rerun_with_nothing_changed_does_no_fe_work(tiny, fe_counter):
     study, out, _ = tiny
     before = _stages(out)

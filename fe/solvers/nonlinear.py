@@ -13,7 +13,7 @@ scalar *path parameter* is driven from its current value to ``target``:
   the openings of a crack or of chosen dofs) with λ unknown: the bordered Newton step solves
   ``K δq_I = −r`` and ``K δq_II = f_ref`` on one factorisation and chooses δλ so that the constraint
   holds. A monotone crack opening passes snap-backs of the load–displacement curve that
-  displacement control cannot (DIANA's arc-length remark, reference §3).
+  displacement control cannot (as DIANA's manual remarks on arc-length control).
 
 Further dofs can be ``held`` (zero increment in the phase), e.g. the vertical dof of a loading beam
 fixed after pre-compression; their reactions are recorded.

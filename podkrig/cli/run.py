@@ -70,8 +70,9 @@ def _rich_progress():
     return RichProgress()
 
 
-SKIP_DIAGNOSIS_HELP = ("Leave the model diagnosis out of this run (most of the demo's FE runs), as [diagnosis] "
-                       "enabled = false would; a later run without it adds the diagnosis, every other stage cached.")
+SKIP_DIAGNOSIS_HELP = ("Leave the model diagnosis out of this run (most of the demo's FE runs), as 'enabled = "
+                       "false' in the study's diagnosis table would; a later run without this option adds the "
+                       "diagnosis, every other stage cached.")
 
 
 def _run(study_path, out, yes=False, skip_diagnosis=False):
