@@ -18,7 +18,8 @@ MAX_REPR = 600
 
 
 def summary(value, width=60):
-    """``value`` in a few characters: numbers with 4 significant digits, strings cut to ``width``,
+    """``value`` in a few characters: numbers with 4 significant digits (positional from 0.001 to
+    10⁷: 20000, not 2e+04), strings cut to ``width``,
     arrays as shape and dtype (their values when they have at most 4), sequences and mappings by
     length (their items when short), other objects by class name."""
     if value is None or isinstance(value, (bool, np.bool_)):
@@ -26,7 +27,10 @@ def summary(value, width=60):
     if isinstance(value, (int, np.integer)):
         return str(int(value))
     if isinstance(value, (float, np.floating)):
-        return f"{float(value):.4g}" if math.isfinite(value) else str(float(value))
+        value = float(value)
+        if not math.isfinite(value) or not (value == 0 or 1e-3 <= abs(value) < 1e7):
+            return f"{value:.4g}"
+        return np.format_float_positional(value, precision=4, unique=True, fractional=False, trim="-")
     if isinstance(value, str):
         return repr(value) if len(value) <= width else repr(value[:width - 1] + "…")
     if isinstance(value, np.ndarray):

@@ -17,7 +17,7 @@ import pytest
 import fe
 import fe.display
 import podkrig
-from podkrig.display import MAX_REPR
+from podkrig.display import MAX_REPR, summary
 from podkrig.reports import jupyter
 from podkrig.reports.jupyter import html_table, number
 
@@ -42,6 +42,16 @@ def test_tables_are_exact_escaped_and_captioned_only_when_asked():
         "<tr><td>a&lt;b</td><td>1</td></tr><tr><td>c</td><td>d&amp;e</td></tr></tbody></table>")
     assert html_table(["x"], [], caption="Fit & region").startswith(
         "<table><caption style='text-align:left'><b>Fit &amp; region</b></caption><thead>")
+
+
+def test_a_summary_is_a_few_characters():
+    """Numbers with 4 significant digits, positional where a reader expects it; texts cut; arrays,
+    long sequences and tables by size. Defects: 2e+04 for a bound of 20000, a whole array."""
+    assert [summary(v) for v in (20000.0, 0.123456, 1e-7, 3.0e9, 0.0, float("nan"), 7, True, None)] == [
+        "20000", "0.1235", "1e-07", "3e+09", "0", "nan", "7", "True", "None"]
+    assert summary("x" * 100, 10) == repr("x" * 9 + "…") and summary(np.zeros((500, 3))) == "array(500, 3) float64"
+    assert summary(np.array([1.0, 2.5])) == "[1, 2.5]" and summary(list(range(100))) == "100 items"
+    assert summary({"a": 1, "b": 2.5}) == "{a: 1, b: 2.5}" and summary({i: i for i in range(9)}).startswith("9 entries")
 
 
 def test_a_running_ipython_gets_the_renderers_and_plain_python_imports_nothing(monkeypatch):
@@ -195,13 +205,20 @@ def test_a_study_shows_its_scenario_designs_and_parameters():
 
     study = load_study(EXAMPLES / "diagonal_compression.toml")
     text = repr(study)
-    assert len(text) <= MAX_REPR and text.startswith(f"Study {study.name!r}: scenario {study.spec.scenario}")
+    assert len(text) <= MAX_REPR and text.startswith(f"Study {study.name!r}: 1 test, 4 free parameters")
+    assert f"scenario {study.spec.scenario}, {study.train.n} training and {study.held_out.n} held-out" in text
     first = study.space.parameters[0]
-    assert f"{first.name} in [" in text and f"{study.train.n} training" in text
+    assert f"{first.name} in [{summary(first.lower)}, {summary(first.upper)}] {first.unit}" in text
     markup = study._repr_html_()
     for word in ("Free parameters", first.name, first.unit, f"{study.train.n} FE runs"):
         assert word in html.unescape(markup), word
     _well_formed(markup)
+    joint = load_study(EXAMPLES / "joint_three_tests.toml")  # one line per test, every test's parameters
+    text = repr(joint)
+    assert len(text) <= MAX_REPR and f"{len(joint.tests)} tests" in text
+    for t in joint.tests:
+        assert f"test {t.name}: scenario {t.spec.scenario}" in text and t.name in html.unescape(joint._repr_html_())
+    assert {p.name for t in joint.tests for p in t.space.parameters} == {p.name for p in joint.free_parameters}
 
 
 def test_a_study_result_prints_its_stages_and_warnings_in_a_few_lines(tmp_path):

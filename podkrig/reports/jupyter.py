@@ -83,22 +83,21 @@ def region_html(region):
 
 
 def study_html(study):
-    """A :class:`~podkrig.study.settings.Study` before it runs: its scenario and designs, the free
-    parameters with their search ranges and the fixed ones, as HTML tables."""
-    tests = ", ".join(str(t.name) for t in study.tests) or "one test"
-    about = html_table(["item", "value"],
-                       [["scenario", study.spec.scenario], ["study file", study.path],
-                        ["training design", f"{study.train.n} FE runs ({study.train.method}, seed {study.train.seed})"],
-                        ["held-out design", f"{study.held_out.n} FE runs ({study.held_out.method}, "
-                                            f"seed {study.held_out.seed})"],
-                        ["tests", tests], ["diagnosis", "on" if study.diagnosis.enabled else "off"]],
-                       caption=f"Study {study.name}")
+    """A :class:`~podkrig.study.settings.Study` before it runs: each test's scenario and designs,
+    the free parameters with their search ranges and the fixed ones, as HTML tables."""
+    tests = html_table(["test", "scenario", "training design", "held-out design"],
+                       [["—" if t.name is None else t.name, t.spec.scenario,
+                         f"{t.train.n} FE runs ({t.train.method}, seed {t.train.seed})",
+                         f"{t.held_out.n} FE runs ({t.held_out.method}, seed {t.held_out.seed})"]
+                        for t in study.calibration_tests],
+                       caption=f"Study {study.name} ({study.path}); diagnosis "
+                               f"{'on' if study.diagnosis.enabled else 'off'}")
     free = html_table(["parameter", "unit", "low", "high", "scale"],
                       [[p.name, p.unit, number(float(p.lower)), number(float(p.upper)), p.scale]
-                       for p in study.space.parameters], caption="Free parameters (search range)")
+                       for p in study.free_parameters], caption="Free parameters (search range)")
     fixed = html_table(["parameter", "value"], [[n, number(float(v))] for n, v in study.fixed.items()],
                        caption="Fixed parameters") if study.fixed else ""
-    return about + free + fixed
+    return tests + free + fixed
 
 
 def register():

@@ -432,14 +432,25 @@ class Study(Displayed):
     tests: tuple = ()
 
     def _repr_lines(self):
-        """The scenario, the designs and one line per free parameter (repr)."""
-        tests = f", tests {[t.name for t in self.tests]}" if self.tests else ""
-        return [f"Study {self.name!r}: scenario {self.spec.scenario}, {len(self.space)} free parameters, "
-                f"{self.train.n} training and {self.held_out.n} held-out FE runs, diagnosis "
-                f"{'on' if self.diagnosis.enabled else 'off'}{tests}",
-                f"  file: {self.path}",
-                *(f"  {p.name} in [{summary(p.lower)}, {summary(p.upper)}] {p.unit} ({p.scale})"
-                  for p in self.space.parameters)]
+        """Each test's scenario and designs, then one line per free parameter (repr)."""
+        tests = self.calibration_tests
+        lines = [f"Study {self.name!r}: {len(tests)} test{'s' if len(tests) > 1 else ''}, "
+                 f"{len(self.free_parameters)} free parameters, diagnosis {'on' if self.diagnosis.enabled else 'off'}",
+                 f"  file: {self.path}"]
+        lines += [f"  {'' if t.name is None else f'test {t.name}: '}scenario {t.spec.scenario}, {t.train.n} training "
+                  f"and {t.held_out.n} held-out FE runs" for t in tests]
+        return lines + [f"  {p.name} in [{summary(p.lower)}, {summary(p.upper)}] {p.unit} ({p.scale})"
+                        for p in self.free_parameters]
+
+    @property
+    def free_parameters(self):
+        """Every free parameter of the study, shared and each test's own, in order (tuple of
+        :class:`~podkrig.parameters.Parameter`)."""
+        found = {}
+        for test in self.calibration_tests:
+            for p in test.space.parameters:
+                found.setdefault(p.name, p)
+        return tuple(found.values())
 
     def _repr_html_(self):
         """The scenario, designs, free and fixed parameters as HTML tables, for Jupyter
