@@ -4,8 +4,8 @@ study (every other result shows a table of its fields, :func:`fe.display.fields_
 The result objects of the numerics draw nothing and write no HTML: each mixes in
 :class:`podkrig.display.Displayed`, whose ``_repr_html_`` calls the renderer registered for its
 class in :mod:`podkrig.display` (a registry at the bottom of the layers). This module registers its
-renderers there (:data:`RENDERERS`) when it is imported: ``import podkrig`` in a running IPython imports it, and so does loading a study;
-``%load_ext podkrig.reports.jupyter`` does it explicitly.
+renderers there (:data:`RENDERERS`) when it is imported: ``import podkrig`` in a running IPython
+imports it, and so does loading a study; ``%load_ext podkrig.reports.jupyter`` does it explicitly.
 """
 
 import html

@@ -289,8 +289,8 @@ def probe(run, test):
     """The probe FE runs (:func:`probe_points`) of a test's scenario into ``probe.npz`` (``X
     (n_runs, n_params)`` physical values, ``readings (n_runs, n_levels, n_sensors)`` mm, NaN where a
     run failed or stopped early; the columns named by ``names`` and ``units``, the readings by
-    ``sensor_names``, ``load_levels`` and ``load_unit``): the number of runs and of those not used (failed, or a nonlinear
-    run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
+    ``sensor_names``, ``load_levels`` and ``load_unit``): the number of runs and of those not used
+    (failed, or a nonlinear run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
     range_check = false``; cached by the scenario and the parameter box, so a new measurement file
     reruns no FE."""
     if not test.measurement.range_check:
