@@ -18,6 +18,7 @@ from pathlib import Path
 
 from podkrig import __version__
 from podkrig.display import Displayed, summary
+from podkrig.locks import folder_lock
 from podkrig.online.findings import (
     CHI2_BASIS,
     RESIDUAL_CONVENTION,
@@ -127,13 +128,23 @@ def run_study(study, out, *, progress=None, confirm=None):
 
     Raises
     ------
+    InUseError
+        Another run (process or thread) holds the output folder: the message names its PID and the
+        folder, and nothing in the folder was changed. The lock (``out/.podkrig.lock``) is released
+        when this call returns or raises.
     ValueError, PodkrigError, fe.FEError
         A measurement file that does not match the scenario, a store that cannot be used, too
         few finished FE runs for a surrogate, ...; finished stages stay cached.
     """
     t0 = time.perf_counter()
+    with folder_lock(out):  # one run per folder: a second one is refused here, before it reads or writes
+        return _run_locked(study, out, progress, confirm, t0)
+
+
+def _run_locked(study, out, progress, confirm, t0):
+    """:func:`run_study` with the output folder's lock held."""
     run = stages.StudyRun(study, out, progress or Progress())
-    if confirm is not None:  # before anything is written
+    if confirm is not None:  # before anything but the lock is written
         confirm(*stages.fe_work(run))
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)
