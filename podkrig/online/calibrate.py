@@ -29,6 +29,7 @@ import logging
 import time
 from dataclasses import dataclass
 
+from podkrig.display import Displayed, summary
 from podkrig.online.findings import Finding, inversion_findings, measurement_findings, of_test
 from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
@@ -43,8 +44,8 @@ logger = logging.getLogger(__name__)
 __all__ = ["CalibrationResult", "calibrate", "model_form_error", "model_form_errors", "problems_by_test", "with_model_form_errors"]
 
 
-@dataclass(frozen=True, eq=False)
-class CalibrationResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class CalibrationResult(Displayed):
     """Outcome of :func:`calibrate`.
 
     Attributes
@@ -87,6 +88,17 @@ class CalibrationResult:
     n_fe_runs: int = 0
     model_form_errors: dict = dataclasses.field(default_factory=dict)
     responses: dict = dataclasses.field(default_factory=dict)
+
+    def _repr_lines(self):
+        """The optimum with its interval, the fit and the findings (repr)."""
+        inv, region = self.inversion, self.region
+        return [f"CalibrationResult: χ²/dof {summary(inv.chi2_dof)} (dof {inv.dof}), region {len(region.samples)} "
+                f"members ({100 * region.confidence:.0f} %), {len(self.findings)} findings, {self.n_fe_runs} FE runs, "
+                f"{summary(self.seconds)} s",
+                *(f"  {n} = {summary(float(v))} {u} in [{summary(float(region.intervals[n][0]))}, "
+                  f"{summary(float(region.intervals[n][1]))}]" if n in region.intervals
+                  else f"  {n} = {summary(float(v))} {u}"
+                  for n, u, v in zip(inv.free, inv.units, inv.x))]
 
     def to_dict(self, *, members=False):
         """JSON-able: ``inversion`` (:meth:`InverseResult.to_dict`), ``region``

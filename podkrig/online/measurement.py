@@ -33,18 +33,19 @@ from podkrig.limits import MAX_ABS_READING_MM, check_finite
 LOAD_RESPONSES = ("affine", "path", "discrete")
 
 #: Typical noise of laboratory instruments: σ_res (mm, resolution / repeatability floor) and the
-#: relative part δ of σ_i² = σ_res² + (δ d_i)². Sources: ``shared/reference/flat-jack.md`` §5.7 —
-#: LVDT σ = 1–5 µm (INFERRED there as the levels to test), mechanical deformometer / dial gauge
-#: resolution 1 µm (READ, "millesimal"), DIC 2.5–5 µm per component at 0.25 mm/px (INFERRED
-#: typical); the relative part δ = 1 % is the thesis' "1.0 % error range" (§3.2 caption, the
-#: only noise level it states: READ there, its use as a calibration/linearity term INFERRED).
+#: relative part δ of σ_i² = σ_res² + (δ d_i)². LVDT σ = 1–5 µm and DIC 2.5–5 µm per component at
+#: 0.25 mm/px are typical values from flat-jack and laboratory practice (INFERRED defaults, see
+#: ``docs/references.md`` "INFERRED choices": ``noise_abs`` / ``noise_rel`` override them); a
+#: mechanical deformometer or dial gauge reads to 1 µm ("millesimal"); δ = 1 % is the "1.0 % error
+#: range" of the thesis (§3.2 caption, the only noise level it states; its use as a
+#: calibration/linearity term is a choice).
 INSTRUMENTS = {
     "lvdt": {"sigma_res_mm": 0.001, "delta": 0.01,
-             "text": "LVDT / extensometer: σ_res = 1 µm (§5.7: 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
+             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
     "dial_gauge": {"sigma_res_mm": 0.001, "delta": 0.01,
-                   "text": "dial gauge / mechanical deformometer: resolution 1 µm (§5.7, READ), δ = 1 %"},
+                   "text": "dial gauge / mechanical deformometer: resolution 1 µm, δ = 1 %"},
     "dic": {"sigma_res_mm": 0.0025, "delta": 0.0,
-            "text": "DIC point, per component: σ_res = 2.5 µm (§5.7: 2.5–5 µm, INFERRED), no relative part"},
+            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED), no relative part"},
 }
 #: Smallest credible σ of one reading, mm: half the finest resolution of the instruments above
 #: (1 µm). A smaller σ makes the region of equivalence optimistic (a 1 %-relative model

@@ -280,11 +280,17 @@ def _probe_inputs(test):
     return {"spec": test.spec.to_dict(), "space": test.space.to_dict()}
 
 
+def _strings(values):
+    """A NumPy array of text (read back without pickle)."""
+    return np.array([str(v) for v in values], dtype=str)
+
+
 def probe(run, test):
     """The probe FE runs (:func:`probe_points`) of a test's scenario into ``probe.npz`` (``X
     (n_runs, n_params)`` physical values, ``readings (n_runs, n_levels, n_sensors)`` mm, NaN where a
-    run failed or stopped early): the number of runs and of those not used (failed, or a nonlinear
-    run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
+    run failed or stopped early; the columns named by ``names`` and ``units``, the readings by
+    ``sensor_names``, ``load_levels`` and ``load_unit``): the number of runs and of those not used
+    (failed, or a nonlinear run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
     range_check = false``; cached by the scenario and the parameter box, so a new measurement file
     reruns no FE."""
     if not test.measurement.range_check:
@@ -309,7 +315,9 @@ def probe(run, test):
                     notes.append(f"probe run {i + 1} at {params} stopped early ({response.status}); not used")
             run.progress.advance(i + 1, len(X))
         (run.out / filename).parent.mkdir(parents=True, exist_ok=True)
-        np.savez(run.out / filename, X=X, readings=Y)
+        np.savez(run.out / filename, X=X, readings=Y, names=_strings(test.space.names),
+                 units=_strings(test.space.units), sensor_names=_strings(sc.sensor_names),
+                 load_levels=np.asarray(sc.load_levels, float), load_unit=np.str_(sc.load_unit))
         n_failed = int(np.sum(~np.all(np.isfinite(Y.reshape(len(X), -1)), axis=1)))
         return {"n_runs": len(X), "n_failed": n_failed, "notes": notes}, [filename], len(X)
 
@@ -519,7 +527,7 @@ def calibration(run):
                            check_measurement=False, keep_field=True,
                            progress=lambda step, done, total: run.progress.advance(done, total))
         region = result.region
-        np.savez(run.out / "region.npz", samples=region.samples, omega=region.omega)
+        save_region(run.out / "region.npz", region)
         files = ["region.npz"] + _draw_calibration(run, result)
         return result.to_dict(), files, result.n_fe_runs
 
@@ -552,11 +560,42 @@ def _draw_calibration(run, result):
     return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png"]
 
 
+def save_region(path, region):
+    """The members of a :class:`~podkrig.online.region.Region` into ``path`` (``.npz``): ``samples``
+    ``(n_members, n_free)`` in the units ``units`` of the parameters ``names`` (one per column) and
+    their misfit ``omega`` ``(n_members,)``."""
+    np.savez(path, samples=region.samples, omega=region.omega, names=_strings(region.names),
+             units=_strings(region.units))
+
+
+def region_members(path, names):
+    """``samples, omega`` of a region file written by :func:`save_region` for the parameters
+    ``names`` (a file written before the columns were named has no ``names``: read as it is),
+    read within the cap of :func:`~podkrig.study.cache.read_arrays`.
+
+    Raises
+    ------
+    ValueError
+        The file names other parameters (it belongs to another study).
+    """
+    f = read_arrays(path)
+    if "names" in f and f["names"].tolist() != list(names):
+        raise ValueError(f"{path} holds the region of the parameters {f['names'].tolist()}, not of this calibration's "
+                         f"{list(names)}: run the study again into this folder, or give another --out")
+    return f["samples"], f["omega"]
+
+
 def load_calibration(run):
     """The calibration stage's :class:`~podkrig.online.calibrate.CalibrationResult` (its manifest,
     and ``region.npz`` for the region's members)."""
-    f = read_arrays(run.out / "region.npz")
-    return CalibrationResult.from_dict(run.manifest("calibration")["result"], samples=f["samples"], omega=f["omega"])
+    return calibration_result(run.out, run.manifest("calibration")["result"])
+
+
+def calibration_result(out, result):
+    """The :class:`~podkrig.online.calibrate.CalibrationResult` of the calibration stage's
+    manifest ``result`` with the region's members from ``out/region.npz``."""
+    samples, omega = region_members(out / "region.npz", result["region"]["names"])
+    return CalibrationResult.from_dict(result, samples=samples, omega=omega)
 
 
 def sensitivity(run, errors):
