@@ -1,8 +1,8 @@
 """In-situ flat-jack shear test run nonlinearly: the block's top bed joint slides under the vertical jacks.
 
 ``flat_jack_shear_nl``: the panel, slots, jacks, gauges and elastic phases are those of the linear ``flat_jack``
-scenario's ``chisari`` preset (:mod:`fe.scenarios.flat_jack`; a design for this project, the
-reference's §5, INFERRED): a 2080 × 1560 × 120 mm running-bond panel under σ0, jack H in the bed
+scenario's ``chisari`` preset (:mod:`fe.scenarios.flat_jack`; a design for this project, INFERRED in the
+sense of ``docs/references.md``): a 2080 × 1560 × 120 mm running-bond panel under σ0, jack H in the bed
 joint y = 780 and V1, V2 at x = 845 and 1235 cutting a U round a 390 × 195 mm block held only by
 its top bed joint (y = 975). Here the joints carry the nonlinear interface law of the nonlinear
 walls (:mod:`fe.scenarios.nonlinear`: Lourenço–Rots composite, or the thesis' hyperbolic law with
@@ -31,19 +31,19 @@ Phases (all on one path, :class:`fe.solvers.nonlinear.PathFollower`):
   the repeat); its p_V1 per level is the extra output ``p_V1(p_H=…)`` and its peak in
   :meth:`FlatJackShearNonlinear.critical_pressures`.
 
-Statics (the reference's §5.4, assuming frictionless jack faces): the block's top joint carries the
+Statics (free-body equilibrium of the block, assuming frictionless jack faces): the block's top joint carries the
 normal force Km p_H Ka L_H t and the shear Km (p_V1 − p_V2) Ka h_V t, so sliding starts at
 ``Δp_V,crit ≈ (L_H/h_V)(c + Km p_H tanφ)/Km`` (= 2(c + p_H tanφ) for Km = 1): an average, which the
 shear concentrated at the block's corners and the progressive slip move by 15–25 % (INFERRED);
 the simulation is the reference, the estimate a check (:meth:`critical_pressures` gives both).
 
-Defaults: stiffness, Km and σ0 as ``flat_jack`` (reference §5.2: E_b = 10 000 MPa, ν_b = 0.15,
-kN = 80, kV = 35 N/mm³, r_hj = 0.6), joint strengths of §5.2 (f_t = 0.15, c = 0.25 MPa,
-tanφ = 0.70, G_f^I = 0.012, G_f^II = 0.10 N/mm; INFERRED placeholders there), the residual
+Defaults: stiffness, Km and σ0 as ``flat_jack`` (E_b = 10 000 MPa, ν_b = 0.15,
+kN = 80, kV = 35 N/mm³, r_hj = 0.6), joint strengths typical of old brick masonry (f_t = 0.15, c = 0.25 MPa,
+tanφ = 0.70, G_f^I = 0.012, G_f^II = 0.10 N/mm; INFERRED), the residual
 friction equal to the initial one and the rest (dilatancy 0, the compressive cap, unit mid-planes)
 as the walls' Set A. Units do not crack (no unit mid-plane interfaces, as ``flat_jack``); with
-``brick_interfaces = true`` they may, and splitting at the jack ends can then pre-empt sliding (the
-reference recommends FRP there).
+``brick_interfaces = true`` they may, and splitting at the jack ends can then pre-empt sliding (FRP
+strengthening there is the usual remedy in the field).
 """
 
 import dataclasses
@@ -59,7 +59,7 @@ from .masonry import masonry_parts
 from .spec import ScenarioSpec
 from .nonlinear import SET_A_STIFFNESS, NonlinearOptions, NonlinearScenario, Phase, nonlinear_parameters
 
-#: reference §5.2 defaults (INFERRED placeholders there): stiffness as ``flat_jack``, joint strengths
+#: defaults (INFERRED): stiffness as ``flat_jack``, joint strengths
 #: of the table, residual friction = initial friction (as Set A).
 FLAT_JACK_NL_DEFAULTS = {
     **SET_A_STIFFNESS, "E_b": 10000.0, "kN_bj": 80.0, "kV_bj": 35.0, "r_hj": 0.6,
