@@ -21,8 +21,10 @@ from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
 from podkrig.offline.settings import Design
+from podkrig.online.data_check import MeasurementCheckError
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.online.settings import RegionSettings
+from podkrig.reports.findings import refusal
 from podkrig.sensors.settings import SearchSettings
 from podkrig.surrogate.settings import SurrogateSettings
 
@@ -170,6 +172,8 @@ def os_error_message(e):
 
 def error_message(e):
     """The one-line message for an exception the CLI reports instead of a traceback, or None."""
+    if isinstance(e, MeasurementCheckError):
+        return refusal(e, "cli")
     if isinstance(e, (FEError, PodkrigError, ValueError, FileNotFoundError)) and not isinstance(e, UnicodeError):
         return str(e)
     if isinstance(e, OSError):

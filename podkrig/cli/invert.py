@@ -27,6 +27,7 @@ from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement
 from podkrig.io.surrogate_file import load_surrogate
 from podkrig.limits import check_region_samples
 from podkrig.online.calibrate import calibrate
+from podkrig.online.data_check import check_readings, surrogate_training_outputs
 from podkrig.online.findings import chi2_basis
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel
 from podkrig.online.model_error import parse_model_form_error
@@ -43,11 +44,12 @@ _GA = field_info(InversionSettings)
 _IMPORT = ImportSettings()  # the defaults of reading a measurement log
 
 
-def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None):
+def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None, model_sensors=None):
     """The NoiseModel of the CLI options and the noise in words: --noise-abs (σ_res) and/or
     --noise-rel (δ), combined as σ² = σ_res² + (δ d)², or --instrument (needs the measured
     ``sensor_names``) — :class:`~podkrig.online.settings.NoiseSettings` — or --noise-cov (a full
-    covariance, mm²)."""
+    covariance, mm²). ``model_sensors``: the model's sensors, which a --noise-abs NAME=SIGMA must
+    name."""
     given = [bool(noise_abs) or noise_rel is not None, noise_cov is not None, instrument is not None]
     if sum(given) != 1:
         raise ValueError("give one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor) and/or "
@@ -70,6 +72,11 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
             sigma = dict(parse_assignment(t, "--noise-abs") for t in noise_abs)
     noise = settings_from_options(NoiseSettings, {"noise_abs": ("--noise-abs", sigma), "noise_rel": ("--noise-rel", noise_rel),
                                                   "instrument": ("--instrument", instrument)})
+    unknown = noise.unknown_sensors(model_sensors) if model_sensors is not None else []
+    if unknown:
+        name = unknown[0][1]
+        raise ValueError(f"--noise-abs {name}={noise.noise_abs[name]:g}: {name!r} is not a sensor of the model; its "
+                         f"sensors: {', '.join(model_sensors)}")
     return noise.noise_model(sensor_names), noise.describe()
 
 
@@ -119,15 +126,22 @@ def parse_zero(text):
 
 
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix, import_settings=None,
-                  instrument=None, check=True, rigid_body="auto", rigid_groups=None):
+                  instrument=None, check=True, rigid_body="auto", rigid_groups=None, range_check=True):
     """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text).
 
-    ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``,
-    ``rigid_groups``: see :class:`~podkrig.online.problem.InverseProblem`."""
+    The measurement check of every door: the log's loads (by the reader) and, with
+    ``range_check``, its readings against the surrogate's training runs
+    (:mod:`podkrig.online.data_check`). ``check``: refuse dof ≤ 0
+    (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``, ``rigid_groups``: see
+    :class:`~podkrig.online.problem.InverseProblem`."""
     model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
                                    model.load_response, import_settings)
-    noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names)
+    noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names,
+                                    model_sensors=model.sensor_names)
+    if range_check:
+        check_readings(measurement, noise, model.sensor_names, model.load_levels, model.load_response,
+                       surrogate_training_outputs(model.surrogate), runs="surrogate")
     free_names = None
     if free:
         free_names = tuple(n.strip() for item in free for n in item.split(",") if n.strip())
@@ -150,6 +164,11 @@ _SEED_OPTION = typer.Option(_GA["seed"]["default"], "--seed",
                             help="Seed of the GA, the region sampling, the posterior and the RVC.")
 _CONFIDENCE_OPTION = typer.Option(_CALIBRATION["confidence"]["default"], "--confidence",
                                   help="Confidence of the region of equivalence (and of the posterior's intervals).")
+#: the measurement's readings against the surrogate's training runs (the study file's
+#: ``[measurement] range_check``)
+RANGE_CHECK = typer.Option(True, "--range-check/--no-range-check",
+                           help="Refuse readings far outside every training run of the surrogate (20× larger or "
+                                "smaller, or of the opposite sign: a unit or sign error).")
 _INSTRUMENT = typer.Option(None, "--instrument", help="Noise of a typical instrument for every sensor: "
                            + ", ".join(INSTRUMENTS) + " (σ² = σ_res² + (δ d)², values in the docs).")
 
@@ -202,6 +221,7 @@ def register(app):
                                        help="Also sample the Bayesian posterior by MCMC (steps; 0 = off)."),
         fe_check: bool = typer.Option(_CALIBRATION["fe_check"]["default"], "--fe-check/--no-fe-check",
                                       help="Run the FE model once at the optimum."),
+        range_check: bool = RANGE_CHECK,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Identify the free parameters from measured readings against a surrogate."""
@@ -222,7 +242,8 @@ def register(app):
                                       decimal=decimal, sheet=sheet)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
                                                        reading, instrument, rigid_body=rigid_body,
-                                                       rigid_groups=parse_rigid_groups(rigid_group))
+                                                       rigid_groups=parse_rigid_groups(rigid_group),
+                                                       range_check=range_check)
             out = calibrate(problem, settings)
             if report is not None:
                 write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text, rvc=False)
@@ -247,13 +268,15 @@ def register(app):
         format: TableFormat = typer.Option(TableFormat.table, "--format"),
         seed: int = _SEED_OPTION,
         confidence: float = _CONFIDENCE_OPTION,
+        range_check: bool = RANGE_CHECK,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Response variability (RVC) of the calibration and validation models over the region of equivalence."""
         configure_logging(verbose)
         with user_errors():
             settings = calibration_settings(seed=seed, confidence=confidence, fe_check=False)
-            problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
+            problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
+                                                       range_check=range_check)
             models = {Path(path).stem: (SurrogateModel(load_surrogate(path)), None) for path in validation}
             out = calibrate(problem, settings, validation=models, outputs=list(output) or None)
             results = out.rvc
