@@ -132,7 +132,8 @@ def register(app):
                 "search": ("", search), "comparison": ("", comparison), "seed": ("--seed", seed)})
             user = None if candidates_file is None else _read_candidates(candidates_file)
             cands = where.candidates(sc.mesh, user, forbidden=zones)
-            noise = SensorNoise(lvdt=noise_lvdt, dic=noise_dic, relative=noise_rel)
+            noise = settings_from_options(SensorNoise, {"lvdt": ("--noise-lvdt", noise_lvdt), "dic": ("--noise-dic", noise_dic),
+                                                        "relative": ("--noise-rel", noise_rel)})
             progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                                 console=Console(stderr=True))
             tasks = {}
