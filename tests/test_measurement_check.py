@@ -292,6 +292,22 @@ def test_diagnose_refuses_wrong_loads_before_any_fe_run(lab, fe_counter):
     assert fe.calls == 0
 
 
+def test_diagnose_refuses_readings_unlike_its_base_surrogates_training_runs(lab, fe_counter):
+    """µm under [mm] headers: refused after the base surrogate's 16 FE runs, before any
+    calibration or candidate cause; --no-range-check is the opt-out it names."""
+    d, logs = lab
+    fe = fe_counter()
+    result = runner.invoke(app, ["diagnose", "--scenario", "diagonal_compression", "--spec", str(d / "spec.toml"),
+                                 "--data", str(logs["um_as_mm"]), *PARAMS[:4], "--noise-rel", "0.01",
+                                 "--n-train", "16"])
+    assert result.exit_code == 2, result.output
+    out = _out(result)
+    for fragment in ("surrogate's 16 training FE runs", "D1 is about 1000× larger", "µm read as mm?",
+                     "--no-range-check"):
+        assert fragment in out, (fragment, out)
+    assert fe.calls == 16
+
+
 # ----------------------------------------------------------------------------- podkrig run
 
 STUDY = """\

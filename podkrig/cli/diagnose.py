@@ -52,6 +52,9 @@ def register(app):
                                     help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
         format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output: text or json."),
+        range_check: bool = typer.Option(True, "--range-check/--no-range-check",
+                                         help="Refuse readings far outside every training run of the base surrogate "
+                                              "(20× larger or smaller, or of the opposite sign: a unit or sign error)."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Calibrate the base model, test whether it explains the data within the noise, name the
@@ -84,7 +87,7 @@ def register(app):
             with _progress() as progress:
                 result = run_diagnosis(sc, measurement, noise, space, settings, fixed=fixed, candidates=names,
                                        progress=progress, rigid_body=str(rigid_body),
-                                       rigid_groups=parse_rigid_groups(rigid_group))
+                                       rigid_groups=parse_rigid_groups(rigid_group), range_check=range_check)
             out = result.to_dict()
             if report is not None:
                 from podkrig.reports.diagnosis import write_diagnosis_report

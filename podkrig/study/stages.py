@@ -547,6 +547,7 @@ def diagnosis(run, test):
         result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, study.diagnosis,
                           fixed=test.fixed, surrogate=problem.model.surrogate,
                           rigid_body=test.measurement.rigid_body, rigid_groups=test.measurement.rigid_groups,
+                          range_check=False,  # checked against these training runs already (range_check)
                           progress=lambda stage, done, total: run.progress.advance(done, total))
         write_diagnosis_report(result, folder, noise_text=test.measurement.noise.describe())
         files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())
