@@ -125,6 +125,18 @@ def parse_zero(text):
                          "'end of PHASE' (the last row of that phase in the --phase-column)") from None
 
 
+def import_settings(**options):
+    """The :class:`~podkrig.io.measurement_log.ImportSettings` of the options of the same names
+    (``load_tolerance`` is ``--load-tolerance``); a refused value is named by its option."""
+    try:
+        return ImportSettings(**options)
+    except ValueError as e:
+        field, _, rest = str(e).partition(" ")
+        if field not in options:
+            raise
+        raise ValueError(f"--{field.replace('_', '-')} {options[field]!r}: {rest}") from None
+
+
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix, import_settings=None,
                   instrument=None, check=True, rigid_body="auto", rigid_groups=None, range_check=True):
     """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text).
@@ -235,7 +247,7 @@ def register(app):
                                             model_form_error=model_form_error)
             if repeats not in REPEATS:
                 raise ValueError(f"--repeats must be one of {', '.join(REPEATS)}; got {repeats!r}")
-            reading = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
+            reading = import_settings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
                                       zero=parse_zero(zero), phase_column=phase_column,
                                       load_range=parse_load_range(load_range),
                                       delimiter={"tab": "\t", "\\t": "\t"}.get(delimiter, delimiter),

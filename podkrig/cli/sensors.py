@@ -130,10 +130,10 @@ def register(app):
                 "n_truths": ("--truths", truths)})
             settings = settings_from_options(PlacementSettings, {
                 "search": ("", search), "comparison": ("", comparison), "seed": ("--seed", seed)})
-            user = None if candidates_file is None else _read_candidates(candidates_file)
-            cands = where.candidates(sc.mesh, user, forbidden=zones)
             noise = settings_from_options(SensorNoise, {"lvdt": ("--noise-lvdt", noise_lvdt), "dic": ("--noise-dic", noise_dic),
                                                         "relative": ("--noise-rel", noise_rel)})
+            user = None if candidates_file is None else _read_candidates(candidates_file)
+            cands = where.candidates(sc.mesh, user, forbidden=zones)
             progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                                 console=Console(stderr=True))
             tasks = {}
