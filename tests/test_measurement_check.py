@@ -399,7 +399,7 @@ def test_a_noise_table_naming_an_unknown_sensor_names_file_key_sensor_and_the_kn
     else:
         result = runner.invoke(app, ["invert", str(d / "sur.h5"), "--data", str(logs["clean"]),
                                      "--noise-abs", "D1=0.001", "--noise-abs", "D9=0.001"])
-        fragments = ["--noise-abs D9=0.001", "'D9' is not a sensor"]
+        fragments = ["--noise-abs: 'D9'", "is not a sensor of the model"]
     assert result.exit_code == 2, result.output
     out = _out(result)
     assert all(fragment in out for fragment in fragments), out

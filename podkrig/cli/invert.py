@@ -26,7 +26,7 @@ from podkrig.cli.simulate import parse_assignment
 from podkrig.config import field_info
 from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.io.surrogate_file import load_surrogate
-from podkrig.limits import MAX_JSON_BYTES, check_region_samples, read_bounded
+from podkrig.limits import MAX_JSON_BYTES, check_region_samples, quote, read_bounded
 from podkrig.online.calibrate import calibrate
 from podkrig.online.data_check import check_readings, surrogate_training_outputs
 from podkrig.online.findings import chi2_basis
@@ -77,8 +77,8 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
     unknown = noise.unknown_sensors(model_sensors) if model_sensors is not None else []
     if unknown:
         name = unknown[0][1]
-        raise ValueError(f"--noise-abs {name}={noise.noise_abs[name]:g}: {name!r} is not a sensor of the model; its "
-                         f"sensors: {', '.join(model_sensors)}")
+        raise ValueError(f"--noise-abs: {quote(name)} (NAME=SIGMA) is not a sensor of the model; its sensors: "
+                         f"{', '.join(model_sensors)}")
     return noise.noise_model(sensor_names), noise.describe()
 
 

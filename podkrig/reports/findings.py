@@ -20,6 +20,7 @@ import math
 import re
 from dataclasses import dataclass
 
+from podkrig.limits import quote
 from podkrig.reports.html import num
 
 CONTEXTS = ("cli", "study")
@@ -209,7 +210,7 @@ def _diagnosis_cause(v, context, diagnosis_enabled):
 
 def _where(v):
     row = f", row {v['row']}" if v.get("row") is not None else ""
-    return f"{v['source']}{row}, column {v['column']!r}"
+    return f"{v['source']}{row}, column {quote(v['column'])}"
 
 
 def _load_scale(v, context, diagnosis_enabled):
@@ -218,7 +219,8 @@ def _load_scale(v, context, diagnosis_enabled):
     how = ("--load-column names the column" if context == "cli"
            else "[measurement] load_column names the column")
     base = re.split(r"[\[(]", v["column"])[0].strip() or "load"
-    example = f"here probably '{base} [{likely}]'" if likely else f"e.g. '{base} [N]' for loads in newtons"
+    example = (f"here probably {quote(f'{base} [{likely}]')}" if likely
+               else f"e.g. {quote(f'{base} [N]')} for loads in newtons")
     return (f"{_where(v)}: a load of {v['load_max']:g} {unit} is about {_power_of_ten(v['ratio'])}× the model's top "
             f"load level {v['level_max']:g} {unit}{guess}",
             f"state the load's unit in the header of the load column ({example}) or convert the column to {unit} "

@@ -47,7 +47,7 @@ from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.io.measurement_log import read_measurement
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
-from podkrig.limits import fe_job_estimate
+from podkrig.limits import fe_job_estimate, quote
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
@@ -229,7 +229,7 @@ def measurement_check(run, test):
         if unknown:
             field, sensor = unknown[0]
             table = "[measurement]" if test.name is None else f"[test.measurement] of test {test.name!r}"
-            raise ValueError(f"{study.path}: {table} {field}: {sensor!r} is not a sensor of scenario "
+            raise ValueError(f"{study.path}: {table} {field}: {quote(sensor)} is not a sensor of scenario "
                              f"{sc.name}; its sensors: {', '.join(sc.sensor_names)}")
         data, noise = run.measurement(test)
         rigid = rigid_body_modes(data, absolute_displacements(sc.sensors), m.rigid_body, m.rigid_groups)
