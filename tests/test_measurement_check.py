@@ -31,7 +31,10 @@ from podkrig.online.data_check import (
     reading_problems,
     surrogate_training_outputs,
 )
+from podkrig.online.calibrate import calibrate
 from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.online.problem import InverseProblem, SurrogateModel
+from podkrig.online.settings import CalibrationSettings, InversionSettings, RegionSettings
 from podkrig.reports.findings import refusal
 
 runner = CliRunner()
@@ -229,6 +232,23 @@ REFUSED = {
 
 def _out(result):
     return " ".join(result.output.split())
+
+
+def test_calibrate_runs_the_check_itself_for_any_front_end(lab):
+    """The library's calibration (what ``podkrig invert`` and ``rvc`` call, and any other front
+    end) compares the readings with the surrogate's training runs before the inversion; the
+    caller that compared them already opts out."""
+    d, logs = lab
+    model = SurrogateModel(load_surrogate(d / "sur.h5"))
+    data = read_measurement(logs["um_as_mm"], model.sensor_names, model.load_levels, model.load_unit,
+                            model.load_response)
+    problem = InverseProblem(model, data, NoiseModel(sigma=0.001, delta=0.01))
+    e = _refused(lambda: calibrate(problem))
+    assert {f.values["sensor"] for f in e.findings} >= {"D1", "D2"}
+    assert all(f.code == "reading-scale" and f.values["runs"] == "surrogate" for f in e.findings)
+    settings = CalibrationSettings(inversion=InversionSettings(population_size=8, generations=2, n_starts=1),
+                                   region=RegionSettings(samples=1024), fe_check=False)
+    assert calibrate(problem, settings, range_check=False, calibration_rvc=False).inversion.chi2_dof > 1e3
 
 
 @pytest.mark.parametrize("log", list(REFUSED))

@@ -257,8 +257,8 @@ def register(app):
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
                                                        reading, instrument, rigid_body=rigid_body,
                                                        rigid_groups=parse_rigid_groups(rigid_group),
-                                                       range_check=range_check)
-            out = calibrate(problem, settings)
+                                                       range_check=False)
+            out = calibrate(problem, settings, range_check=range_check)  # the library's measurement check
             if report is not None:
                 write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text, rvc=False)
         if format == "json":
@@ -290,9 +290,9 @@ def register(app):
         with user_errors():
             settings = calibration_settings(seed=seed, confidence=confidence, fe_check=False)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
-                                                       range_check=range_check)
+                                                       range_check=False)
             models = {Path(path).stem: (SurrogateModel(load_surrogate(path)), None) for path in validation}
-            out = calibrate(problem, settings, validation=models, outputs=list(output) or None)
+            out = calibrate(problem, settings, validation=models, outputs=list(output) or None, range_check=range_check)
             results = out.rvc
             if report is not None:
                 write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text)
