@@ -105,7 +105,7 @@ def likely_unit(unit, ratio):
         return None
     p = round(math.log10(ratio))
     lo, hi = UNIT_SLIP_RATIO
-    if abs(p) == 3 and not lo <= (ratio if p > 0 else 1 / ratio) <= hi:
+    if p == 3 and not lo <= ratio <= hi:
         return None
     return _NEIGHBOURS.get(unit, {}).get(p)
 
@@ -141,7 +141,11 @@ def check_loads(loads, levels, load_unit="", *, source="measurement", column="lo
     top = float(np.max(np.abs(levels)))
     if not top > 0:
         return
-    row = (lambda i: None if rows is None else int(np.asarray(rows)[i]))  # noqa: E731
+    rows = None if rows is None else np.asarray(rows)
+
+    def row(i):
+        return None if rows is None else int(rows[i])
+
     found = []
     sign = 1.0 if np.all(levels >= 0) else -1.0 if np.all(levels <= 0) else 0.0
     if sign:

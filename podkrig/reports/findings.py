@@ -231,7 +231,7 @@ def _load_sign(v, context, diagnosis_enabled):
     unit = v["unit"]
     side = "positive" if v["level_min"] >= 0 else "negative"
     rows = ("--load-range LOWER,UPPER" if context == "cli" else "[measurement] load_range = [lower, upper]")
-    return (f"{_where(v)}: {v['n_loads']} load(s) are {'negative' if side == 'positive' else 'positive'} (down to "
+    return (f"{_where(v)}: {v['n_loads']} load(s) are {'negative' if side == 'positive' else 'positive'} (as far as "
             f"{v['load_min']:g} {unit}) while the model's load levels are {side} ({v['level_min']:g} to "
             f"{v['level_max']:g} {unit}): a sign convention?",
             f"the load is the magnitude of the applied load: negate the load column, or leave those rows out "
