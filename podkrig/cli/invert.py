@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
@@ -22,6 +21,7 @@ from podkrig.cli._common import (
     settings_from_options,
     user_errors,
 )
+from podkrig.cli._terminal import console as command_console
 from podkrig.cli.simulate import parse_assignment
 from podkrig.config import field_info
 from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
@@ -305,7 +305,7 @@ def register(app):
         for name, res in results.items():
             for k, o in enumerate(res.outputs):
                 table.add_row(name, o, f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}", f"{100 * res.range_ratio[k]:.3f}")
-        Console().print(table)
+        command_console().print(table)
 
     @app.command()
     def overparam(
@@ -343,7 +343,7 @@ def register(app):
         for r in rows:
             table.add_row(", ".join(r.free), f"{r.chi2_dof:.3g}", f"{r.aic:.4g}", f"{r.bic:.4g}",
                           ", ".join(r.unidentified) or "—", *[f"{100 * r.rvc[v]:.3g}" for v in vals])
-        Console().print(table)
+        command_console().print(table)
 
     return invert, rvc, overparam
 
@@ -366,7 +366,7 @@ def parameters_table(calibration, title):
 
 def _print_table(out, report):
     r = out.inversion
-    console = Console()
+    console = command_console()
     console.print(parameters_table(out, f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, "
                                         f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: "
                                         f"{r.chi2_basis}"))

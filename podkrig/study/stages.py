@@ -477,8 +477,9 @@ def _draw_calibration(run, result):
     for test in run.study.calibration_tests:
         one = result.tests[test.name]
         unit = one.problem.model.load_unit
-        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit)
-        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit)
+        steps = getattr(run.scenario(test), "steps", None) if unit == "step" else None  # flat jack: vs pressure
+        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit, steps=steps)
+        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit, steps=steps)
         drawn = ["fit.png", "residuals.png"]
         response = result.responses.get(test.name)
         if getattr(response, "field", None) is not None:
@@ -487,8 +488,8 @@ def _draw_calibration(run, result):
             drawn.append("deformed.png")
         files += [f"report/{test.file(f)}" for f in drawn]
     inv = result.inversion
-    inverse_figures.plot_ga_history(inv.ga, run.figures / "ga_history.png")
-    inverse_figures.plot_ga_parameters(inv.ga, run.figures / "ga_parameters.png", inv.problem.free_space)
+    inverse_figures.plot_ga_history(inv, run.figures / "ga_history.png")
+    inverse_figures.plot_ga_parameters(inv, run.figures / "ga_parameters.png")
     inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
                                 space=inv.problem.free_space)
     inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
