@@ -272,7 +272,7 @@ def test_a_clean_log_inverts_unchanged_by_the_check(lab):
     for extra in ([], ["--no-range-check"]):
         result = runner.invoke(app, args + extra)
         assert result.exit_code == 0, result.output
-        outs.append(json.loads(result.output)["inversion"])
+        outs.append(json.loads(result.stdout)["inversion"])
     a, b = outs
     assert a["parameters"].keys() == b["parameters"].keys()
     # the same computation in one process: equal to rounding (no BLAS path differs)
