@@ -360,9 +360,11 @@ class NoiseModel:
     Parameters
     ----------
     sigma : float or dict of str to float, optional
-        Absolute standard deviation σ_res, mm (a dict gives one per sensor name).
+        Absolute standard deviation σ_res, mm, in :data:`SIGMA_RANGE_MM` (a dict gives one per
+        sensor name).
     delta : float or dict of str to float, optional
-        Relative noise level δ (a dict gives one per sensor name, 0 allowed there).
+        Relative noise level δ, in :data:`DELTA_RANGE` (a dict gives one per sensor name, 0
+        allowed there).
     covariance : ndarray of shape (n_obs, n_obs), optional
         Full data covariance ``C_d``, mm², in the measurement's (load-major) order.
     floor : float
