@@ -41,7 +41,7 @@ class FindingText:
     remedy : str
         What to do about it.
     level : str
-        ``"warning"`` (every finding today).
+        ``"warning"``, or ``"error"`` for a refusal of the measurement check.
     """
 
     code: str
