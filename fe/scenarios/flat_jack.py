@@ -56,8 +56,8 @@ with the pressure ``Km × p`` (``Km`` the jack efficiency, a parameter; ``Ka`` p
 
 Phase 3 (sliding of the block's top bed joint) runs elastic here, as a separate method
 :meth:`FlatJack.phase3_check` comparing the top-joint stresses with the statics estimate of §5.4
-(Δp_V,crit = (L_H/h_V)(c + p_H tanφ)); its nonlinear run needs the interface laws of the
-nonlinear issue.
+(Δp_V,crit = (L_H/h_V)(c + p_H tanφ)); the scenario ``flat_jack_shear_nl``
+(:mod:`fe.scenarios.flat_jack_nl`) runs it nonlinearly, the joints sliding.
 
 Load levels are step numbers 1, 2, … (``load_unit = "step"``); :attr:`FlatJack.steps` gives each
 step's phase and jack pressures.

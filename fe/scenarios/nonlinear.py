@@ -232,6 +232,14 @@ class NonlinearScenario(Scenario):
         ``settings`` (a :class:`PathSettings`) overrides the options' path settings.
         """
         values = self.resolve(params)
+        phases = self.phases(values)
+        path = self.path_follower(values, settings, field).run(phases)
+        return self._response(path, phases[-1].name, field)
+
+    def path_follower(self, values, settings=None, field=False):
+        """A :class:`PathFollower` on the model with the units and the interface law of ``values``
+        (a full parameter dict); ``settings`` overrides the options' path settings, ``field``
+        records the states."""
         model = self.model
         model.set_units(self.theta(values))
         props = interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
@@ -241,9 +249,7 @@ class NonlinearScenario(Scenario):
         settings = settings or self.options.path_settings(record_states=field)
         if field and not settings.record_states:
             settings = dataclasses.replace(settings, record_states=True)
-        phases = self.phases(values)
-        path = PathFollower(model, law, settings).run(phases)
-        return self._response(path, phases[-1].name, field)
+        return PathFollower(model, law, settings)
 
     def _hyperbolic_law(self, values, composite_props):
         """Joints with the hyperbolic law (and its cap when asked for), unit mid-planes with the
