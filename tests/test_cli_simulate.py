@@ -70,7 +70,7 @@ def test_csv_and_table_output(tmp_path):
     result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec), "--format", "csv"])
     assert result.exit_code == 0, result.output
     lines = result.stdout.strip().splitlines()
-    assert lines[0].startswith("load,top_ux") and len(lines) == 5
+    assert lines[0].startswith("load [kN],top_ux [mm]") and len(lines) == 5
     result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec)])
     assert result.exit_code == 0 and "readings in mm" in result.output
 
@@ -117,7 +117,7 @@ def test_flat_jack_report(tmp_path):
     result = runner.invoke(app, ["simulate", "flat_jack", "--spec", str(spec), "--report", str(out), "--format", "csv"])
     assert result.exit_code == 0, result.output
     rows = result.stdout.strip().splitlines()
-    assert rows[0] == "load,S1,S2,S3" and len(rows) == 1 + 13  # the cut, then 12 pressure steps
+    assert rows[0] == "load,S1 [mm],S2 [mm],S3 [mm]" and len(rows) == 1 + 13  # the cut, then 12 pressure steps
     assert float(rows[1].split(",")[1]) < 0  # the cut closes the gauges
     names = {p.name for p in out.iterdir()}
     assert {"index.html", "setup.png", "readings.png", "deformed_step1.png", "deformed_step13.png"} <= names

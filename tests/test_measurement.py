@@ -296,7 +296,7 @@ def test_instrument_noise_takes_each_sensors_instrument():
     m = Measurement([[0.2, 0.2]], ("D1", "U1"), [10.0])
     assert_allclose(noise.std(m), [np.hypot(0.001, 0.002), 0.0025], rtol=1e-12)
     assert instrument_noise("dial_gauge", ["a", "b"]).sigma == {"a": 0.001, "b": 0.001}
-    with pytest.raises(ValueError, match=r"\{'U1': 'laser'\}.*\['dial_gauge', 'dic', 'lvdt'\]"):
+    with pytest.raises(ValueError, match=r"\{'U1': 'laser'\}.*\['dial_gauge', 'dic', 'load_cell', 'lvdt'\]"):
         instrument_noise({"D1": "lvdt", "U1": "laser"}, ("D1", "U1"))
     with pytest.raises(ValueError, match=r"no instrument given for sensor\(s\) \['U1'\]"):
         instrument_noise({"D1": "lvdt"}, ("D1", "U1"))

@@ -7,6 +7,11 @@ strengths), unit mid-planes with a tension cut-off only (``ft_bb``, ``GfI_bb``; 
 potential-crack interfaces, INFERRED, see ``docs/references.md`` "INFERRED choices"). The run
 follows the load path with :class:`fe.solvers.nonlinear.PathFollower`; the response holds the readings at the
 prescribed levels of the control displacement (``load_levels``, mm), the load there, and the peak.
+
+The load is a reading like the gauges: the sensor :attr:`NonlinearScenario.force_sensor` (``F``, kN)
+is the reaction of the controlled degree of freedom — the force the actuator's load cell measures,
+positive in the direction of the control (a push, a pull, a compression) — appended after the gauges,
+so that a surrogate, a measurement file and an inversion treat a force–displacement curve as data.
 """
 
 import dataclasses
@@ -174,12 +179,48 @@ class NonlinearScenario(Scenario):
     Subclasses set ``mesh``, ``sensors``, ``model`` (a :class:`~fe.nonlinear_model.NonlinearModel`)
     in ``_build`` and define :meth:`phases` (the loading phases for a parameter dict) and
     ``control_sign`` (+1: the control displacement is the positive direction of its dof).
+
+    Attributes
+    ----------
+    force_sensor : str or None
+        The name of the load reading (the reaction of the control, ``force_unit``, the last column
+        of the readings), or None where the load is no force a load cell reads (the flat jack's
+        gauge pressure).
     """
 
     load_unit = "mm"
     load_response = "path"  # interpolate along the control displacement, never past the last level
     force_unit = "kN"
+    force_sensor = "F"
     control_sign = 1.0
+
+    def __init__(self, spec=None, solver="auto"):
+        super().__init__(spec, solver)
+        if self.force_sensor and self.force_sensor in self.model.channel_names:
+            raise SpecError(f"{self.name}: sensor name {self.force_sensor!r} is the load reading (the reaction "
+                            "of the control, kN); give the gauge another name")
+
+    @property
+    def sensor_names(self):
+        """The gauges' channels, then :attr:`force_sensor` (when there is one)."""
+        names = tuple(self.model.channel_names)
+        return names + (self.force_sensor,) if self.force_sensor else names
+
+    @property
+    def sensor_units(self):
+        """Sensor name → unit of its readings: mm, and ``force_unit`` for :attr:`force_sensor`."""
+        units = dict.fromkeys(self.model.channel_names, "mm")
+        if self.force_sensor:
+            units[self.force_sensor] = self.force_unit
+        return units
+
+    def sensor_definitions(self):
+        """Sensor name → definition dict (mm); the load reading as ``{"kind": "force", "unit": …}``."""
+        out = super().sensor_definitions()
+        if self.force_sensor:
+            out[self.force_sensor] = {"kind": "force", "unit": self.force_unit,
+                                      "at": "the control (its reaction, positive along the control)"}
+        return out
 
     @classmethod
     def parameter_constraints(cls, options):
@@ -274,7 +315,7 @@ class NonlinearScenario(Scenario):
         mask = path.of_phase(control_phase)
         disp = self.control_sign * path.path[mask] if mask.any() else np.zeros(0)
         load = path.load[mask]
-        readings = np.full((len(levels), len(self.sensor_names)), np.nan)
+        readings = np.full((len(levels), len(self.model.channel_names)), np.nan)
         loads = np.full(len(levels), np.nan)
         at = np.full(len(levels), -1)
         idx = np.flatnonzero(mask)
@@ -305,6 +346,8 @@ class NonlinearScenario(Scenario):
             for k in range(len(levels)):
                 if at[k] >= 0:
                     u[k] = path.displacements[at[k]]
+        if self.force_sensor:
+            readings = np.column_stack([readings, loads])
         return NonlinearResponse(
             readings, self.sensor_names, levels, self.load_unit, u, loads=loads, force_unit=self.force_unit,
             peak_load=peak_load, peak_displacement=peak_displacement,

@@ -150,7 +150,7 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
     :class:`~podkrig.online.problem.InverseProblem`."""
     model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
-                                   model.load_response, import_settings)
+                                   model.load_response, import_settings, model.sensor_units)
     noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names,
                                     model_sensors=model.sensor_names)
     if range_check:

@@ -59,6 +59,32 @@ def write_field(path, scenario, response):
     np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
 
 
+def measurement_csv(response, sensor_units):
+    """A response as a measurement file :func:`podkrig.io.measurement_log.read_measurement` reads back
+    unchanged: the column ``load`` (the scenario's load, or a nonlinear scenario's control
+    displacement, with its unit; step numbers bare), then each sensor with its unit (mm, the load
+    reading ``F`` in kN); levels to 6 significant digits, readings to 8; a level the run did not
+    reach has empty cells (missing readings).
+
+    Parameters
+    ----------
+    response : fe.response.Response
+    sensor_units : dict of str to str
+        Sensor name → unit (``Scenario.sensor_units``).
+
+    Returns
+    -------
+    str
+    """
+    unit = response.load_unit
+    header = ["load" if unit == "step" else f"load [{unit}]"]
+    header += [f"{name} [{sensor_units.get(name, 'mm')}]" for name in response.sensor_names]
+    lines = [",".join(header)]
+    for level, row in zip(response.load_levels, response.readings):
+        lines.append(",".join([f"{level:g}"] + [f"{v:.8g}" if np.isfinite(v) else "" for v in row]))
+    return "\n".join(lines) + "\n"
+
+
 def register(app):
     @app.command()
     def simulate(
@@ -137,11 +163,7 @@ def _print(sc, response, values, seconds, format):
         typer.echo(json.dumps(out, indent=2))
         return
     if format == "csv":
-        # the measurement-file layout (first column "load" in the scenario load unit, readings in mm),
-        # so that a simulated response can serve as pseudo-measured data
-        typer.echo(",".join(["load"] + list(response.sensor_names)))
-        for level, row in zip(response.load_levels, response.readings):
-            typer.echo(",".join([f"{level:g}"] + [f"{v:.8g}" for v in row]))
+        typer.echo(measurement_csv(response, sc.sensor_units), nl=False)
         return
     from rich.table import Table
 
@@ -157,10 +179,14 @@ def _print(sc, response, values, seconds, format):
     table.add_column("sensor")
     for level in response.load_levels:
         table.add_column(f"{level:g} {response.load_unit}", justify="right")
-    if nonlinear:
+    units = sc.sensor_units
+    if nonlinear and getattr(sc, "force_sensor", None) is None:  # a load that is no reading (a pressure)
         table.add_row(f"load ({response.force_unit})", *[f"{v:.4g}" for v in response.loads])
     for j, name in enumerate(response.sensor_names):
-        table.add_row(name, *[f"{v:+.5f}" for v in response.readings[:, j]])
+        if units.get(name, "mm") == "mm":
+            table.add_row(name, *[f"{v:+.5f}" for v in response.readings[:, j]])
+        else:  # the load reading: a force, kN
+            table.add_row(f"{name} ({units[name]})", *[f"{v:.4g}" for v in response.readings[:, j]])
     console.print(table)
     if nonlinear:
         console.print(f"peak load {response.peak_load:.4g} {response.force_unit} at {response.peak_displacement:.4g} mm; "

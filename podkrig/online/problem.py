@@ -78,6 +78,8 @@ class SurrogateModel:
         self.surrogate = surrogate
         self.space = surrogate.space
         self.sensor_names = tuple(prov["sensor_names"])
+        #: sensor name → unit of its readings (mm; kN for a nonlinear scenario's load reading)
+        self.sensor_units = dict(zip(self.sensor_names, prov.get("sensor_units") or ("mm",) * len(self.sensor_names)))
         self.load_levels = np.asarray(prov["load_levels"], dtype=float)
         self.load_unit = prov.get("load_unit", "kN")
         self.scenario_spec = prov["scenario_spec"]
