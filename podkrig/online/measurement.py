@@ -203,7 +203,7 @@ def level_weights(loads, levels, load_response="discrete", load_unit="", source=
             if np.any(outside):
                 bad = loads[outside]
                 raise ValueError(
-                    f"{source}: {int(outside.sum())} measured load(s) lie outside the modelled range "
+                    f"{source}: {int(outside.sum())} measured control value(s) lie outside the modelled range "
                     f"[{L[0]:g}, {L[-1]:g}]{unit} of this nonlinear scenario (e.g. {bad[0]:g}{unit}; extremes "
                     f"{bad.min():g} and {bad.max():g}{unit}); the model is not extrapolated past its levels: "
                     "restrict the measurement's load range (load_range) or extend the scenario's load_levels")
