@@ -199,6 +199,7 @@ def test_a_load_cell_weighs_the_force_and_a_displacement_instrument_never_does()
     names, units = ("middle_ux", "F"), ("mm", "kN")
     noise = instrument_noise("lvdt", names, units)
     assert noise.sigma == {"middle_ux": 0.001, "F": 0.05} and noise.delta == {"middle_ux": 0.01, "F": 0.01}
+    assert "middle_ux 0.001 mm, F 0.05 kN" in noise.describe()
     m = Measurement([[0.2, 20.0]], names, [0.05], sensor_units=units)
     assert_allclose(noise.std(m), [np.hypot(0.001, 0.002), np.hypot(0.05, 0.2)], rtol=1e-12)
     with pytest.raises(ValueError, match=r"'lvdt'.*'F'.*kN.*load_cell"):
@@ -259,3 +260,19 @@ def test_hidden_truth_cohesion_and_mode_II_energy_from_a_noisy_force_curve(tripl
         lo, hi = result.region.intervals[name]
         assert lo <= value <= hi, (name, lo, hi)
         assert hi - lo < 0.1 * (bounds[name][1] - bounds[name][0])  # the curve pins it down
+
+
+def test_a_force_in_newtons_under_a_kilonewton_header_is_named_as_such():
+    """The readings check on the load reading speaks of N and kN (not µm and mm)."""
+    from podkrig.online.data_check import check_readings
+
+    levels = np.array([0.01, 0.05, 0.2])
+    runs = np.array([[[0.01, 6.0], [0.05, 20.0], [0.2, 15.0]], [[0.01, 7.0], [0.05, 24.0], [0.2, 17.0]]])
+    data = Measurement([[0.01, 6500.0], [0.05, 22000.0], [0.2, 16000.0]], ("middle_ux", "F"), levels,
+                       source="t.csv", sensor_units=("mm", "kN"))
+    noise = instrument_noise("lvdt", data.sensor_names, data.sensor_units)
+    with pytest.raises(MeasurementCheckError) as e:
+        check_readings(data, noise, ("middle_ux", "F"), levels, "path", runs.reshape(2, -1))
+    (finding,) = e.value.findings
+    assert finding.values["sensor"] == "F" and finding.values["unit"] == "kN"
+    assert "N read as kN?" in refusal(e.value, "cli")

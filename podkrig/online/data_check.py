@@ -36,8 +36,8 @@ other sign a sign convention — while the force is a reading (checked by :func:
 which lets it fall past the peak).
 - ``reading-scale``: ``source``, ``sensor``, ``direction`` ("larger" or "smaller"), ``ratio``
   (-; the factor to the middle of the runs' range), ``unit_slip`` (bool: the ratio lies in
-  :data:`UNIT_SLIP_RATIO`, a µm ↔ mm slip), ``runs`` ("probe", "training" or "surrogate"),
-  ``n_runs``;
+  :data:`UNIT_SLIP_RATIO`, a µm ↔ mm slip — N ↔ kN for a force), ``runs`` ("probe", "training" or
+  "surrogate"), ``n_runs``, ``unit`` (the sensor's: mm, or kN for a load reading);
 - ``reading-sign``: ``source``, ``sensor``, ``runs``, ``n_runs``.
 
 Thresholds
@@ -213,6 +213,7 @@ def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="tr
     lo, hi = UNIT_SLIP_RATIO
     found = []
     for j, name in enumerate(data.sensor_names):
+        common["unit"] = data.sensor_units[j]
         sel = col == j
         dj, sj, gj = d[sel], sd[sel], G[:, sel]
         if not len(dj):

@@ -390,12 +390,16 @@ class NoiseModel:
         Full data covariance ``C_d``, mm², in the measurement's (load-major) order.
     floor : float
         Smallest σ of a purely relative model, mm (a reading of zero is not known exactly either).
+    units : dict of str to str, optional
+        Sensor name → the unit of its readings and σ_res where it is not mm (a load reading ``F``:
+        kN), for :meth:`describe`.
     """
 
     sigma: float | dict | None = None
     delta: float | dict | None = None
     covariance: np.ndarray | None = field(default=None, repr=False)
     floor: float = 1e-6
+    units: dict | None = None
 
     def __post_init__(self):
         _require_finite_noise(self)
@@ -464,9 +468,12 @@ class NoiseModel:
         if self.covariance is not None:
             return "full covariance C_d"
 
+        units = self.units or {}
+
         def fmt(v, unit, scale=1.0):
             if isinstance(v, dict):
-                return ", ".join(f"{k} {scale * x:g}{unit}" for k, x in v.items())
+                return ", ".join(f"{k} {scale * x:g}{unit if unit != ' mm' else ' ' + units.get(k, 'mm')}"
+                                 for k, x in v.items())
             return f"{scale * v:g}{unit}"
         parts = []
         if self.sigma is not None:
@@ -515,9 +522,10 @@ def instrument_noise(instruments, sensor_names, sensor_units=None):
         raise ValueError(f"instrument {instruments[s]!r} of sensor {s!r} reads {instrument_unit(instruments[s])}, but "
                          f"{s} reads {units[s]}: give {s} an instrument in {units[s]} (e.g. "
                          f"{'load_cell' if units[s] == 'kN' else 'lvdt'})")
-    sigma = {s: INSTRUMENTS[instruments[s]]["sigma_res_mm"] for s in sensor_names}
+    sigma = {s: INSTRUMENTS[instruments[s]]["sigma_res_mm"] for s in sensor_names}  # in each sensor's unit
     delta = {s: INSTRUMENTS[instruments[s]]["delta"] for s in sensor_names}
-    return NoiseModel(sigma=sigma, delta=delta)
+    other = {s: u for s, u in units.items() if u != "mm"}
+    return NoiseModel(sigma=sigma, delta=delta, units=other or None)
 
 
 def _require_finite_noise(noise):

@@ -272,10 +272,12 @@ def _reading_problem(v):
     if v["code"] == "reading-sign":
         return (f"{v['sensor']} has the opposite sign of every FE run at every reading beyond 3σ: a sign error (a "
                 "gauge mounted the other way round, or another sign convention)?")
+    force = v.get("unit") == "kN"  # the load reading of a curve
     if v["direction"] == "larger":
-        guess = ": µm read as mm?" if v["unit_slip"] else ": a unit error?"
+        slip = ": N read as kN?" if force else ": µm read as mm?"
     else:
-        guess = ": mm read as µm (or m)?" if v["unit_slip"] else ": a unit error?"
+        slip = ": kN read as N (or MN)?" if force else ": mm read as µm (or m)?"
+    guess = slip if v["unit_slip"] else ": a unit error?"
     return f"{v['sensor']} is about {_power_of_ten(v['ratio'])}× {v['direction']} than every FE run{guess}"
 
 
