@@ -276,3 +276,28 @@ def test_a_force_in_newtons_under_a_kilonewton_header_is_named_as_such():
     (finding,) = e.value.findings
     assert finding.values["sensor"] == "F" and finding.values["unit"] == "kN"
     assert "N read as kN?" in refusal(e.value, "cli")
+
+
+def test_the_peak_load_and_its_displacement_as_two_readings(tmp_path, triplet):
+    """``peak_readings = true``: ``F_peak`` (kN) and ``d_peak`` (mm) are readings, the response's
+    refined peak at every level; the CSV states each once (the first row), read back as one
+    observation each, which the model gives exactly at any control value (constant along it)."""
+    _, plain = triplet
+    result = runner.invoke(app, ["simulate", "triplet_shear", "--option", "peak_readings=true", "--format", "csv"])
+    assert result.exit_code == 0, result.output
+    lines = result.stdout.splitlines()
+    assert lines[0].endswith(",F [kN],F_peak [kN],d_peak [mm]")
+    assert all(line.endswith(",,") for line in lines[2:]) and not lines[1].endswith(",")
+    path = tmp_path / "peak.csv"
+    path.write_text(result.stdout)
+    sc = build_scenario({"scenario": "triplet_shear", "peak_readings": True})
+    data = read_measurement(path, sc.sensor_names, sc.load_levels, sc.load_unit, sc.load_response,
+                            sensor_units=sc.sensor_units)
+    assert data.sensor_units[-2:] == ("kN", "mm") and np.isfinite(data.values[:, -2:]).sum() == 2
+    assert_allclose(data.values[0, -2:], [plain.peak_load, plain.peak_displacement], rtol=1e-7)
+    r = sc.run()
+    assert_allclose(r.readings[:, :-2], plain.readings, rtol=0, atol=0)  # the other readings unchanged
+    only_peak = Measurement([[r.peak_load, r.peak_displacement]], ("F_peak", "d_peak"), [0.137],
+                            sensor_units=("kN", "mm"))
+    got = only_peak.observation(sc.sensor_names, sc.load_levels, "path").apply(r.readings.reshape(1, -1))
+    assert_allclose(got.ravel(), [r.peak_load, r.peak_displacement], rtol=1e-14)

@@ -78,7 +78,10 @@ class NonlinearOptions(WallOptions):
     increment before it is cut back, the relative force ``tolerance``, and the interfaces'
     ``integration`` rule (``"lobatto"``: Newton–Cotes at the node pairs, the default, recommended
     for interfaces because Gauss points with stiff dummy interfaces give traction oscillations,
-    Vignollet, May & de Borst 2015; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness)."""
+    Vignollet, May & de Borst 2015; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness).
+    ``peak_readings`` adds the peak as two readings, ``F_peak`` (kN) and ``d_peak`` (the control
+    displacement there, mm), the same at every level (a measurement gives each once, at any control
+    value of its log)."""
 
     increment: float = 0.01
     max_increment: float = 0.05
@@ -91,6 +94,7 @@ class NonlinearOptions(WallOptions):
     law: str = "composite"
     hyperbolic_cap: str = "none"
     integration: str = "lobatto"
+    peak_readings: bool = False
 
     def __post_init__(self):
         super().__post_init__()
@@ -196,30 +200,42 @@ class NonlinearScenario(Scenario):
 
     def __init__(self, spec=None, solver="auto"):
         super().__init__(spec, solver)
-        if self.force_sensor and self.force_sensor in self.model.channel_names:
-            raise SpecError(f"{self.name}: sensor name {self.force_sensor!r} is the load reading (the reaction "
-                            "of the control, kN); give the gauge another name")
+        taken = [n for n in self._load_readings() if n in self.model.channel_names]
+        if taken:
+            raise SpecError(f"{self.name}: sensor name {taken[0]!r} is a load reading (the reaction of the control "
+                            "or its peak); give the gauge another name")
+
+    def _load_readings(self):
+        """Name → (unit, definition) of the readings of the load after the gauges: :attr:`force_sensor`
+        and, with the option ``peak_readings``, the peak load and its control displacement."""
+        if not self.force_sensor:
+            return {}
+        out = {self.force_sensor: (self.force_unit, {"kind": "force", "unit": self.force_unit,
+                                                     "at": "the control (its reaction, positive along the control)"})}
+        if getattr(self.options, "peak_readings", False):
+            out["F_peak"] = (self.force_unit, {"kind": "peak", "unit": self.force_unit,
+                                               "reads": "the largest load of the curve (the same at every level)"})
+            out["d_peak"] = (self.load_unit, {"kind": "peak", "unit": self.load_unit,
+                                              "reads": "the control displacement at the peak load"})
+        return out
 
     @property
     def sensor_names(self):
-        """The gauges' channels, then :attr:`force_sensor` (when there is one)."""
-        names = tuple(self.model.channel_names)
-        return names + (self.force_sensor,) if self.force_sensor else names
+        """The gauges' channels, then :attr:`force_sensor` (when there is one), then ``F_peak`` and
+        ``d_peak`` with the option ``peak_readings``."""
+        return tuple(self.model.channel_names) + tuple(self._load_readings())
 
     @property
     def sensor_units(self):
-        """Sensor name → unit of its readings: mm, and ``force_unit`` for :attr:`force_sensor`."""
+        """Sensor name → unit of its readings: mm, and ``force_unit`` for the load readings."""
         units = dict.fromkeys(self.model.channel_names, "mm")
-        if self.force_sensor:
-            units[self.force_sensor] = self.force_unit
+        units.update({n: u for n, (u, _) in self._load_readings().items()})
         return units
 
     def sensor_definitions(self):
-        """Sensor name → definition dict (mm); the load reading as ``{"kind": "force", "unit": …}``."""
+        """Sensor name → definition dict (mm); the load readings as ``{"kind": "force" or "peak", "unit": …}``."""
         out = super().sensor_definitions()
-        if self.force_sensor:
-            out[self.force_sensor] = {"kind": "force", "unit": self.force_unit,
-                                      "at": "the control (its reaction, positive along the control)"}
+        out.update({n: d for n, (_, d) in self._load_readings().items()})
         return out
 
     @classmethod
@@ -346,8 +362,11 @@ class NonlinearScenario(Scenario):
             for k in range(len(levels)):
                 if at[k] >= 0:
                     u[k] = path.displacements[at[k]]
-        if self.force_sensor:
-            readings = np.column_stack([readings, loads])
+        extra_columns = {"F_peak": peak_load, "d_peak": peak_displacement}
+        columns = [loads if n == self.force_sensor else np.full(len(levels), extra_columns[n])
+                   for n in self._load_readings()]
+        if columns:
+            readings = np.column_stack([readings, *columns])
         return NonlinearResponse(
             readings, self.sensor_names, levels, self.load_unit, u, loads=loads, force_unit=self.force_unit,
             peak_load=peak_load, peak_displacement=peak_displacement,
