@@ -301,3 +301,27 @@ def test_the_peak_load_and_its_displacement_as_two_readings(tmp_path, triplet):
                             sensor_units=("kN", "mm"))
     got = only_peak.observation(sc.sensor_names, sc.load_levels, "path").apply(r.readings.reshape(1, -1))
     assert_allclose(got.ravel(), [r.peak_load, r.peak_displacement], rtol=1e-14)
+
+
+def test_a_surrogate_from_a_store_knows_the_force_is_in_kN_and_reads_a_curve_log_in_N(tmp_path, triplet):
+    """Snapshots of the triplet carry ``F`` like any sensor (its definition in the store); the
+    surrogate built from them records each sensor's unit, so its inversion model reads ``F [N]``
+    as kN: the log written from an FE run is read back within the 9 digits written."""
+    from podkrig.offline.runner import run_snapshots
+    from podkrig.offline.store import SnapshotStore
+    from podkrig.online.problem import SurrogateModel
+    from podkrig.parameters import ParameterSpace
+    from podkrig.surrogate.podkriging import fit_from_store
+
+    sc, r = triplet
+    space = ParameterSpace.from_scenario(sc, {"c_bj": (0.3, 0.4, "linear")})
+    run_snapshots(tmp_path / "s.h5", sc, space, n=4, seed=0, workers=1)
+    with SnapshotStore.open(tmp_path / "s.h5") as store:
+        assert store.sensor_names[-1] == "F" and store.sensor_definitions["F"]["unit"] == "kN"
+        model = SurrogateModel(fit_from_store(store))
+    assert model.sensor_units == {"middle_ux": "mm", "V_top": "mm", "F": "kN"}
+    path = tmp_path / "lab.csv"
+    _lab_log(path, sc, r, np.array([0.01, 0.03, 0.2, 1.7]), title=False)
+    data = read_measurement(path, model.sensor_names, model.load_levels, model.load_unit, model.load_response,
+                            ImportSettings(load_column="slip"), model.sensor_units)
+    assert_allclose(data.values[:, 0], np.interp([0.01, 0.03, 0.2, 1.7], sc.load_levels, r.reading("F")), rtol=1e-8)
