@@ -3,6 +3,7 @@
 post-peak branch, N under a header) evaluated at the measured control values, and the noise of a
 load cell."""
 
+import json
 import re
 from pathlib import Path
 
@@ -318,10 +319,21 @@ def test_a_surrogate_from_a_store_knows_the_force_is_in_kN_and_reads_a_curve_log
     run_snapshots(tmp_path / "s.h5", sc, space, n=4, seed=0, workers=1)
     with SnapshotStore.open(tmp_path / "s.h5") as store:
         assert store.sensor_names[-1] == "F" and store.sensor_definitions["F"]["unit"] == "kN"
-        model = SurrogateModel(fit_from_store(store))
+        surrogate = fit_from_store(store)
+    model = SurrogateModel(surrogate)
     assert model.sensor_units == {"middle_ux": "mm", "V_top": "mm", "F": "kN"}
     path = tmp_path / "lab.csv"
     _lab_log(path, sc, r, np.array([0.01, 0.03, 0.2, 1.7]), title=False)
     data = read_measurement(path, model.sensor_names, model.load_levels, model.load_unit, model.load_response,
                             ImportSettings(load_column="slip"), model.sensor_units)
     assert_allclose(data.values[:, 0], np.interp([0.01, 0.03, 0.2, 1.7], sc.load_levels, r.reading("F")), rtol=1e-8)
+    # podkrig invert on that log: one instrument named for all (the force takes the load cell)
+    from podkrig.io.surrogate_file import save_surrogate
+
+    save_surrogate(surrogate, tmp_path / "sur.h5")
+    result = runner.invoke(app, ["invert", str(tmp_path / "sur.h5"), "--data", str(path), "--load-column", "slip",
+                                 "--instrument", "lvdt", "--format", "json", "--generations", "8",
+                                 "--population-size", "12", "--region-samples", "1024", "--no-fe-check"])
+    assert result.exit_code == 0, result.output
+    found = json.loads(result.stdout)["inversion"]["parameters"]["c_bj"]
+    assert found == pytest.approx(0.35, rel=0.02)  # the log is the default c_bj = 0.35 (4 training runs)
