@@ -99,7 +99,10 @@ def main():
                     choices=["fixed_vertical", "constant_force"])
     ap.add_argument("--full", action="store_true", help="run to 3 mm (control_range = 'full')")
     args = ap.parse_args()
-    mesh = {k: v for k, v in (("nx", args.nx), ("ny", args.ny), ("element", args.element)) if v is not None}
+    from fe.scenarios import build_scenario
+
+    default = build_scenario("shear_compression_nl").options  # the linear peer gets the same mesh
+    mesh = {k: getattr(args, k) if getattr(args, k) is not None else getattr(default, k) for k in ("nx", "ny", "element")}
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
           f"load average before: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
     with threadpool_limits(1):
