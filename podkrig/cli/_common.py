@@ -17,6 +17,7 @@ from enum import StrEnum
 import typer
 
 from fe.exceptions import FEError
+from podkrig.cli._terminal import Progress
 from podkrig.config import choices, field_info
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
@@ -190,9 +191,12 @@ def error_message(e):
 
 @contextlib.contextmanager
 def user_errors():
-    """Turn domain, OS and format errors into ``error: <message>`` on stderr and exit code 2."""
+    """Turn domain, OS and format errors into ``error: <message>`` on stderr and exit code 2; while
+    the block runs outside a terminal, a progress line on stderr at least every 20 s
+    (:class:`podkrig.cli._terminal.Progress`)."""
     try:
-        yield
+        with Progress("podkrig"):
+            yield
     except (FEError, PodkrigError, ValueError, OSError, csv.Error, RecursionError, OverflowError,
             MemoryError) as e:
         typer.echo(f"error: {error_message(e)}", err=True)

@@ -1,11 +1,11 @@
 """``podkrig invert`` and ``podkrig rvc``: identify parameters from measured data, with uncertainty."""
 
+import io
 import json
 from pathlib import Path
 
 import numpy as np
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
@@ -21,11 +21,12 @@ from podkrig.cli._common import (
     settings_from_options,
     user_errors,
 )
+from podkrig.cli._terminal import console as command_console
 from podkrig.cli.simulate import parse_assignment
 from podkrig.config import field_info
 from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.io.surrogate_file import load_surrogate
-from podkrig.limits import check_region_samples
+from podkrig.limits import MAX_JSON_BYTES, check_region_samples, read_bounded
 from podkrig.online.calibrate import calibrate
 from podkrig.online.findings import chi2_basis
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel
@@ -55,7 +56,8 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
                          + "|".join(INSTRUMENTS))
     if noise_cov is not None:
         try:
-            C = np.loadtxt(noise_cov, delimiter=",", ndmin=2)
+            text = read_bounded(noise_cov, MAX_JSON_BYTES, "noise covariance file").decode("utf-8")
+            C = np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2)
         except (OSError, ValueError) as e:
             raise ValueError(f"--noise-cov {noise_cov}: cannot read a comma-separated matrix (mm²): {e}") from None
         return NoiseModel(covariance=C), f"covariance from {noise_cov}"
@@ -268,7 +270,7 @@ def register(app):
         for name, res in results.items():
             for k, o in enumerate(res.outputs):
                 table.add_row(name, o, f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}", f"{100 * res.range_ratio[k]:.3f}")
-        Console().print(table)
+        command_console().print(table)
 
     @app.command()
     def overparam(
@@ -306,7 +308,7 @@ def register(app):
         for r in rows:
             table.add_row(", ".join(r.free), f"{r.chi2_dof:.3g}", f"{r.aic:.4g}", f"{r.bic:.4g}",
                           ", ".join(r.unidentified) or "—", *[f"{100 * r.rvc[v]:.3g}" for v in vals])
-        Console().print(table)
+        command_console().print(table)
 
     return invert, rvc, overparam
 
@@ -329,7 +331,7 @@ def parameters_table(calibration, title):
 
 def _print_table(out, report):
     r = out.inversion
-    console = Console()
+    console = command_console()
     console.print(parameters_table(out, f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, "
                                         f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: "
                                         f"{r.chi2_basis}"))

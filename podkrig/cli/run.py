@@ -15,59 +15,38 @@ def examples_dir():
     return Path(__file__).resolve().parents[2] / "examples"
 
 
-def _rich_progress():
-    """A :class:`podkrig.study.pipeline.Progress` drawing one line or bar per stage on stderr."""
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        SpinnerColumn,
-        TextColumn,
-        TimeElapsedColumn,
-    )
-
+def _stage_progress():
+    """A :class:`podkrig.study.pipeline.Progress` showing each stage on stderr
+    (:class:`~podkrig.cli._terminal.Progress`: a bar on a terminal, a line at least every 20 s
+    elsewhere) and one line per finished stage."""
+    from podkrig.cli._terminal import Progress
     from podkrig.study.pipeline import Progress as StageProgress
 
-    console = Console(stderr=True)
-
-    class RichProgress(StageProgress):
+    class CommandProgress(StageProgress):
         def __init__(self):
-            self.bar = None
-            self.task = None
+            self.display = Progress("study").__enter__()
+            self.title = "study"
 
         def stage_started(self, name, title, total=None):
-            if not console.is_terminal:  # a log file gets one line per finished stage
-                return
-            columns = [SpinnerColumn(), TextColumn("{task.description}")]
-            if total is not None:
-                columns += [BarColumn(), MofNCompleteColumn()]
-            self.bar = Progress(*columns, TimeElapsedColumn(), console=console, transient=True)
-            self.task = self.bar.add_task(title, total=total)
-            self.bar.start()
+            self.title = title
+            self.display.update(title, 0, total)
 
         def advance(self, completed, total):
-            if self.bar is not None:
-                self.bar.update(self.task, completed=completed, total=total)
+            self.display.update(self.title, completed, total)
 
         def stage_finished(self, record):
-            if self.bar is not None:
-                self.bar.stop()
-                self.bar = None
             if record.cached:
-                console.print(f"[dim]· {escape(record.title)}: cached[/]")
-            else:
-                fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
-                console.print(f"[green]✓[/] {escape(record.title)}: {record.seconds:.1f} s{fe}")
-                for note in record.result.get("notes", ()):  # e.g. a small job run serially, and why
-                    console.print(f"  [dim]{escape(note)}[/]")
+                self.display.finish(f"· {record.title}: cached")
+                return
+            fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
+            self.display.finish(f"✓ {record.title}: {record.seconds:.1f} s{fe}")
+            for note in record.result.get("notes", ()):  # e.g. a small job run serially, and why
+                self.display.print(f"  {note}")
 
         def stop(self):
-            if self.bar is not None:
-                self.bar.stop()
+            self.display.stop()
 
-    return RichProgress()
+    return CommandProgress()
 
 
 def _run(study_path, out, yes=False):
@@ -78,7 +57,7 @@ def _run(study_path, out, yes=False):
     if out is None:  # the study's name becomes a folder: a name, never a path
         out = Path("out") / check_name(study.name, f"the study name in {study_path}")
     check_output_folder(out)
-    progress = _rich_progress()
+    progress = _stage_progress()
     try:
         result = run_study(study, out, progress=progress,
                            confirm=lambda text, large: confirm_large_job(text, large, yes))
@@ -92,15 +71,15 @@ def _run(study_path, out, yes=False):
 
 
 def _print_summary(result):
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
+    from podkrig.cli._terminal import console as command_console
     from podkrig.cli.invert import parameters_table
     from podkrig.online.findings import RESIDUAL_CONVENTION
     from podkrig.reports.study import chi2_rows
 
-    console = Console()
+    console = command_console()
     calibration = result.calibration
     inv = calibration.inversion
     console.print(parameters_table(calibration, f"{result.study.name}: identified parameters (χ²/dof of the surrogate "

@@ -3,13 +3,13 @@
 import json
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
 from fe.scenarios import SCENARIOS
 from fe.scenarios.catalogue import SENSOR_KINDS, describe_scenario, typical_range
 from podkrig.cli._common import user_errors
+from podkrig.cli._terminal import console as command_console
 
 
 def _fmt(v):
@@ -30,6 +30,16 @@ def _print_one(console, d):
         t.add_row(p.name, f"{p.default:g}", p.unit, escape(typical_range(p.name, p.unit)), escape(p.admissible_range()),
                   escape(p.description))
     console.print(t)
+    if d.constraints:
+        t = Table(title="constraints between parameters (checked over the whole sampling box before any FE run)",
+                  title_justify="left")
+        for col in ("constraint", "unit", "interfaces", "why"):
+            t.add_column(col)
+        for c in d.constraints:
+            t.add_row(escape(c["formula"]), escape(c["unit"]), escape(c["where"]), escape(c["reason"]))
+        console.print(t)
+    else:
+        console.print("constraints between parameters: none (each parameter only within its admissible range)")
     t = Table(title=escape("options (keys of the [scenario] table or a spec file; lengths mm)"), title_justify="left")
     t.add_column("option")
     t.add_column("default", justify="right")
@@ -61,7 +71,8 @@ def register(app):
         json_output: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
     ):
         """List the virtual tests, or describe one: parameters with units, defaults and admissible
-        ranges, options, default sensors and load levels, and the sensor kinds with their TOML forms."""
+        ranges, the constraints between parameters, options, default sensors and load levels, and
+        the sensor kinds with their TOML forms."""
         with user_errors():
             names = [name] if name else sorted(SCENARIOS)
             descriptions = [describe_scenario(n) for n in names]
@@ -69,7 +80,7 @@ def register(app):
             typer.echo(json.dumps([d.to_dict() for d in descriptions] if not name else descriptions[0].to_dict(),
                                   indent=2))
             return
-        console = Console(highlight=False)
+        console = command_console(highlight=False)
         if name:
             _print_one(console, descriptions[0])
             return

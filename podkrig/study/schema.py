@@ -68,22 +68,26 @@ Example
 import dataclasses
 import difflib
 import math
+import os
 import tomllib
 import typing
 from pathlib import Path
 
 from pydantic import TypeAdapter, ValidationError
 
-from fe.exceptions import FEError, SpecError
+from fe.exceptions import ConstraintError, FEError, SpecError
 from fe.scenarios import SCENARIOS, ScenarioSpec
 from podkrig.exceptions import PodkrigError
+from podkrig.limits import MAX_STUDY_FILE_BYTES, quote, read_bounded
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
+    OUTSIDE,
     CalibrationTest,
     Study,
     StudyFile,
     TrainingDesign,
     ValidationModel,
+    path_in_folder,
     type_name,
 )
 from podkrig.study.toml_lines import key_lines, show_key
@@ -191,7 +195,7 @@ class _Reader:
         """Check that ``value`` is a table with only ``allowed`` keys (for tables whose keys
         depend on the scenario; the others are declared in :mod:`podkrig.study.settings`)."""
         if not isinstance(value, dict):
-            self.fail(path, f"must be a table; got {type_name(value)} {value!r}")
+            self.fail(path, f"must be a table; got {type_name(value)} {quote(value)}")
         for key in value:
             if key not in allowed:
                 self.unknown_key(path, key, allowed)
@@ -220,12 +224,12 @@ class _Reader:
             ctx = e["ctx"]
             self.fail((*loc, *ctx["key"]), ctx["message"], ctx["allowed"])
         if kind in _EXPECTED:
-            self.fail(loc, f"must be {_EXPECTED[kind]}; got {type_name(value)} {value!r}", extra.get("allowed"))
+            self.fail(loc, f"must be {_EXPECTED[kind]}; got {type_name(value)} {quote(value)}", extra.get("allowed"))
         if kind in _TABLE_ERRORS:
-            self.fail(loc, f"must be {extra.get('table', 'a table')}; got {type_name(value)} {value!r}")
+            self.fail(loc, f"must be {extra.get('table', 'a table')}; got {type_name(value)} {quote(value)}")
         if kind == "list_type":
             self.fail(loc, f"must be {extra.get('array', 'an array')}; got {type_name(value)}")
-        self.fail(loc, f"{value!r} is out of range", extra.get("allowed"))
+        self.fail(loc, f"{quote(value)} is out of range", extra.get("allowed"))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -269,11 +273,13 @@ def load_study(path):
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_bounded(path, MAX_STUDY_FILE_BYTES, "study file", "is this the study file?").decode("utf-8")
     except OSError as e:
         raise StudyError(f"cannot read study file {path}: {e.strerror}") from e
     except UnicodeDecodeError as e:
         raise StudyError(f"{path}: not UTF-8 text at byte {e.start}; save it as UTF-8") from None
+    except ValueError as e:
+        raise StudyError(str(e)) from None
     try:
         data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, RecursionError) as e:
@@ -299,6 +305,7 @@ def load_study(path):
     both = sorted(set(space.names) & set(f.fixed))
     if both:
         r.fail(("fixed", both[0]), "is also a free parameter in [parameters]; choose one")
+    _constraints(r, spec, space, {**{n: ("fixed", n) for n in f.fixed}, **{n: ("parameters", n) for n in space.names}})
     return Study(spec=spec, space=space, measurement=f.measurement,
                  validation=_validation(r, f.validation, path.parent, f.fixed, space), **common)
 
@@ -340,8 +347,12 @@ def _tests(r, data, f, folder):
         if not mine:
             r.fail((*where, "scenario"), f"scenario {spec.scenario} has none of the free parameters "
                    f"{list(shared.names)}: it cannot inform the calibration")
+        space = ParameterSpace(tuple(mine))
+        keys = {n: ("parameters", n) if n in shared.names else (*where, "parameters", n) for n in space.names}
+        keys.update({n: (*where, "fixed", n) if n in t.fixed else ("fixed", n) for n in spec.parameters})
+        _constraints(r, spec, space, keys, where, f"test {t.name!r}: ")
         d = t.sampling
-        tests.append(CalibrationTest(t.name, spec, ParameterSpace(tuple(mine)),
+        tests.append(CalibrationTest(t.name, spec, space,
                                      {**{n: v for n, v in f.fixed.items() if n in info}, **t.fixed},
                                      d.train or f.sampling.train, d.held_out or f.sampling.held_out, t.measurement))
     return shared, tuple(tests)
@@ -358,7 +369,10 @@ def _scenario(r, value, path, folder, fixed, fixed_paths=None):
         if value in SCENARIOS:
             value = {"scenario": value}
         else:
-            source = folder / value
+            source = path_in_folder(folder, value)
+            if source is None:
+                r.fail(path, f"{quote(value)} leads outside the study file's folder "
+                             f"({os.path.normpath(folder.absolute() / value)}); nothing was read", OUTSIDE)
             if not source.is_file():
                 r.fail(path, f"{value!r} is neither a scenario name nor a spec file (looked for {source})", allowed)
             try:
@@ -366,7 +380,7 @@ def _scenario(r, value, path, folder, fixed, fixed_paths=None):
             except FEError as e:
                 r.fail(path, str(e))
     if not isinstance(value, dict):
-        r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {value!r}", allowed)
+        r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {quote(value)}", allowed)
     name = value.get("scenario")
     if not isinstance(name, str) or name not in SCENARIOS:  # a list is unhashable: check the type first
         r.fail((*path, "scenario"), "missing key 'scenario'" if name is None else f"unknown scenario {name!r}", names)
@@ -422,6 +436,19 @@ def _parameters(r, raw, bounds, spec, known=None, *, allow_empty=False, path=("p
     return ParameterSpace(tuple(params))
 
 
+def _constraints(r, spec, space, keys, default=("parameters",), label=""):
+    """The scenario's constraints between parameters over the sampling box of ``space`` and the
+    spec's fixed values (:meth:`fe.Scenario.check_spec_box`), before any FE run; a failure is
+    reported, after ``label``, at the key (``keys``: parameter → key path; else ``default``) of the
+    first parameter of the violated constraint that is sampled, else fixed."""
+    try:
+        SCENARIOS[spec.scenario].check_spec_box(spec, {p.name: (p.lower, p.upper, p.scale) for p in space.parameters})
+    except ConstraintError as e:
+        involved = e.violations[0].constraint.parameters
+        named = [n for n in involved if n in space.names] + [n for n in involved if n in keys]
+        r.fail(keys.get(named[0], default) if named else default, f"{label}{e}")
+
+
 def _admissible(info, value):
     """Whether ``value`` lies in the physical range of the parameter ``info`` (fe.ParameterInfo)."""
     try:
@@ -446,6 +473,7 @@ def _validation(r, entries, folder, fixed, space):
             r.fail((*path, "scenario"), f"scenario {spec.scenario} has no parameter(s) {missing} to propagate")
         # the validation model is made of the calibrated material: the fixed values hold there too
         spec = ScenarioSpec(spec.scenario, spec.options, {**spec.parameters, **{k: v for k, v in fixed.items() if k in known}})
+        _constraints(r, spec, space, {}, (*path, "scenario"), f"validation model {item.name!r}: ")
         design = TrainingDesign(n=item.n, seed=item.seed, method=item.method)
         models.append(ValidationModel(item.name, spec, design, item.outputs))
     return tuple(models)
