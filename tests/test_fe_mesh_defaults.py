@@ -100,3 +100,22 @@ def test_a_runaway_newton_iterate_is_cut_back_before_the_law_is_evaluated_there(
     assert guarded_jump < 20.0 < 100.0 < free_jump
     assert guarded.peak_load == pytest.approx(free.peak_load, rel=1e-9)
     assert guarded.path.failed_steps == free.path.failed_steps
+
+
+def test_snapshot_benchmark_box_is_the_widest_equal_spread_the_wall_admits():
+    """``scripts/bench_nonlinear_snapshots.py`` samples the eight parameters over Set A ± 20 %: a box
+    the scenario admits (f_t ≤ c / tanφ at every corner); ± 30 % is refused naming the inequality."""
+    import importlib.util
+    from pathlib import Path
+
+    from fe.exceptions import ConstraintError
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py"
+    spec = importlib.util.spec_from_file_location("bench_nonlinear_snapshots", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    sc = build_scenario("shear_compression_nl")
+    space = bench.space_around_defaults(sc, 0.2)
+    assert space.names == bench.PARAMETERS
+    with pytest.raises(ConstraintError, match="ft_bj.*c_bj.*tanphi_bj"):
+        bench.space_around_defaults(sc, 0.3)
