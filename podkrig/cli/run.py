@@ -49,11 +49,21 @@ def _stage_progress():
     return CommandProgress()
 
 
-def _run(study_path, out, yes=False):
-    """Load, run and summarise a study (inside the CLI's error handling)."""
+SKIP_DIAGNOSIS_HELP = ("Leave the model diagnosis out of this run (most of the demo's FE runs), as 'enabled = "
+                       "false' in the study's diagnosis table would; a later run without this option adds the "
+                       "diagnosis, every other stage cached.")
+
+
+def _run(study_path, out, yes=False, skip_diagnosis=False):
+    """Load, run and summarise a study (inside the CLI's error handling); ``skip_diagnosis``: with
+    the study's diagnosis switched off."""
+    import dataclasses
+
     from podkrig.study import load_study, run_study
 
     study = load_study(study_path)
+    if skip_diagnosis:
+        study = dataclasses.replace(study, diagnosis=dataclasses.replace(study.diagnosis, enabled=False))
     if out is None:  # the study's name becomes a folder: a name, never a path
         out = Path("out") / check_name(study.name, f"the study name in {study_path}")
     check_output_folder(out)
@@ -130,6 +140,7 @@ def register(app):
         yes: bool = typer.Option(False, "--yes", "-y", help=f"Start more than {CONFIRM_ROWS} FE runs or "
                                  f"{CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required "
                                  "without a terminal)."),
+        skip_diagnosis: bool = typer.Option(False, "--skip-diagnosis", help=SKIP_DIAGNOSIS_HELP),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run a whole study: FE snapshots, surrogate, held-out check, inversion, region of equivalence, RVC, diagnosis.
@@ -139,17 +150,19 @@ def register(app):
         """
         configure_logging(verbose)
         with user_errors():
-            _run(study, out, yes)
+            _run(study, out, yes, skip_diagnosis)
 
     @app.command()
     def demo(
         out: Path = typer.Option(Path("out/demo"), "--out", help="Output folder."),
+        skip_diagnosis: bool = typer.Option(False, "--skip-diagnosis", help=SKIP_DIAGNOSIS_HELP),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run the bundled default study: a diagonal compression test with pseudo-measured data.
 
         The study is examples/diagonal_compression.toml (see examples/README.md); writes
-        OUT/report/index.html. About a minute on two cores the first time, seconds when cached.
+        OUT/report/index.html. About a minute on two cores the first time, seconds when cached; the
+        model diagnosis is about 950 of its 1 300 FE runs (--skip-diagnosis leaves it out).
         """
         configure_logging(verbose)
         with user_errors():
@@ -159,4 +172,4 @@ def register(app):
                     f"the demo study {study} is missing: 'podkrig demo' runs from a source checkout "
                     "(git clone, then pip install -e .); or run your own study with 'podkrig run STUDY.toml'"
                 )
-            _run(study, out)
+            _run(study, out, skip_diagnosis=skip_diagnosis)

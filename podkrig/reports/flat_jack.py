@@ -287,7 +287,8 @@ def write_simulation_report(scenario, response, values, out_dir, *, seconds=None
 
 
 def _phase3_table(page, scenario, values, c=0.25, tan_phi=0.70):
-    """Phase 3, elastic: the block's top bed joint against the statics of reference §5.4."""
+    """Phase 3, elastic: the block's top bed joint against the statics of the jack-loaded block
+    (:func:`podkrig.analytical.flat_jack.sliding_pressure_difference`)."""
     try:
         chk = scenario.phase3_check(values, c=c, tan_phi=tan_phi)
     except ValueError as e:  # not the three-jack set-up
@@ -297,7 +298,7 @@ def _phase3_table(page, scenario, values, c=0.25, tan_phi=0.70):
     page.paragraph(
         "Phase 3 runs elastic here (sliding needs the nonlinear interfaces). The mean stresses on the "
         "block's top bed joint equal the statics by equilibrium; local Mohr–Coulomb exceedance "
-        f"(c = {c:g} MPa, tanφ = {tan_phi:g}, the §5.2 defaults) marks where progressive slip would start; "
+        f"(c = {c:g} MPa, tanφ = {tan_phi:g}, the scenario's defaults) marks where progressive slip would start; "
         "the statics estimate of the critical gauge Δp_V is (L_H/h_V)(c + Km p_H tanφ)/Km.")
     page.table(["step", "Δp_V (MPa)", "mean τ FE (MPa)", "statics τ (MPa)", "peak τ (MPa)", "mean σ_n FE (MPa)",
                 "statics σ_n (MPa)", "local slip", "statics Δp_V,crit (MPa)"],
