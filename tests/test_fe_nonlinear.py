@@ -411,8 +411,9 @@ def test_reported_peak_agrees_with_ten_times_finer_increments(spec):
     r = build_scenario(spec).run()
     fine = build_scenario(_finer(spec)).run()
     assert r.path.peaks and fine.path.peaks
-    # the diagonal panel stops after its peak (Newton cycling): the peak is still on the path
-    assert r.status == fine.status
+    # the diagonal panel (coarse) stops after its peak with the default increments (Newton cycling
+    # at 0.84 mm; ten times finer ones reach 1 mm): the peak is on both paths
+    assert r.reached > r.peak_displacement and fine.reached > fine.peak_displacement
     assert r.peak_load == pytest.approx(fine.peak_load, rel=0.002)
 
 
