@@ -197,6 +197,9 @@ class NonlinearScenario(Scenario):
     force_unit = "kN"
     force_sensor = "F"
     control_sign = 1.0
+    #: control value (mm) up to which the curve is mesh-objective (the scenario's mesh-convergence
+    #: study, ``scripts/mesh_convergence.py``); None: the whole studied range
+    mesh_objective_limit = None
 
     def __init__(self, spec=None, solver="auto"):
         super().__init__(spec, solver)
@@ -372,7 +375,7 @@ class NonlinearScenario(Scenario):
             peak_load=peak_load, peak_displacement=peak_displacement,
             status=path.status, limit=path.limit, message=path.message,
             reached=float(disp[-1]) if len(disp) else 0.0,
-            extra=self.extra_outputs(path, at), path=path)
+            extra=self.extra_outputs(path, at), path=path, mesh_objective_limit=self.mesh_objective_limit)
 
     def _control_phase(self, name, dof, f_const, held=(), f_scale=1e-3):
         o = self.options
