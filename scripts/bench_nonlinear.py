@@ -13,7 +13,7 @@ the CPU time is split into numerical factorisations, solves, interface-law updat
 (the solver's calls, timed in place).
 
 With ``--snapshots N`` it also runs N J4D snapshots over a Sobol' design of the eight strength and
-stiffness parameters (ranges below, INFERRED from reference §1a/§2.1) on ``--workers`` processes and
+stiffness parameters (ranges below, INFERRED: docs/references.md) on ``--workers`` processes and
 prints how many reached 3 mm, the failure reasons and the wall time.
 
 Usage: python scripts/bench_nonlinear.py [--nx 6 --ny 2] [--top fixed_vertical constant_force]
