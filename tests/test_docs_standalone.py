@@ -102,7 +102,8 @@ def test_every_inferred_in_user_text_says_where_it_is_explained():
     """Each paragraph, docstring, string or command output that marks a choice INFERRED also names
     docs/references.md (the page with the "INFERRED choices" section), which itself is exempt."""
     texts = [*_page_texts(), *_code_texts(), *_cli_texts()]
-    marked = [(where, text) for where, text in texts if "INFERRED" in text and not where.startswith("docs/references.md")]
+    marked = [(where, text) for where, text in texts
+              if "INFERRED" in text and not where.startswith("docs/references.md")]
     assert len(marked) > 10  # the check looks where the word is used
     assert [where for where, text in marked if "references.md" not in text] == []
 
