@@ -161,3 +161,54 @@ def test_readme_gives_the_test_suite_and_the_demo_their_time_and_a_shorter_way()
     demo = text[text.index("## The two commands"):text.index("Set up and run the tests")]
     assert re.search(r"diagnosis: [\d ]+ of the demo's [\d ]+ FE runs", demo)
     assert "`podkrig demo --skip-diagnosis`" in demo
+
+
+# ----------------------------------------------------------------------------- Python examples
+#: fragment of a Python example → what the reader brings for it (such an example is only compiled)
+PY_BRING = {
+    '"wall3.csv"': "their own lab log and the README's model",
+    "dask_jobqueue": "a batch cluster",
+}
+
+
+def _python_examples(page):
+    """``(line, code)`` of each ``python`` block of a page."""
+    found, code, start = [], None, 0
+    for number, line in enumerate(page.read_text(encoding="utf-8").splitlines(), 1):
+        if code is None and line.strip() == "```python":
+            code, start = [], number + 1
+        elif code is not None and line.startswith("```"):
+            found.append((start, "\n".join(code) + "\n"))
+            code = None
+        elif code is not None:
+            code.append(line)
+    return found
+
+
+PYTHON = [(page.relative_to(ROOT).as_posix(), line, code) for page in PAGES for line, code in _python_examples(page)]
+
+
+def test_every_python_example_is_valid_python():
+    assert sum(page == "README.md" for page, *_ in PYTHON) >= 3
+    for page, line, code in PYTHON:
+        compile(code, f"{page}:{line}", "exec")
+
+
+@pytest.mark.slow
+def test_the_python_examples_run_as_written(tmp_path, monkeypatch):
+    """In a scratch folder beside ``examples/``, after ``podkrig demo --skip-diagnosis`` (the
+    README's first command; its Python then adds the diagnosis, every other stage cached), each
+    page's Python blocks run one after the other in one namespace, as a reader pastes them into
+    one session, except those that need what only the reader has (:data:`PY_BRING`)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "examples").symlink_to(ROOT / "examples")
+    setup = runner.invoke(app, ["demo", "--skip-diagnosis"])
+    assert setup.exit_code == 0, setup.output[-2000:]
+    namespaces = {}
+    ran = []
+    for page, line, code in PYTHON:
+        if any(fragment in code for fragment in PY_BRING):
+            continue
+        exec(compile(code, f"{page}:{line}", "exec"), namespaces.setdefault(page, {"__name__": "__example__"}))
+        ran.append(f"{page}:{line}")
+    assert sum(where.startswith("README.md") for where in ran) >= 3
