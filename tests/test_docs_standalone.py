@@ -24,6 +24,7 @@ from podkrig.cli import app
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", ROOT / "BENCHMARKS.md", *sorted((ROOT / "docs").rglob("*.md")),
          ROOT / "examples" / "README.md"]
+EXAMPLES = ROOT / "examples"
 EXAMPLE_FILES = sorted(p for p in (ROOT / "examples").iterdir() if p.suffix in (".toml", ".py"))
 
 #: a path or a section of the project's private reference notes (never in the repository)
@@ -212,3 +213,40 @@ def test_the_python_examples_run_as_written(tmp_path, monkeypatch):
         exec(compile(code, f"{page}:{line}", "exec"), namespaces.setdefault(page, {"__name__": "__example__"}))
         ran.append(f"{page}:{line}")
     assert sum(where.startswith("README.md") for where in ran) >= 3
+
+
+# ----------------------------------------------------------------------------- TOML examples
+def _toml_blocks(page):
+    return re.findall(r"```toml\n(.*?)```", page.read_text(encoding="utf-8"), re.DOTALL)
+
+
+def test_every_toml_example_is_valid_toml():
+    import tomllib
+
+    blocks = [block for page in PAGES for block in _toml_blocks(page)]
+    assert len(blocks) >= 5
+    for block in blocks:
+        tomllib.loads(block)
+
+
+def test_the_readmes_study_file_is_the_demos_study(tmp_path):
+    """The README shows the demo's study file "as it is": beside its measurement log, it loads to
+    the very settings of ``examples/diagonal_compression.toml``."""
+    from podkrig.study import load_study
+
+    (tmp_path / "study.toml").write_text(_toml_blocks(ROOT / "README.md")[0], encoding="utf-8")
+    (tmp_path / "diagonal_compression_measured.csv").symlink_to(EXAMPLES / "diagonal_compression_measured.csv")
+    shown, demo = load_study(tmp_path / "study.toml"), load_study(EXAMPLES / "diagonal_compression.toml")
+    for key in ("name", "spec", "space", "fixed", "train", "held_out", "surrogate", "inversion", "validation",
+                "diagnosis", "sensitivity", "workers", "scheduler"):
+        assert getattr(shown, key) == getattr(demo, key), key
+
+
+def test_the_scenario_pages_spec_builds_its_scenario():
+    import tomllib
+
+    from fe.scenarios import build_scenario
+
+    spec = tomllib.loads(_toml_blocks(ROOT / "docs" / "scenarios.md")[0])
+    scenario = build_scenario(spec)
+    assert scenario.sensor_names == ("D1",) and list(scenario.load_levels) == spec["load_levels"]
