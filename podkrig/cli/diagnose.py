@@ -52,6 +52,9 @@ def register(app):
                                     help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
         format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output: text or json."),
+        range_check: bool = typer.Option(True, "--range-check/--no-range-check",
+                                         help="Refuse readings far outside every training run of the base surrogate "
+                                              "(20× larger or smaller, or of the opposite sign: a unit or sign error)."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Calibrate the base model, test whether it explains the data within the noise, name the
@@ -78,12 +81,13 @@ def register(app):
             if both:
                 raise ValueError(f"parameter(s) {both} are both free (--param) and fixed (--set); choose one")
             measurement = read_measurement(data, sc.sensor_names, sc.load_levels, sc.load_unit)
-            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names)
+            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names,
+                                            model_sensors=sc.sensor_names)
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
             with Progress("diagnosis") as progress:
                 result = run_diagnosis(sc, measurement, noise, space, settings, fixed=fixed, candidates=names,
                                        progress=progress, rigid_body=str(rigid_body),
-                                       rigid_groups=parse_rigid_groups(rigid_group))
+                                       rigid_groups=parse_rigid_groups(rigid_group), range_check=range_check)
             out = result.to_dict()
             if report is not None:
                 from podkrig.reports.diagnosis import write_diagnosis_report

@@ -6,6 +6,7 @@ from pathlib import Path
 import typer
 
 from podkrig.cli._common import TableFormat, configure_logging, settings_from_options, user_errors
+from podkrig.cli.invert import RANGE_CHECK
 from podkrig.cli.simulate import parse_assignment
 from podkrig.online.settings import SENSITIVITY, SensitivitySettings
 
@@ -26,6 +27,7 @@ def register(app):
                                          help="Level of the bootstrap intervals."),
         out: Path = typer.Option(Path("out/sensitivity"), "--out", help="Output folder (sensitivity.json, sensitivity.png)."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
+        range_check: bool = RANGE_CHECK,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """First-order and total Sobol' indices of every reading (and of the misfit with --data) over the
@@ -52,7 +54,8 @@ def register(app):
             readings = reading_sensitivity(model, free=free_names, fixed=fixed, **options)
             misfit = None
             if data is not None:
-                problem, _, _ = build_problem(surrogate, data, noise_abs, noise_rel, None, list(free), list(fix))
+                problem, _, _ = build_problem(surrogate, data, noise_abs, noise_rel, None, list(free), list(fix),
+                                              range_check=range_check)
                 misfit = misfit_sensitivity(problem, **options)
             elif noise_abs or noise_rel is not None:
                 raise ValueError("a noise model needs --data (the misfit's indices); without it only the readings' are computed")

@@ -127,9 +127,10 @@ def register(app):
                 "n_truths": ("--truths", truths)})
             settings = settings_from_options(PlacementSettings, {
                 "search": ("", search), "comparison": ("", comparison), "seed": ("--seed", seed)})
+            noise = settings_from_options(SensorNoise, {"lvdt": ("--noise-lvdt", noise_lvdt), "dic": ("--noise-dic", noise_dic),
+                                                        "relative": ("--noise-rel", noise_rel)})
             user = None if candidates_file is None else _read_candidates(candidates_file)
             cands = where.candidates(sc.mesh, user, forbidden=zones)
-            noise = SensorNoise(lvdt=noise_lvdt, dic=noise_dic, relative=noise_rel)
             with Progress("sensors") as progress:
                 result = place_sensors(sc, space, cands, settings, noise=noise, fixed=fixed, forbidden=zones,
                                        model=str(sensitivities), progress=progress)

@@ -13,7 +13,7 @@ from podkrig.cli._common import (
 from podkrig.cli._terminal import Progress
 from podkrig.config import field_info
 from podkrig.exceptions import StoreError
-from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_rows, fe_job_estimate
+from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_chunk_size, check_rows, check_workers, fe_job_estimate
 from podkrig.offline.settings import Design
 
 snapshots_app = typer.Typer(
@@ -75,6 +75,10 @@ def run(
     with user_errors():
         if workers is not None and scheduler is not None:
             raise ValueError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+        if workers is not None:
+            check_workers(workers, "--workers")  # the runner's own bounds, named by the option
+        if chunk_size is not None:
+            check_chunk_size(chunk_size, "--chunk-size")
         bounds = parse_params(param)
         sc = build_scenario(_scenario_spec(scenario, spec))
         space = ParameterSpace.from_scenario(sc, bounds)

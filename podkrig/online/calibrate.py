@@ -30,6 +30,7 @@ import time
 from dataclasses import dataclass
 
 from podkrig.display import Displayed, summary
+from podkrig.online.data_check import check_readings, surrogate_training_outputs
 from podkrig.online.findings import Finding, inversion_findings, measurement_findings, of_test
 from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
@@ -220,7 +221,7 @@ def _region(problem, x, settings):
 
 
 def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, check_measurement=True,
-              keep_field=False, calibration_rvc=True, progress=None):
+              keep_field=False, calibration_rvc=True, progress=None, range_check=True):
     """Calibrate: model-form error, inversion, region, FE check, posterior, RVC and findings.
 
     Parameters
@@ -250,12 +251,29 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         Also the RVC of each test's calibration model (the validation models' always).
     progress : callable, optional
         ``progress(step, done, total)`` after each step.
+    range_check : bool
+        First compare each test's readings with its surrogate's training runs
+        (:func:`~podkrig.online.data_check.check_readings`; a model without training runs, such
+        as an FE model, is not compared): the measurement check of every door, which a caller
+        that compared them already (the study, with its probe and training runs) leaves out.
 
     Returns
     -------
     CalibrationResult
+
+    Raises
+    ------
+    MeasurementCheckError
+        With ``range_check``: a sensor's readings 20× larger or smaller than every training run,
+        or of the opposite sign (a unit or sign error), before any inversion.
     """
     settings = CalibrationSettings() if settings is None else settings
+    if range_check:
+        for p in problems_by_test(problem).values():
+            surrogate = getattr(p.model, "surrogate", None)
+            if getattr(surrogate, "U_", None) is not None:
+                check_readings(p.measurement, p.noise, p.model.sensor_names, p.model.load_levels,
+                               p.model.load_response, surrogate_training_outputs(surrogate), runs="surrogate")
     say = progress or (lambda *a: None)
     t0 = time.perf_counter()
     ga = settings.inversion.options()

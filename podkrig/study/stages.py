@@ -47,12 +47,13 @@ from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.io.measurement_log import read_measurement
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
-from podkrig.limits import fe_job_estimate
+from podkrig.limits import fe_job_estimate, quote
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
+from podkrig.online.data_check import MeasurementCheckError, check_readings
 from podkrig.online.joint import JointProblem
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.rigid_body import rigid_body_modes
@@ -65,6 +66,7 @@ from podkrig.reports import inverse as inverse_figures
 from podkrig.reports import surrogate as surrogate_figures
 from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
+from podkrig.reports.findings import refusal
 from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256, read_arrays
 from podkrig.surrogate.podkriging import training_data
@@ -201,20 +203,13 @@ def _run_store(run, path, spec, space, design):
     return summary, notes
 
 
-#: A sensor whose readings are this many times larger (or smaller) than in every FE run (of the
-#: probe, or of the training design) is a probable unit error (µm read as mm is 1000×); a factor 20
-#: leaves room for parameter bounds that are somewhat off, and for the spread of the box beyond the
-#: probe's points, while catching every power-of-ten unit slip from 100× up.
-RANGE_FACTOR = 20.0
-#: A ratio in this range (1000× give or take the parameter box) is named as a µm ↔ mm slip ("µm read
-#: as mm?"); any other ratio beyond :data:`RANGE_FACTOR` as "a unit error?".
-UNIT_SLIP_RATIO = (300.0, 3000.0)
-
-
 def read_study_measurement(test, sensor_names, load_levels, load_unit, load_response):
     """A test's measurement log read for a model: (Measurement, NoiseModel)."""
     m = test.measurement
-    data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
+    try:
+        data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
+    except MeasurementCheckError as e:
+        raise ValueError(refusal(e, "study")) from None
     return data, m.noise.noise_model(data.sensor_names)
 
 
@@ -230,6 +225,12 @@ def measurement_check(run, test):
     def compute():
         sc = run.scenario(test)
         response = getattr(sc, "load_response", "discrete")
+        unknown = m.noise.unknown_sensors(sc.sensor_names)
+        if unknown:
+            field, sensor = unknown[0]
+            table = "[measurement]" if test.name is None else f"[test.measurement] of test {test.name!r}"
+            raise ValueError(f"{study.path}: {table} {field}: {quote(sensor)} is not a sensor of scenario "
+                             f"{sc.name}; its sensors: {', '.join(sc.sensor_names)}")
         data, noise = run.measurement(test)
         rigid = rigid_body_modes(data, absolute_displacements(sc.sensors), m.rigid_body, m.rigid_groups)
         check_dof(data.n_obs, test.space.names, str(m.file), 0 if rigid is None else rigid.n_removed)
@@ -327,14 +328,16 @@ def probe(run, test):
 
 def range_check(run, test, source):
     """Stop when a sensor's readings lie far outside every FE run of a test (a unit or sign error):
-    :func:`measurement_range_problems` against the probe runs (``source = "probe"``, before the
-    training snapshots) or against the training design (``source = "train"``, right after its
+    :func:`~podkrig.online.data_check.check_readings` against the probe runs (``source = "probe"``,
+    before the training snapshots) or against the training design (``source = "train"``, right after its
     snapshots: the whole box). Nothing with ``[measurement] range_check = false``.
 
     Raises
     ------
     ValueError
-        Naming the file, the FE runs compared with, each sensor and its factor.
+        Naming the file, the FE runs compared with, each sensor and its factor
+        (:func:`podkrig.online.data_check.check_readings`, worded by
+        :func:`podkrig.reports.findings.refusal`).
     """
     if not test.measurement.range_check:
         return
@@ -343,78 +346,18 @@ def range_check(run, test, source):
         Y = read_arrays(run.out / test.file("probe.npz"))["readings"]
         Y = Y[np.all(np.isfinite(Y.reshape(len(Y), -1)), axis=1)]  # complete runs, as only_done of a store
         sensor_names, levels, unit = list(sc.sensor_names), sc.load_levels, sc.load_unit
-        what = (f"{len(Y)} probe FE run(s) (the box centre" + ("" if len(Y) == 1 else " and each parameter at its bounds")
-                + ")")
     else:
         with SnapshotStore.open(run.out / test.file("train.h5")) as store:
             Y = store.readings(only_done=True)
             sensor_names, levels, unit = list(store.sensor_names), store.load_levels, store.load_unit
-        what = f"{len(Y)} training FE runs"
     if not len(Y):
         return
     response = getattr(sc, "load_response", "discrete")
     data, noise = run.measurement(test, sensor_names, levels, unit, response)
-    problems = measurement_range_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1))
-    if problems:
-        raise ValueError(
-            f"{test.measurement.file}: the readings do not look like any of the {what} — "
-            + "; ".join(problems) + ". State the unit in the column header (e.g. 'D1 [µm]'), check the sign "
-            "convention, or widen the parameter bounds; [measurement] range_check = false runs anyway")
-
-
-def measurement_range_problems(data, noise, sensor_names, levels, response, Y, factor=RANGE_FACTOR):
-    """Sensors whose readings are ``factor``× larger or smaller than in every FE run, or of the
-    opposite sign: one sentence each, naming the sensor and the factor.
-
-    A sensor is flagged when its largest reading beyond 3σ exceeds ``factor`` × the largest of any
-    run (or its largest reading plus 3σ is below every run's largest ÷ ``factor``). The factor named
-    is the ratio to the geometric mean of the runs' smallest and largest extremes — the middle of
-    the range the parameter box spans, so a box whose runs differ 10× among themselves still names
-    a µm ↔ mm slip as "about 1000×" (:data:`UNIT_SLIP_RATIO`).
-
-    Parameters
-    ----------
-    data : Measurement
-    Y : ndarray of shape (n_runs, n_loads * n_sensors)
-        FE readings (mm) at the model's levels, load-major.
-    """
-    op = data.observation(sensor_names, levels, response)
-    G = np.nan_to_num(op.apply(Y), nan=0.0)  # (n_runs, n_obs): every FE run at the measured loads (partial
-    # rows of a nonlinear store are NaN past the level they reached)
-    d = data.data
-    sd = noise.std(data)
-    col = np.broadcast_to(np.arange(len(data.sensor_names)), data.values.shape)[data.mask]
-    lo, hi = UNIT_SLIP_RATIO
-    problems = []
-    for j, name in enumerate(data.sensor_names):
-        sel = col == j
-        dj, sj, gj = d[sel], sd[sel], G[:, sel]
-        run_max = np.abs(gj).max(axis=1)  # each run's largest reading of this sensor, mm
-        excess = float(np.max(np.abs(dj) - 3 * sj))  # beyond the noise: a noise-level gauge is no unit error
-        upper = float(np.max(np.abs(dj) + 3 * sj))
-        moved = run_max[run_max > 0]
-        middle = float(np.sqrt(moved.min() * moved.max())) if len(moved) else 0.0  # mm
-        if excess > factor * run_max.max():
-            r = float(np.max(np.abs(dj))) / middle if middle > 0 else np.inf
-            problems.append(f"{name} is about {_power_of_ten(r)}× larger than every FE run"
-                            + (": µm read as mm?" if lo <= r <= hi else ": a unit error?"))
-        elif run_max.min() > factor * upper:
-            r = middle / upper
-            problems.append(f"{name} is about {_power_of_ten(r)}× smaller than every FE run"
-                            + (": mm read as µm (or m)?" if lo <= r <= hi else ": a unit error?"))
-        else:
-            signal = np.abs(dj) > 3 * sj
-            fe_sign = np.sign(gj[:, signal])
-            if fe_sign.size and np.all(fe_sign == -np.sign(dj[signal])[None, :]):
-                problems.append(f"{name} has the opposite sign of every FE run at every reading beyond 3σ: a sign "
-                                "error (a gauge mounted the other way round, or another sign convention)?")
-    return problems
-
-
-def _power_of_ten(r):
-    if not np.isfinite(r):
-        return "infinitely"
-    return f"{10 ** round(np.log10(r)):g}" if r >= 3 else f"{r:.2g}"
+    try:
+        check_readings(data, noise, sensor_names, levels, response, Y, runs=source if source == "probe" else "training")
+    except MeasurementCheckError as e:
+        raise ValueError(refusal(e, "study")) from None
 
 
 def offline(run, test, name, title, filename, design):
@@ -523,8 +466,9 @@ def calibration(run):
         problem = run.calibration_problem()
         validation = {m.name: (run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs)
                       for m in study.validation}
+        # the readings were compared with the probe and training runs by range_check already
         result = calibrate(problem, settings, scenarios=lambda name: run.scenario(tests[name]), validation=validation,
-                           check_measurement=False, keep_field=True,
+                           check_measurement=False, range_check=False, keep_field=True,
                            progress=lambda step, done, total: run.progress.advance(done, total))
         region = result.region
         save_region(run.out / "region.npz", region)
@@ -642,6 +586,7 @@ def diagnosis(run, test):
         result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, study.diagnosis,
                           fixed=test.fixed, surrogate=problem.model.surrogate,
                           rigid_body=test.measurement.rigid_body, rigid_groups=test.measurement.rigid_groups,
+                          range_check=False,  # checked against these training runs already (range_check)
                           progress=lambda stage, done, total: run.progress.advance(done, total))
         write_diagnosis_report(result, folder, noise_text=test.measurement.noise.describe())
         files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())
