@@ -59,38 +59,6 @@ def write_field(path, scenario, response):
     np.savetxt(path, np.column_stack(cols), delimiter=",", header=",".join(header), comments="", fmt="%.10g")
 
 
-def measurement_csv(response, sensor_units, once=()):
-    """A response as a measurement file :func:`podkrig.io.measurement_log.read_measurement` reads back
-    unchanged: the column ``load`` (the scenario's load, or a nonlinear scenario's control
-    displacement, with its unit; step numbers bare), then each sensor with its unit (mm, the load
-    reading ``F`` in kN); levels to 6 significant digits, readings to 8; a level the run did not
-    reach has empty cells (missing readings). A reading the same at every level (``once``: the peak
-    readings ``F_peak``, ``d_peak``) is written in the first row only: one observation, as a lab
-    log states it.
-
-    Parameters
-    ----------
-    response : fe.response.Response
-    sensor_units : dict of str to str
-        Sensor name → unit (``Scenario.sensor_units``).
-    once : collection of str
-        Sensors written in the first row only.
-
-    Returns
-    -------
-    str
-    """
-    unit = response.load_unit
-    header = ["load" if unit == "step" else f"load [{unit}]"]
-    header += [f"{name} [{sensor_units.get(name, 'mm')}]" for name in response.sensor_names]
-    lines = [",".join(header)]
-    for k, (level, row) in enumerate(zip(response.load_levels, response.readings)):
-        cells = [f"{v:.8g}" if np.isfinite(v) and (k == 0 or name not in once) else ""
-                 for name, v in zip(response.sensor_names, row)]
-        lines.append(",".join([f"{level:g}", *cells]))
-    return "\n".join(lines) + "\n"
-
-
 def register(app):
     @app.command()
     def simulate(
@@ -169,8 +137,9 @@ def _print(sc, response, values, seconds, format):
         typer.echo(json.dumps(out, indent=2))
         return
     if format == "csv":
-        once = {n for n, d in sc.sensor_definitions().items() if d.get("kind") == "peak"}
-        typer.echo(measurement_csv(response, sc.sensor_units, once), nl=False)
+        from podkrig.io.measurement_log import response_csv
+
+        typer.echo(response_csv(sc, response), nl=False)
         return
     from rich.table import Table
 

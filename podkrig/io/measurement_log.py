@@ -760,6 +760,40 @@ class _Table:
             raise ValueError(f"{where}: {e}".replace(f"{self.path}: ", "", 1)) from None
 
 
+def response_csv(scenario, response):
+    """A simulated response as the measurement file :func:`read_measurement` reads back unchanged
+    (what ``podkrig simulate --format csv`` prints).
+
+    The column ``load`` (the scenario's load, or a nonlinear scenario's control displacement, with
+    its unit; step numbers bare), then each sensor with its unit (mm; the load reading ``F`` in
+    kN); levels to 6 significant digits, readings to 8; a level the run did not reach has empty
+    cells (missing readings). A reading the same at every level (the peak readings ``F_peak``,
+    ``d_peak``: sensor definitions of kind ``"peak"``) is written in the first row only — one
+    observation, as a lab log states it.
+
+    Parameters
+    ----------
+    scenario : fe.scenarios.Scenario
+        Its ``sensor_units`` and ``sensor_definitions()``.
+    response : fe.response.Response
+
+    Returns
+    -------
+    str
+    """
+    units = scenario.sensor_units
+    once = {n for n, d in scenario.sensor_definitions().items() if d.get("kind") == "peak"}
+    unit = response.load_unit
+    header = ["load" if unit == "step" else f"load [{unit}]"]
+    header += [f"{name} [{units.get(name, 'mm')}]" for name in response.sensor_names]
+    lines = [",".join(header)]
+    for k, (level, row) in enumerate(zip(response.load_levels, response.readings)):
+        cells = [f"{v:.8g}" if np.isfinite(v) and (k == 0 or name not in once) else ""
+                 for name, v in zip(response.sensor_names, row)]
+        lines.append(",".join([f"{level:g}", *cells]))
+    return "\n".join(lines) + "\n"
+
+
 def write_measurement_csv(path, measurement):
     """Write a measurement in the plain form :func:`read_measurement` reads (missing readings empty)."""
     with Path(path).open("w", newline="") as fh:
@@ -770,4 +804,4 @@ def write_measurement_csv(path, measurement):
 
 
 __all__ = ["MAX_FILE_BYTES", "REPEATS", "ImportSettings", "phase_label", "read_measurement", "read_measurement_csv",
-           "split_header", "unit_factor", "write_measurement_csv", "zero_phase"]
+           "response_csv", "split_header", "unit_factor", "write_measurement_csv", "zero_phase"]

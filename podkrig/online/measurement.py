@@ -43,13 +43,13 @@ LOAD_RESPONSES = ("affine", "path", "discrete")
 #: 50–100 kN range).
 INSTRUMENTS = {
     "lvdt": {"sigma_res_mm": 0.001, "delta": 0.01,
-             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
+             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED: docs/references.md), δ = 1 % (thesis §3.2)"},
     "dial_gauge": {"sigma_res_mm": 0.001, "delta": 0.01,
                    "text": "dial gauge / mechanical deformometer: resolution 1 µm, δ = 1 %"},
     "dic": {"sigma_res_mm": 0.0025, "delta": 0.0,
-            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED), no relative part"},
+            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED: docs/references.md), no relative part"},
     "load_cell": {"sigma_res_mm": 0.05, "delta": 0.01, "unit": "kN",
-                  "text": "load cell (a force, kN): σ_res = 0.05 kN, δ = 1 % (INFERRED typical values)"},
+                  "text": "load cell (a force, kN): σ_res = 0.05 kN, δ = 1 % (typical values, INFERRED: docs/references.md)"},
 }
 
 
