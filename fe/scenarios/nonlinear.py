@@ -203,7 +203,8 @@ class NonlinearScenario(Scenario):
 
     def __init__(self, spec=None, solver="auto"):
         super().__init__(spec, solver)
-        taken = [n for n in self._load_readings() if n in self.model.channel_names]
+        given = getattr(self.options, "sensors", None) or {}  # the spec's own sensors (the defaults never clash)
+        taken = [n for n in self._load_readings() if n in given]
         if taken:
             raise SpecError(f"{self.name}: sensor name {taken[0]!r} is a load reading (the reaction of the control "
                             "or its peak); give the gauge another name")
