@@ -60,8 +60,10 @@ CRITERIA = ("ml", "loo")
 # why: L^-1 of every output is kept for the variance while it takes at most this much memory
 # (6 outputs of 1 024 snapshots: 50 MB); beyond, triangular solves per output
 EXPLICIT_INVERSE_BYTES = 64 * 2**20
-# why: the (n_outputs, block, n) cross-covariances of one variance block stay this small
-VARIANCE_BLOCK_BYTES = 16 * 2**20
+# why: the (n_outputs, block, n) cross-covariances of one variance block stay this small; a
+# triangular solve (BLAS trsm) of 512 right-hand sides ran at 45 GFlop/s against 38 with 128
+# (n = 4 096, one core, AMD EPYC; scripts/bench_kriging_std.py): 512 points of 4 outputs at n = 4 096
+VARIANCE_BLOCK_BYTES = 64 * 2**20
 # why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
 # subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
 # output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", load
@@ -691,22 +693,35 @@ class OrdinaryKriging:
           (:func:`podkrig.surrogate.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
         - ``_ones_weights``: :math:`w_j = K_j^{-1} 1 = L_j^{-T} L_j^{-1} 1` per output (exponential
           family), ``(n_outputs, n)``;
-        - ``_L_inverse``: :math:`L_j^{-1}` per output, a list of ``(n, n)`` when it takes at most
-          :data:`EXPLICIT_INVERSE_BYTES` (Fortran order, for ``dtrmm``; a triangular product is 2-3x faster
-          than triangular solves for GA-sized batches; variances agree with the solves to ~1e-14 relative on the
-          demo surrogate, see tests), else ``None``.
+        - ``_shared``: per output, the first output with a bitwise-equal Cholesky factor (equal
+          ranges and exponent: fixed hyperparameters, or fitted ones that met), ``(n_outputs,)``;
+          such outputs share one :math:`\\lVert L^{-1} k \\rVert^2` per point, the O(n²) part of
+          the variance, so a POD of many modes at shared hyperparameters costs one mode's variance;
+        - ``_L_inverse``: :math:`L_j^{-1}` per distinct factor, a dict output -> ``(n, n)`` when
+          they take at most :data:`EXPLICIT_INVERSE_BYTES` (Fortran order, for ``dtrmm``; a triangular
+          product is 2-3x faster than triangular solves for GA-sized batches; variances agree with the
+          solves to ~1e-14 relative on the demo surrogate, see tests), else ``None``.
         """
         hp = self.hyperparameters_
         self._theta = hp.theta
         self._plan_unit = _kernels.plan(self._theta, hp.beta, 1.0)
         ones = np.ones(self.X_.shape[0])
         self._L_inverse = self._ones_weights = None
+        self._shared = np.arange(self.n_outputs_)
         if self.kind_ == EXPONENTIAL:
             n = self.X_.shape[0]
-            if self.L_.size * 8 <= EXPLICIT_INVERSE_BYTES:
+            for j in range(1, self.n_outputs_):
+                for i in range(j):
+                    if self._shared[i] == i and hp.beta[i] == hp.beta[j] and np.array_equal(hp.ranges[i], hp.ranges[j]) \
+                            and np.array_equal(self.L_[i], self.L_[j]):
+                        self._shared[j] = i
+                        break
+            distinct = np.unique(self._shared)
+            if len(distinct) * n * n * 8 <= EXPLICIT_INVERSE_BYTES:
                 eye = np.eye(n)
-                self._L_inverse = [np.asfortranarray(solve_triangular(L, eye, lower=True, check_finite=False))
-                                   for L in self.L_]
+                self._L_inverse = {int(j): np.asfortranarray(solve_triangular(self.L_[j], eye, lower=True,
+                                                                              check_finite=False))
+                                   for j in distinct}
             u = [solve_triangular(L, ones, lower=True, check_finite=False) for L in self.L_]
             self._ones_weights = np.stack([solve_triangular(L, uj, lower=True, trans="T", check_finite=False)
                                            for L, uj in zip(self.L_, u)])
@@ -905,6 +920,9 @@ class OrdinaryKriging:
             return sigma2 * (self.c0_[:, None] - 2.0 * np.einsum("jpi,ji->jp", K, self.q1_) - quad)
         quad = np.empty(K.shape[:2])
         for j in range(self.n_outputs_):  # a handful of POD modes, each one BLAS-3 call
+            if self._shared[j] != j:  # the same factor (and covariances) as an earlier output
+                quad[j] = quad[self._shared[j]]
+                continue
             if self._L_inverse is not None:  # triangular product: half the flops of a full one
                 V = dtrmm(1.0, self._L_inverse[j], K[j].T, side=0, lower=1)
             else:
