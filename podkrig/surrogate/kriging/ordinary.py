@@ -60,10 +60,9 @@ CRITERIA = ("ml", "loo")
 # why: L^-1 of every output is kept for the variance while it takes at most this much memory
 # (6 outputs of 1 024 snapshots: 50 MB); beyond, triangular solves per output
 EXPLICIT_INVERSE_BYTES = 64 * 2**20
-# why: the (n_outputs, block, n) cross-covariances of one variance block stay this small; a
-# triangular solve (BLAS trsm) of 512 right-hand sides ran at 45 GFlop/s against 38 with 128
-# (n = 4 096, one core, AMD EPYC; scripts/bench_kriging_std.py): 512 points of 4 outputs at n = 4 096
-VARIANCE_BLOCK_BYTES = 64 * 2**20
+# why: the (n_outputs, block, n) cross-covariances of one variance block stay this small; 8-64 MB
+# changed the variance rate by < 15 % at n = 1 024 and 4 096 (4 outputs, one core): BLAS-bound
+VARIANCE_BLOCK_BYTES = 16 * 2**20
 # why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
 # subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
 # output at those hyperparameters. Measured in BENCHMARKS.md ("Training at scale", load
