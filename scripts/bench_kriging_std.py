@@ -66,7 +66,8 @@ def main(argv=None):
     from podkrig.parallel import one_blas_thread
     from podkrig.surrogate.kriging import OrdinaryKriging
 
-    print(f"# {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC, {platform.processor() or platform.machine()}, "
+    now = datetime.datetime.now(datetime.timezone.utc)
+    print(f"# {now:%Y-%m-%d %H:%M} UTC, {platform.processor() or platform.machine()}, "
           f"python {platform.python_version()}, numpy {np.__version__}, d = 8, {args.outputs} outputs")
     print("| n | fit CPU s | mean pts/s | σ pts/s | σ shared pts/s | floor pts/s | factors MB | peak RSS MB |")
     print("|---|---|---|---|---|---|---|---|")

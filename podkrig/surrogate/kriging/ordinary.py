@@ -712,11 +712,9 @@ class OrdinaryKriging:
         if self.kind_ == EXPONENTIAL:
             n = self.X_.shape[0]
             for j in range(1, self.n_outputs_):
-                for i in range(j):
-                    if self._shared[i] == i and hp.beta[i] == hp.beta[j] and np.array_equal(hp.ranges[i], hp.ranges[j]) \
-                            and np.array_equal(self.L_[i], self.L_[j]):
-                        self._shared[j] = i
-                        break
+                same = (i for i in range(j) if self._shared[i] == i and hp.beta[i] == hp.beta[j]
+                        and np.array_equal(hp.ranges[i], hp.ranges[j]) and np.array_equal(self.L_[i], self.L_[j]))
+                self._shared[j] = next(same, j)
             distinct = np.unique(self._shared)
             if len(distinct) * n * n * 8 <= EXPLICIT_INVERSE_BYTES:
                 eye = np.eye(n)
