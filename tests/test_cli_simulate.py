@@ -1,6 +1,7 @@
 """``podkrig simulate`` through typer's CliRunner."""
 
 import json
+import re
 import shlex
 from pathlib import Path
 
@@ -57,10 +58,14 @@ def test_scenario_options_on_the_command_line(tmp_path):
 
 def test_a_nonlinear_run_that_stops_early_fails(tmp_path):
     """A run ended by its budget prints what it reached and exits 1 (its missing levels are NaN,
-    not a result); the same run with the default budget exits 0."""
+    not a result), its partial result still written (the report, whose first line says it
+    stopped); the same run with the default budget exits 0."""
     stopped = runner.invoke(app, ["simulate", "couplet_tension", "--option", "max_total_iterations=3",
-                                  "--format", "json"])
+                                  "--format", "json", "--report", str(tmp_path / "r")])
     assert stopped.exit_code == 1 and "iterations limit" in stopped.output
+    assert json.loads(stopped.stdout)["status"] == "budget_exhausted"
+    page = (tmp_path / "r" / "index.html").read_text(encoding="utf-8")
+    assert re.search(r"</h1>\s*<div class=\"warn\">.*?budget_exhausted.*?</div>", page)
     assert runner.invoke(app, ["simulate", "couplet_tension", "--format", "json"]).exit_code == 0
 
 

@@ -41,11 +41,11 @@ LOAD_RESPONSES = ("affine", "path", "discrete")
 #: calibration/linearity term is a choice).
 INSTRUMENTS = {
     "lvdt": {"sigma_res_mm": 0.001, "delta": 0.01,
-             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
+             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED: docs/references.md), δ = 1 % (thesis §3.2)"},
     "dial_gauge": {"sigma_res_mm": 0.001, "delta": 0.01,
                    "text": "dial gauge / mechanical deformometer: resolution 1 µm, δ = 1 %"},
     "dic": {"sigma_res_mm": 0.0025, "delta": 0.0,
-            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED), no relative part"},
+            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED: docs/references.md), no relative part"},
 }
 #: Smallest credible σ of one reading, mm: half the finest resolution of the instruments above
 #: (1 µm). A smaller σ makes the region of equivalence optimistic (a 1 %-relative model
