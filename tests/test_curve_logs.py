@@ -337,3 +337,47 @@ def test_a_surrogate_from_a_store_knows_the_force_is_in_kN_and_reads_a_curve_log
     assert result.exit_code == 0, result.output
     found = json.loads(result.stdout)["inversion"]["parameters"]["c_bj"]
     assert found == pytest.approx(0.35, rel=0.02)  # the log is the default c_bj = 0.35 (4 training runs)
+
+
+STUDY = '''name = "triplet_curve"
+[scenario]
+scenario = "triplet_shear"
+[parameters]
+c_bj = { lower = 0.2, upper = 0.5 }
+GfII_bj = { lower = 0.05, upper = 0.3 }
+[sampling]
+train = { n = 32, seed = 0 }
+held_out = { n = 8, seed = 1, method = "random" }
+workers = 1
+[measurement]
+file = "triplet_T1.csv"
+load_column = "slip"
+load_range = [0.01, 2.0]
+noise_abs = { F = 0.05, V_top = 0.001 }
+noise_rel = 0.01
+[inversion]
+seed = 0
+'''
+
+
+def test_a_study_identifies_the_joints_from_a_lab_curve_log_in_newtons(tmp_path, triplet):
+    """``podkrig run`` on a triplet study whose log is a lab curve (from zero slip, uneven steps, the
+    force in N with 1 % + 0.05 kN noise, seeded; truth c_bj = 0.3 MPa, GfII_bj = 0.1 N/mm): every
+    stage runs, and the region of equivalence holds the truth (measured: c_bj in [0.286, 0.301],
+    GfII_bj in [0.098, 0.106])."""
+    sc, _ = triplet
+    r = sc.run({"c_bj": 0.3, "GfII_bj": 0.1})
+    control = np.array([0.0, 0.006, 0.013, 0.021, 0.034, 0.046, 0.07, 0.13, 0.27, 0.55, 0.98, 1.52, 1.97])
+    F = np.interp(control, sc.load_levels, r.reading("F"))
+    F = F + np.random.default_rng(3).standard_normal(F.shape) * np.hypot(0.05, 0.01 * F)
+    V = np.interp(control, sc.load_levels, r.reading("V_top"))
+    rows = [f"{i},{c:g},{1000 * f:.1f},{v:.5f}" for i, (c, f, v) in enumerate(zip(control, F, V))]
+    (tmp_path / "triplet_T1.csv").write_text("\n".join(["Triplet T1", "time [s],slip [mm],F [N],V_top [mm]", *rows]))
+    (tmp_path / "triplet.toml").write_text(STUDY)
+    result = runner.invoke(app, ["run", str(tmp_path / "triplet.toml"), "--out", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output[-3000:]
+    summary = json.loads(next((tmp_path / "out").rglob("summary.json")).read_text())
+    intervals = summary["stages"]["calibration"]["region"]["intervals"]
+    for name, value in {"c_bj": 0.3, "GfII_bj": 0.1}.items():
+        lo, hi = intervals[name]
+        assert lo <= value <= hi, (name, lo, hi)
