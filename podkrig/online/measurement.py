@@ -1,9 +1,10 @@
 """Measured responses, how a model is evaluated at them, and their noise model (no file reading
 here; see :mod:`podkrig.io.measurement_log`).
 
-A :class:`Measurement` holds measured readings ``(n_loads, n_sensors)`` in mm for a subset of a
-scenario's sensors, at any measured loads (a lab log: 10.03, 10.41 … kN); a missing reading is
-NaN. :meth:`Measurement.observation` gives the :class:`ObservationOperator` that evaluates a
+A :class:`Measurement` holds measured readings ``(n_loads, n_sensors)`` in mm (in kN for the load
+reading ``F`` of a displacement-controlled scenario: a force–displacement curve is data) for a
+subset of a scenario's sensors, at any measured loads (a lab log: 10.03, 10.41 … kN; or control
+displacements, mm); a missing reading is NaN. :meth:`Measurement.observation` gives the :class:`ObservationOperator` that evaluates a
 model's flattened (load-major, C order) output vector at the observed entries:
 
 * at a modelled load level, the model's own output;
