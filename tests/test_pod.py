@@ -125,7 +125,7 @@ def test_settings_round_trip_and_the_auto_method_threshold():
     """``get_params`` rebuilds an equal POD; "auto" takes the method of snapshots only when
     n_outputs > 4 n_samples; one mode and two snapshots are valid."""
     pod = POD(n_modes=1, center=False, method="svd")
-    assert pod.get_params() == {"n_modes": 1, "energy": None, "center": False, "method": "svd"}
+    assert pod.get_params() == {"n_modes": 1, "energy": None, "center": False, "method": "svd", "blocks": None}
     assert POD(**POD(energy=0.5).get_params()).get_params()["energy"] == 0.5
     Y, _, _ = _data(6, n=5, m=20, rank=2)
     assert POD().fit(Y).method_ == "svd"  # m = 4 n

@@ -63,7 +63,7 @@ def test_schema_1_file_loads_and_predicts_as_before(tmp_path):
     assert sur.backend_ == "podkrig" and sur.kriging_.hyperparameters_.variogram == "exponential"
     save_surrogate(sur, tmp_path / "v2.h5")  # rewritten in today's schema, same predictions
     with h5py.File(tmp_path / "v2.h5") as f:
-        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 3 and f.attrs["backend"] == "podkrig"
+        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 4 and f.attrs["backend"] == "podkrig"
     again = load_surrogate(tmp_path / "v2.h5")
     assert_array_equal(again.predict(expected["X"], reshape=True), mean)  # same process: the same bits
 
@@ -100,7 +100,7 @@ def test_surrogate_state_round_trips_as_arrays_without_a_file(surrogate):
     ``from_arrays(*to_arrays())`` predicts bitwise as the original in the same process, and the
     metadata is JSON-able (the file stores it as JSON text)."""
     arrays, attrs = surrogate.to_arrays()
-    assert set(arrays) == {"X", "U", "lower", "upper", "train_norm", "train_residual_norm", "pod", "kriging"}
+    assert set(arrays) == {"X", "U", "lower", "upper", "train_norm", "train_residual_norm", "scale", "pod", "kriging"}
     json.dumps({k: attrs[k] for k in ("settings", "provenance", "parameter_space", "output_shape")})
     back = PODKriging.from_arrays(arrays, attrs)
     X = SPACE.from_unit(uniform(7, 3, seed=2))
@@ -260,7 +260,7 @@ def test_fit_from_store_fits_the_store_on_its_space_and_records_where_it_came_fr
             "source_store": str(store_path.resolve()), "source_content_hash": s.content_hash(),
             "scenario_spec": s.spec.to_dict(), "sensor_names": list(s.sensor_names),
             "load_levels": list(s.load_levels), "load_unit": s.load_unit, "reading_unit": "mm",
-            "output": "readings", "n_nodes": s.n_nodes, "n_train": 5,
+            "output": "readings", "n_nodes": s.n_nodes, "n_train": 5, "sensor_units": ["mm"] * 6,
         }
         field = fit_from_store(s, output="field")
         assert field.provenance_["output"] == "field"
@@ -301,7 +301,7 @@ def test_get_params_gives_the_templates_back():
     estimator from it)."""
     pod, kriging = POD(n_modes=2), OrdinaryKriging(beta=1.5)
     params = PODKriging(pod=pod, kriging=kriging, space=SPACE).get_params()
-    assert params == {"pod": pod, "kriging": kriging, "space": SPACE}
+    assert params == {"pod": pod, "kriging": kriging, "space": SPACE, "layout": "stacked", "scaling": "none"}
 
 
 def test_kriging_settings_round_trip_through_the_file(tmp_path):

@@ -188,7 +188,7 @@ def _stub(pred, proj, std=None, kriging=None, norms=None):
     return SimpleNamespace(
         output_shape_=(pred.shape[1],), X_=np.zeros((7, 1)),
         predict=lambda X, return_std: (pred, np.ones_like(pred) if std is None else std),
-        pod_=SimpleNamespace(project=lambda Y: np.asarray(proj, float), n_modes_=1),
+        project=lambda Y: np.asarray(proj, float), pod_=SimpleNamespace(n_modes_=1),
         kriging_=kriging if kriging is not None else SimpleNamespace(), **(norms or {}))
 
 

@@ -1,22 +1,26 @@
 """The surrogate file: a fitted :class:`~podkrig.surrogate.PODKriging` in HDF5 (no pickle).
 
-Layout (schema 3; ``/`` is the root group)::
+Layout (schema 4; ``/`` is the root group)::
 
     /            attrs  format = "podkrig.surrogate", schema_version, settings (JSON: the POD's and
                         the regressor's settings), provenance (JSON), parameter_space (JSON or
                         null), output_shape (JSON), saved (UTC, ISO 8601), package_version,
                         backend, backend_version, and the checksum of :mod:`podkrig.h5integrity`
                  data   X (n_samples, n_params) physical units, U (unit cube), lower, upper
-                        (n_params,), train_norm, train_residual_norm (n_samples,)
-    /pod         attrs  method, n_samples
-                 data   mean, modes, singular_values, energy, residual_variance
+                        (n_params,), train_norm, train_residual_norm (n_samples,), scale
+                        (n_outputs,) the scale of each output
+    /pod         attrs  method, n_samples (and retained_energy for a POD per control level)
+                 data   mean, modes, singular_values, energy, residual_variance (and block_modes,
+                        the modes kept per level, for a POD per control level)
     /kriging     attrs  and data of the backend's ``to_arrays`` (ours: ranges, beta, mu, sigma2,
                         alpha, L, Q, ... and kind, variogram, nugget, fit_method)
 
 Schema history: 2 records the backend (attrs ``backend``, ``backend_version``); 3 records how the
 kriging hyperparameters were fitted (attr ``fit_method``, dataset ``subset_index``) and, after a
 subset fit, leaves out the factors ``L`` and ``Q`` (rebuilt at load), which schema-2 readers
-require. Files of schemas 1 and 2 are still read (as exact fits of the ``"podkrig"`` backend for
+require; 4 records the layout (one POD stacked over the control levels or one per level) and the
+scaling of the outputs (settings ``layout``, ``scaling``, ``units``; dataset ``scale``), which
+schema-3 readers would ignore. Files of schemas 1 to 3 are still read (unscaled, stacked) (as exact fits of the ``"podkrig"`` backend for
 schema 1).
 
 The surrogate itself exchanges its state as arrays (:meth:`PODKriging.to_arrays` /
@@ -51,8 +55,8 @@ from podkrig.surrogate.podkriging import PODKriging
 logger = logging.getLogger(__name__)
 
 FORMAT = "podkrig.surrogate"
-SCHEMA_VERSION = 3
-READABLE_SCHEMAS = (1, 2, 3)
+SCHEMA_VERSION = 4
+READABLE_SCHEMAS = (1, 2, 3, 4)
 #: root attributes stored as JSON text
 _JSON_ATTRS = ("settings", "provenance", "parameter_space", "output_shape")
 #: the groups of the surrogate's parts
@@ -106,7 +110,7 @@ def save_surrogate(surrogate, path):
 def load_surrogate(path):
     """Read a surrogate written by :func:`save_surrogate`; predictions are bitwise identical.
 
-    Reads schema 3, the files of schema 2 (written before the fit method was recorded: exact
+    Reads schema 4, the files of schema 3 (unscaled outputs, one POD over all levels), of schema 2 (written before the fit method was recorded: exact
     fits) and of schema 1 (written before the backend was recorded; always ``"podkrig"``), whose
     kriging group has the same arrays.
 
@@ -159,6 +163,8 @@ def load_surrogate(path):
                 attrs["backend"] = str(f.attrs["backend"])
             arrays = {name: f[name][...] for name in ("X", "U", "lower", "upper", "train_norm",
                                                        "train_residual_norm")}
+            if "scale" in f:  # schema 4
+                arrays["scale"] = f["scale"][...]
             for part in _PARTS:
                 g = f[part]
                 arrays[part] = {name: g[name][...] for name in g}

@@ -239,7 +239,9 @@ def held_out_findings(held, *, noise_rel=None, noise_abs=None):
     noise_rel : float, optional
         Relative measurement noise δ (-).
     noise_abs : float or dict of str to float, optional
-        Absolute measurement noise σ, mm (per sensor: the smallest counts).
+        Absolute measurement noise σ, mm (per sensor, in the sensor's unit: the smallest of the mm
+        sensors counts; a scalar is the gauges' σ in mm). The errors of other units (a force in
+        kN) are never compared with it.
 
     Returns
     -------
@@ -254,8 +256,13 @@ def held_out_findings(held, *, noise_rel=None, noise_abs=None):
         found.append(Finding("surrogate-error", "held-out", {"median_rel_error": float(median),
                                                             "noise_rel": float(noise_rel)}))
     elif noise_abs is not None:
-        sigma = min(noise_abs.values()) if isinstance(noise_abs, dict) else noise_abs
-        if held["rms_abs_error_mm"] > sigma:
+        if isinstance(noise_abs, dict):
+            mm = (held.get("by_unit") or {}).get("mm", {}).get("sensors")  # the gauges' σ, not a load cell's kN
+            sigmas = [v for k, v in noise_abs.items() if mm is None or k in mm]
+            sigma = min(sigmas) if sigmas else None
+        else:
+            sigma = noise_abs
+        if sigma is not None and held["rms_abs_error_mm"] > sigma:
             found.append(Finding("surrogate-error", "held-out", {"rms_abs_error_mm": float(held["rms_abs_error_mm"]),
                                                                 "sigma_mm": float(sigma)}))
     if held["coverage_2sigma"] < COVERAGE_LIMIT:

@@ -140,7 +140,8 @@ def fit_tables(page, result):
 def held_out_tables(page, result):
     """A held-out check (:class:`~podkrig.surrogate.results.HeldOutResult`) on ``page``: what the
     errors mean, the relative errors (total, POD truncation, interpolation, leave-one-out) in %, the
-    absolute errors in mm and the ±2σ coverage, and how the kriging was trained."""
+    absolute errors in mm and the ±2σ coverage, the errors per unit when the outputs mix units (kN
+    and mm), and how the kriging was trained."""
     page.paragraph(
         "The surrogate against FE runs it was not trained on. Relative error per run: ‖ŷ − y‖ / ‖y‖ over all "
         "readings; POD part: what the retained modes cannot represent; interpolation part: the kriging error."
@@ -152,6 +153,15 @@ def held_out_tables(page, result):
     page.table(["held-out runs", "RMS error (mm)", "max error (mm)", "readings within ±2σ (%)"],
                [[result.n_held_out, num(result.rms_abs_error_mm, 3), num(result.max_abs_error_mm, 3),
                  pct(result.coverage_2sigma)]])
+    if result.by_unit and len(result.by_unit) > 1:
+        page.paragraph("Per unit (outputs of different units are never added): error relative to the peak of the "
+                       "curve, max |ŷ − y| / max |y| per run, and the error of the peak value.")
+        page.table(["unit", "sensors", "peak-relative error (%): median", "max", "peak value error (%): median",
+                    "max", "RMS error", "max error"],
+                   [[unit, ", ".join(e.get("sensors", [])), pct(e["peak_error"]["median"]), pct(e["peak_error"]["max"]),
+                     pct(e["peak_value_error"]["median"]), pct(e["peak_value_error"]["max"]),
+                     f"{num(e['rms_abs_error'], 3)} {unit}", f"{num(e['max_abs_error'], 3)} {unit}"]
+                    for unit, e in result.by_unit.items()])
     if result.fit_description is not None:
         page.paragraph(f"Kriging: {result.fit_description}.")
 

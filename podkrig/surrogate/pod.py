@@ -51,6 +51,12 @@ class POD:
         every mode above the numerical rank tolerance is kept.
     center : bool, default True
         Subtract the mean snapshot before the decomposition.
+    blocks : int, optional
+        Decompose ``blocks`` equal contiguous column blocks separately (e.g. the outputs of each
+        control level of a nonlinear response, thesis §4.3.3): each block gets its own mean, modes
+        and truncation (``energy`` or ``n_modes`` per block, ``n_modes`` clipped to the block's
+        rank; a block without variance keeps none), and the modes are zero outside their block, so
+        the retained modes stay orthonormal. ``None`` or 1: one POD of all columns.
     method : {"auto", "svd", "snapshots"}, default "auto"
         Thin SVD of the centred matrix, or the method of snapshots [1]_ (eigen-decomposition of the
         ``n_samples × n_samples`` Gram matrix; cheaper when ``n_outputs`` is much larger than
@@ -84,15 +90,17 @@ class POD:
     error of a snapshot :math:`y` is :math:`\\| (y - \\bar y) - \\Phi^T \\Phi (y - \\bar y) \\|`.
     """
 
-    def __init__(self, n_modes=None, energy=None, center=True, method="auto"):
+    def __init__(self, n_modes=None, energy=None, center=True, method="auto", blocks=None):
         self.n_modes = n_modes
         self.energy = energy
         self.center = center
         self.method = method
+        self.blocks = blocks
 
     def get_params(self, deep=True):
         """Hyperparameters as a dict (scikit-learn convention)."""
-        return {"n_modes": self.n_modes, "energy": self.energy, "center": self.center, "method": self.method}
+        return {"n_modes": self.n_modes, "energy": self.energy, "center": self.center, "method": self.method,
+                "blocks": self.blocks}
 
     def _check_settings(self):
         if self.n_modes is not None and self.energy is not None:
@@ -110,6 +118,9 @@ class POD:
             )
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}; got {self.method!r}")
+        if self.blocks is not None and (isinstance(self.blocks, bool) or not isinstance(self.blocks, (int, np.integer))
+                                        or self.blocks < 1):
+            raise ValueError(f"blocks must be an integer >= 1; got {self.blocks!r}")
 
     def fit(self, Y):
         """Compute the POD basis of the snapshot matrix ``Y`` (not modified).
@@ -138,6 +149,8 @@ class POD:
             raise ValueError(f"POD needs at least 2 snapshots; got {n}")
         if not np.all(np.isfinite(Y)):
             raise ValueError("Y must be finite; found NaN or inf (drop failed FE runs first)")
+        if self.blocks not in (None, 1):
+            return self._fit_blocks(Y)
         mean = Y.mean(axis=0) if self.center else np.zeros(m)
         Yc = Y - mean  # a new array: the input is never modified
         method = self.method
@@ -189,6 +202,58 @@ class POD:
                     method, n, m, rank, k, energy_curve[k - 1])
         return self
 
+    def _fit_blocks(self, Y):
+        """One POD per block of ``m / blocks`` contiguous columns, assembled block-diagonally."""
+        n, m = Y.shape
+        if m % self.blocks:
+            raise ValueError(f"blocks={self.blocks} does not divide the {m} outputs of a snapshot")
+        w = m // self.blocks
+        mean, residual = np.zeros(m), np.zeros(m)
+        rows, kept, s_all, methods = [], [], [], []
+        for b in range(self.blocks):
+            cols = slice(b * w, (b + 1) * w)
+            Yb = Y[:, cols]
+            centre = Yb.mean(axis=0) if self.center else np.zeros(w)
+            mean[cols] = centre
+            if not np.any(Yb - centre):  # no variance in this block: its mean alone reproduces it
+                kept.append(0)
+                continue
+            sub = POD(center=self.center, method=self.method).fit(Yb)  # every mode above the rank tolerance
+            rank = len(sub.singular_values_)
+            if self.n_modes is not None:
+                k = min(self.n_modes, rank)
+            elif self.energy is not None:
+                k = min(int(np.searchsorted(sub.energy_, self.energy - 1e-12) + 1), rank)
+            else:
+                k = rank
+            block = np.zeros((k, m))
+            block[:, cols] = sub.modes_[:k]
+            rows.append(block)
+            Rb = (Yb - centre) - ((Yb - centre) @ sub.modes_[:k].T) @ sub.modes_[:k]
+            residual[cols] = np.mean(Rb * Rb, axis=0)
+            kept.append(k)
+            s_all.append(sub.singular_values_)
+            methods.append(sub.method_)
+        if not rows:
+            raise ValueError("all snapshots are identical (zero variance after centring); nothing to decompose")
+        s = np.concatenate(s_all)
+        e2 = s**2
+        in_kept = np.concatenate([np.arange(len(v)) < k for v, k in zip(s_all, [k for k in kept if k])])
+        order = np.argsort(-s, kind="stable")
+        self.mean_ = mean
+        self.modes_ = np.ascontiguousarray(np.concatenate(rows))
+        self.singular_values_ = s[order]
+        self.energy_ = np.cumsum(e2[order]) / e2.sum()
+        self.block_modes_ = np.asarray(kept, dtype=int)
+        self._retained = float(e2[in_kept].sum() / e2.sum())
+        self.n_modes_ = int(sum(kept))
+        self.method_ = methods[0]
+        self.residual_variance_ = residual
+        self.n_samples_, self.n_outputs_ = n, m
+        logger.info("POD per block: %d snapshots x %d outputs in %d blocks, %d modes (per block %s) keep %.10f of "
+                    "the energy", n, m, self.blocks, self.n_modes_, kept, self._retained)
+        return self
+
     # ------------------------------------------------------------------ state exchange
     _ARRAYS = ("mean_", "modes_", "singular_values_", "energy_", "residual_variance_")
 
@@ -199,13 +264,18 @@ class POD:
         -------
         arrays : dict of str to ndarray
             ``mean`` ``(n_outputs,)``, ``modes`` ``(n_modes, n_outputs)``, ``singular_values``,
-            ``energy``, ``residual_variance`` ``(n_outputs,)``.
+            ``energy``, ``residual_variance`` ``(n_outputs,)``; for a POD per block also
+            ``block_modes`` ``(blocks,)``, the modes kept per block.
         attrs : dict
-            ``method`` (str), ``n_samples`` (int).
+            ``method`` (str), ``n_samples`` (int); per block also ``retained_energy`` (float).
         """
         self._check_fitted()
-        return ({name.rstrip("_"): getattr(self, name) for name in self._ARRAYS},
-                {"method": self.method_, "n_samples": self.n_samples_})
+        arrays = {name.rstrip("_"): getattr(self, name) for name in self._ARRAYS}
+        attrs = {"method": self.method_, "n_samples": self.n_samples_}
+        if hasattr(self, "block_modes_"):
+            arrays["block_modes"] = self.block_modes_
+            attrs["retained_energy"] = self._retained
+        return arrays, attrs
 
     @classmethod
     def from_arrays(cls, arrays, attrs, params):
@@ -221,6 +291,9 @@ class POD:
             setattr(pod, name, np.asarray(arrays[name.rstrip("_")]))
         pod.method_ = str(attrs["method"])
         pod.n_samples_ = int(attrs["n_samples"])
+        if "block_modes" in arrays:  # a POD per block
+            pod.block_modes_ = np.asarray(arrays["block_modes"], dtype=int)
+            pod._retained = float(attrs["retained_energy"])
         pod.n_modes_, pod.n_outputs_ = pod.modes_.shape
         return pod
 
@@ -238,6 +311,8 @@ class POD:
     def retained_energy_(self):
         """Share of the energy kept by the retained modes, :math:`\\sum_{k \\le K}\\lambda_k/\\sum\\lambda_k`."""
         self._check_fitted()
+        if hasattr(self, "block_modes_"):  # the kept modes of every block, not the top n_modes_ of all
+            return self._retained
         return float(self.energy_[self.n_modes_ - 1])
 
     def transform(self, Y):

@@ -45,6 +45,10 @@ from podkrig.surrogate.pod import POD
 logger = logging.getLogger(__name__)
 
 DEFAULT_ENERGY = 1 - 1e-8
+#: one POD over the outputs of all control levels, or a POD (+ kriging of its coefficients) per level
+LAYOUTS = ("stacked", "per_level")
+#: scaling of the outputs before the POD: one scale per unit, one per sensor, or none
+SCALINGS = ("unit", "sensor", "none")
 
 
 def _clone(estimator):
@@ -70,6 +74,19 @@ class PODKriging:
     space : ParameterSpace, optional
         Maps parameters to the unit cube (linear or log per parameter) and defines the trained
         box. Without it the training samples' bounding box is mapped linearly to the unit cube.
+    layout : {"stacked", "per_level"}, default "stacked"
+        One POD over the snapshot flattened across all control levels (the first axis of a
+        snapshot), or a separate POD per level (thesis §4.3.3; ``POD(blocks=n_levels)``) whose
+        coefficients are kriged one by one like all POD coefficients; predictions and standard
+        deviations come back in the same layout either way.
+    scaling : {"unit", "sensor", "none"}, default "none"
+        Divide each output by a scale before the POD and multiply back after: ``"unit"``, the
+        standard deviation over the snapshots pooled over every output of the same unit (the
+        ``units`` given to :meth:`fit`: forces in kN and displacements in mm then weigh alike in
+        the POD energy, while gauges of one unit keep their relative weights); ``"sensor"``, the
+        same per sensor; ``"none"``, raw values (the unit that is numerically larger dominates the
+        energy). Scales are computed from the training snapshots, so multiplying a sensor's
+        readings by a constant changes nothing but its predictions' unit.
 
     Attributes
     ----------
@@ -85,9 +102,13 @@ class PODKriging:
         Shape of one snapshot, e.g. ``(n_loads, n_sensors)``.
     residual_variance_ : ndarray of shape (n_outputs,)
         POD truncation part of the predictive variance, output units².
+    scale_ : ndarray of shape (n_outputs,)
+        The scale of each output (output units; ones without scaling).
+    units_ : tuple of str
+        The unit of each output of one control level (all ``""`` when none were given).
     train_norm_, train_residual_norm_ : ndarray of shape (n_samples,)
         :math:`\\|y_i\\|` and the POD truncation residual :math:`\\|y_i - P y_i\\|` of the training
-        snapshots, output units (for the leave-one-out errors).
+        snapshots, in scaled outputs (for the leave-one-out errors).
     provenance_ : dict
         Source store, its content hash, sensor names, load levels, ... (filled by
         :func:`fit_from_store`; ``package_version`` and ``created`` always).
@@ -106,14 +127,40 @@ class PODKriging:
     truncation error).
     """
 
-    def __init__(self, pod=None, kriging=None, space=None):
+    def __init__(self, pod=None, kriging=None, space=None, layout="stacked", scaling="none"):
         self.pod = pod
         self.kriging = kriging
         self.space = space
+        self.layout = layout
+        self.scaling = scaling
 
     def get_params(self, deep=True):
         """Hyperparameters as a dict (scikit-learn convention)."""
-        return {"pod": self.pod, "kriging": self.kriging, "space": self.space}
+        return {"pod": self.pod, "kriging": self.kriging, "space": self.space, "layout": self.layout,
+                "scaling": self.scaling}
+
+    def _scales(self, Yf, units):
+        """Scale of each flattened output: the RMS over a group's outputs of their standard
+        deviations over the snapshots (a group: one unit, one sensor, or none: ones)."""
+        n_levels, width = self._levels()
+        if self.scaling == "none":
+            return np.ones(Yf.shape[1])
+        sd = Yf.std(axis=0).reshape(n_levels, width)
+        keys = units if self.scaling == "unit" else range(width)
+        scale = np.ones(width)
+        for key in dict.fromkeys(keys):
+            cols = [j for j in range(width) if keys[j] == key]
+            rms = float(np.sqrt(np.mean(sd[:, cols] ** 2)))
+            scale[cols] = rms if rms > 0 else 1.0
+        return np.tile(scale, n_levels)
+
+    def _levels(self):
+        """``(n_levels, outputs per level)``: the first axis of a snapshot is the control level
+        (a one-dimensional snapshot is one level)."""
+        shape = self.output_shape_
+        if len(shape) < 2:
+            return 1, int(np.prod(shape))
+        return int(shape[0]), int(np.prod(shape[1:]))
 
     # ------------------------------------------------------------------ scaling
     def _to_unit(self, X):
@@ -135,7 +182,7 @@ class PODKriging:
         return tuple(f"x{k}" for k in range(self.X_.shape[1]))
 
     # ------------------------------------------------------------------ fit / predict
-    def fit(self, X, Y):
+    def fit(self, X, Y, units=None):
         """Fit the POD basis and one kriging interpolant per retained mode.
 
         Parameters
@@ -143,7 +190,11 @@ class PODKriging:
         X : array_like of shape (n_samples, n_params)
             Parameter vectors, physical units (inside ``space`` when one is given).
         Y : array_like of shape (n_samples, ...)
-            Snapshots, e.g. readings ``(n, n_loads, n_sensors)`` in mm.
+            Snapshots, e.g. readings ``(n, n_loads, n_sensors)`` in mm (a force in kN).
+        units : sequence of str, optional
+            The unit of each output of one control level (e.g. of each sensor: ``["mm", "mm",
+            "kN"]``); default: one unit for all. Scaling ``"unit"`` groups the outputs by it and the
+            held-out report gives errors per unit.
 
         Returns
         -------
@@ -160,6 +211,10 @@ class PODKriging:
             raise ValueError(f"X must have shape (n_samples, n_params); got {X.shape}")
         if Y.ndim < 2 or Y.shape[0] != X.shape[0]:
             raise ValueError(f"Y must have shape ({X.shape[0]}, ...) (one snapshot per row of X); got {Y.shape}")
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"layout must be one of {LAYOUTS}; got {self.layout!r}")
+        if self.scaling not in SCALINGS:
+            raise ValueError(f"scaling must be one of {SCALINGS}; got {self.scaling!r}")
         if self.space is not None:
             if X.shape[1] != self.space.n_params:
                 raise ValueError(f"X has {X.shape[1]} columns but the space has parameters {list(self.space.names)}")
@@ -184,8 +239,18 @@ class PODKriging:
             U = self._to_unit(X)
         self.lower_, self.upper_ = np.asarray(lower, float), np.asarray(upper, float)
         self.output_shape_ = tuple(Y.shape[1:])
+        n_levels, width = self._levels()
+        units = tuple(str(u) for u in units) if units is not None else ("",) * width
+        if len(units) != width:
+            raise ValueError(f"units must name the unit of each of the {width} outputs of one control level; "
+                             f"got {len(units)}: {list(units)}")
+        self.units_ = units
         Yf = Y.reshape(len(Y), -1)
-        self.pod_ = _clone(self.pod if self.pod is not None else POD(energy=DEFAULT_ENERGY)).fit(Yf)
+        self.scale_ = self._scales(Yf, units)
+        Yf = Yf / self.scale_
+        params = (self.pod if self.pod is not None else POD(energy=DEFAULT_ENERGY)).get_params()
+        params["blocks"] = n_levels if self.layout == "per_level" else None
+        self.pod_ = POD(**params).fit(Yf)
         A = self.pod_.transform(Yf)
         self.train_norm_ = np.linalg.norm(Yf, axis=1)
         self.train_residual_norm_ = np.linalg.norm(Yf - self.pod_.inverse_transform(A), axis=1)
@@ -193,7 +258,7 @@ class PODKriging:
         self.backend_ = backend_name(self.kriging_)
         self.X_ = X
         self.U_ = U
-        self.residual_variance_ = self.pod_.residual_variance_
+        self.residual_variance_ = self.pod_.residual_variance_ * self.scale_**2
         self.n_features_in_ = X.shape[1]
         self.provenance_ = {"package_version": __version__, "created": _now()}
         logger.info("POD-kriging fitted: %d samples, %d outputs, %d modes", len(X), Yf.shape[1],
@@ -325,12 +390,29 @@ class PODKriging:
         # adds wake-ups, and waits for a descheduled thread on a shared machine (8 ms instead of
         # 0.1 ms for 10 000 x 6 x 24 while another process held one of two cores)
         with one_blas_thread():
-            Y = self.pod_.inverse_transform(A.reshape(len(U), -1))
+            Y = self.pod_.inverse_transform(A.reshape(len(U), -1)) * self.scale_
             shape = (len(U), *self.output_shape_) if reshape else Y.shape
             if not return_std:
                 return Y.reshape(shape)
-            var = (S.reshape(len(U), -1) ** 2) @ (self.pod_.modes_**2) + self.residual_variance_
+            var = ((S.reshape(len(U), -1) ** 2) @ (self.pod_.modes_**2)) * self.scale_**2 + self.residual_variance_
         return Y.reshape(shape), np.sqrt(var).reshape(shape)
+
+    def project(self, Y):
+        """Best approximation of snapshots in the surrogate's POD space (the scaled outputs
+        projected, then unscaled): the truncation part of the error.
+
+        Parameters
+        ----------
+        Y : array_like of shape (n, n_outputs) or (n, *output_shape_)
+            Output units.
+
+        Returns
+        -------
+        ndarray of shape (n, n_outputs)
+        """
+        self._check_fitted()
+        Yf = np.asarray(Y, dtype=float).reshape(len(Y), -1)
+        return self.pod_.project(Yf / self.scale_) * self.scale_
 
     # ------------------------------------------------------------------ state exchange
     def to_arrays(self):
@@ -355,6 +437,7 @@ class PODKriging:
         self._check_fitted()
         kr = self.kriging_
         settings = {
+            "layout": self.layout, "scaling": self.scaling, "units": list(self.units_),
             "pod": self.pod_.get_params(),
             "kriging": {k: (np.asarray(v).tolist() if isinstance(v, (np.ndarray, tuple))
                             else f"callable {getattr(v, '__qualname__', type(v).__name__)}" if callable(v) else v)
@@ -364,7 +447,7 @@ class PODKriging:
         kr_arrays, kr_attrs = kr.to_arrays()
         arrays = {"X": self.X_, "U": self.U_, "lower": self.lower_, "upper": self.upper_,
                   "train_norm": self.train_norm_, "train_residual_norm": self.train_residual_norm_,
-                  "pod": pod_arrays, "kriging": kr_arrays}
+                  "scale": self.scale_, "pod": pod_arrays, "kriging": kr_arrays}
         attrs = {"settings": settings, "provenance": self.provenance_,
                  "parameter_space": self.space.to_dict() if self.space is not None else None,
                  "output_shape": list(self.output_shape_), "backend": self.backend_,
@@ -394,7 +477,8 @@ class PODKriging:
         backend = str(attrs.get("backend", "podkrig"))
         kr = backend_from_arrays(backend, arrays["kriging"], attrs["kriging"], kr_settings)
         sur = cls(pod=POD(**settings["pod"]), kriging=_clone(kr),
-                  space=ParameterSpace.from_dict(space) if space is not None else None)
+                  space=ParameterSpace.from_dict(space) if space is not None else None,
+                  layout=settings.get("layout", "stacked"), scaling=settings.get("scaling", "none"))
         sur.pod_ = POD.from_arrays(arrays["pod"], attrs["pod"], sur.pod.get_params())
         sur.kriging_, sur.backend_ = kr, backend
         sur.X_, sur.U_ = np.asarray(arrays["X"]), np.asarray(arrays["U"])
@@ -402,7 +486,10 @@ class PODKriging:
         sur.train_norm_ = np.asarray(arrays["train_norm"])
         sur.train_residual_norm_ = np.asarray(arrays["train_residual_norm"])
         sur.output_shape_ = tuple(attrs["output_shape"])
-        sur.residual_variance_ = sur.pod_.residual_variance_
+        # written before outputs were scaled: raw outputs of one unseen unit
+        sur.scale_ = np.asarray(arrays["scale"]) if "scale" in arrays else np.ones(sur.pod_.n_outputs_)
+        sur.units_ = tuple(settings.get("units", ("",) * sur._levels()[1]))
+        sur.residual_variance_ = sur.pod_.residual_variance_ * sur.scale_**2
         sur.n_features_in_ = sur.X_.shape[1]
         sur.provenance_ = dict(attrs["provenance"])
         return sur
@@ -440,7 +527,7 @@ def training_data(store, output="readings"):
     return X, Y
 
 
-def fit_from_store(store, pod=None, kriging=None, output="readings"):
+def fit_from_store(store, pod=None, kriging=None, output="readings", layout="stacked", scaling="none"):
     """Fit a :class:`PODKriging` on a snapshot store and record where it came from.
 
     Parameters
@@ -450,6 +537,9 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
     pod, kriging : optional
         Templates, as in :class:`PODKriging`.
     output : {"readings", "field"}
+    layout, scaling : str
+        As in :class:`PODKriging`; the readings' units are the store's sensor units (a load
+        reading's own, else mm; a field is all mm).
 
     Returns
     -------
@@ -458,7 +548,12 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
         load levels and unit, the output kind and the number of nodes.
     """
     X, Y = training_data(store, output)
-    sur = PODKriging(pod=pod, kriging=kriging, space=store.space).fit(X, Y)
+    # the unit of each sensor: mm, a load reading's own (sensor_definitions kind "force")
+    sensor_units = [store.sensor_definitions.get(n, {}).get("unit", "mm")
+                    if store.sensor_definitions.get(n, {}).get("kind") == "force" else "mm"
+                    for n in store.sensor_names]
+    units = sensor_units if output == "readings" else None
+    sur = PODKriging(pod=pod, kriging=kriging, space=store.space, layout=layout, scaling=scaling).fit(X, Y, units)
     sur.provenance_.update({
         "source_store": str(Path(store.path).resolve()),
         "source_content_hash": store.content_hash(),
@@ -467,10 +562,7 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
         "load_levels": np.asarray(store.load_levels).tolist(),
         "load_unit": store.load_unit,
         "reading_unit": store.reading_unit,
-        # the unit of each sensor: mm, a load reading's own (sensor_definitions kind "force")
-        "sensor_units": [store.sensor_definitions.get(n, {}).get("unit", "mm")
-                         if store.sensor_definitions.get(n, {}).get("kind") == "force" else "mm"
-                         for n in store.sensor_names],
+        "sensor_units": sensor_units,
         "output": output,
         "n_nodes": int(store.n_nodes),
         "n_train": len(X),

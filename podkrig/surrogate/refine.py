@@ -108,7 +108,8 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
     added, history = 0, []
     while True:
         with SnapshotStore.open(store) as s:
-            sur = fit_from_store(s, pod=template.pod, kriging=template.kriging, output=output)
+            sur = fit_from_store(s, pod=template.pod, kriging=template.kriging, output=output,
+                                 layout=template.layout, scaling=template.scaling)
             U_train = s.parameters(physical=False, only_done=True)
             space = s.space
         summary = held_out_errors(sur, Xh, Yh, with_loo=False).summary()

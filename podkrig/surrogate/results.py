@@ -104,7 +104,10 @@ class HeldOutResult(Displayed):
     coverage_2sigma : float
         Share of held-out readings within ±2σ of the prediction (-).
     rms_abs_error_mm, max_abs_error_mm : float
-        RMS and largest absolute error over every held-out reading, mm.
+        RMS and largest absolute error over every held-out reading in mm (a force in kN is not
+        among them: see ``by_unit``), mm.
+    by_unit : dict or None
+        The errors per unit (:meth:`HeldOutReport.by_unit`); None in results written before.
     loo_error : dict or None
         Leave-one-out relative errors of the training snapshots (our kriging only).
     fit : dict or None
@@ -132,20 +135,24 @@ class HeldOutResult(Displayed):
     backend: str | None = None
     held_out_store: str | None = None
     held_out_content_hash: str | None = None
+    by_unit: dict | None = None
 
-    _OPTIONAL = ("loo_error", "fit", "fit_description", "held_out_store", "held_out_content_hash", "backend")
+    _OPTIONAL = ("loo_error", "fit", "fit_description", "held_out_store", "held_out_content_hash", "backend",
+                 "by_unit")
 
     @classmethod
     def from_report(cls, report, **provenance):
         """The result of a :class:`~podkrig.surrogate.validation.HeldOutReport` (``provenance``:
         ``backend``, ``held_out_store``, ``held_out_content_hash``)."""
-        diff = report.Y_pred - report.Y_true
         s = report.summary()
+        units = np.asarray(report.units) if len(report.units) else None
+        mm = units == "mm" if units is not None and np.any(units == "mm") else slice(None)
+        diff = report.Y_pred[:, mm] - report.Y_true[:, mm]
         return cls(n_train=s["n_train"], n_held_out=s["n_held_out"], n_modes=s["n_modes"], rel_error=s["rel_error"],
                    pod_error=s["pod_error"], interp_error=s["interp_error"], coverage_2sigma=s["coverage_2sigma"],
                    rms_abs_error_mm=float(np.sqrt(np.mean(diff**2))), max_abs_error_mm=float(np.max(np.abs(diff))),
                    loo_error=s.get("loo_error"), fit=s.get("fit"), fit_description=s.get("fit_description"),
-                   **provenance)
+                   by_unit=s["by_unit"], **provenance)
 
     def to_dict(self):
         """JSON-able dict (the study's ``held_out_validation`` manifest, the JSON of ``podkrig
@@ -158,7 +165,7 @@ class HeldOutResult(Displayed):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         out.update(rms_abs_error_mm=self.rms_abs_error_mm, max_abs_error_mm=self.max_abs_error_mm)
-        for key in ("held_out_store", "held_out_content_hash", "backend"):
+        for key in ("by_unit", "held_out_store", "held_out_content_hash", "backend"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         return out

@@ -30,7 +30,7 @@ from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.kriging import DEFAULT_BETA, VARIOGRAMS as _VARIOGRAM_REGISTRY, OrdinaryKriging
 from podkrig.surrogate.kriging.ordinary import CRITERIA
 from podkrig.surrogate.pod import POD
-from podkrig.surrogate.podkriging import DEFAULT_ENERGY, fit_from_store
+from podkrig.surrogate.podkriging import DEFAULT_ENERGY, LAYOUTS, SCALINGS, fit_from_store
 
 __all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "VARIOGRAMS", "RefineSettings", "SurrogateSettings", "fit_surrogate"]
 
@@ -49,7 +49,9 @@ class SurrogateSettings:
     """POD truncation (``energy`` or ``modes``; neither: energy 1 − 10⁻⁸), the kriging of the POD
     coefficients (semivariogram, exponent β, hyperparameter criterion, nugget relative to the sill)
     and the surrogate ``backend`` (another backend than ``"podkrig"`` fits its own hyperparameters:
-    the kriging settings do not apply to it)."""
+    the kriging settings do not apply to it); ``pod``: one POD over the responses stacked at all
+    control levels or a POD + kriging per level (thesis §4.3.3), and the ``scaling`` of mixed outputs
+    (kN and mm) before the POD (:class:`~podkrig.surrogate.PODKriging`)."""
 
     energy: Annotated[StrictFloat, allowed("a number in (0, 1], e.g. 0.99999999", unit="-", gt=0, le=1)] | None = None
     modes: Annotated[StrictInt, allowed("an integer >= 1", ge=1)] | None = None
@@ -60,6 +62,11 @@ class SurrogateSettings:
                       allowed("a number in [0, 1] (relative to the sill: 1 is as much noise as signal)", unit="-",
                               ge=0, le=1)] = 0.0
     backend: choice(BACKENDS) = "podkrig"
+    pod: choice(LAYOUTS, "stacked (one POD over the responses at all control levels) or per_level (a POD + "
+                         "kriging per control level)") = "stacked"
+    scaling: choice(SCALINGS, "unit, sensor or none (each output divided before the POD by the standard "
+                              "deviation over the snapshots pooled per unit or per sensor: kN and mm weigh "
+                              "alike)") = "unit"
 
     def __post_init__(self):
         if self.energy is not None and self.modes is not None:
@@ -81,6 +88,7 @@ class SurrogateSettings:
         :class:`~podkrig.surrogate.kriging.OrdinaryKriging` with the kriging settings, or the
         ``backend``'s regressor with its own defaults."""
         pod = POD(n_modes=self.modes) if self.modes is not None else POD(energy=self.energy or DEFAULT_ENERGY)
+        # the layout (``pod``) and ``scaling`` are the surrogate's own: fit_surrogate passes them
         if self.backend != "podkrig":
             return pod, make_backend(self.backend)
         return pod, OrdinaryKriging(variogram=self.variogram, beta=self.beta, criterion=self.criterion,
@@ -127,6 +135,7 @@ def fit_surrogate(store, settings, output="readings"):
     """
     pod, regressor = settings.templates()
     t0 = time.perf_counter()
-    sur = fit_from_store(store, pod=pod, kriging=regressor, output=output)
+    sur = fit_from_store(store, pod=pod, kriging=regressor, output=output, layout=settings.pod,
+                         scaling=settings.scaling)
     sur.provenance_["training_seconds"] = time.perf_counter() - t0
     return sur

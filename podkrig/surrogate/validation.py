@@ -96,7 +96,7 @@ class HeldOutReport(Displayed):
     Attributes
     ----------
     rel_error : ndarray of shape (n_held_out,)
-        :math:`\\|\\hat y - y\\| / \\|y\\|` per held-out sample.
+        :math:`\\|\\hat y - y\\| / \\|y\\|` per held-out sample (per unit, the largest).
     pod_error : ndarray of shape (n_held_out,)
         POD truncation part :math:`\\|y - P y\\| / \\|y\\|`.
     interp_error : ndarray of shape (n_held_out,)
@@ -109,6 +109,12 @@ class HeldOutReport(Displayed):
     n_train, n_modes : int
     loo_error : ndarray of shape (n_train,) or None
         Closed-form leave-one-out relative errors of the training snapshots.
+    units : tuple of str
+        The unit of each output (``n_outputs``); outputs of different units are never added:
+        ``rel_error``, ``pod_error`` and ``interp_error`` are the largest of the per-unit relative
+        errors of a sample, and :meth:`summary` gives the errors per unit.
+    sensors : dict
+        Unit to the names of its sensors (empty when the surrogate does not name them).
     """
 
     rel_error: np.ndarray
@@ -123,6 +129,36 @@ class HeldOutReport(Displayed):
     n_modes: int
     loo_error: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
+    units: tuple = ()
+    sensors: dict = field(default_factory=dict)
+
+    def by_unit(self):
+        """Errors per unit, each ``{median, p95, max, mean}`` over the held-out runs: ``rel_error``
+        :math:`\\|\\hat y_u - y_u\\| / \\|y_u\\|`, ``peak_error`` (the error relative to the peak
+        of the curve) :math:`\\max|\\hat y_u - y_u| / \\max|y_u|`, ``peak_value_error``
+        :math:`|\\max|\\hat y_u| - \\max|y_u|| / \\max|y_u|` (e.g. the peak load) over the outputs
+        :math:`u` of one unit; ``rms_abs_error`` and ``max_abs_error`` over all of them, in that unit;
+        ``sensors``: their names when known.
+
+        Returns
+        -------
+        dict of str to dict
+        """
+        units = np.asarray(self.units if len(self.units) else ("",) * self.Y_true.shape[1])
+        out = {}
+        for unit in dict.fromkeys(units.tolist()):
+            cols = units == unit
+            t, p = self.Y_true[:, cols], self.Y_pred[:, cols]
+            d = p - t
+            peak = np.abs(t).max(axis=1)
+            peak = np.where(peak > 0, peak, np.inf)
+            out[unit] = {"rel_error": summarize(relative_errors(p, t)),
+                         "peak_error": summarize(np.abs(d).max(axis=1) / peak),
+                         "peak_value_error": summarize(np.abs(np.abs(p).max(axis=1) - np.abs(t).max(axis=1)) / peak),
+                         "rms_abs_error": float(np.sqrt(np.mean(d**2))), "max_abs_error": float(np.max(np.abs(d)))}
+            if unit in self.sensors:
+                out[unit]["sensors"] = list(self.sensors[unit])
+        return out
 
     @property
     def n_held_out(self):
@@ -144,6 +180,7 @@ class HeldOutReport(Displayed):
         }
         if self.loo_error is not None:
             out["loo_error"] = summarize(self.loo_error)
+        out["by_unit"] = self.by_unit()
         out.update(self.extra)
         return out
 
@@ -155,7 +192,7 @@ class HeldOutReport(Displayed):
         d = {name: np.asarray(getattr(self, name)).tolist() for name in self._ARRAYS}
         d.update(coverage_2sigma=float(self.coverage_2sigma), n_train=int(self.n_train), n_modes=int(self.n_modes),
                  loo_error=None if self.loo_error is None else np.asarray(self.loo_error).tolist(),
-                 extra=dict(self.extra))
+                 extra=dict(self.extra), units=list(self.units), sensors={k: list(v) for k, v in self.sensors.items()})
         return d
 
     @classmethod
@@ -163,7 +200,8 @@ class HeldOutReport(Displayed):
         arrays = {name: np.asarray(d[name], dtype=float) for name in cls._ARRAYS}
         loo = None if d.get("loo_error") is None else np.asarray(d["loo_error"], dtype=float)
         return cls(coverage_2sigma=float(d["coverage_2sigma"]), n_train=int(d["n_train"]), n_modes=int(d["n_modes"]),
-                   loo_error=loo, extra=dict(d.get("extra", {})), **arrays)
+                   loo_error=loo, extra=dict(d.get("extra", {})), units=tuple(d.get("units", ())),
+                   sensors={k: tuple(v) for k, v in d.get("sensors", {}).items()}, **arrays)
 
 
 def held_out_errors(surrogate, X, Y, *, with_loo=True):
@@ -195,19 +233,31 @@ def held_out_errors(surrogate, X, Y, *, with_loo=True):
         raise ValueError(f"need as many held-out parameter vectors as snapshots (>= 1); got {len(X)} and {len(Y)}")
     Yf = Y.reshape(len(Y), -1)
     pred, std = surrogate.predict(X, return_std=True)
-    proj = surrogate.pod_.project(Yf)
-    norm = np.linalg.norm(Yf, axis=1)
-    norm = np.where(norm > 0, norm, np.inf)
-    rel = relative_errors(pred, Yf)
-    pod = np.linalg.norm(Yf - proj, axis=1) / norm
-    interp = np.linalg.norm(proj - pred, axis=1) / norm
+    proj = surrogate.project(Yf)
+    prov = getattr(surrogate, "provenance_", {})
+    level_units = [u or prov.get("reading_unit", "mm") for u in getattr(surrogate, "units_", ("",))]
+    units = np.asarray(level_units * (Yf.shape[1] // len(level_units)))
+    names = prov.get("sensor_names") if prov.get("output", "readings") == "readings" else None
+    sensors = {}
+    if names is not None and len(names) == len(level_units):
+        for name, unit in zip(names, level_units):
+            sensors.setdefault(unit, []).append(name)
+    rel, pod, interp = (np.zeros(len(Yf)) for _ in range(3))
+    for unit in dict.fromkeys(units.tolist()):  # never add outputs of different units: the worst unit
+        cols = units == unit
+        norm = np.linalg.norm(Yf[:, cols], axis=1)
+        norm = np.where(norm > 0, norm, np.inf)
+        rel = np.maximum(rel, relative_errors(pred[:, cols], Yf[:, cols]))
+        pod = np.maximum(pod, np.linalg.norm(Yf[:, cols] - proj[:, cols], axis=1) / norm)
+        interp = np.maximum(interp, np.linalg.norm(proj[:, cols] - pred[:, cols], axis=1) / norm)
     covered = coverage(pred, Yf, std)
     loo = loo_errors(surrogate) if with_loo else None
     logger.info("held-out: %d samples, median relative error %.3g, coverage %.3f", len(X), np.median(rel), covered)
     fit = getattr(surrogate.kriging_, "fit_method_", None)  # podkrig's own backend: how it was trained
     extra = {"fit": fit.to_dict(), "fit_description": fit.describe()} if fit is not None else {}
     return HeldOutReport(rel, pod, interp, covered, X, Yf, pred, std, len(surrogate.X_),
-                         surrogate.pod_.n_modes_, loo, extra)
+                         surrogate.pod_.n_modes_, loo, extra, tuple(units.tolist()),
+                         {k: tuple(v) for k, v in sensors.items()})
 
 
 def loo_errors(surrogate):
