@@ -11,7 +11,7 @@ from podkrig.cli._common import (
     KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
     settings_from_options, user_errors,
 )
-from podkrig.config import field_info
+from podkrig.config import choices, field_info
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.settings import Design
 from podkrig.offline.store import SnapshotStore
@@ -47,7 +47,7 @@ def _beta(text):
         return text
 
 
-def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget):
+def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget, pod=None, scaling=None):
     """The :class:`~podkrig.surrogate.settings.SurrogateSettings` of ``podkrig surrogate build``'s
     options (None: not given, the settings' default); a kriging option with another backend than
     ours is refused, as that backend fits its own hyperparameters."""
@@ -57,7 +57,8 @@ def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugge
         if given:
             raise ValueError(f"{', '.join(given)} set(s) the podkrig kriging; backend {backend!r} fits its own "
                              "hyperparameters: drop the option(s) or use --backend podkrig")
-    options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend)}
+    options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend),
+               "pod": ("--pod", pod), "scaling": ("--scaling", scaling)}
     options.update({k: (_KRIGING_OPTIONS[k], v) for k, v in ours.items()})
     return settings_from_options(SurrogateSettings, options)
 
@@ -86,6 +87,13 @@ def build(
     beta: str = typer.Option(None, "--beta", help=f"Exponent beta (e.g. 1.2, 1.5, 1.8), 'fit' per mode, or 'fit-shared' (fitted on the first mode, used by all); default {_DEFAULTS['beta']!r} (podkrig backend)."),
     criterion: KrigingCriterion = typer.Option(None, "--criterion", help=f"Hyperparameters by 'ml' (likelihood) or 'loo' (leave-one-out); default {_DEFAULTS['criterion']!r} (podkrig backend)."),
     nugget: float = typer.Option(None, "--nugget", help=f"Nugget relative to the sill (default {_DEFAULTS['nugget']:g}: exact interpolation) (podkrig backend)."),
+    pod: str = typer.Option(None, "--pod", help=f"{' or '.join(choices(SurrogateSettings, 'pod'))}: one POD over the "
+                                                 "responses stacked at all control levels, or a POD + kriging per "
+                                                 f"level (default {_DEFAULTS['pod']})."),
+    scaling: str = typer.Option(None, "--scaling", help=f"{', '.join(choices(SurrogateSettings, 'scaling'))}: each output "
+                                                        "divided before the POD by its standard deviation over the "
+                                                        "snapshots pooled per unit or per sensor, or raw values "
+                                                        f"(default {_DEFAULTS['scaling']})."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
@@ -93,7 +101,7 @@ def build(
     configure_logging(verbose)
     with user_errors():
         settings = surrogate_settings(energy, modes, backend.value, variogram and variogram.value, beta,
-                                      criterion and criterion.value, nugget)
+                                      criterion and criterion.value, nugget, pod, scaling)
         with SnapshotStore.open(store) as s:
             sur = fit_surrogate(s, settings, output="field" if field else "readings")
         save_surrogate(sur, out)
