@@ -161,11 +161,11 @@ class HeldOutResult(Displayed):
         out = {"n_train": self.n_train, "n_held_out": self.n_held_out, "n_modes": self.n_modes,
                "rel_error": dict(self.rel_error), "pod_error": dict(self.pod_error),
                "interp_error": dict(self.interp_error), "coverage_2sigma": self.coverage_2sigma}
-        for key in ("loo_error", "fit", "fit_description"):
+        for key in ("loo_error", "fit", "fit_description", "by_unit"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         out.update(rms_abs_error_mm=self.rms_abs_error_mm, max_abs_error_mm=self.max_abs_error_mm)
-        for key in ("by_unit", "held_out_store", "held_out_content_hash", "backend"):
+        for key in ("held_out_store", "held_out_content_hash", "backend"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         return out

@@ -168,7 +168,7 @@ class HeldOutReport(Displayed):
         """JSON-able dict: ``n_train``, ``n_held_out``, ``n_modes``, ``rel_error``, ``pod_error``,
         ``interp_error``, ``loo_error`` (each ``{median, p95, max, mean}``), ``coverage_2sigma``, and
         for podkrig's own kriging ``fit`` (:meth:`~podkrig.surrogate.kriging.FitMethod.to_dict`: exact
-        or subset fit, subset size and seed) with ``fit_description``."""
+        or subset fit, subset size and seed) with ``fit_description``, then ``by_unit`` (:meth:`by_unit`)."""
         out = {
             "n_train": int(self.n_train),
             "n_held_out": int(self.n_held_out),
@@ -180,8 +180,8 @@ class HeldOutReport(Displayed):
         }
         if self.loo_error is not None:
             out["loo_error"] = summarize(self.loo_error)
-        out["by_unit"] = self.by_unit()
         out.update(self.extra)
+        out["by_unit"] = self.by_unit()
         return out
 
     _ARRAYS = ("rel_error", "pod_error", "interp_error", "X", "Y_true", "Y_pred", "Y_std")
