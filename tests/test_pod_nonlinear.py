@@ -109,14 +109,20 @@ def test_scaling_keeps_a_sensor_in_large_numbers_from_dominating_the_pod():
 
 def test_scales_are_the_pooled_standard_deviations_of_each_unit_or_sensor():
     """The scale of a unit is the RMS over its outputs of their standard deviations over the
-    snapshots (closed form on the training data); per sensor, each sensor's own; none: ones."""
+    snapshots, relative to the first unit's (closed form on the training data); per sensor, each
+    sensor's own relative to the first sensor's; none, or one unit only: ones (the outputs keep
+    their numbers, and the fit is bitwise the unscaled one)."""
     Y = curves(X_TRAIN)
     sd = Y.std(axis=0)  # (levels, sensors)
+    rms = np.sqrt(np.mean(sd**2, axis=0))
     unit = _fit(scaling="unit").scale_.reshape(len(LEVELS), 3)
-    assert_allclose(unit[0], [np.sqrt(np.mean(sd[:, :2] ** 2))] * 2 + [np.sqrt(np.mean(sd[:, 2] ** 2))], rtol=1e-12)
+    assert_allclose(unit[0], [1.0, 1.0, rms[2] / np.sqrt(np.mean(sd[:, :2] ** 2))], rtol=1e-12)
     sensor = _fit(scaling="sensor").scale_.reshape(len(LEVELS), 3)
-    assert_allclose(sensor[3], np.sqrt(np.mean(sd**2, axis=0)), rtol=1e-12)
+    assert_allclose(sensor[3], rms / rms[0], rtol=1e-12)
     assert_array_equal(_fit().scale_, 1.0)
+    one_unit = _fit(scaling="unit", units=("mm",) * 3)
+    assert_array_equal(one_unit.scale_, 1.0)
+    assert_array_equal(one_unit.predict(X_HELD), _fit(units=("mm",) * 3).predict(X_HELD))
     with pytest.raises(ValueError, match="units must name.*3 outputs"):
         _fit(units=("mm", "kN"))
     with pytest.raises(ValueError, match="layout must be one of"):

@@ -85,8 +85,9 @@ class PODKriging:
         ``units`` given to :meth:`fit`: forces in kN and displacements in mm then weigh alike in
         the POD energy, while gauges of one unit keep their relative weights); ``"sensor"``, the
         same per sensor; ``"none"``, raw values (the unit that is numerically larger dominates the
-        energy). Scales are computed from the training snapshots, so multiplying a sensor's
-        readings by a constant changes nothing but its predictions' unit.
+        energy). Scales are relative to the first group's (whose outputs keep their numbers: a
+        surrogate of one unit is not scaled) and computed from the training snapshots, so
+        multiplying a sensor's readings by a constant changes nothing but its predictions' unit.
 
     Attributes
     ----------
@@ -103,7 +104,7 @@ class PODKriging:
     residual_variance_ : ndarray of shape (n_outputs,)
         POD truncation part of the predictive variance, output units².
     scale_ : ndarray of shape (n_outputs,)
-        The scale of each output (output units; ones without scaling).
+        The scale of each output (-: relative to the first group's; ones without scaling).
     units_ : tuple of str
         The unit of each output of one control level (all ``""`` when none were given).
     train_norm_, train_residual_norm_ : ndarray of shape (n_samples,)
@@ -141,18 +142,22 @@ class PODKriging:
 
     def _scales(self, Yf, units):
         """Scale of each flattened output: the RMS over a group's outputs of their standard
-        deviations over the snapshots (a group: one unit, one sensor, or none: ones)."""
+        deviations over the snapshots (a group: one unit, one sensor, or none: ones), divided by
+        the first group's."""
         n_levels, width = self._levels()
         if self.scaling == "none":
             return np.ones(Yf.shape[1])
         sd = Yf.std(axis=0).reshape(n_levels, width)
-        keys = units if self.scaling == "unit" else range(width)
+        keys = units if self.scaling == "unit" else tuple(range(width))
         scale = np.ones(width)
         for key in dict.fromkeys(keys):
             cols = [j for j in range(width) if keys[j] == key]
             rms = float(np.sqrt(np.mean(sd[:, cols] ** 2)))
             scale[cols] = rms if rms > 0 else 1.0
-        return np.tile(scale, n_levels)
+        # relative to the first group's: its outputs keep their numbers, and a surrogate of one
+        # unit is not scaled at all (the kriging's fitted hyperparameters are not exactly
+        # invariant to a common factor of its data)
+        return np.tile(scale / scale[0], n_levels)
 
     def _levels(self):
         """``(n_levels, outputs per level)``: the first axis of a snapshot is the control level
