@@ -17,7 +17,7 @@ from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import PODKriging
 from podkrig.surrogate.results import HeldOutResult
 from podkrig.surrogate.settings import SurrogateSettings
-from podkrig.surrogate.validation import held_out_errors
+from podkrig.surrogate.validation import compare_layouts, held_out_errors
 
 SPACE = ParameterSpace((Parameter("c", 0.2, 0.5, unit="MPa"), Parameter("tanphi", 0.6, 0.9)))
 LEVELS = np.array([0.05, 0.2, 0.5, 1.0, 2.0])  # control levels, mm
@@ -190,3 +190,17 @@ def test_held_out_errors_per_unit_never_add_kilonewtons_and_millimetres():
     (f,) = held_out_findings({**held, "coverage_2sigma": 1.0}, noise_abs={"D1": 0.005, "F": 0.5})
     assert f == Finding("surrogate-error", "held-out", {"rms_abs_error_mm": held["rms_abs_error_mm"],
                                                         "sigma_mm": 0.005})
+
+
+def test_the_layout_comparison_refits_both_ways_with_the_surrogates_settings():
+    """``compare_layouts`` gives each layout's per-unit held-out errors, equal to those of a
+    surrogate fitted in that layout directly (same templates, scaling and units), and leaves the
+    given surrogate as it was."""
+    sur = _fit("stacked", "unit")
+    before = sur.predict(X_HELD)
+    got = compare_layouts(sur, X_TRAIN, curves(X_TRAIN), X_HELD, curves(X_HELD))
+    assert set(got) == {"stacked", "per_level"}
+    direct = held_out_errors(_fit("per_level", "unit"), X_HELD, curves(X_HELD), with_loo=False).by_unit()
+    assert got["per_level"]["by_unit"] == direct and set(direct) == {"mm", "kN"}
+    assert got["stacked"]["n_modes"] == sur.n_modes_
+    assert_array_equal(sur.predict(X_HELD), before)

@@ -21,7 +21,7 @@ from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.refine import refine_surrogate
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult
 from podkrig.surrogate.settings import BACKENDS, RefineSettings, SurrogateSettings, fit_surrogate
-from podkrig.surrogate.validation import compare_settings, held_out_errors
+from podkrig.surrogate.validation import compare_layouts, compare_settings, held_out_errors
 
 surrogate_app = typer.Typer(
     name="surrogate",
@@ -122,7 +122,8 @@ def validate(
     format: TableFormat = typer.Option(TableFormat.table, "--format", help="Output format: table or json."),
     compare: bool = typer.Option(True, "--compare/--no-compare",
                                  help="Also refit with beta 1.2/1.5/1.8/fit and the power model for the "
-                                      "error histograms (needs the training store)."),
+                                      "error histograms, and with one POD stacked over the control levels and "
+                                      "one per level for the errors per unit (needs the training store)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Errors of the surrogate FILE on the held-out runs; optionally an HTML report."""
@@ -139,28 +140,33 @@ def validate(
         held = HeldOutResult.from_report(rep, backend=sur.backend_, held_out_store=str(held_out),
                                          held_out_content_hash=held_hash)
         if report is not None:
-            comparison = None
+            comparison = layouts = None
             src = sur.provenance_.get("source_store")
             if compare and src and Path(src).is_file():
                 with SnapshotStore.open(src) as s:
                     X, Y = training_data(s, output)
                 settings = [{"beta": b} for b in (1.2, 1.5, 1.8, "fit", "fit-shared")] + [{"variogram": "power", "beta": 1.5}]
                 comparison = compare_settings(X, Y, Xh, Yh, settings, space=sur.space, pod=sur.pod)
-            _write_report(report, sur, rep, held, comparison)
+                if output == "readings" and len(sur.output_shape_) == 2 and sur.output_shape_[0] > 1:
+                    layouts = compare_layouts(sur, X, Y, Xh, Yh)  # stacked against per level
+            _write_report(report, sur, rep, held, comparison, layouts)
     if format == "json":
         typer.echo(json.dumps(held.to_dict(), indent=2))
         return
     r, p = held.rel_error, held.pod_error
+    per_unit = "".join(f"; {unit}: error median {100 * e['peak_error']['median']:.3g} % of the peak, max "
+                       f"{100 * e['peak_error']['max']:.3g} %" for unit, e in (held.by_unit or {}).items()
+                       ) if len(held.by_unit or {}) > 1 else ""
     typer.echo(
         f"{held.n_held_out} held-out runs, {held.n_train} training, {held.n_modes} modes: "
         f"relative error median {r['median']:.3e}, p95 {r['p95']:.3e}, max {r['max']:.3e} (POD part median "
-        f"{p['median']:.3e}); {100 * held.coverage_2sigma:.1f} % of outputs within ±2σ"
+        f"{p['median']:.3e}){per_unit}; {100 * held.coverage_2sigma:.1f} % of outputs within ±2σ"
         + (f"; {held.fit_description}" if held.fit_description is not None else "")
         + (f"; report {report / 'index.html'}" if report is not None else "")
     )
 
 
-def _write_report(directory, sur, rep, held, comparison):
+def _write_report(directory, sur, rep, held, comparison, layouts=None):
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     prov = sur.provenance_
@@ -187,7 +193,7 @@ def _write_report(directory, sur, rep, held, comparison):
         f"package version {prov.get('package_version', '?')}",
     ]
     figs.write_html(directory, "POD-kriging surrogate: held-out validation", SurrogateFitResult.from_surrogate(sur),
-                    held, figures, notes, extra)
+                    held, figures, notes, extra, layouts=layouts, layout=sur.layout)
 
 
 @surrogate_app.command("refine")

@@ -166,7 +166,23 @@ def held_out_tables(page, result):
         page.paragraph(f"Kriging: {result.fit_description}.")
 
 
-def write_html(directory, title, fit, held, figures, notes=(), extra=None):
+def layout_table(page, layouts, default):
+    """The two POD layouts (:func:`~podkrig.surrogate.validation.compare_layouts`) side by side on
+    ``page``: per unit, the median and largest held-out error relative to the peak of the curve, and
+    the error of the peak value; ``default`` names the surrogate's own layout."""
+    page.paragraph("The same training runs with one POD over the responses stacked at all control levels, and with "
+                   "a POD + kriging per level: held-out errors per unit, relative to the peak of each run's curve.")
+    rows = []
+    for layout, r in layouts.items():
+        for unit, e in r["by_unit"].items():
+            rows.append([layout.replace("_", " ") + (" (this surrogate)" if layout == default else ""), r["n_modes"],
+                         unit, pct(e["peak_error"]["median"]), pct(e["peak_error"]["max"]),
+                         pct(e["peak_value_error"]["median"]), pct(e["peak_value_error"]["max"])])
+    page.table(["POD", "modes", "unit", "error (% of peak): median", "max", "peak value error (%): median", "max"],
+               rows)
+
+
+def write_html(directory, title, fit, held, figures, notes=(), extra=None, layouts=None, layout=None):
     """Write ``directory/index.html`` of a surrogate's held-out check: its fit and its errors
     (:func:`fit_tables`, :func:`held_out_tables`), the figures beside it, and the numbers as JSON.
 
@@ -182,6 +198,9 @@ def write_html(directory, title, fit, held, figures, notes=(), extra=None):
         Extra lines (e.g. settings, the source stores).
     extra : dict, optional
         More numbers for the JSON block (e.g. the median errors of other kriging settings).
+    layouts : dict, optional
+        The held-out errors of both POD layouts (:func:`layout_table`); ``layout`` is the
+        surrogate's own.
 
     Returns
     -------
@@ -190,10 +209,14 @@ def write_html(directory, title, fit, held, figures, notes=(), extra=None):
     page = Page(title)
     fit_tables(page, fit)
     held_out_tables(page, held)
+    if layouts:
+        layout_table(page, layouts, layout)
     for note in notes:
         page.paragraph(note, "meta")
     for caption, path in figures:
         page.figure(Path(path).name, caption)
     data = {"surrogate": fit.to_dict(), "held_out": held.to_dict(), **(extra or {})}
+    if layouts:
+        data["layouts"] = layouts
     page.details("numbers (JSON)", json.dumps(data, indent=2, default=str))
     return page.write(Path(directory) / "index.html")

@@ -305,3 +305,32 @@ def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
         label = f"{s.get('variogram', 'exponential')}, beta={s.get('beta', DEFAULT_BETA)}"
         out[label] = relative_errors(sur.predict(X_held), np.asarray(Y_held).reshape(len(Y_held), -1))
     return out
+
+
+def compare_layouts(surrogate, X, Y, X_held, Y_held):
+    """Held-out errors per unit of a surrogate refitted in each POD layout (one POD stacked over
+    the control levels, a POD + kriging per level; thesis §4.3.3) on the same training snapshots,
+    with the surrogate's own templates, scaling, units and space.
+
+    Parameters
+    ----------
+    surrogate : PODKriging
+        Fitted (its settings are reused; it is not modified).
+    X, Y : training parameters ``(n, n_params)`` and snapshots ``(n, n_levels, ...)``
+    X_held, Y_held : held-out parameters and snapshots
+
+    Returns
+    -------
+    dict
+        Layout (``"stacked"``, ``"per_level"``) to ``{"n_modes": int, "by_unit":``
+        :meth:`HeldOutReport.by_unit` ``}``.
+    """
+    out = {}
+    for layout in ("stacked", "per_level"):
+        sur = PODKriging(pod=surrogate.pod, kriging=surrogate.kriging, space=surrogate.space, layout=layout,
+                         scaling=surrogate.scaling).fit(X, Y, surrogate.units_)
+        sur.provenance_.update({k: surrogate.provenance_[k] for k in ("sensor_names", "output", "reading_unit")
+                                if k in surrogate.provenance_})
+        rep = held_out_errors(sur, X_held, Y_held, with_loo=False)
+        out[layout] = {"n_modes": int(sur.n_modes_), "by_unit": rep.by_unit()}
+    return out
