@@ -72,7 +72,8 @@ class POD:
         Orthonormal POD modes (rows), ordered by decreasing singular value; the sign of each is
         fixed so that its largest-magnitude entry is positive.
     singular_values_ : ndarray of shape (n_rank,)
-        All non-negligible singular values of the centred snapshot matrix, output units.
+        All non-negligible singular values of the centred snapshot matrix, output units (per
+        block: those of every block, in decreasing order).
     energy_ : ndarray of shape (n_rank,)
         Cumulative retained energy :math:`\\sum_{k \\le K} \\sigma_k^2 / \\sum_k \\sigma_k^2`.
     n_modes_ : int
@@ -82,6 +83,8 @@ class POD:
         (output units²): the truncation part of the surrogate's predictive variance.
     method_ : str
         ``"svd"`` or ``"snapshots"``.
+    block_modes_ : ndarray of shape (blocks,)
+        Per block only: the number of modes kept in each block (their sum is ``n_modes_``).
 
     Notes
     -----
