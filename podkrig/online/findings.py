@@ -20,6 +20,9 @@ Thresholds
   the bound.
 - :data:`COVERAGE_LIMIT`: fewer held-out readings than this share inside the surrogate's ±2σ
   means its error bars are too narrow.
+- :data:`FAILURE_PROBABILITY_LIMIT`: a best fit where the classifier of the training runs that
+  failed (:class:`~podkrig.offline.failures.FailureRegion`) predicts at least this probability
+  of failure lies in or near the failing region, where the surrogate had no data.
 
 The functions take result objects (:class:`~podkrig.online.invert.InverseResult`,
 :class:`~podkrig.online.region.Region`) or, for stages a study reads back from its cache, their
@@ -33,6 +36,8 @@ Codes and their ``values``
 - ``unidentified``: ``parameter``, ``low``, ``high``, ``unit``, ``share`` (-);
 - ``insensitive``: ``parameter``, ``threshold`` (-);
 - ``fe-failed``: ``stage``, ``failed``, ``total``, ``failures`` (list of str);
+- ``near-failure``: ``probability`` (-, predicted failure probability at the best fit),
+  ``failed_share`` (-, of the training runs), ``driving`` (list of ``{"parameter", "towards"}``);
 - ``measurement-columns``: ``not_used``, ``ignored`` (lists of names);
 - ``noise-below-floor``: ``sigma_mm`` (sensor → smallest σ, mm), ``sigma_floor_mm``;
 - ``surrogate-error``: ``median_rel_error`` and ``noise_rel`` (-), or ``rms_abs_error_mm`` and
@@ -46,6 +51,8 @@ Codes and their ``values``
 import dataclasses
 from dataclasses import dataclass, field
 
+import numpy as np
+
 #: χ²/dof above which the calibrated model does not reproduce the data within the noise (-)
 CHI2_DOF_LIMIT = 2.0
 #: largest |FE − surrogate| / σ_noise at the optimum for which the surrogate counts as exact (-)
@@ -57,6 +64,10 @@ UNIDENTIFIABLE_SHARE = 0.5
 AT_BOUND_SHARE = 0.005
 #: least share of held-out FE readings within ±2σ of the surrogate (-)
 COVERAGE_LIMIT = 0.8
+#: predicted probability of a failed FE run at the best fit from which it lies near the failing
+#: region (-): the classifier's 50 % boundary is the region's edge, and 0.2 is where its log-odds
+#: are 1.4 short of it — within the transition band of the training runs, not inside the region
+FAILURE_PROBABILITY_LIMIT = 0.2
 
 
 #: the one sign convention of standardised residuals, on every page, table and JSON field:
@@ -186,6 +197,33 @@ def inversion_findings(result, region=None, *, per_test=False):
     return found
 
 
+def failure_findings(region, failed_share, u):
+    """A ``near-failure`` finding when the best fit lies in or near the region where the training
+    runs failed.
+
+    Parameters
+    ----------
+    region : FailureRegion
+        The classifier of the training store's failed runs (:mod:`podkrig.offline.failures`).
+    failed_share : float
+        Failed share of the training runs (-).
+    u : array_like of shape (d,)
+        The best fit in the unit cube of the store's parameters (``region.names``).
+
+    Returns
+    -------
+    list of Finding
+        One ``near-failure`` when the predicted failure probability at ``u`` is at least
+        :data:`FAILURE_PROBABILITY_LIMIT`, else none.
+    """
+    p = float(region.probability(np.asarray(u, dtype=float)[None])[0])
+    if p < FAILURE_PROBABILITY_LIMIT:
+        return []
+    return [Finding("near-failure", "inversion", {
+        "probability": p, "failed_share": float(failed_share),
+        "driving": [{"parameter": n, "towards": region.direction(n)} for n in region.driving()]})]
+
+
 def sensitivity_findings(result):
     """Findings of a global sensitivity analysis (the ``sensitivity`` stage's result dict): one
     ``insensitive`` per parameter proposed for fixing, because no reading and not the misfit is
@@ -279,7 +317,8 @@ def diagnosis_findings(d):
 
 
 __all__ = [
-    "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding",
+    "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FAILURE_PROBABILITY_LIMIT", "FE_CHECK_LIMIT",
+    "Finding", "failure_findings",
     "RESIDUAL_CONVENTION", "UNIDENTIFIABLE_SHARE", "at_bound", "chi2_basis", "diagnosis_findings", "fe_check_ok",
     "held_out_findings", "inversion_findings", "is_identifiable", "measurement_findings", "of_test", "offline_findings",
     "sensitivity_findings",

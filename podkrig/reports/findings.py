@@ -148,6 +148,19 @@ def _fe_failed(v, context, diagnosis_enabled):
             "model singular) and narrow the bounds, or inspect the store with 'podkrig snapshots info'.")
 
 
+def _near_failure(v, context, diagnosis_enabled):
+    towards = " and ".join(f"{d['towards']} {d['parameter']}" for d in v["driving"])
+    where = f" (towards {towards})" if towards else ""
+    return (f"the best fit lies where {100 * v['failed_share']:.0f} % of the training FE runs failed{where}: the "
+            f"classifier of the failed runs predicts a {100 * v['probability']:.0f} % chance that an FE run fails "
+            "there, so the surrogate had few or no complete runs near the optimum.",
+            ("run the FE model at the optimum ('podkrig simulate' with the identified values); if it stops early, "
+             "raise the scenario's budgets (max_total_iterations, max_cpu_seconds in its spec) and run the snapshots "
+             "into a new store." if context == "cli" else
+             "check the FE run at the optimum; if it stops early, raise the scenario's solver budgets "
+             "(max_total_iterations, max_cpu_seconds) and run again."))
+
+
 def _measurement_columns(v, context, diagnosis_enabled):
     parts = []
     if v.get("not_used"):
@@ -312,6 +325,7 @@ WORDS = {
     "unidentified": _unidentified,
     "insensitive": _insensitive,
     "fe-failed": _fe_failed,
+    "near-failure": _near_failure,
     "measurement-columns": _measurement_columns,
     "noise-below-floor": _noise_below_floor,
     "surrogate-error": _surrogate_error,
