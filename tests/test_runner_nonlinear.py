@@ -140,3 +140,57 @@ def test_nonlinear_rows_on_a_local_dask_cluster_match_the_serial_store(partial_s
         np.testing.assert_allclose(other.readings(only_done=False)[done], serial.readings(only_done=False)[done],
                                    rtol=1e-6, atol=1e-12)
         assert (serial.status() == FAILED).sum() == summary.failed
+
+
+STUDY = """name = "couplet_budget"
+[scenario]
+scenario = "couplet_tension"
+nx = 2
+ny = 1
+load_levels = [0.002, 0.005, 0.01, 0.02, 0.05]
+increment = 0.001
+max_increment = 0.01
+max_total_iterations = 10
+[parameters]
+ft_bj = { lower = 0.15, upper = 0.4 }
+GfI_bj = { lower = 0.005, upper = 0.05, scale = "log" }
+[sampling]
+train = { n = 32, seed = 0 }
+held_out = { n = 8, seed = 1, method = "random" }
+workers = 1
+[measurement]
+file = "couplet.csv"
+noise_abs = { F = 0.05, joint_opening = 0.0005, top_uy = 0.0005 }
+noise_rel = 0.01
+[inversion]
+seed = 0
+"""
+
+
+@pytest.mark.parametrize("gfi, inside", [(0.006, True), (0.04, False)])
+def test_podkrig_run_reports_the_failures_and_warns_when_the_best_fit_lies_where_runs_fail(tmp_path, gfi, inside):
+    """``podkrig run`` on a couplet whose iteration budget stops the brittle runs (low GfI_bj): the
+    offline stage reports the failed share and its region, and the data of a specimen inside that
+    region (GfI_bj = 0.006 N/mm, simulated with the full budget, as a lab would measure it) raise
+    ``near-failure`` and an FE check that names the early stop; data from far outside it do not."""
+    opts = {"nx": 2, "ny": 1, "load_levels": [0.002, 0.005, 0.01, 0.02, 0.05], "increment": 0.001,
+            "max_increment": 0.01}
+    full = build_scenario({"scenario": "couplet_tension", **opts})
+    r = full.run({"ft_bj": 0.25, "GfI_bj": gfi})
+    header = ",".join(["load [mm]", *(f"{n} [{'kN' if n == 'F' else 'mm'}]" for n in full.sensor_names)])
+    rows = [",".join(f"{v:.6g}" for v in (level, *reading)) for level, reading in zip(full.load_levels, r.readings)]
+    (tmp_path / "couplet.csv").write_text("\n".join([header, *rows]))
+    (tmp_path / "couplet.toml").write_text(STUDY)
+    out = CliRunner().invoke(app, ["run", str(tmp_path / "couplet.toml"), "--out", str(tmp_path / "out")])
+    assert out.exit_code == 0, out.output[-3000:]
+    summary = json.loads(next((tmp_path / "out").rglob("summary.json")).read_text())
+    failure = summary["stages"]["offline"]["failure"]
+    assert 0 < failure["n_failed"] < 32 and failure["reasons"] == {"iterations": failure["n_failed"]}
+    assert "GfI_bj" in failure["region"]["names"]
+    findings = {f["code"]: f["values"] for f in summary["stages"]["calibration"]["findings"]}
+    assert ("near-failure" in findings) == inside
+    if inside:
+        assert findings["near-failure"]["probability"] >= 0.2
+        assert findings["fe-check"]["stopped"].startswith("budget_exhausted: iterations, reached")
+    html = (tmp_path / "out" / "report" / "index.html").read_text()
+    assert "failed or stopped early" in html and "Runs fail towards" in html

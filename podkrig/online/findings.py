@@ -30,7 +30,8 @@ The functions take result objects (:class:`~podkrig.online.invert.InverseResult`
 
 Codes and their ``values``
 --------------------------
-- ``fe-check``: ``max_diff_over_noise`` (-), ``max_abs_diff_mm``;
+- ``fe-check``: ``max_diff_over_noise`` (-), ``max_abs_diff_mm``, and ``stopped`` when the FE run
+  at the optimum stopped early (:attr:`~podkrig.online.invert.FECheck.stopped`);
 - ``at-bound``: ``parameter``, ``value``, ``unit``;
 - ``chi2-dof``: ``chi2_dof`` (-);
 - ``unidentified``: ``parameter``, ``low``, ``high``, ``unit``, ``share`` (-);
@@ -179,8 +180,8 @@ def inversion_findings(result, region=None, *, per_test=False):
     found = []
     fe = result.fe_check
     if fe is not None and not fe.ok:
-        found.append(Finding("fe-check", "inversion", {"max_diff_over_noise": float(fe.max_diff_over_noise),
-                                                       "max_abs_diff_mm": float(fe.max_abs_diff)}))
+        values = {"max_diff_over_noise": float(fe.max_diff_over_noise), "max_abs_diff_mm": float(fe.max_abs_diff)}
+        found.append(Finding("fe-check", "inversion", values | ({"stopped": fe.stopped} if fe.stopped else {})))
     units = dict(zip(result.free, result.units))
     for name in () if per_test else result.at_bound:
         found.append(Finding("at-bound", "inversion", {"parameter": name, "value": result.free_parameters[name],

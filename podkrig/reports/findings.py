@@ -96,6 +96,13 @@ def identifiability_text(name, interval, unit, verdict):
 
 
 def _fe_check(v, context, diagnosis_enabled):
+    if v.get("stopped"):
+        return (f"the FE run at the optimum stopped early ({v['stopped']}): the surrogate's best fit cannot be "
+                "checked at the levels it did not reach"
+                + (f", and at those it reached they differ by up to {v['max_diff_over_noise']:.2f}× the noise."
+                   if v["max_diff_over_noise"] == v["max_diff_over_noise"] else "."),
+                "raise the scenario's solver budgets (max_total_iterations, max_cpu_seconds) so that the FE run at "
+                "the optimum finishes, then build the snapshots and the surrogate again.")
     return (f"at the optimum the surrogate differs from the FE model by up to {v['max_diff_over_noise']:.2f}× the "
             f"noise ({v['max_abs_diff_mm']:.3g} mm): the identification is limited by the surrogate, not by the data.",
             "refine the surrogate near the optimum ('podkrig surrogate refine', or more snapshots in a narrower box) "

@@ -18,7 +18,8 @@ def failure_lines(report):
     one sentence a line."""
     reasons = ", ".join(f"{n} {_REASONS.get(reason, reason)}" for reason, n in sorted(report.reasons.items()))
     lines = [f"{report.n_failed} of {report.n_run} FE runs ({100 * report.share:.0f} %) failed or stopped early: "
-             f"{reasons}; they are partial rows of the store, never used by a surrogate without saying so."]
+             f"{reasons}; the store keeps them as failed rows (with the readings they reached), and a surrogate drops "
+             "or refuses them, saying so (setting failed_rows)."]
     region = report.region
     if region is None:
         lines.append("Too few runs of one outcome to say where in the box runs fail.")
