@@ -194,3 +194,24 @@ def test_podkrig_run_reports_the_failures_and_warns_when_the_best_fit_lies_where
         assert findings["fe-check"]["stopped"].startswith("budget_exhausted: iterations, reached")
     html = (tmp_path / "out" / "report" / "index.html").read_text()
     assert "failed or stopped early" in html and "Runs fail towards" in html
+
+
+def test_the_commands_run_a_nonlinear_spec_report_its_failures_and_refuse_or_drop_them(tmp_path):
+    """``podkrig snapshots run`` with a nonlinear spec file prints the failed share and where runs
+    fail; ``podkrig surrogate build --failed-rows refuse`` stops naming the count and the option,
+    the default drops them and builds."""
+    (tmp_path / "couplet.json").write_text(json.dumps(BUDGET))
+    store = tmp_path / "c.h5"
+    out = CliRunner().invoke(app, ["snapshots", "run", "--spec", str(tmp_path / "couplet.json"), "--param",
+                                   "ft_bj=0.15:0.4", "--param", "GfI_bj=0.005:0.05:log", "--n", "32", "--seed", "0",
+                                   "--store", str(store), "--workers", "1"])
+    assert out.exit_code == 0, out.output
+    with SnapshotStore.open(store) as s:
+        n_failed = s.counts()["failed"]
+    assert f"{n_failed} of 32 FE runs" in out.output and "towards low GfI_bj" in out.output
+    out = CliRunner().invoke(app, ["surrogate", "build", str(store), "--out", str(tmp_path / "s.h5"),
+                                   "--failed-rows", "refuse"])
+    assert out.exit_code != 0 and f"{n_failed} of 32 FE runs" in out.output and "failed_rows='drop'" in out.output
+    out = CliRunner().invoke(app, ["surrogate", "build", str(store), "--out", str(tmp_path / "s.h5")])
+    assert out.exit_code == 0, out.output
+    assert f"{32 - n_failed} snapshots" in out.output
