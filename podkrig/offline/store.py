@@ -17,7 +17,8 @@ Layout (``n`` rows, ``d`` free parameters, readings in mm, loads in the scenario
     /unit_parameters      (n, d) float64, the design in the unit cube
     /readings             (n, n_loads, n_sensors) float64, mm; NaN until done
     /status               (n,) enum int8: pending = 0, done = 1, failed = 2
-    /error                (n,) fixed-length UTF-8 bytes (first 512 bytes of the error text)
+    /error                (n,) fixed-length UTF-8 bytes (first 512 bytes of the error text; a partial
+                          row's starts with its status, limit and reach: partial_error)
     /wall_time            (n,) float64, s; wall time of the FE run, NaN until run
     /cpu_time             (n,) float64, s; CPU time of the thread that ran it (below wall time when
                           the worker waited for a core), NaN until run
