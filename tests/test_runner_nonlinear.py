@@ -192,8 +192,9 @@ def test_podkrig_run_reports_the_failures_and_warns_when_the_best_fit_lies_where
     if inside:
         assert findings["near-failure"]["probability"] >= 0.2
         assert findings["fe-check"]["stopped"].startswith("budget_exhausted: iterations, reached")
+    assert summary["stages"]["surrogate"]["dropped_rows"] == failure["rows"]
     html = (tmp_path / "out" / "report" / "index.html").read_text()
-    assert "failed or stopped early" in html and "Runs fail towards" in html
+    assert "failed or stopped early" in html and "Runs fail towards" in html and "left out of the fit" in html
 
 
 def test_the_commands_run_a_nonlinear_spec_report_its_failures_and_refuse_or_drop_them(tmp_path):
@@ -214,4 +215,4 @@ def test_the_commands_run_a_nonlinear_spec_report_its_failures_and_refuse_or_dro
     assert out.exit_code != 0 and f"{n_failed} of 32 FE runs" in out.output and "failed_rows='drop'" in out.output
     out = CliRunner().invoke(app, ["surrogate", "build", str(store), "--out", str(tmp_path / "s.h5")])
     assert out.exit_code == 0, out.output
-    assert f"{32 - n_failed} snapshots" in out.output
+    assert f"{32 - n_failed} snapshots" in out.output and f"{n_failed} failed training runs" in out.output

@@ -109,6 +109,8 @@ def build(
         f"{out}: {fit.n_train} snapshots, {fit.n_modes} POD modes (retained energy {fit.retained_energy:.10f}), "
         f"{fitted}, trained in {fit.training_seconds:.2f} s"
     )
+    if fit.dropped_rows:
+        typer.echo(figs.dropped_text(fit.dropped_rows), err=True)
 
 
 @surrogate_app.command("validate")
