@@ -7,12 +7,13 @@ from .flat_jack import FlatJack
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 from .specimens import CoupletTension, PrismCompression, TripletShear
+from .wall_opening import WallOpeningNonlinear
 from .walls_nonlinear import DiagonalCompressionNonlinear, ShearCompressionNonlinear
 
 SCENARIOS = {
     cls.name: cls
     for cls in (DiagonalCompression, ShearCompression, FlatJack, CoupletTension, TripletShear, PrismCompression,
-                ShearCompressionNonlinear, DiagonalCompressionNonlinear)
+                ShearCompressionNonlinear, DiagonalCompressionNonlinear, WallOpeningNonlinear)
 }
 
 
