@@ -21,7 +21,7 @@ from fe.solvers.nonlinear import CONVERGED, PathFollower
 
 OPENING = (330.0, 660.0, 372.0, 620.0)  # the default opening, x0, x1, y0, y1 (mm)
 WALL = dict(unit_length=220.0, unit_height=62.0, n_courses=16, base_joints=True, openings=(OPENING,))
-SHORT = {"scenario": "wall_opening_nl", "load_levels": [0.1, 0.2, 0.3]}
+SHORT = {"scenario": "wall_opening_nl", "nx": 2, "ny": 1, "load_levels": [0.1, 0.2, 0.3]}  # coarse: cheap
 
 
 @pytest.mark.parametrize("nx, ny, element", [(2, 1, "Q8"), (6, 2, "Q8"), (4, 2, "Q4")])
@@ -98,8 +98,8 @@ def test_defaults_are_set_B_and_the_opening_is_stated():
     assert {k: d.options[k] for k in ("opening_left", "opening_width", "opening_sill", "opening_height")} == {
         "opening_left": 330.0, "opening_width": 330.0, "opening_sill": 372.0, "opening_height": 248.0}
     assert d.options["base_joints"] and d.options["top"] == "fixed_vertical"
-    assert "opening" in d.summary
-    sc = build_scenario({"scenario": "wall_opening_nl", "opening_left": 220.0, "opening_width": 550.0})
+    assert "opening" in d.summary and "Set B" in d.summary
+    sc = build_scenario({"scenario": "wall_opening_nl", "opening_left": 220.0, "opening_width": 550.0, "nx": 2, "ny": 1})
     assert sc.mesh.width == 990.0 and sc.options.openings == ((220.0, 770.0, 372.0, 620.0),)
 
 
@@ -154,7 +154,7 @@ def test_linear_limit_is_the_linear_solver_on_the_same_mesh():
     stiffness is therefore the linear one: the opening makes the wall softer than the solid wall."""
     huge = {"ft_bj": 1e3, "c_bj": 1e4, "GfI_bj": 1e9, "GfII_bj": 1e9, "fc": 1e6, "ft_bb": 1e4, "GfI_bb": 1e9}
     nl = build_scenario({"scenario": "wall_opening_nl", "top": "constant_force", "load_levels": [0.2, 0.5],
-                         "increment": 0.2, "max_increment": 0.2})
+                         "increment": 0.2, "max_increment": 0.2, "nx": 2, "ny": 1})
     r = nl.run(huge)
     assert r.status == CONVERGED
     mesh, o = nl.mesh, nl.options
@@ -169,7 +169,8 @@ def test_linear_limit_is_the_linear_solver_on_the_same_mesh():
     readings = unit[0] + 1000.0 * r.loads[:, None] * unit[1]
     assert_allclose(r.readings, readings, rtol=1e-10, atol=1e-10 * np.abs(readings).max())
     solid = build_scenario({"scenario": "shear_compression_nl", "top": "constant_force", "nx": 2, "ny": 1,
-                            "load_levels": [0.2], "increment": 0.2, "max_increment": 0.2})
+                            "element": "Q8", "base_joints": True, "load_levels": [0.2], "increment": 0.2,
+                            "max_increment": 0.2})
     assert r.loads[0] < 0.95 * solid.run(dict(huge, kN_bj=110.0, kV_bj=50.0)).loads[0]
 
 
@@ -189,3 +190,19 @@ def test_default_run_reaches_the_end_of_the_control_range(top):
     else:
         assert N[-1] > 29.7
     assert r.peak_load < 0.224 * 990 * 100 / 1000 + 0.75 * np.max(N)  # below sliding on one full bed joint
+
+
+def test_mesh_convergence_script_imports_without_side_effects_and_tables_a_run():
+    """``scripts/bench_wall_opening.py`` (the BENCHMARKS.md mesh study) imports without running, runs
+    one mesh to the end of the range and tables it against itself (the finest of a one-mesh ladder)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_wall_opening.py"
+    spec = importlib.util.spec_from_file_location("bench_wall_opening", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    row = bench.run("2x1", "constant_force")
+    assert row["status"] == CONVERGED and row["reached"] == 3.0 and row["cpu"] > 0
+    text = bench.table([row])
+    assert "| 2x1 | 2114 | converged |" in text and "within 1 % of the finest: 2x1" in text
