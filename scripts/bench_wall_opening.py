@@ -12,8 +12,11 @@ whose peak load lies within 1 % of the finest mesh's (the line below each table 
 which is the cheapest whose load at every level also does); a peak at the end of the control
 range is the largest load reached, not a maximum, and is marked so.
 
+With ``--finer`` it also compares the default mesh's peak under constant N with the peak of the
+same run with ten times finer increments.
+
 Usage: python scripts/bench_wall_opening.py [--mesh 2x1 4x1 4x2 6x2 8x2 8x3 12x4] [--top fixed_vertical constant_force]
-       [--jobs 2]
+       [--jobs 2] [--finer]
 """
 
 import argparse
@@ -30,10 +33,16 @@ TOPS = ("fixed_vertical", "constant_force")
 TOLERANCE = 0.01  # peak within 1 % of the finest mesh's
 
 
-def run(mesh, top):
-    """One run of ``wall_opening_nl`` on mesh ``"NXxNY"`` (Q8) with top condition ``top``."""
+def run(mesh, top, factor=1):
+    """One run of ``wall_opening_nl`` on mesh ``"NXxNY"`` (Q8) with top condition ``top``
+    (``factor``: increments that many times finer, budgets that many times larger)."""
     nx, ny = (int(v) for v in mesh.split("x"))
     spec = {"scenario": "wall_opening_nl", "top": top, "nx": nx, "ny": ny}
+    if factor != 1:
+        o = build_scenario(spec).options
+        spec.update(increment=o.increment / factor, max_increment=o.max_increment / factor,
+                    max_steps=factor * o.max_steps, max_total_iterations=factor * o.max_total_iterations,
+                    max_cpu_seconds=factor * o.max_cpu_seconds)
     with threadpool_limits(1):
         build_scenario(dict(spec, load_levels=[0.01], increment=0.01, max_increment=0.01)).run()  # compile
         c0 = time.process_time()
@@ -83,12 +92,21 @@ def main(argv=None):
     parser.add_argument("--mesh", nargs="+", default=list(MESHES), help="meshes NXxNY, coarse to fine")
     parser.add_argument("--top", nargs="+", default=list(TOPS), choices=TOPS)
     parser.add_argument("--jobs", type=int, default=1, help="processes running meshes side by side")
+    parser.add_argument("--finer", action="store_true",
+                        help="also: the default mesh under constant N with ten times finer increments")
     args = parser.parse_args(argv)
     cases = [(m, t) for t in args.top for m in args.mesh]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         results = list(pool.map(run, *zip(*cases)))
     for top in args.top:
         print(table([r for r in results if r["top"] == top]))
+    if args.finer:
+        o = build_scenario("wall_opening_nl").options
+        mesh = f"{o.nx}x{o.ny}"
+        default, finer = run(mesh, "constant_force"), run(mesh, "constant_force", factor=10)
+        print(f"constant N, default mesh {mesh}: peak {default['peak']:.3f} kN at {default['at']:.3f} mm; with ten "
+              f"times finer increments {finer['peak']:.3f} kN at {finer['at']:.3f} mm "
+              f"({100 * (default['peak'] / finer['peak'] - 1):+.2f} %; CPU {finer['cpu']:.1f} s)")
 
 
 if __name__ == "__main__":
