@@ -19,3 +19,13 @@ class SpecError(FEError, ValueError):
 
 class SolverError(FEError):
     """The linear solver failed (singular stiffness: a missing support or a zero stiffness)."""
+
+
+class ConstraintError(SpecError):
+    """Parameter values, or a sampling box, that violate a constraint between parameters (e.g. a
+    tensile strength above the Coulomb apex of the joints); ``violations`` holds the
+    :class:`fe.admissibility.Violation` objects with their remedies."""
+
+    def __init__(self, message, violations=()):
+        super().__init__(message)
+        self.violations = tuple(violations)

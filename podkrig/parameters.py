@@ -299,6 +299,11 @@ class ParameterSpace:
         ValueError
             Unknown parameter name, malformed or unordered bounds, non-positive log bounds,
             or a bound outside the parameter's physical range.
+        fe.exceptions.ConstraintError
+            A constraint between the scenario's parameters (``scenario.constraints``) fails somewhere
+            in the box of these bounds and the scenario's fixed values; the message names the
+            constraint, the box's worst corner and the bound that would make it admissible
+            (:meth:`fe.Scenario.check_box`).
         """
         known = scenario.parameters
         if not bounds:
@@ -322,7 +327,9 @@ class ParameterSpace:
                         f"{info.admissible_range()} ({info.description}); choose bounds inside it"
                     ) from None
             params.append(p)
-        return cls(tuple(params))
+        space = cls(tuple(params))
+        scenario.check_box({p.name: (p.lower, p.upper, p.scale) for p in space.parameters})
+        return space
 
 
 def parse_param(text):

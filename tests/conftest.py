@@ -54,17 +54,26 @@ def dic_diagonal_surrogate(dic_diagonal, dic_diagonal_space):
 
 
 class FECounter:
-    """Counts FE runs (``Scenario.run`` calls) in this process while a test runs."""
+    """Counts FE runs (``run`` calls of :class:`Scenario` and of every subclass that overrides it,
+    e.g. the nonlinear scenarios) in this process while a test runs."""
 
     def __init__(self, monkeypatch):
         self.calls = 0
-        original = Scenario.run
+        classes, todo = [], [Scenario]
+        while todo:
+            cls = todo.pop()
+            todo.extend(cls.__subclasses__())
+            if "run" in vars(cls):
+                classes.append(cls)
+        for cls in classes:
+            monkeypatch.setattr(cls, "run", self._counted(vars(cls)["run"]))
 
+    def _counted(self, original):
         def counted(scenario, *args, **kwargs):
             self.calls += 1
             return original(scenario, *args, **kwargs)
 
-        monkeypatch.setattr(Scenario, "run", counted)
+        return counted
 
 
 @pytest.fixture

@@ -147,9 +147,9 @@ def test_consistent_tangent_equals_finite_differences(case):
 
 
 def test_admissibility_errors_name_the_quantity():
-    with pytest.raises(ValueError, match=r"ft=0.6 MPa exceeds c/tanphi"):
+    with pytest.raises(ValueError, match=r"ft ≤ c / max\(tanphi0, tanphir\) is required.*ft=0.6"):
         composite_properties(**dict(SET_A, ft=0.6))
-    with pytest.raises(ValueError, match=r"kn=3 N/mm³ must exceed ft²/GfI"):
+    with pytest.raises(ValueError, match=r"ft² / GfI < kn is required.*kn=3"):
         composite_properties(**dict(SET_A, kn=3.0))
     with pytest.raises(ValueError, match="GfI must be > 0"):
         composite_properties(**dict(SET_A, GfI=0.0))
@@ -217,7 +217,7 @@ def test_hyperbolic_tangent_equals_finite_differences(du):
 
 
 def test_hyperbolic_admissibility():
-    with pytest.raises(ValueError, match="ft=0.6 MPa exceeds c/tanphi"):
+    with pytest.raises(ValueError, match=r"ft ≤ c / max\(tanphi0, tanphir\) is required.*ft=0.6"):
         hyperbolic_properties(**dict(HYP, ft=0.6))
 
 

@@ -302,9 +302,10 @@ def test_specimens_default_to_the_walls_parameter_set_and_say_so(name):
 
 def test_inadmissible_strengths_are_refused_with_the_reason():
     sc = build_scenario("couplet_tension")
-    with pytest.raises(SpecError, match="bed joints.*ft=0.6 MPa exceeds c/tanphi"):
+    with pytest.raises(SpecError, match=r"ft_bj ≤ c_bj / max\(tanphi_bj, tanphir_bj\).*bed and head joints.*"
+                       r"ft_bj = 0.6 MPa.*set ft_bj to at most"):
         sc.run({"ft_bj": 0.6})
-    with pytest.raises(SpecError, match="unit mid-planes.*must exceed ft²/GfI"):
+    with pytest.raises(SpecError, match="ft_bb² / GfI_bb < kN_bb.*unit mid-planes.*ft_bb = 100 MPa"):
         sc.run({"ft_bb": 100.0})
 
 

@@ -38,6 +38,7 @@ import math
 import numba
 import numpy as np
 
+from ..admissibility import Inequality
 from .state import InterfaceState, LawUpdate
 
 logger = logging.getLogger(__name__)
@@ -561,6 +562,35 @@ class CompositeInterface:
         return d
 
 
+def _finite(*names):
+    return lambda p: all(np.isfinite(p[n]) for n in names)
+
+
+#: The admissible combinations of the law's properties, checked by :func:`composite_properties`
+#: and, read in a scenario's parameter names, over a whole sampling box before any FE run
+#: (:mod:`fe.admissibility`). Each side is monotone in each property. A surface switched off (an
+#: infinite ``ft`` or ``c``) or a zero stiffness (a rigid dummy) drops the inequalities it carries.
+INEQUALITIES = (
+    Inequality("dilatancy", "{tanpsi}", "{tanphi0}", "-",
+               "more dilatancy than friction is not admissible",
+               lambda p: p["tanpsi"], lambda p: p["tanphi0"], applies=_finite("c")),
+    Inequality("tension_apex", "{ft}", "{c} / max({tanphi0}, {tanphir})", "MPa",
+               "the Coulomb friction surface also limits tension: the tensile strength may not exceed "
+               "the tension at its apex",
+               lambda p: p["ft"], lambda p: p["c"] / max(p["tanphi0"], p["tanphir"]),
+               applies=lambda p: _finite("ft", "c")(p) and max(p["tanphi0"], p["tanphir"]) > 0),
+    Inequality("tension_snap_back", "{ft}² / {GfI}", "{kn}", "N/mm³",
+               "else the tension softening branch is steeper than the elastic one: local snap-back, "
+               "no unique return",
+               lambda p: p["ft"] ** 2 / p["GfI"], lambda p: p["kn"], strict=True,
+               applies=lambda p: _finite("ft")(p) and p["kn"] > 0),
+    Inequality("shear_snap_back", "{c}² / {GfII}", "{ks}", "N/mm³",
+               "else the shear softening branch is steeper than the elastic one: local snap-back in shear",
+               lambda p: p["c"] ** 2 / p["GfII"], lambda p: p["ks"], strict=True,
+               applies=lambda p: _finite("c")(p) and p["ks"] > 0),
+)
+
+
 def composite_properties(*, kn, ks, ft=np.inf, GfI=1.0, c=np.inf, tanphi0=0.0, tanphir=None, GfII=1.0,
                          tanpsi=0.0, fc=np.inf, Cs=9.0, Gfc=5.0, kappa_p=0.09,
                          cap_ratios=(1 / 3, 1 / 2, 1 / 7), where="interface"):
@@ -575,10 +605,11 @@ def composite_properties(*, kn, ks, ft=np.inf, GfI=1.0, c=np.inf, tanphi0=0.0, t
     Raises
     ------
     ValueError
-        Naming the offending quantity and the reason: ``f_t ≤ c / max(tanφ0, tanφr)`` (the friction
-        surface also limits tension; DIANA resets f_t, this solver refuses), ``k_n > f_t²/G_f^I``
-        (else the tension return has no unique solution: local snap-back), positive energies, and
-        the cap's ordering.
+        Naming the offending quantity and the reason: positive strengths and energies, the cap's
+        ordering, and the inequalities of :data:`INEQUALITIES` (``ft ≤ c / max(tanphi0, tanphir)``:
+        the friction surface also limits tension, DIANA resets f_t, this solver refuses;
+        ``kn > ft²/GfI`` and ``ks > c²/GfII``: else the return has no unique solution, local
+        snap-back; ``tanpsi ≤ tanphi0``).
     """
     tanphir = tanphi0 if tanphir is None else tanphir
     if not (kn >= 0 and ks >= 0):
@@ -589,22 +620,9 @@ def composite_properties(*, kn, ks, ft=np.inf, GfI=1.0, c=np.inf, tanphi0=0.0, t
             raise ValueError(f"{where}: {name} must be > 0; got {v}")
     if not (tanphi0 >= 0 and tanphir >= 0 and tanpsi >= 0):
         raise ValueError(f"{where}: tanphi0, tanphir and tanpsi must be >= 0; got {tanphi0}, {tanphir}, {tanpsi}")
-    if tanpsi > tanphi0 and np.isfinite(c):
-        raise ValueError(f"{where}: dilatancy tanpsi={tanpsi} exceeds the friction tanphi0={tanphi0}: "
-                         "more dilatancy than friction is not admissible")
-    tmax = max(tanphi0, tanphir)
-    if np.isfinite(ft) and np.isfinite(c) and tmax > 0 and ft > c / tmax * (1 + 1e-12):
-        raise ValueError(
-            f"{where}: tensile strength ft={ft:g} MPa exceeds c/tanphi = {c:g}/{tmax:g} = {c / tmax:.4g} MPa; "
-            "the Coulomb surface also limits tension, so ft <= c/max(tanphi0, tanphir) is required")
-    if np.isfinite(ft) and kn > 0 and not kn > ft**2 / GfI:
-        raise ValueError(
-            f"{where}: normal stiffness kn={kn:g} N/mm³ must exceed ft²/GfI = {ft**2 / GfI:.4g} N/mm³: "
-            "otherwise the softening branch is steeper than the elastic one (local snap-back, no unique return)")
-    if np.isfinite(c) and ks > 0 and not ks > c**2 / GfII:
-        raise ValueError(
-            f"{where}: shear stiffness ks={ks:g} N/mm³ must exceed c²/GfII = {c**2 / GfII:.4g} N/mm³ "
-            "(local snap-back in shear)")
+    props = dict(kn=kn, ks=ks, ft=ft, GfI=GfI, c=c, tanphi0=tanphi0, tanphir=tanphir, GfII=GfII, tanpsi=tanpsi)
+    for inequality in INEQUALITIES:
+        inequality.check(props, where)
     ri, rm, rr = cap_ratios
     if not (0 < ri <= 1 and 0 < rr < rm < 1):
         raise ValueError(f"{where}: cap_ratios must satisfy 0 < sig_i <= 1 and 0 < sig_r < sig_m < 1; got {cap_ratios}")

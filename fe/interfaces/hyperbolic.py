@@ -55,6 +55,8 @@ import math
 import numba
 import numpy as np
 
+from ..admissibility import Inequality
+from .composite import INEQUALITIES as COMPOSITE_INEQUALITIES
 from .composite import cap_kappa_m, cap_strength
 from .state import InterfaceState, LawUpdate
 
@@ -438,6 +440,40 @@ def hyperbolic_update(du, jump_n, t_n, up_n, kap_n, work_n, props):
     return jump, t, up, kap, work, tangent, iterations, status
 
 
+def _cap_slope(p):
+    """The steepest softening slope of the cap, 2 f_c (1 − σ̄_m/f_c)/(κ_m − κ_p) = 2 (1 − r_m) A f_c²/G_fc
+    (N/mm³; κ_m − κ_p = G_fc/(A f_c) by :func:`~fe.interfaces.composite.cap_kappa_m`)."""
+    ratios = p.get("cap_ratios", (1 / 3, 1 / 2, 1 / 7))
+    return 2.0 * p["fc"] * (1.0 - ratios[1]) / cap_kappa_m(p["fc"], p["Gfc"], 0.0, ratios)  # κ_p cancels
+
+
+#: k_n above the steepest softening slope of the cap (only with a cap: a finite ``fc``).
+CAP_SNAP_BACK = Inequality(
+    "cap_snap_back", "0.818 {fc}² / {Gfc}", "{kn}", "N/mm³",
+    "the steepest softening slope of the cap 2 fc (1 − sig_m/fc)/(kappa_m − kappa_p) (default cap ratios) "
+    "must stay below kn: else local snap-back in compression",
+    _cap_slope, lambda p: p["kn"], strict=True, applies=lambda p: np.isfinite(p["fc"]))
+
+#: The admissible combinations of the law's properties, checked by :func:`hyperbolic_properties`
+#: and, read in a scenario's parameter names, over a whole sampling box before any FE run
+#: (:mod:`fe.admissibility`). Each side is monotone in each property (the cap's slope is
+#: 2 (1 − r_m) A f_c²/G_fc, free of κ_p).
+INEQUALITIES = (
+    Inequality("friction", "0", "min({tanphi0}, {tanphir})", "-",
+               "the normal flow at the apex of the hyperbola is tanφ",
+               lambda p: 0.0, lambda p: min(p["tanphi0"], p["tanphir"]), strict=True),
+    Inequality("dilatancy", "{tanpsi}", "min({tanphi0}, {tanphir})", "-",
+               "more dilatancy than friction is not admissible",
+               lambda p: p["tanpsi"], lambda p: min(p["tanphi0"], p["tanphir"])),
+    Inequality("tension_apex", "{ft}", "{c} / max({tanphi0}, {tanphir})", "MPa",
+               "the hyperbola needs a real apex: the tensile strength may not exceed the tension at the "
+               "apex of its Coulomb asymptote",
+               lambda p: p["ft"], lambda p: p["c"] / max(p["tanphi0"], p["tanphir"])),
+    next(i for i in COMPOSITE_INEQUALITIES if i.key == "tension_snap_back"),
+    CAP_SNAP_BACK,
+)
+
+
 def hyperbolic_properties(*, kn, ks, ft, GfI, c, tanphi0, tanphir=None, GfII, tanpsi=0.0, fc=np.inf, Cs=9.0,
                           Gfc=5.0, kappa_p=0.09, cap_ratios=(1 / 3, 1 / 2, 1 / 7), cap_shape="ellipse",
                           where="interface"):
@@ -454,28 +490,29 @@ def hyperbolic_properties(*, kn, ks, ft, GfI, c, tanphi0, tanphir=None, GfII, ta
     Raises
     ------
     ValueError
-        Naming the quantity and the reason: σ_t ≤ c/tanφ (a ≥ 0 while softening), tanφ > 0 (the
-        normal flow at the apex is tanφ), 0 ≤ tanψ ≤ tanφ, positive energies, k_n > σ_t²/G_f^I
-        (local snap-back in tension); for the cap: a known shape, positive C_s, G_fc, κ_p, ordered
-        ratios and k_n above the steepest softening slope of the cap 2 f_c (1 − σ̄_m/f_c)/(κ_m − κ_p)
-        (else the crushing return has no unique solution: local snap-back in compression).
+        Naming the quantity and the reason: positive strengths and energies, and the inequalities
+        of :data:`INEQUALITIES`: σ_t ≤ c/tanφ (a ≥ 0 while softening), tanφ > 0 (the normal flow
+        at the apex is tanφ), tanψ ≤ tanφ, k_n > σ_t²/G_f^I (local snap-back in tension); for the
+        cap: a known shape, positive C_s, G_fc, κ_p, ordered ratios and k_n above the steepest
+        softening slope of the cap 2 f_c (1 − σ̄_m/f_c)/(κ_m − κ_p) (else the crushing return has no
+        unique solution: local snap-back in compression).
     """
     tanphir = tanphi0 if tanphir is None else tanphir
-    for name, v in (("kn", kn), ("ks", ks), ("ft", ft), ("GfI", GfI), ("c", c), ("GfII", GfII),
-                    ("tanphi0", tanphi0), ("tanphir", tanphir)):
+    for name, v in (("kn", kn), ("ks", ks), ("ft", ft), ("GfI", GfI), ("c", c), ("GfII", GfII)):
         if not (v > 0 and np.isfinite(v)):
             raise ValueError(f"{where}: {name} must be finite and > 0; got {v}")
-    if not 0 <= tanpsi <= min(tanphi0, tanphir):
-        raise ValueError(f"{where}: need 0 <= tanpsi <= tanphi; got tanpsi={tanpsi}")
-    if ft > c / max(tanphi0, tanphir) * (1 + 1e-12):
-        raise ValueError(f"{where}: tensile strength ft={ft:g} MPa exceeds c/tanphi = {c / max(tanphi0, tanphir):.4g} "
-                         "MPa: the hyperbola would have no real apex")
-    if not kn > ft**2 / GfI:
-        raise ValueError(f"{where}: kn={kn:g} N/mm³ must exceed ft²/GfI = {ft**2 / GfI:.4g} N/mm³ (local snap-back)")
-    if cap_shape not in CAP_SHAPES:
-        raise ValueError(f"{where}: cap_shape must be one of {CAP_SHAPES}; got {cap_shape!r}")
+    for name, v in (("tanphi0", tanphi0), ("tanphir", tanphir), ("tanpsi", tanpsi)):
+        if not (v >= 0 and np.isfinite(v)):
+            raise ValueError(f"{where}: {name} must be finite and >= 0; got {v}")
     if not fc > 0:
         raise ValueError(f"{where}: cap strength fc must be > 0 MPa (inf: no cap); got {fc}")
+    props = dict(kn=kn, ks=ks, ft=ft, GfI=GfI, c=c, tanphi0=tanphi0, tanphir=tanphir, GfII=GfII, tanpsi=tanpsi,
+                 fc=fc, Gfc=Gfc, kappa_p=kappa_p, cap_ratios=cap_ratios)
+    for inequality in INEQUALITIES:
+        if inequality.key != "cap_snap_back":  # after the cap's own parameters are checked
+            inequality.check(props, where)
+    if cap_shape not in CAP_SHAPES:
+        raise ValueError(f"{where}: cap_shape must be one of {CAP_SHAPES}; got {cap_shape!r}")
     km = np.inf
     if np.isfinite(fc):
         for name, v in (("Cs", Cs), ("Gfc", Gfc), ("kappa_p", kappa_p)):
@@ -486,11 +523,7 @@ def hyperbolic_properties(*, kn, ks, ft, GfI, c, tanphi0, tanphir=None, GfII, ta
             raise ValueError(f"{where}: cap_ratios (sig_i, sig_m, sig_r)/fc must satisfy 0 < sig_i <= 1 and "
                              f"0 < sig_r < sig_m < 1; got {cap_ratios}")
         km = cap_kappa_m(fc, Gfc, kappa_p, cap_ratios)
-        slope = 2.0 * fc * (1.0 - rm) / (km - kappa_p)
-        if not kn > slope:
-            raise ValueError(f"{where}: kn={kn:g} N/mm³ must exceed the steepest softening slope of the cap "
-                             f"2 fc (1 - sig_m/fc)/(kappa_m - kappa_p) = {slope:.4g} N/mm³ (fc={fc:g} MPa, "
-                             f"Gfc={Gfc:g} N/mm, kappa_p={kappa_p:g} mm): local snap-back in compression")
+        CAP_SNAP_BACK.check(props, where)
     ri, rm, rr = cap_ratios
     return np.array([kn, ks, ft, GfI, c, tanphi0, tanphir, GfII, tanpsi, fc, Cs, kappa_p, km, ri, rm, rr,
                      float(CAP_SHAPES.index(cap_shape))], dtype=float)

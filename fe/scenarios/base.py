@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..admissibility import check_box
 from ..exceptions import SpecError
 from ..response import Response
 from .spec import ScenarioSpec
@@ -74,6 +75,8 @@ class Scenario(abc.ABC):
     """
 
     name = None
+    #: One line in plain text saying what the test is (``podkrig scenarios`` lists it).
+    summary = None
     Options = None
     PARAMETERS = ()
     load_unit = "kN"
@@ -151,13 +154,61 @@ class Scenario(abc.ABC):
         """Sensor name → definition dict (mm)."""
         return {s.name: s.to_dict() for s in self.sensors}
 
+    @classmethod
+    def parameter_constraints(cls, options):
+        """Constraints between parameters for the options ``options`` (an ``Options`` instance):
+        a tuple of :class:`fe.admissibility.ParameterConstraint`; none for a linear scenario, whose
+        parameters are independent (each has its physical range)."""
+        return ()
+
+    @classmethod
+    def check_spec_box(cls, spec, bounds=None):
+        """:meth:`check_box` from a spec (:class:`ScenarioSpec` of this scenario: its options and
+        fixed parameter values), without building the scenario (no mesh).
+
+        Raises
+        ------
+        SpecError
+            Invalid options.
+        ConstraintError
+            As :meth:`check_box`.
+        """
+        parameters = {p.name: dataclasses.replace(p, default=spec.parameters.get(p.name, p.default))
+                      for p in cls.PARAMETERS}
+        check_box(cls.parameter_constraints(cls._parse_options(spec.options)), parameters, bounds, where=cls.name)
+
+    @property
+    def constraints(self):
+        """This scenario's constraints between parameters (:meth:`parameter_constraints`)."""
+        return self.parameter_constraints(self.options)
+
+    def check_box(self, bounds=None):
+        """Check the constraints over a sampling box before any FE run.
+
+        Parameters
+        ----------
+        bounds : mapping of str to tuple, optional
+            ``name → (lower, upper)`` or ``(lower, upper, scale)`` of the sampled parameters (each
+            in its unit); the others at this scenario's values (defaults and the spec's fixed values).
+
+        Raises
+        ------
+        ConstraintError
+            A constraint fails somewhere in the box: the message names it, its worst corner (exact:
+            see :mod:`fe.admissibility`) and the bound or value that would make the box admissible.
+        """
+        check_box(self.constraints, self.parameters, bounds, where=self.name)
+
     def resolve(self, params=None):
-        """Every parameter's value: defaults updated by ``params``; validated.
+        """Every parameter's value: defaults updated by ``params``; validated, alone (physical
+        range) and together (:attr:`constraints`).
 
         Raises
         ------
         SpecError
             Unknown parameter name or value outside its physical range.
+        ConstraintError
+            Values that violate a constraint (the message says which value would satisfy it).
         """
         values = {k: p.default for k, p in self.parameters.items()}
         for k, v in (params or {}).items():
@@ -166,6 +217,8 @@ class Scenario(abc.ABC):
                     f"{self.name}: unknown parameter {k!r}; parameters are {list(self.parameters)}"
                 )
             values[k] = self.parameters[k].check(v)
+        point = {k: dataclasses.replace(p, default=values[k]) for k, p in self.parameters.items()}
+        check_box(self.constraints, point, where=self.name)
         return values
 
     @abc.abstractmethod

@@ -14,7 +14,7 @@ forms a sensor takes in a spec (TOML), e.g.::
 
 import dataclasses
 import inspect
-import sys
+import re
 from dataclasses import dataclass
 
 from . import SCENARIOS, build_scenario
@@ -68,6 +68,31 @@ def typical_range(name, unit="-"):
     return f"{lo}–{hi}" + ("" if unit in ("-", "") else f" {unit}")
 
 
+_ROLE = re.compile(r":[\w:.-]+:`(~?)([^`]*)`")
+
+
+def _role(match):
+    tilde, body = match.groups()
+    titled = re.fullmatch(r"(.*?)\s*<(.*)>", body, flags=re.S)
+    if titled:
+        return titled.group(1)
+    return body.rsplit(".", 1)[-1] if tilde else body
+
+
+def plain_text(text):
+    """reStructuredText inline markup of a docstring as plain text: ````code```` → ``code``,
+    ``:role:`~a.b.c``` → ``c``, ``:role:`title <target>``` → ``title``, ``**bold**`` → ``bold``,
+    ```x``` → ``x``.
+
+    >>> plain_text("flat jacks (``flat_jack``), see :func:`~fe.scenarios.build_scenario`")
+    'flat jacks (flat_jack), see build_scenario'
+    """
+    text = _ROLE.sub(_role, text)
+    text = re.sub(r"``(.+?)``", r"\1", text)
+    text = re.sub(r"\*\*(.+?)\*\*", r"\1", text)
+    return re.sub(r"(?<![\w`])`([^`]+)`(?![\w`])", r"\1", text)
+
+
 @dataclass(frozen=True)
 class ScenarioDescription:
     """A scenario's parameters, options, default sensors and load levels.
@@ -76,7 +101,7 @@ class ScenarioDescription:
     ----------
     name : str
     summary : str
-        First line of the scenario's docstring.
+        What the test is, one line of plain text (the scenario's ``summary``).
     load_unit : str
     load_levels : tuple of float
         Default load levels, in ``load_unit``.
@@ -90,6 +115,10 @@ class ScenarioDescription:
     derived : dict
         Values the scenario derived from its options that differ from what was asked, e.g.
         ``support_length_used`` (face → mm) when a rigid support is snapped to element edges.
+    constraints : tuple of dict
+        Constraints between parameters (:meth:`fe.admissibility.ParameterConstraint.to_dict`:
+        ``formula``, ``unit``, ``where``, ``reason``, ``parameters``), checked over a whole
+        sampling box before any FE run.
     """
 
     name: str
@@ -101,6 +130,7 @@ class ScenarioDescription:
     sensors: dict
     n_dofs: int
     derived: dict = dataclasses.field(default_factory=dict)
+    constraints: tuple = ()
 
     def to_dict(self):
         return {
@@ -110,6 +140,7 @@ class ScenarioDescription:
                             if p.name in TYPICAL_RANGES else None} for p in self.parameters],
             "options": {k: list(v) if isinstance(v, tuple) else v for k, v in self.options.items()},
             "sensors": self.sensors, "n_dofs": self.n_dofs, "derived": self.derived,
+            "constraints": [dict(c) for c in self.constraints],
             "sensor_kinds": {k: {"reads": r, "toml": f} for k, (r, f) in SENSOR_KINDS.items()},
         }
 
@@ -118,7 +149,8 @@ class ScenarioDescription:
         return cls(d["name"], d["summary"], d["load_unit"], tuple(d["load_levels"]),
                    tuple(ParameterInfo(**{k: v for k, v in p.items() if k != "typical"}) for p in d["parameters"]),
                    {k: tuple(v) if isinstance(v, list) else v for k, v in d["options"].items()},
-                   dict(d["sensors"]), int(d["n_dofs"]), dict(d.get("derived", {})))
+                   dict(d["sensors"]), int(d["n_dofs"]), dict(d.get("derived", {})),
+                   tuple(dict(c) for c in d.get("constraints", ())))
 
 
 def describe_scenario(spec):
@@ -131,15 +163,18 @@ def describe_scenario(spec):
     """
     scenario = build_scenario(spec)
     cls = SCENARIOS[scenario.name]
-    module_doc = inspect.getdoc(sys.modules[cls.__module__]) or ""
-    summary = module_doc.strip().splitlines()[0] if module_doc.strip() else cls.__name__
+    doc = (inspect.getdoc(cls) or cls.__name__).strip()
+    summary = plain_text(cls.summary or " ".join(doc.split("\n\n")[0].split()))
     options = {f.name: getattr(scenario.options, f.name) for f in dataclasses.fields(scenario.options)
                if f.name != "sensors"}
+    parameters = tuple(dataclasses.replace(p, description=plain_text(p.description))
+                       for p in scenario.parameters.values())
     return ScenarioDescription(
         name=scenario.name, summary=summary, load_unit=scenario.load_unit,
         load_levels=tuple(float(v) for v in scenario.load_levels),
-        parameters=tuple(scenario.parameters.values()), options=options,
+        parameters=parameters, options=options,
         sensors=scenario.sensor_definitions(), n_dofs=int(scenario.n_dofs), derived=scenario.derived(),
+        constraints=tuple(c.to_dict() for c in scenario.constraints),
     )
 
 

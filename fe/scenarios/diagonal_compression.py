@@ -130,6 +130,8 @@ class DiagonalCompression(Scenario):
     """Diagonal compression of a square running-bond panel; see the module docstring."""
 
     name = "diagonal_compression"
+    summary = ("Diagonal compression test of a square running-bond panel (ASTM E519 / RILEM "
+               "LUMB6 type), linear elastic.")
     Options = DiagonalCompressionOptions
     PARAMETERS = MASONRY_PARAMETERS
     load_unit = "kN"

@@ -333,6 +333,8 @@ class FlatJack(Scenario):
     """Flat-jack tests on a pre-compressed running-bond panel; see the module docstring."""
 
     name = "flat_jack"
+    summary = ("In-situ flat-jack tests in a running-bond panel: single, double, and horizontal "
+               "+ vertical jacks.")
     Options = FlatJackOptions
     PARAMETERS = FLAT_JACK_PARAMETERS
     load_unit = "step"

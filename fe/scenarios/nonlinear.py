@@ -10,10 +10,12 @@ prescribed levels of the control displacement (``load_levels``, mm), the load th
 """
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..admissibility import ParameterConstraint
 from ..elements.interface import RULES
 from ..exceptions import SpecError
 from ..interfaces import (
@@ -23,7 +25,9 @@ from ..interfaces import (
     composite_properties,
     hyperbolic_properties,
 )
+from ..interfaces.composite import INEQUALITIES as COMPOSITE_INEQUALITIES
 from ..interfaces.hyperbolic import CAP_SHAPES
+from ..interfaces.hyperbolic import INEQUALITIES as HYPERBOLIC_INEQUALITIES
 from ..materials import plane_stress_coefficients
 from ..mesh.mesh import INTERFACE_KINDS
 from ..nonlinear_model import NonlinearModel
@@ -123,6 +127,30 @@ def nonlinear_parameters(defaults=None):
                  for p in MASONRY_PARAMETERS + STRENGTH_PARAMETERS)
 
 
+_JOINT_STRENGTHS = {"ft": ("ft_bj",), "GfI": ("GfI_bj",), "c": ("c_bj",), "tanphi0": ("tanphi_bj",),
+                    "tanphir": ("tanphir_bj",), "GfII": ("GfII_bj",), "tanpsi": ("tanpsi_bj",)}
+_CAP = {"fc": ("fc",), "Cs": ("Cs",), "Gfc": ("Gfc",), "kappa_p": ("kappa_p",)}
+#: Interface family → (its name in words, law property → the parameters whose product it is): the
+#: one map from parameters to interface properties, used to build each run's property rows and to
+#: read the laws' inequalities in parameter names (:meth:`NonlinearScenario.parameter_constraints`).
+FAMILIES = {
+    "bed": ("bed joints", {"kn": ("kN_bj",), "ks": ("kV_bj",), **_JOINT_STRENGTHS, **_CAP}),
+    "head": ("head joints", {"kn": ("r_hj", "kN_bj"), "ks": ("r_hj", "kV_bj"), **_JOINT_STRENGTHS, **_CAP}),
+    "brick": ("unit mid-planes", {"kn": ("kN_bb",), "ks": ("kV_bb",), "ft": ("ft_bb",), "GfI": ("GfI_bb",)}),
+}
+
+
+def family_properties(family, values, exclude=()):
+    """The interface properties of ``family`` (a key of :data:`FAMILIES`) for the parameter values
+    ``values``, a dict of property → value (without the properties in ``exclude``)."""
+    return {prop: math.prod(values[n] for n in names) for prop, names in FAMILIES[family][1].items()
+            if prop not in exclude}
+
+
+def _where(family):
+    return FAMILIES[family][0]
+
+
 def interface_properties(mesh, elements, values, points_per_element):
     """Per-point property rows of the composite law, ``(n_points, N_PROPS)``.
 
@@ -131,19 +159,8 @@ def interface_properties(mesh, elements, values, points_per_element):
     SpecError
         A family's parameters are not admissible (the message names the parameters and why).
     """
-    v = values
-    strengths = dict(ft=v["ft_bj"], GfI=v["GfI_bj"], c=v["c_bj"], tanphi0=v["tanphi_bj"], tanphir=v["tanphir_bj"],
-                     GfII=v["GfII_bj"], tanpsi=v["tanpsi_bj"], fc=v["fc"], Cs=v["Cs"], Gfc=v["Gfc"],
-                     kappa_p=v["kappa_p"])
     try:
-        rows = {
-            "bed": composite_properties(kn=v["kN_bj"], ks=v["kV_bj"], where="bed joints (kN_bj, kV_bj, *_bj, fc, Cs, Gfc)",
-                                        **strengths),
-            "head": composite_properties(kn=v["r_hj"] * v["kN_bj"], ks=v["r_hj"] * v["kV_bj"],
-                                         where="head joints (r_hj·kN_bj, r_hj·kV_bj, *_bj)", **strengths),
-            "brick": composite_properties(kn=v["kN_bb"], ks=v["kV_bb"], ft=v["ft_bb"], GfI=v["GfI_bb"],
-                                          where="unit mid-planes (kN_bb, kV_bb, ft_bb, GfI_bb)"),
-        }
+        rows = {k: composite_properties(**family_properties(k, values), where=_where(k)) for k in FAMILIES}
     except ValueError as e:
         raise SpecError(str(e)) from e
     kinds = mesh.interface_kind[elements]
@@ -163,6 +180,34 @@ class NonlinearScenario(Scenario):
     load_response = "path"  # interpolate along the control displacement, never past the last level
     force_unit = "kN"
     control_sign = 1.0
+
+    @classmethod
+    def parameter_constraints(cls, options):
+        """The inequalities of the interface laws, read in parameter names: the composite law's
+        (:data:`fe.interfaces.composite.INEQUALITIES`) for every family of :data:`FAMILIES`, and
+        with ``law = "hyperbolic"`` the hyperbolic law's (:data:`fe.interfaces.hyperbolic.INEQUALITIES`,
+        the cap's only with a cap) for the joints. An inequality applies to a family that maps all
+        its properties to parameters (the unit mid-planes have no friction surface: their ``c`` is
+        infinite, which drops the inequalities carrying it). One :class:`ParameterConstraint` per
+        distinct statement: bed and head joints share their strengths."""
+        laws = [(k, COMPOSITE_INEQUALITIES, ()) for k in FAMILIES]
+        if options.law == "hyperbolic":
+            exclude = tuple(_CAP) if options.hyperbolic_cap == "none" else ()
+            laws += [(k, HYPERBOLIC_INEQUALITIES, exclude) for k in ("bed", "head")]
+        found = {}  # (key, parameters of each property) -> (inequality, [families], names)
+        for family, inequalities, exclude in laws:
+            words, names = FAMILIES[family]
+            for inequality in inequalities:
+                if not all(p in names and p not in exclude for p in inequality.properties):
+                    continue
+                mapped = {p: n for p, n in names.items() if p not in exclude}
+                key = (inequality.key, inequality.formula({p: "·".join(mapped[p]) for p in inequality.properties}))
+                entry = found.setdefault(key, (inequality, [], mapped))
+                if words not in entry[1]:
+                    entry[1].append(words)
+        return tuple(ParameterConstraint(inequality, " and ".join(families).replace(" joints and ", " and "),
+                                         mapped)
+                     for inequality, families, mapped in found.values())
 
     def theta(self, values):
         return np.array(plane_stress_coefficients(values["E_b"], values["nu_b"]))
@@ -203,19 +248,15 @@ class NonlinearScenario(Scenario):
     def _hyperbolic_law(self, values, composite_props):
         """Joints with the hyperbolic law (and its cap when asked for), unit mid-planes with the
         composite tension cut-off."""
-        v = values
         kinds = np.repeat(self.mesh.interface_kind[self.model.interface_elements], self.model.n_points_per_element)
         joints = np.flatnonzero(kinds != INTERFACE_KINDS.index("brick"))
         cracks = np.flatnonzero(kinds == INTERFACE_KINDS.index("brick"))
-        strengths = dict(ft=v["ft_bj"], GfI=v["GfI_bj"], c=v["c_bj"], tanphi0=v["tanphi_bj"],
-                         tanphir=v["tanphir_bj"], GfII=v["GfII_bj"], tanpsi=v["tanpsi_bj"])
-        if self.options.hyperbolic_cap != "none":
-            strengths.update(fc=v["fc"], Cs=v["Cs"], Gfc=v["Gfc"], kappa_p=v["kappa_p"],
-                             cap_shape=self.options.hyperbolic_cap)
+        cap = self.options.hyperbolic_cap
+        exclude = tuple(_CAP) if cap == "none" else ()
+        shape = {} if cap == "none" else {"cap_shape": cap}
         try:
-            bed = hyperbolic_properties(kn=v["kN_bj"], ks=v["kV_bj"], where="bed joints (hyperbolic)", **strengths)
-            head = hyperbolic_properties(kn=v["r_hj"] * v["kN_bj"], ks=v["r_hj"] * v["kV_bj"],
-                                         where="head joints (hyperbolic)", **strengths)
+            bed, head = (hyperbolic_properties(**family_properties(k, values, exclude), **shape,
+                                               where=f"{_where(k)}, hyperbolic law") for k in ("bed", "head"))
         except ValueError as e:
             raise SpecError(str(e)) from e
         rows = np.where((kinds[joints] == INTERFACE_KINDS.index("bed"))[:, None], bed, head)

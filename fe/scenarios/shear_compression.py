@@ -99,6 +99,7 @@ class ShearCompression(Scenario):
     """Pre-compressed wall under a horizontal top load with the top kept horizontal."""
 
     name = "shear_compression"
+    summary = "Shear–compression test of a wall in the style of the TU Eindhoven shear walls, linear elastic."
     Options = ShearCompressionOptions
     PARAMETERS = tuple(
         dataclasses.replace(p, default=_DEFAULTS.get(p.name, p.default)) for p in MASONRY_PARAMETERS

@@ -78,6 +78,8 @@ class CoupletTension(NonlinearScenario):
     Sensors: ``joint_opening`` (44 mm vertical gauge across the joint) and ``top_uy``."""
 
     name = "couplet_tension"
+    summary = ("Couplet in direct tension: one bed joint between two units pulled apart up to "
+               "failure; Eindhoven Set A defaults.")
     Options = CoupletOptions
     PARAMETERS = nonlinear_parameters(SET_A_STIFFNESS)
 
@@ -134,6 +136,8 @@ class TripletShear(NonlinearScenario):
     upper joint: dilatancy/compaction)."""
 
     name = "triplet_shear"
+    summary = ("Triplet shear test (EN 1052-3): two bed joints sheared under constant "
+               "pre-compression up to failure; Eindhoven Set A defaults.")
     Options = TripletOptions
     PARAMETERS = nonlinear_parameters(SET_A_STIFFNESS)
 
@@ -182,6 +186,8 @@ class PrismCompression(NonlinearScenario):
     negative: a gauge lengthens positive) and ``top_uy``."""
 
     name = "prism_compression"
+    summary = ("Stack-bonded prism of five units compressed between rigid plates up to "
+               "crushing; Eindhoven Set A defaults.")
     Options = PrismOptions
     PARAMETERS = nonlinear_parameters(SET_A_STIFFNESS)
     control_sign = -1.0

@@ -70,6 +70,8 @@ class ShearCompressionNonlinear(NonlinearScenario):
     """TU Eindhoven shear wall up to failure; see the module docstring."""
 
     name = "shear_compression_nl"
+    summary = ("TU Eindhoven shear wall (J4D–J7D): pre-compression, then a horizontal top "
+               "displacement up to failure.")
     Options = ShearWallOptions
     PARAMETERS = nonlinear_parameters(SET_A_STIFFNESS)
 
@@ -128,6 +130,8 @@ class DiagonalCompressionNonlinear(NonlinearScenario):
     (mm). Sensors as the linear scenario."""
 
     name = "diagonal_compression_nl"
+    summary = ("Diagonal compression test of the running-bond panel up to failure, under "
+               "indirect displacement control.")
     Options = DiagonalOptions
     PARAMETERS = nonlinear_parameters()
 

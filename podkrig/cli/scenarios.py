@@ -30,6 +30,16 @@ def _print_one(console, d):
         t.add_row(p.name, f"{p.default:g}", p.unit, escape(typical_range(p.name, p.unit)), escape(p.admissible_range()),
                   escape(p.description))
     console.print(t)
+    if d.constraints:
+        t = Table(title="constraints between parameters (checked over the whole sampling box before any FE run)",
+                  title_justify="left")
+        for col in ("constraint", "unit", "interfaces", "why"):
+            t.add_column(col)
+        for c in d.constraints:
+            t.add_row(escape(c["formula"]), escape(c["unit"]), escape(c["where"]), escape(c["reason"]))
+        console.print(t)
+    else:
+        console.print("constraints between parameters: none (each parameter only within its admissible range)")
     t = Table(title=escape("options (keys of the [scenario] table or a spec file; lengths mm)"), title_justify="left")
     t.add_column("option")
     t.add_column("default", justify="right")
@@ -61,7 +71,8 @@ def register(app):
         json_output: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
     ):
         """List the virtual tests, or describe one: parameters with units, defaults and admissible
-        ranges, options, default sensors and load levels, and the sensor kinds with their TOML forms."""
+        ranges, the constraints between parameters, options, default sensors and load levels, and
+        the sensor kinds with their TOML forms."""
         with user_errors():
             names = [name] if name else sorted(SCENARIOS)
             descriptions = [describe_scenario(n) for n in names]

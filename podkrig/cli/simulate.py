@@ -91,9 +91,9 @@ def register(app):
                 raise ValueError(f"--set {name}: {name!r} is an option of {scenario}, not a parameter; use "
                                  f"--option {name}={params[name]:g}")
             nonlinear = hasattr(sc, "force_unit")
+            values = sc.resolve(params)  # each value and the constraints between them, before the FE run
             response = sc.run(params, field=field is not None or report is not None)
             seconds = time.perf_counter() - t0
-            values = sc.resolve(params)
             if field is not None:
                 write_field(field, sc, response)
             if report is not None:

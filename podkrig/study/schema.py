@@ -74,7 +74,7 @@ from pathlib import Path
 
 from pydantic import TypeAdapter, ValidationError
 
-from fe.exceptions import FEError, SpecError
+from fe.exceptions import ConstraintError, FEError, SpecError
 from fe.scenarios import SCENARIOS, ScenarioSpec
 from podkrig.exceptions import PodkrigError
 from podkrig.parameters import Parameter, ParameterSpace
@@ -299,6 +299,7 @@ def load_study(path):
     both = sorted(set(space.names) & set(f.fixed))
     if both:
         r.fail(("fixed", both[0]), "is also a free parameter in [parameters]; choose one")
+    _constraints(r, spec, space, {**{n: ("fixed", n) for n in f.fixed}, **{n: ("parameters", n) for n in space.names}})
     return Study(spec=spec, space=space, measurement=f.measurement,
                  validation=_validation(r, f.validation, path.parent, f.fixed, space), **common)
 
@@ -340,8 +341,12 @@ def _tests(r, data, f, folder):
         if not mine:
             r.fail((*where, "scenario"), f"scenario {spec.scenario} has none of the free parameters "
                    f"{list(shared.names)}: it cannot inform the calibration")
+        space = ParameterSpace(tuple(mine))
+        keys = {n: ("parameters", n) if n in shared.names else (*where, "parameters", n) for n in space.names}
+        keys.update({n: (*where, "fixed", n) if n in t.fixed else ("fixed", n) for n in spec.parameters})
+        _constraints(r, spec, space, keys, where, f"test {t.name!r}: ")
         d = t.sampling
-        tests.append(CalibrationTest(t.name, spec, ParameterSpace(tuple(mine)),
+        tests.append(CalibrationTest(t.name, spec, space,
                                      {**{n: v for n, v in f.fixed.items() if n in info}, **t.fixed},
                                      d.train or f.sampling.train, d.held_out or f.sampling.held_out, t.measurement))
     return shared, tuple(tests)
@@ -422,6 +427,19 @@ def _parameters(r, raw, bounds, spec, known=None, *, allow_empty=False, path=("p
     return ParameterSpace(tuple(params))
 
 
+def _constraints(r, spec, space, keys, default=("parameters",), label=""):
+    """The scenario's constraints between parameters over the sampling box of ``space`` and the
+    spec's fixed values (:meth:`fe.Scenario.check_spec_box`), before any FE run; a failure is
+    reported, after ``label``, at the key (``keys``: parameter → key path; else ``default``) of the
+    first parameter of the violated constraint that is sampled, else fixed."""
+    try:
+        SCENARIOS[spec.scenario].check_spec_box(spec, {p.name: (p.lower, p.upper, p.scale) for p in space.parameters})
+    except ConstraintError as e:
+        involved = e.violations[0].constraint.parameters
+        named = [n for n in involved if n in space.names] + [n for n in involved if n in keys]
+        r.fail(keys.get(named[0], default) if named else default, f"{label}{e}")
+
+
 def _admissible(info, value):
     """Whether ``value`` lies in the physical range of the parameter ``info`` (fe.ParameterInfo)."""
     try:
@@ -446,6 +464,7 @@ def _validation(r, entries, folder, fixed, space):
             r.fail((*path, "scenario"), f"scenario {spec.scenario} has no parameter(s) {missing} to propagate")
         # the validation model is made of the calibrated material: the fixed values hold there too
         spec = ScenarioSpec(spec.scenario, spec.options, {**spec.parameters, **{k: v for k, v in fixed.items() if k in known}})
+        _constraints(r, spec, space, {}, (*path, "scenario"), f"validation model {item.name!r}: ")
         design = TrainingDesign(n=item.n, seed=item.seed, method=item.method)
         models.append(ValidationModel(item.name, spec, design, item.outputs))
     return tuple(models)
