@@ -103,5 +103,7 @@ class WallOpeningNonlinear(ShearCompressionNonlinear):
     """TU Eindhoven wall with a central opening (J2G/J3G) up to failure; see the module docstring."""
 
     name = "wall_opening_nl"
+    summary = ("TU Eindhoven shear wall with a central opening (J2G/J3G, parameter Set B): "
+               "pre-compression, then a horizontal top displacement up to failure.")
     Options = WallOpeningOptions
     PARAMETERS = nonlinear_parameters(SET_B)
