@@ -65,14 +65,6 @@ def test_the_mesh_leaves_the_opening_empty_and_keeps_the_bond(nx, ny, element):
     assert not horizontal_in_span.any()
 
 
-def test_a_wall_without_openings_is_the_wall_it_was():
-    """``openings = ()`` leaves the mesh of the solid wall bit for bit."""
-    a = brick_wall(BrickWallLayout(unit_length=220.0, unit_height=62.0, n_courses=16, base_joints=True))
-    b = brick_wall(BrickWallLayout(**dict(WALL, openings=())))
-    assert np.array_equal(a.nodes, b.nodes) and np.array_equal(a.quads, b.quads)
-    assert np.array_equal(a.interfaces, b.interfaces)
-
-
 def test_openings_off_the_bond_grid_or_outside_the_wall_are_refused():
     with pytest.raises(MeshError, match="half-unit grid.*110"):
         BrickWallLayout(**dict(WALL, openings=((300.0, 660.0, 372.0, 620.0),)))
