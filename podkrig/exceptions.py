@@ -17,7 +17,11 @@ class SchemaError(StoreError):
     """A store written with an unknown or incompatible schema version."""
 
 
-class StoreInUseError(StoreError):
+class InUseError(PodkrigError):
+    """A file or folder held by another podkrig job (its lock file names the process)."""
+
+
+class StoreInUseError(StoreError, InUseError):
     """A store held by another writer (its lock file names the process)."""
 
 

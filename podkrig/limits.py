@@ -5,9 +5,12 @@ Every limit is a module constant with the reason for its value; every ``check_*`
 what is allowed — with a memory or disk estimate where size is the reason.
 """
 
+import errno
 import math
 import numbers
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +62,18 @@ NAME_PATTERN = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]{0,99}", re.ASCII)
 #: A displacement reading beyond 1 km (10^6 mm) is a unit error, and squares of larger numbers
 #: overflow the misfit (1e300² = inf, χ²/dof = 0).
 MAX_ABS_READING_MM = 1e6
+#: Size caps of the files podkrig reads (:func:`read_bounded`): a study file is a few KiB written by
+#: hand; a measurement log of a day at 10 Hz with 20 channels is ~100 MiB; a stage manifest or
+#: ``summary.json`` holds results, never arrays (a few MiB at most); an array file (``region.npz``)
+#: holds at most :data:`REGION_SAMPLES_MAX` samples of a few dozen parameters. Scenario spec files
+#: are read by the FE package with the same cap as study files (``fe.scenarios.spec.MAX_SPEC_BYTES``).
+MAX_STUDY_FILE_BYTES = 2**20
+MAX_LOG_BYTES = 256 * 2**20
+MAX_JSON_BYTES = 64 * 2**20
+MAX_ARRAY_FILE_BYTES = 8 * 2**30
+#: Characters of a file's content an error message may quote (:func:`quote`, :func:`quote_cells`):
+#: enough to identify a cell, a header or a unit, never a whole line of a file that was not meant.
+QUOTE_CHARS = 80
 
 
 def human_duration(seconds):
@@ -78,6 +93,111 @@ def human_bytes(nbytes):
         if abs(nbytes) < 1024 or unit == "PiB":
             return f"{nbytes:.0f} {unit}" if unit == "B" else f"{nbytes:.1f} {unit}"
         nbytes /= 1024
+
+
+def quote(text, limit=QUOTE_CHARS):
+    r"""A piece of a file's content for a message (a string, else any value's ``repr``): its first
+    line as Python writes a string (so a
+    NUL byte or a non-breaking space shows as ``\x00``, ``\xa0``), at most ``limit`` characters in
+    all — cut with ``…`` after the closing quote.
+
+    >>> quote("load [kN]")
+    "'load [kN]'"
+    >>> quote("l\x00o\x00a\x00d")
+    "'l\\x00o\\x00a\\x00d'"
+    >>> quote("x" * 100, limit=10)
+    "'xxxxxxx'…"
+    >>> quote(list(range(100)), limit=12)
+    '[0, 1, 2, 3…'
+    """
+    if not isinstance(text, str):  # a value of a file (a number, an array): its repr, cut
+        shown = repr(text)
+        return shown if len(shown) <= limit and "\n" not in shown else shown.splitlines()[0][:limit - 1] + "…"
+    lines = text.splitlines()
+    line = lines[0] if lines else ""
+    shown = repr(line)
+    if len(shown) <= limit and len(lines) <= 1:
+        return shown
+    for k in range(min(len(line), limit), -1, -1):
+        shown = repr(line[:k]) + "…"
+        if len(shown) <= limit:
+            return shown
+    return "…"
+
+
+def quote_cells(cells, limit=QUOTE_CHARS):
+    """Cells of a row (a header) for a message, each as :func:`quote` gives it, as many as fit in
+    ``limit`` characters: ``['load', 'D1', …]``.
+
+    >>> quote_cells(["load", "D1", "D2"])
+    "['load', 'D1', 'D2']"
+    >>> quote_cells(f"column {k}" for k in range(20))
+    "['column 0', 'column 1', 'column 2', 'column 3', 'column 4', 'column 5', …]"
+    """
+    shown, used = [], 2
+    for cell in cells:
+        q = quote(cell, limit=24)
+        if used + len(q) + 3 > limit:
+            shown.append("…")
+            break
+        shown.append(q)
+        used += len(q) + 2
+    return "[" + ", ".join(shown) + "]"
+
+
+def read_bounded(path, cap, what, remedy=None):
+    """The bytes of the file at ``path``, refusing more than ``cap`` of them.
+
+    A regular file larger than the cap is refused from its size; otherwise at most ``cap + 1``
+    bytes are read, so a device (``/dev/zero``) or a file that grows is refused after reading just
+    past the cap, not at "out of memory". A FIFO, socket or folder is refused before reading (it is
+    opened without waiting for a writer).
+
+    Parameters
+    ----------
+    path : str or Path
+    cap : int
+        Largest size accepted, bytes (e.g. :data:`MAX_STUDY_FILE_BYTES`).
+    what : str
+        The file's role in the message (``"study file"``).
+    remedy : str, optional
+        What to do, appended to a refusal.
+
+    Raises
+    ------
+    ValueError
+        Naming the file, its size (or "more than CAP bytes") and the cap.
+    OSError
+        The file cannot be opened or read, or is a folder.
+    """
+    path = Path(path)
+    tail = f"; {remedy}" if remedy else ""
+    cap_text = f"{cap // 2**20} MiB" if cap % 2**20 == 0 else human_bytes(cap)
+    too_large = f"{path}: larger than {cap_text} ({cap} bytes), the cap for a {what}: "
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO without a writer would block a plain open
+    try:
+        st = os.fstat(fd)
+        if stat.S_ISDIR(st.st_mode):  # as open() would say
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
+        if not (stat.S_ISREG(st.st_mode) or stat.S_ISCHR(st.st_mode)):
+            kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "special"
+            raise ValueError(f"{path}: not a regular file ({kind}); a {what} is read from a file of at most "
+                             f"{cap_text} ({cap} bytes)")
+        if stat.S_ISREG(st.st_mode) and st.st_size > cap:
+            raise ValueError(f"{too_large}it is {human_bytes(st.st_size)}{tail}")
+        os.set_blocking(fd, True)
+        chunks, n = [], 0
+        while n <= cap:
+            block = os.read(fd, min(cap + 1 - n, 1 << 20))
+            if not block:
+                break
+            chunks.append(block)
+            n += len(block)
+    finally:
+        os.close(fd)
+    if n > cap:
+        raise ValueError(f"{too_large}more than {cap} bytes read{tail}")
+    return b"".join(chunks)
 
 
 def _int(value, what):

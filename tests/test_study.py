@@ -103,6 +103,7 @@ def tiny(tmp_path_factory):
 def test_run_writes_every_stage_and_a_summary(tiny):
     _, out, text = tiny
     assert "identified parameters" in text and "report:" in text and "FE runs" in text
+    assert not (out / ".podkrig.lock").exists()  # the output folder's lock is released at the end
     stages = _stages(out)
     assert set(stages) == {"measurement", "probe", "offline", "held_out", "validation_model.shear", "surrogate",
                            "held_out_validation", "sensitivity", "calibration", "diagnosis"}

@@ -1,5 +1,6 @@
 """``podkrig invert`` and ``podkrig rvc``: identify parameters from measured data, with uncertainty."""
 
+import io
 import json
 from pathlib import Path
 
@@ -25,7 +26,7 @@ from podkrig.cli.simulate import parse_assignment
 from podkrig.config import field_info
 from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.io.surrogate_file import load_surrogate
-from podkrig.limits import check_region_samples
+from podkrig.limits import MAX_JSON_BYTES, check_region_samples, read_bounded
 from podkrig.online.calibrate import calibrate
 from podkrig.online.findings import chi2_basis
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel
@@ -55,7 +56,8 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
                          + "|".join(INSTRUMENTS))
     if noise_cov is not None:
         try:
-            C = np.loadtxt(noise_cov, delimiter=",", ndmin=2)
+            text = read_bounded(noise_cov, MAX_JSON_BYTES, "noise covariance file").decode("utf-8")
+            C = np.loadtxt(io.StringIO(text), delimiter=",", ndmin=2)
         except (OSError, ValueError) as e:
             raise ValueError(f"--noise-cov {noise_cov}: cannot read a comma-separated matrix (mm²): {e}") from None
         return NoiseModel(covariance=C), f"covariance from {noise_cov}"

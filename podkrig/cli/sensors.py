@@ -11,6 +11,7 @@ from podkrig.cli._common import (
 )
 from podkrig.cli.simulate import load_spec, parse_assignment
 from podkrig.config import field_info
+from podkrig.limits import MAX_STUDY_FILE_BYTES, read_bounded
 from podkrig.sensors.criteria import SensorNoise
 from podkrig.sensors.settings import CandidateSettings, ComparisonSettings, PlacementSettings, SearchSettings
 
@@ -25,9 +26,11 @@ _NOISE = SensorNoise()
 def _read_candidates(path):
     """``{name: definition}`` from a TOML/JSON file with a ``[sensors]`` table (or the table itself)."""
     try:
-        text = Path(path).read_text()
+        text = read_bounded(path, MAX_STUDY_FILE_BYTES, "candidate-sensor file").decode("utf-8")
     except OSError as e:
         raise ValueError(f"--candidates {path}: cannot read: {e.strerror}") from None
+    except ValueError as e:
+        raise ValueError(f"--candidates {e}") from None
     try:
         d = json.loads(text) if str(path).endswith(".json") else tomllib.loads(text)
     except (ValueError, tomllib.TOMLDecodeError) as e:

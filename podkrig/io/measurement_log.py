@@ -42,11 +42,12 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.limits import MAX_ABS_READING_MM
+from podkrig.limits import MAX_ABS_READING_MM, MAX_LOG_BYTES, quote, quote_cells, read_bounded
 from podkrig.online.measurement import LOAD_RESPONSES, Measurement, level_weights
 
-#: Largest log read, bytes: 100 000 rows of a dozen channels is ~10 MiB; 256 MiB bounds memory.
-MAX_FILE_BYTES = 256 * 2**20
+#: Largest log read, bytes (:data:`podkrig.limits.MAX_LOG_BYTES`): 100 000 rows of a dozen
+#: channels is ~10 MiB; 256 MiB bounds memory.
+MAX_FILE_BYTES = MAX_LOG_BYTES
 #: Longest cell, characters (a number needs < 30).
 MAX_CELL_CHARS = 4096
 #: Rows of an Excel sheet read at most (a 1 Hz log of 12 days).
@@ -218,21 +219,19 @@ def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN", load_r
 def _read_text(path, notes):
     """The text of a CSV log, bounded in size; UTF-8 (with or without BOM), UTF-16 with a BOM, or
     Windows-1252 (which lab software writes, µ as byte 0xB5) — the notes say which."""
-    try:
-        with path.open("rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)  # bounded: /dev/zero or a huge log stops here
+    try:  # bounded: /dev/zero or a huge log stops here
+        raw = read_bounded(path, MAX_FILE_BYTES, "measurement file",
+                           "thin the log (e.g. one row per second) or pass the load steps only")
     except OSError as e:
         raise ValueError(f"cannot read measurement file {path}: {e.strerror or e}") from e
-    if len(raw) > MAX_FILE_BYTES:
-        raise ValueError(f"{path}: larger than {MAX_FILE_BYTES // 2**20} MiB; thin the log (e.g. one row per "
-                         "second) or pass the load steps only")
-    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
-        try:
-            return raw.decode("utf-16")
-        except UnicodeDecodeError as e:
-            raise ValueError(f"{path}: damaged UTF-16 text at byte {e.start}; save it as UTF-8") from None
     try:
-        return raw.decode("utf-8-sig")
+        if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+            try:
+                text = raw.decode("utf-16")
+            except UnicodeDecodeError as e:
+                raise ValueError(f"{path}: damaged UTF-16 text at byte {e.start}; save it as UTF-8") from None
+        else:
+            text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
         line = raw[:e.start].count(b"\n") + 1
         try:
@@ -244,6 +243,17 @@ def _read_text(path, notes):
             raise ValueError(f"{path}: not a text file (NUL bytes; line {line}); save it as UTF-8 CSV") from None
         notes.append(f"read as Windows-1252 text (not UTF-8 at line {line})")
         return text
+    if "\x00" in text:  # UTF-16 without its byte-order mark (or encoded twice), or a binary file
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise ValueError(f"{path}: not a text file (NUL characters from line {line}; UTF-16 without a byte-order "
+                         "mark, or saved twice?); save it as UTF-8 CSV")
+    return text
+
+
+def _column_name(cell):
+    """A header cell naming a column in a message: unquoted, at most 40 characters (:func:`quote`)."""
+    shown = quote(cell, 42)
+    return shown[1:-1] if shown[-1] in "'\"" else shown[1:-2] + "…"
 
 
 def _detect_delimiter(text, load_column="load"):
@@ -285,8 +295,8 @@ def _xlsx_rows(path, sheet):
         raise ValueError(f"{path}: reading Excel files needs openpyxl: pip install 'openpyxl>=3.1' "
                          "(or save the sheet as CSV)") from None
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise ValueError(f"{path}: larger than {MAX_FILE_BYTES // 2**20} MiB")
+        if not path.is_file() or path.stat().st_size > MAX_FILE_BYTES:  # a workbook is a zip: its size is on disk
+            read_bounded(path, MAX_FILE_BYTES, "measurement file", "thin the log or save one sheet as CSV")
         book = openpyxl.load_workbook(path, read_only=True, data_only=True)
     except ValueError:
         raise
@@ -294,7 +304,7 @@ def _xlsx_rows(path, sheet):
         raise ValueError(f"{path}: not a readable Excel .xlsx workbook ({type(e).__name__}: {str(e)[:200]})") from None
     try:
         if sheet is not None and sheet not in book.sheetnames:
-            raise ValueError(f"{path}: no worksheet {sheet!r}; the workbook has {book.sheetnames}")
+            raise ValueError(f"{path}: no worksheet {sheet!r}; the workbook has {quote_cells(book.sheetnames)}")
         ws = book[sheet] if sheet is not None else book.worksheets[0]
         rows = []
         for i, row in enumerate(ws.iter_rows(values_only=True), start=1):
@@ -335,14 +345,14 @@ def unit_factor(unit, target, where, what="reading"):
     try:
         q = ureg.Quantity(1.0, unit.replace("μ", "µ"))
     except Exception:  # noqa: BLE001 - pint raises several types for unparsable text
-        raise ValueError(f"{where}: unknown unit {unit!r} (use e.g. mm, µm, um, m for readings; kN, N for loads)") from None
+        raise ValueError(f"{where}: unknown unit {quote(unit)} (use e.g. mm, µm, um, m for readings; kN, N for loads)") from None
     try:
         factor = float(q.to(target).magnitude)
     except Exception:  # noqa: BLE001 - DimensionalityError and friends
         want = "a length (readings are displacements)" if what == "reading" else f"convertible to {target}"
-        raise ValueError(f"{where}: unit {unit!r} is not {want}") from None
+        raise ValueError(f"{where}: unit {quote(unit)} is not {want}") from None
     if not (math.isfinite(factor) and factor > 0):
-        raise ValueError(f"{where}: unit {unit!r} has no usable conversion to {target}")
+        raise ValueError(f"{where}: unit {quote(unit)} has no usable conversion to {target}")
     return factor
 
 
@@ -373,7 +383,7 @@ class _Table:
         if row is not None:
             out += f", row {row}"
         if col is not None:
-            out += f", column {col}" + (f" ({name})" if name else "")
+            out += f", column {col}" + (f" ({_column_name(name)})" if name else "")
         return out
 
     def parse_header(self):
@@ -389,7 +399,7 @@ class _Table:
             if first is None:
                 raise ValueError(f"{self.path}: empty file; expected a header such as 'load [kN],D1 [mm],...'")
             raise ValueError(f"{self._where(1 + self.rows.index(first))}: no load column {s.load_column!r} in the "
-                             f"header {[c.strip() for c in first][:12]} (set the load column's name with load_column)")
+                             f"header {quote_cells(c.strip() for c in first)} (set the load column's name with load_column)")
         if header_at:
             self.notes.append(f"skipped {header_at} line(s) before the header")
         header = [c.strip() for c in self.rows[header_at]]
@@ -410,7 +420,7 @@ class _Table:
         load_cols = [j for j, n in enumerate(names) if n.casefold() == want]
         if len(load_cols) > 1:
             raise ValueError(f"{self._where(self.header_row, load_cols[1] + 1)}: a second load column "
-                             f"{header[load_cols[1]]!r}")
+                             f"{quote(header[load_cols[1]])}")
         self.load_col = load_cols[0]
         self.phase_col = self._find_phase_column(names, header)
         exact = {n: n for n in self.sensor_names}
@@ -431,7 +441,7 @@ class _Table:
             self.sensors.append(sensor)
         if not self.sensors:
             raise ValueError(f"{self._where(self.header_row)}: no column names a sensor of the model "
-                             f"{self.sensor_names}; the header has {[h for h in header if h][:12]}")
+                             f"{self.sensor_names}; the header has {quote_cells(h for h in header if h)}")
         not_used = [n for n in self.sensor_names if n not in self.sensors]
         self.ignored = ignored
         if ignored:
@@ -448,7 +458,7 @@ class _Table:
         if self.load_unit == "step":
             if lu not in (None, "step", "-"):
                 raise ValueError(f"{where}: this scenario's loads are step numbers 1, 2, …; the load column "
-                                 f"has the unit {lu!r}")
+                                 f"has the unit {quote(lu)}")
             self.load_factor = 1.0
         else:
             self.load_factor = 1.0 if lu is None else unit_factor(lu, self.load_unit, where, "load")
@@ -483,10 +493,10 @@ class _Table:
         cols = [j for j, n in enumerate(names) if n.casefold() == want]
         if not cols:
             raise ValueError(f"{self._where(self.header_row)}: zero = {s.zero!r} needs a phase column "
-                             f"{s.phase_column!r}; the header has {[h for h in header if h][:12]} (name the "
+                             f"{s.phase_column!r}; the header has {quote_cells(h for h in header if h)} (name the "
                              "column holding each row's phase with phase_column)")
         if len(cols) > 1:
-            raise ValueError(f"{self._where(self.header_row, cols[1] + 1)}: a second phase column {header[cols[1]]!r}")
+            raise ValueError(f"{self._where(self.header_row, cols[1] + 1)}: a second phase column {quote(header[cols[1]])}")
         if cols[0] == self.load_col or want in {n.casefold() for n in self.sensor_names}:
             what = "the load column" if cols[0] == self.load_col else "a sensor of the model"
             raise ValueError(f"{self._where(self.header_row, cols[0] + 1)}: phase_column {s.phase_column!r} is {what}; "
@@ -570,15 +580,14 @@ class _Table:
                 if c and c.casefold() not in MISSING and _NUMBER_RE.fullmatch(c) is None:
                     where = self._where(int(row_numbers[i]), j + 1, name)
                     if c.lower().lstrip("+-") in ("inf", "infinity"):
-                        raise ValueError(f"{where}: {cell.strip()!r} is not a finite number")
-                    shown = repr(cell.strip()) if len(cell.strip()) <= 40 else repr(cell.strip()[:40]) + "…"
-                    raise ValueError(f"{where}: {shown} is not a number (write plain decimals such as 0.125 or "
+                        raise ValueError(f"{where}: {quote(cell.strip())} is not a finite number")
+                    raise ValueError(f"{where}: {quote(cell.strip(), 43)} is not a number (write plain decimals such as 0.125 or "
                                      "-1.5e-3; an empty cell is a missing reading)")
             raise ValueError(f"{self._where(None, j + 1, name)}: unreadable cells")  # pragma: no cover
         inf = np.isinf(out)
         if np.any(inf):
             i = int(np.argmax(inf))
-            raise ValueError(f"{self._where(int(row_numbers[i]), j + 1, name)}: {cells[i].strip()!r} is out of range")
+            raise ValueError(f"{self._where(int(row_numbers[i]), j + 1, name)}: {quote(cells[i].strip())} is out of range")
         return out
 
     # ----------------------------------------------------------------------------------- processing
@@ -635,17 +644,17 @@ class _Table:
             if not found:
                 raise ValueError(f"{where}: zero = {s.zero!r}, but the phase column is empty")
             close = difflib.get_close_matches(phase, found, n=1, cutoff=0.6)
-            hint = f" (a typo of {close[0]!r}?)" if close else ""
+            hint = f" (a typo of {quote(close[0])}?)" if close else ""
             raise ValueError(f"{where}: no row of phase {phase!r} (zero = {s.zero!r}){hint}; the phases in this "
-                             f"column are {', '.join(repr(f) for f in found[:20])}")
+                             f"column are {quote_cells(found)}")
         i = int(hit[-1])
         ref, row = values[i], int(rows[i])
         missing = [self.sensors[k] for k in np.flatnonzero(np.isnan(ref))]
         if missing:
-            raise ValueError(f"{self._where(row)}: the zero reference (end of phase {self.phases[i]!r}) has no reading "
+            raise ValueError(f"{self._where(row)}: the zero reference (end of phase {quote(self.phases[i])}) has no reading "
                              f"of {', '.join(missing)}")
         if i + 1 == len(loads):
-            raise ValueError(f"{self._where(row, self.phase_col + 1, name)}: the phase {self.phases[i]!r} ends at the "
+            raise ValueError(f"{self._where(row, self.phase_col + 1, name)}: the phase {quote(self.phases[i])} ends at the "
                              "last row; no readings after the zero reference")
         reference = float(loads[i])
         self.notes.append(f"gauges zeroed at the end of phase {self.phases[i]!r} (row {row}, {reference:g} "

@@ -1,4 +1,4 @@
-"""File safety of the offline stores: one writer per file (an advisory lock), atomic publication
+"""File safety of the offline stores: one writer per file (the lock of :mod:`podkrig.locks`), atomic publication
 of a new file, moving an unusable file aside instead of deleting it, leftovers of interrupted
 creations, free disk space, and OS errors in words.
 
@@ -8,13 +8,12 @@ functions implement) and by the runner and the study pipeline.
 
 import datetime
 import errno
-import fcntl
 import logging
 import os
-import socket
 from pathlib import Path
 
-from podkrig.exceptions import StoreError, StoreInUseError
+from podkrig.exceptions import StoreError
+from podkrig.locks import acquire_lock, holds_lock, lock_holder, lock_path, release_lock
 
 logger = logging.getLogger(__name__)
 
@@ -23,87 +22,6 @@ DISK_MARGIN = 256 * 1024  # bytes kept free beyond a batch's estimate (HDF5 meta
 
 def tmp_path(path):
     return path.with_name(f".{path.name}.tmp-{os.getpid()}")
-
-
-def holds_lock(path):
-    """Whether this process holds the writer's lock of the store at ``path``."""
-    return str(lock_path(path).resolve()) in _HELD
-
-
-def lock_path(path):
-    """The lock file of the store at ``path``: ``.NAME.lock`` beside it, holding the writer's PID."""
-    path = Path(path)
-    return path.with_name(f".{path.name}.lock")
-
-
-_HELD = {}  # resolved lock path -> [fd, count]: a process takes a store's lock once, then counts
-
-
-def lock_holder(lock):
-    try:
-        return lock.read_text(encoding="utf-8", errors="replace").strip()[:200] or "an unknown process"
-    except OSError:
-        return "an unknown process"
-
-
-def acquire_lock(path):
-    """Take the exclusive writer lock of the store at ``path`` (re-entrant within a process).
-
-    The lock is an advisory ``fcntl.flock`` on ``.NAME.lock``, held until :func:`release_lock`;
-    the operating system drops it when the process dies, so a killed job never leaves a stale lock.
-
-    Raises
-    ------
-    StoreInUseError
-        Another process holds it (the message gives its PID and host).
-    StoreError
-        The lock file cannot be created (read-only folder, ...).
-    """
-    lock = lock_path(path)
-    key = str(lock.resolve())
-    if key in _HELD:
-        _HELD[key][1] += 1
-        return
-    while True:
-        try:
-            lock.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as e:
-            raise StoreError(f"cannot create the lock file {lock}: {e.strerror}; is the folder writable?") from e
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as e:
-            os.close(fd)
-            if e.errno in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
-                raise StoreInUseError(
-                    f"{path} is in use by {lock_holder(lock)} (lock {lock.name}); wait for that job to "
-                    "finish or stop it — nothing was changed"
-                ) from None
-            raise StoreError(f"cannot lock {lock}: {e.strerror}") from e
-        try:  # the holder we waited for may have removed the file: lock the one on disk
-            same = os.path.samestat(os.fstat(fd), os.stat(lock))
-        except FileNotFoundError:
-            same = False
-        if same:
-            break
-        os.close(fd)
-    os.ftruncate(fd, 0)
-    os.write(fd, f"PID {os.getpid()} on {socket.gethostname()}\n".encode())
-    _HELD[key] = [fd, 1]
-
-
-def release_lock(path):
-    """Release one :func:`acquire_lock` of this process; the last one removes the lock file."""
-    lock = lock_path(path)
-    key = str(lock.resolve())
-    held = _HELD.get(key)
-    if held is None:
-        return
-    held[1] -= 1
-    if held[1] == 0:
-        del _HELD[key]
-        lock.unlink(missing_ok=True)  # while still locked: a waiter re-checks the path (see acquire_lock)
-        os.close(held[0])
 
 
 def move_aside(path):
@@ -158,11 +76,20 @@ def free_bytes(folder):
 
 
 def check_disk_space(folder, need, what):
+    """Refuse to start writing ``need`` bytes into ``folder`` unless they fit with :data:`DISK_MARGIN`
+    to spare; the message gives the estimate, the margin, their sum and the free space.
+
+    Raises
+    ------
+    StoreError
+        Not enough free space.
+    """
     free = free_bytes(folder)
     if free is not None and free < need + DISK_MARGIN:
         raise StoreError(
-            f"disk full: {what} needs about {human_bytes(need)} but {folder} has {human_bytes(free)} free; "
-            "free some space and rerun"
+            f"disk full: {what} needs about {human_bytes(need)} plus a safety margin of {human_bytes(DISK_MARGIN)} "
+            f"(HDF5 metadata, other writers), {human_bytes(need + DISK_MARGIN)} in all, but {folder} has "
+            f"{human_bytes(free)} free; free some space and rerun"
         )
 
 

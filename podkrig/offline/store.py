@@ -991,7 +991,8 @@ class SnapshotStore:
         if free is not None and free < need + DISK_MARGIN:
             raise StoreError(self._stopped(
                 f"disk full: {human_bytes(free)} free in {self.path.parent}, the next {k} rows need about "
-                f"{human_bytes(need + DISK_MARGIN)}"))
+                f"{human_bytes(need)} plus a safety margin of {human_bytes(DISK_MARGIN)}, "
+                f"{human_bytes(need + DISK_MARGIN)} in all"))
         try:
             self._write_rows(rows, status, readings, text, wall, cpu, fields)
         except (OSError, RuntimeError) as e:

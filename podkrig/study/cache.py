@@ -10,15 +10,20 @@ again. The stages themselves are in :mod:`podkrig.study.stages`.
 import datetime
 import hashlib
 import json
+import logging
 import os
 import time
 import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from podkrig import __version__
+from podkrig.limits import MAX_ARRAY_FILE_BYTES, MAX_JSON_BYTES, human_bytes, read_bounded
+
+logger = logging.getLogger(__name__)
 
 MANIFEST_VERSION = 1
 
@@ -171,11 +176,47 @@ class StageCache:
 
 
 def read_manifest(path):
-    """A manifest (or any JSON file), or None when it is missing or unreadable."""
+    """A manifest (or any JSON file), or None when it is missing or unreadable; a file over
+    :data:`~podkrig.limits.MAX_JSON_BYTES` is unreadable (logged), never read whole."""
     try:
-        return json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        return json.loads(read_bounded(path, MAX_JSON_BYTES, "stage manifest").decode("utf-8"))
+    except OSError:
         return None
+    except ValueError as e:  # not JSON, not UTF-8, or over the cap: the stage runs again
+        if "the cap" in str(e):
+            logger.warning("%s; the stage runs again", e)
+        return None
+
+
+def read_arrays(path):
+    """The arrays of an ``.npz`` file podkrig wrote (``region.npz``, ``probe.npz``), name → array.
+
+    The file must be a regular file of at most :data:`~podkrig.limits.MAX_ARRAY_FILE_BYTES`, and
+    so must the sum of its members' sizes once decompressed (as the zip directory declares them,
+    which ``zipfile`` holds each member to); nothing is unpickled.
+
+    Raises
+    ------
+    ValueError
+        A file over the cap (naming the file, its size and the cap), or not an ``.npz`` file.
+    """
+    path = Path(path)
+    cap = MAX_ARRAY_FILE_BYTES
+    too_large = f"{path}: larger than {human_bytes(cap)} ({cap} bytes), the cap for an array file: "
+    if not path.is_file():
+        raise ValueError(f"{path}: not a regular file; an array file (.npz) is expected")
+    size = path.stat().st_size
+    if size > cap:
+        raise ValueError(f"{too_large}it is {human_bytes(size)}")
+    try:
+        with zipfile.ZipFile(path) as z:
+            unpacked = sum(info.file_size for info in z.infolist())
+    except zipfile.BadZipFile:
+        raise ValueError(f"{path}: not an .npz array file (damaged or of another kind)") from None
+    if unpacked > cap:
+        raise ValueError(f"{too_large}its arrays unpack to {human_bytes(unpacked)}")
+    with np.load(path, allow_pickle=False) as f:
+        return {name: f[name] for name in f.files}
 
 
 def write_json(path, data):
@@ -188,4 +229,4 @@ def write_json(path, data):
 
 
 __all__ = ["MANIFEST_VERSION", "Progress", "StageCache", "StageRecord", "file_sha256", "input_hash", "jsonable", "now",
-           "read_manifest", "write_json"]
+           "read_arrays", "read_manifest", "write_json"]

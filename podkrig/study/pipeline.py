@@ -16,9 +16,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from podkrig import __version__
+from podkrig.locks import folder_lock
 from podkrig.online.calibrate import CalibrationResult
 from podkrig.online.findings import (
     CHI2_BASIS,
@@ -33,7 +32,7 @@ from podkrig.online.findings import (
 from podkrig.reports.findings import words
 from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
-from podkrig.study.cache import Progress, StageRecord, now, write_json
+from podkrig.study.cache import Progress, StageRecord, now, read_arrays, write_json
 
 
 @dataclass(frozen=True)
@@ -83,9 +82,8 @@ class StudyResult:
     def calibration(self):
         """The calibration (:class:`~podkrig.online.calibrate.CalibrationResult`), read back from its
         manifest and ``region.npz``."""
-        with np.load(self.out / "region.npz") as f:
-            return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"],
-                                               omega=f["omega"])
+        f = read_arrays(self.out / "region.npz")
+        return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"], omega=f["omega"])
 
     def diagnoses(self):
         """Each test's diagnosis result dict (None when the diagnosis is off), by test name."""
@@ -122,13 +120,23 @@ def run_study(study, out, *, progress=None, confirm=None):
 
     Raises
     ------
+    InUseError
+        Another run (process or thread) holds the output folder: the message names its PID and the
+        folder, and nothing in the folder was changed. The lock (``out/.podkrig.lock``) is released
+        when this call returns or raises.
     ValueError, PodkrigError, fe.FEError
         A measurement file that does not match the scenario, a store that cannot be used, too
         few finished FE runs for a surrogate, ...; finished stages stay cached.
     """
     t0 = time.perf_counter()
+    with folder_lock(out):  # one run per folder: a second one is refused here, before it reads or writes
+        return _run_locked(study, out, progress, confirm, t0)
+
+
+def _run_locked(study, out, progress, confirm, t0):
+    """:func:`run_study` with the output folder's lock held."""
     run = stages.StudyRun(study, out, progress or Progress())
-    if confirm is not None:  # before anything is written
+    if confirm is not None:  # before anything but the lock is written
         confirm(*stages.fe_work(run))
     run.out.mkdir(parents=True, exist_ok=True)
     run.figures.mkdir(parents=True, exist_ok=True)

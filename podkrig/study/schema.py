@@ -68,6 +68,7 @@ Example
 import dataclasses
 import difflib
 import math
+import os
 import tomllib
 import typing
 from pathlib import Path
@@ -77,13 +78,16 @@ from pydantic import TypeAdapter, ValidationError
 from fe.exceptions import ConstraintError, FEError, SpecError
 from fe.scenarios import SCENARIOS, ScenarioSpec
 from podkrig.exceptions import PodkrigError
+from podkrig.limits import MAX_STUDY_FILE_BYTES, quote, read_bounded
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
+    OUTSIDE,
     CalibrationTest,
     Study,
     StudyFile,
     TrainingDesign,
     ValidationModel,
+    path_in_folder,
     type_name,
 )
 from podkrig.study.toml_lines import key_lines, show_key
@@ -191,7 +195,7 @@ class _Reader:
         """Check that ``value`` is a table with only ``allowed`` keys (for tables whose keys
         depend on the scenario; the others are declared in :mod:`podkrig.study.settings`)."""
         if not isinstance(value, dict):
-            self.fail(path, f"must be a table; got {type_name(value)} {value!r}")
+            self.fail(path, f"must be a table; got {type_name(value)} {quote(value)}")
         for key in value:
             if key not in allowed:
                 self.unknown_key(path, key, allowed)
@@ -220,12 +224,12 @@ class _Reader:
             ctx = e["ctx"]
             self.fail((*loc, *ctx["key"]), ctx["message"], ctx["allowed"])
         if kind in _EXPECTED:
-            self.fail(loc, f"must be {_EXPECTED[kind]}; got {type_name(value)} {value!r}", extra.get("allowed"))
+            self.fail(loc, f"must be {_EXPECTED[kind]}; got {type_name(value)} {quote(value)}", extra.get("allowed"))
         if kind in _TABLE_ERRORS:
-            self.fail(loc, f"must be {extra.get('table', 'a table')}; got {type_name(value)} {value!r}")
+            self.fail(loc, f"must be {extra.get('table', 'a table')}; got {type_name(value)} {quote(value)}")
         if kind == "list_type":
             self.fail(loc, f"must be {extra.get('array', 'an array')}; got {type_name(value)}")
-        self.fail(loc, f"{value!r} is out of range", extra.get("allowed"))
+        self.fail(loc, f"{quote(value)} is out of range", extra.get("allowed"))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -269,11 +273,13 @@ def load_study(path):
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = read_bounded(path, MAX_STUDY_FILE_BYTES, "study file", "is this the study file?").decode("utf-8")
     except OSError as e:
         raise StudyError(f"cannot read study file {path}: {e.strerror}") from e
     except UnicodeDecodeError as e:
         raise StudyError(f"{path}: not UTF-8 text at byte {e.start}; save it as UTF-8") from None
+    except ValueError as e:
+        raise StudyError(str(e)) from None
     try:
         data = tomllib.loads(text)
     except (tomllib.TOMLDecodeError, RecursionError) as e:
@@ -363,7 +369,10 @@ def _scenario(r, value, path, folder, fixed, fixed_paths=None):
         if value in SCENARIOS:
             value = {"scenario": value}
         else:
-            source = folder / value
+            source = path_in_folder(folder, value)
+            if source is None:
+                r.fail(path, f"{quote(value)} leads outside the study file's folder "
+                             f"({os.path.normpath(folder.absolute() / value)}); nothing was read", OUTSIDE)
             if not source.is_file():
                 r.fail(path, f"{value!r} is neither a scenario name nor a spec file (looked for {source})", allowed)
             try:
@@ -371,7 +380,7 @@ def _scenario(r, value, path, folder, fixed, fixed_paths=None):
             except FEError as e:
                 r.fail(path, str(e))
     if not isinstance(value, dict):
-        r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {value!r}", allowed)
+        r.fail(path, f"must be a scenario name, a file name or a table; got {type_name(value)} {quote(value)}", allowed)
     name = value.get("scenario")
     if not isinstance(name, str) or name not in SCENARIOS:  # a list is unhashable: check the type first
         r.fail((*path, "scenario"), "missing key 'scenario'" if name is None else f"unknown scenario {name!r}", names)

@@ -17,6 +17,7 @@ FE scenario registry; here only their shape is declared.
 
 import dataclasses
 import math
+import os
 import re
 from pathlib import Path
 from typing import Annotated, Any
@@ -39,6 +40,7 @@ from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
 from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
 from podkrig.offline.settings import training_rows as _training_rows
 from podkrig.io.measurement_log import REPEATS, ImportSettings, zero_phase
+from podkrig.limits import quote
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.online.settings import (
     REGION_METHODS,
@@ -65,8 +67,8 @@ from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAM
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
     "CalibrationTest", "Design", "DiagnosisSettings", "InversionTable", "MeasurementSettings",
-    "SensitivityTable", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "study_error",
-    "type_name",
+    "OUTSIDE", "SensitivityTable", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "path_in_folder",
+    "study_error", "type_name",
 ]
 
 
@@ -85,14 +87,33 @@ _FILE_ALLOWED = ("a CSV (.csv, .txt) or Excel (.xlsx) log, relative to the study
                  "column per sensor, units in the headers (e.g. 'load [kN]', 'D1 [µm]'; mm without one)")
 
 
+#: What a path in a study file may be (:func:`path_in_folder`).
+OUTSIDE = "a path inside the study file's folder, or an absolute path if the file is elsewhere on purpose"
+
+
+def path_in_folder(folder, value):
+    """The path ``value`` of a study file in ``folder`` (normalised, symbolic links kept), or None
+    when a relative ``value`` leads out of the folder (``../../x``); an absolute ``value`` is a
+    file elsewhere on purpose and is returned as it is."""
+    inside = os.path.normpath(Path(folder).absolute())
+    given = os.path.normpath(Path(inside) / value)  # an absolute value stays itself
+    if not Path(value).is_absolute() and os.path.commonpath([inside, given]) != inside:
+        return None
+    return Path(given)
+
+
 def _measurement_file(value, info):
     """The measurement file, resolved against the study file's folder (validation context
     ``{"folder": Path}``; the working folder without one)."""
     if not isinstance(value, str | Path):
-        raise study_error(f"must be a string; got {type_name(value)} {value!r}")
+        raise study_error(f"must be a string; got {type_name(value)} {quote(value)}")
     folder = (info.context or {}).get("folder", Path.cwd())
+    given = path_in_folder(folder, value)
+    if given is None:
+        raise study_error(f"{quote(str(value))} leads outside the study file's folder "
+                          f"({os.path.normpath(Path(folder).absolute() / value)}); nothing was read", allowed=OUTSIDE)
     try:
-        full = (Path(folder) / value).resolve()
+        full = given.resolve()
         exists = full.is_file()
     except (OSError, ValueError) as e:
         raise study_error(f"not a usable path ({e})", allowed=_FILE_ALLOWED) from None

@@ -66,7 +66,7 @@ from podkrig.reports import surrogate as surrogate_figures
 from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
 from podkrig.reports.sensitivity import plot_sensitivity
-from podkrig.study.cache import StageCache, file_sha256
+from podkrig.study.cache import StageCache, file_sha256, read_arrays
 from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 from podkrig.surrogate.settings import fit_surrogate
@@ -332,8 +332,7 @@ def range_check(run, test, source):
         return
     sc = run.scenario(test)
     if source == "probe":
-        with np.load(run.out / test.file("probe.npz")) as f:
-            Y = f["readings"]
+        Y = read_arrays(run.out / test.file("probe.npz"))["readings"]
         Y = Y[np.all(np.isfinite(Y.reshape(len(Y), -1)), axis=1)]  # complete runs, as only_done of a store
         sensor_names, levels, unit = list(sc.sensor_names), sc.load_levels, sc.load_unit
         what = (f"{len(Y)} probe FE run(s) (the box centre" + ("" if len(Y) == 1 else " and each parameter at its bounds")
@@ -555,9 +554,8 @@ def _draw_calibration(run, result):
 def load_calibration(run):
     """The calibration stage's :class:`~podkrig.online.calibrate.CalibrationResult` (its manifest,
     and ``region.npz`` for the region's members)."""
-    with np.load(run.out / "region.npz") as f:
-        return CalibrationResult.from_dict(run.manifest("calibration")["result"], samples=f["samples"],
-                                           omega=f["omega"])
+    f = read_arrays(run.out / "region.npz")
+    return CalibrationResult.from_dict(run.manifest("calibration")["result"], samples=f["samples"], omega=f["omega"])
 
 
 def sensitivity(run, errors):
