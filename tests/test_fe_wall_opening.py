@@ -110,7 +110,7 @@ def _solve(sc, values, tolerance, target):
 
 @pytest.mark.parametrize("top", ["constant_force", "fixed_vertical"])
 def test_statics_every_section_carries_the_applied_loads_at_several_steps(top):
-    """At 0.1, 0.2 and 0.3 mm (the wall cracking at the opening's corners and the beams) the shear
+    """At 0.1, 0.2 and 0.3 mm (the wall cracking beside the opening, then at the beams) the shear
     force of every horizontal section — the joints against the beams, the sections through the two
     piers beside the opening, and those at its sill and lintel where the opening's faces are free —
     equals the horizontal load H (the controlled beam's reaction), and the normal force the
@@ -137,6 +137,26 @@ def test_statics_every_section_carries_the_applied_loads_at_several_steps(top):
             assert np.count_nonzero(section) == (27 - 9 if through_opening else 27)
             assert_allclose(np.sum(w[section] * t[section, 1]) / 1000, H, rtol=1e-8, atol=0)
             assert_allclose(-np.sum(w[section] * t[section, 0]) / 1000, N, rtol=1e-8, atol=0)
+
+
+def test_the_first_cracks_open_at_the_opening():
+    """Stresses concentrate at the opening's corners: under the horizontal load the first joint
+    points past the elastic opening f_t/k_n lie in the course above the lintel or below the sill,
+    within a unit of the opening's sides (both top conditions); the heel of the joint against the
+    bottom beam follows."""
+    for top in ("constant_force", "fixed_vertical"):
+        sc = build_scenario(dict(SHORT, top=top))
+        r = sc.run(field=True)
+        assert r.status == CONVERGED
+        xy = sc.model.point_coordinates()
+        kinds = np.repeat(sc.mesh.interface_kind[sc.model.interface_elements], sc.model.n_points_per_element)
+        joint = kinds != INTERFACE_KINDS.index("brick")
+        steps = np.flatnonzero(r.path.of_phase("shear"))
+        first = next(i for i in steps if np.any(joint & (r.path.states[i]["opening"] > 0.16 / 110.0)))
+        x, y = xy[joint & (r.path.states[first]["opening"] > 0.16 / 110.0)].T
+        assert np.all(((y >= 620.0) & (y <= 682.0)) | ((y >= 310.0) & (y <= 372.0)))
+        assert np.all((x >= 330.0 - 220.0) & (x <= 660.0 + 220.0))
+        assert np.any(r.path.states[steps[-1]]["opening"][joint & (xy[:, 1] == 0.0) & (xy[:, 0] == 0.0)] > 0.16 / 110)
 
 
 def test_linear_limit_is_the_linear_solver_on_the_same_mesh():
