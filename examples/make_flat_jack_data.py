@@ -3,7 +3,7 @@
 It runs exactly ``podkrig simulate flat_jack --spec examples/flat_jack_scenario.toml --set E_b=9500
 --set kN_bj=70 --set kV_bj=30 --set r_hj=0.5 --set Km=0.82 --format csv`` (σ0 = 0.30 MPa and
 ν_b = 0.15 are the defaults) and adds to every reading an absolute Gaussian error of σ = 2 µm
-(0.002 mm, an LVDT of reference §5.7) drawn with ``numpy.random.default_rng(2027)`` in the file's
+(0.002 mm, a typical LVDT) drawn with ``numpy.random.default_rng(2027)`` in the file's
 order (step-major: all gauges at step 1, then step 2, ...). Readings are written to 0.01 µm.
 
 Run from the repository root::

@@ -4,9 +4,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .display import Displayed
 
-@dataclass(frozen=True, eq=False)
-class Response:
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Response(Displayed):
     """Readings of a virtual test.
 
     Attributes
@@ -45,7 +47,7 @@ class Response:
         return {name: self.readings[:, j].tolist() for j, name in enumerate(self.sensor_names)}
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class NonlinearResponse(Response):
     """Readings of a nonlinear virtual test at prescribed levels of its control variable.
 

@@ -124,12 +124,11 @@ class DICGrid:
     Channels are named ``f"{name}[i,j].ux"`` and ``f"{name}[i,j].uy"``, i along x.
 
     With ``subset > 0`` each channel is the mean displacement over a ``subset × subset`` mm square
-    centred on its grid point, as a correlation subset measures it (``flat-jack.md`` §5.7:
-    "optional realism: average over a 15 × 15 mm subset, which straddles joints as real DIC
-    does"): the midpoint rule on ``subset_samples × subset_samples`` cell centres of the square
+    centred on its grid point, as a correlation subset measures it (e.g. 15 × 15 mm, which
+    straddles joints as real DIC does): the midpoint rule on ``subset_samples × subset_samples`` cell centres of the square
     (4 × 4 by default: exact for a field linear in each element, and a subset straddling a joint
     averages both sides with the weight of their areas to 1/``subset_samples``). The sample count
-    is a named choice (INFERRED, not from a DIC code). ``subset = 0``: point values.
+    is a named choice (INFERRED, not from a DIC code; ``docs/references.md``). ``subset = 0``: point values.
     """
 
     name: str

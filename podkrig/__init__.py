@@ -103,12 +103,12 @@ def __dir__():
 
 
 def _show_results_in_jupyter():
-    """In a running IPython (a notebook), show the online results as HTML tables
-    (:func:`podkrig.reports.jupyter.register_formatters`); elsewhere nothing is imported."""
+    """In a running IPython (a notebook), register the HTML of the results
+    (:mod:`podkrig.reports.jupyter`, imported for that); elsewhere nothing is imported."""
     ipython = sys.modules.get("IPython")
     shell = ipython.get_ipython() if ipython is not None and hasattr(ipython, "get_ipython") else None
-    if shell is not None and hasattr(shell, "display_formatter"):
-        importlib.import_module("podkrig.reports.jupyter").register_formatters(shell)
+    if shell is not None:
+        importlib.import_module("podkrig.reports.jupyter").register()
 
 
 _show_results_in_jupyter()

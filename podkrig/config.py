@@ -39,8 +39,8 @@ from pydantic import AfterValidator, ConfigDict, Field, StrictInt, StrictStr
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 from pydantic_core import PydanticCustomError
 
-__all__ = ["Seed", "allowed", "choice", "choices", "field_info", "finite", "limit", "settings", "settings_error",
-           "type_name"]
+__all__ = ["Seed", "allowed", "choice", "choices", "field_info", "finite", "limit", "make_settings", "settings",
+           "settings_error", "type_name"]
 
 #: a frozen pydantic dataclass that refuses unknown keys
 settings = pydantic_dataclass(frozen=True, config=ConfigDict(extra="forbid"))
@@ -147,6 +147,44 @@ def field_info(cls):
         info[f.name] = {"default": default, "unit": extra.get("unit"), "allowed": extra.get("allowed"),
                         "choices": options}
     return info
+
+
+def make_settings(cls, values, names=None):
+    """Settings ``cls`` built from ``values`` (a dict; a value None keeps the field's default), a
+    refused value named as the user gave it: ``NAME VALUE: what is wrong; allowed: ...``.
+
+    The one wording of a refused value for the doors that take settings one by one (a library
+    function's keywords, the command line's options): ``names`` maps a field to the name the
+    caller knows it by (``{"n_candidates": "--candidates"}``); a field not in it is named as is.
+
+    Raises
+    ------
+    ValueError
+        With the name, the value and the allowed values (the field's :func:`allowed` text).
+    """
+    import pydantic  # the settings machinery's own dependency, imported by every settings class already
+
+    names = names or {}
+    given = {k: v for k, v in values.items() if v is not None}
+    try:
+        return cls(**given)
+    except pydantic.ValidationError as e:
+        error = e.errors(include_url=False)[0]
+        ctx = error.get("ctx") or {}
+        if error["type"] == "settings":
+            key, what, allowed_text = (ctx["key"] or error["loc"] or ("",))[0], ctx["message"], ctx["allowed"]
+        else:
+            key = error["loc"][0]
+            what = "out of range" if error["type"] not in _TYPE_ERRORS else f"must be {_TYPE_ERRORS[error['type']]}"
+            allowed_text = field_info(cls)[key]["allowed"]
+        value = given.get(key)
+        raise ValueError(f"{names.get(key, key)}{'' if value is None else f' {value!r}'}: {what}"
+                         + (f"; allowed: {allowed_text}" if allowed_text else "")) from None
+
+
+#: pydantic's type errors, in words
+_TYPE_ERRORS = {"int_type": "an integer", "float_type": "a number", "bool_type": "true or false",
+                "string_type": "a string"}
 
 
 def choices(cls, name):

@@ -27,6 +27,7 @@ thread-local, so the scope is safe when several Python threads predict at once, 
 count is restored on exit, also on an exception.
 """
 
+import logging
 import math
 import os
 from contextlib import contextmanager
@@ -45,6 +46,8 @@ MIN_WORK_PER_THREAD = 2.0e6
 
 #: Chunks per thread of a split call (dynamic balance when one thread is slowed down).
 CHUNKS_PER_THREAD = 8
+
+logger = logging.getLogger(__name__)
 
 _CGROUP_ROOT = Path("/sys/fs/cgroup")
 _BLAS_CONTROLLER = None
@@ -159,3 +162,69 @@ def one_blas_thread():
     if _BLAS_CONTROLLER is None:
         _BLAS_CONTROLLER = ThreadpoolController()
     return _BLAS_CONTROLLER.limit(limits=1, user_api="blas")
+
+
+#: loggers of Dask's distributed scheduler and workers and of the event loop under them: what a
+#: local cluster logs while it shuts down (:func:`close_local_cluster`)
+SHUTDOWN_LOGGERS = ("distributed", "tornado", "asyncio")
+
+
+def _loggers_under(names):
+    """The loggers ``names`` and every existing logger below them (``distributed.nanny``, ...)."""
+    prefixes = tuple(f"{n}." for n in names)
+    below = [lg for name, lg in list(logging.root.manager.loggerDict.items())
+             if isinstance(lg, logging.Logger) and name.startswith(prefixes)]
+    return [logging.getLogger(n) for n in names] + below
+
+
+@contextmanager
+def quiet_loggers(names=SHUTDOWN_LOGGERS):
+    """Switch the loggers ``names`` and every logger below them off inside the block (each one
+    itself: Dask's configuration gives some, e.g. ``tornado.application``, their own level),
+    restoring each one's state on exit, also on an exception."""
+    loggers = _loggers_under(names)
+    before = [lg.disabled for lg in loggers]
+    for lg in loggers:
+        lg.disabled = True
+    try:
+        yield
+    finally:
+        for lg, was in zip(loggers, before):
+            lg.disabled = was
+
+
+def _silence_shutdown():
+    """Run on each worker process of a local cluster just before it is closed: its
+    :data:`SHUTDOWN_LOGGERS` stop writing to the stderr it shares with the client (the process
+    exits right after)."""
+    for lg in _loggers_under(SHUTDOWN_LOGGERS):
+        lg.disabled = True
+
+
+def close_local_cluster(client, cluster):
+    """Shut a local Dask cluster down in order, without the noise of its shutdown.
+
+    A correct run used to end with ``CommClosedError`` tracebacks and ``Worker process still alive
+    after 4.0 seconds, killing`` warnings: on a loaded machine the worker processes exit slower than
+    the nanny waits, and whichever side is closed first logs the lost connection of the others.
+    The order here: the workers' own shutdown loggers are silenced (``client.run``: they share this
+    process's stderr and are about to exit), the client disconnects, then the cluster closes its
+    workers and scheduler — with this process's :data:`SHUTDOWN_LOGGERS` quiet only during that
+    close (:func:`quiet_loggers`), so a warning of Dask before or after it still shows.
+
+    Parameters
+    ----------
+    client : distributed.Client or None
+        Connected to ``cluster``; None when it was never made.
+    cluster : distributed.LocalCluster or None
+    """
+    with quiet_loggers():
+        if client is not None:
+            if cluster is not None:
+                try:
+                    client.run(_silence_shutdown)
+                except Exception:  # noqa: BLE001 - a worker already gone needs no silencing
+                    logger.debug("could not silence the workers before the shutdown", exc_info=True)
+            client.close()
+        if cluster is not None:
+            cluster.close()

@@ -254,7 +254,7 @@ def test_invert_and_run_give_the_same_calibration(tmp_path):
                                    "--region-samples", "4096", "--population-size", "20", "--generations", "10",
                                    "--n-starts", "2"])
     assert inverted.exit_code == 0, inverted.output
-    cli = json.loads(inverted.output)
+    cli = json.loads(inverted.stdout)
     assert cli["settings"] == study["settings"]
     for part in ("inversion", "region", "rvc"):
         a, b = dict(cli[part]), dict(study[part])

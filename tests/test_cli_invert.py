@@ -139,7 +139,8 @@ def test_invert_noise_monte_carlo_region(surrogates):
         (["--noise-rel", "0.01", "--load-range", "40"], "--load-range '40': expected LOWER,UPPER"),
         (["--noise-rel", "0.01", "--free", "kN_bj", "--fix", "r_hj=1.5"], "lies outside the model's trained range"),
         (["--noise-rel", "0.01", "--free", "G_f"], "unknown parameter"),
-        (["--noise-abs", "D9=0.1"], r"no noise sigma given for sensor"),
+        (["--noise-abs", "D9=0.1"], "--noise-abs: 'D9' (NAME=SIGMA) is not a sensor of the model"),
+        (["--noise-abs", "D1=0.1"], "no noise sigma given for sensor"),
     ],
 )
 def test_invert_errors(surrogates, extra, message):

@@ -26,7 +26,7 @@ def test_json_output_keys(tmp_path):
         app, ["simulate", "diagonal_compression", "--spec", str(spec), "--set", "kN_bj=80", "--format", "json", "--field", str(field)]
     )
     assert result.exit_code == 0, result.output
-    out = json.loads(result.output)
+    out = json.loads(result.stdout)
     assert set(out) >= {"scenario", "parameters", "load_levels", "sensors", "readings", "n_dofs", "seconds"}
     assert out["parameters"]["kN_bj"] == 80.0 and out["parameters"]["E_b"] == 12000.0
     assert out["load_levels"] == [25.0, 50.0, 75.0, 100.0]
@@ -69,7 +69,7 @@ def test_csv_and_table_output(tmp_path):
     spec.write_text('scenario = "shear_compression"\nnx = 2\nny = 1\n')
     result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec), "--format", "csv"])
     assert result.exit_code == 0, result.output
-    lines = result.output.strip().splitlines()
+    lines = result.stdout.strip().splitlines()
     assert lines[0].startswith("load,top_ux") and len(lines) == 5
     result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec)])
     assert result.exit_code == 0 and "readings in mm" in result.output
@@ -116,7 +116,7 @@ def test_flat_jack_report(tmp_path):
     out = tmp_path / "report"
     result = runner.invoke(app, ["simulate", "flat_jack", "--spec", str(spec), "--report", str(out), "--format", "csv"])
     assert result.exit_code == 0, result.output
-    rows = result.output.strip().splitlines()
+    rows = result.stdout.strip().splitlines()
     assert rows[0] == "load,S1,S2,S3" and len(rows) == 1 + 13  # the cut, then 12 pressure steps
     assert float(rows[1].split(",")[1]) < 0  # the cut closes the gauges
     names = {p.name for p in out.iterdir()}

@@ -50,7 +50,7 @@ def test_build_validate_refine(stores, tmp_path):
     result = runner.invoke(app, ["surrogate", "validate", str(out), "--held-out", str(stores / "held.h5"),
                                  "--report", str(report), "--format", "json"])
     assert result.exit_code == 0, result.output
-    s = json.loads(result.output)
+    s = json.loads(result.stdout)
     assert {"n_train", "n_held_out", "n_modes", "rel_error", "pod_error", "coverage_2sigma"} <= set(s)
     assert (s["n_train"], s["n_held_out"], s["n_modes"]) == (16, 8, 6)
     assert set(s["rel_error"]) >= {"median", "p95", "max"} and s["rel_error"]["median"] < 0.2
@@ -123,7 +123,7 @@ def test_backends_build_save_load_validate_invert(stores, tmp_path, backend):
     result = runner.invoke(app, ["surrogate", "validate", str(tmp_path / "s.h5"), "--held-out",
                                  str(stores / "held.h5"), "--format", "json"])
     assert result.exit_code == 0, result.output
-    summary = json.loads(result.output)
+    summary = json.loads(result.stdout)
     assert summary["backend"] == backend and summary["n_held_out"] == 8
     # 16 coarse FE runs, 4 parameters: every backend lands at 0.055-0.067 median (measured), the
     # mean snapshot alone at 0.63; 0.1 fails a backend that learns little of the parameters
@@ -163,7 +163,7 @@ def test_sensitivity_command_writes_indices_figure_and_proposal(stores, tmp_path
     result = runner.invoke(app, ["sensitivity", str(sur), "--n", "256", "--data", str(csv), "--noise-abs", "0.002",
                                  "--out", str(out), "--format", "json"])
     assert result.exit_code == 0, result.output
-    d = json.loads(result.output)
+    d = json.loads(result.stdout)
     r = d["readings"]
     assert r["parameters"] == list(model.space.names) and len(r["outputs"]) == Y.size
     assert np.shape(r["total"]) == (Y.size, 4) and r["n_evaluations"] == 256 * 6
@@ -172,7 +172,7 @@ def test_sensitivity_command_writes_indices_figure_and_proposal(stores, tmp_path
     refused = runner.invoke(app, ["sensitivity", str(sur), "--noise-rel", "0.01", "--out", str(out)])
     assert refused.exit_code != 0 and "needs --data" in refused.output
     # the defaults are the library's (SensitivitySettings), also the study's [sensitivity] table's
-    default = json.loads(runner.invoke(app, ["sensitivity", str(sur), "--out", str(out), "--format", "json"]).output)
+    default = json.loads(runner.invoke(app, ["sensitivity", str(sur), "--out", str(out), "--format", "json"]).stdout)
     assert default["readings"]["n_base"] == SensitivitySettings().n == SensitivityTable().n
     bad = runner.invoke(app, ["sensitivity", str(sur), "--n", "300", "--out", str(out)])
     assert bad.exit_code != 0 and "--n" in bad.output and "300" in bad.output and "power of two" in bad.output

@@ -14,6 +14,7 @@ from typer.testing import CliRunner
 from fe import FEError
 from fe.scenarios import Scenario, build_scenario
 from podkrig.cli import app
+from podkrig.online.data_check import reading_problems
 from podkrig.online.measurement import Measurement, NoiseModel, instrument_noise, level_weights
 from podkrig.io.measurement_log import ImportSettings, read_measurement, split_header
 from podkrig.online.problem import FEModel, InverseProblem
@@ -469,7 +470,10 @@ def test_range_check_names_units_and_signs_but_not_noise():
     runs = np.array([s * np.outer(levels, per_kn) for s in (0.8, 1.0, 1.25)]).reshape(3, -1)
     d = np.outer(levels, per_kn * np.array([1000.0, 1.0, -1.0, 1.0])) + np.array([0, 0, 0, 0.0008])
     m = Measurement(d, names, levels)
-    found = stages.measurement_range_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
-    assert found[0].startswith("A is about 1000× larger") and "µm read as mm?" in found[0]
-    assert found[1].startswith("C has the opposite sign of every FE run")
-    assert len(found) == 2  # B matches; N reads noise (0.8 µm with σ = 1 µm), not a unit error
+    found = reading_problems(m, NoiseModel(sigma=0.001, delta=0.01), names, levels, "affine", runs)
+    assert [(f.code, f.values["sensor"]) for f in found] == [("reading-scale", "A"), ("reading-sign", "C")]
+    # B matches; N reads noise (0.8 µm with σ = 1 µm), not a unit error
+    a = found[0].values
+    assert a["direction"] == "larger" and a["unit_slip"] and a["runs"] == "training" and a["n_runs"] == 3
+    # the ratio to the geometric middle of the runs' extremes (0.8 and 1.25 × the model): exactly 1000
+    assert a["ratio"] == pytest.approx(1000.0, rel=1e-12)

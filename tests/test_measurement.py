@@ -77,7 +77,7 @@ def test_noise_models():
         NoiseModel(sigma=0.1, covariance=C)
     with pytest.raises(ValueError, match="give a noise model"):
         NoiseModel()
-    with pytest.raises(ValueError, match="sigma must be > 0 mm"):
+    with pytest.raises(ValueError, match=r"sigma must be in \[1e-07, 1e\+06\] mm; got 0\.0"):
         NoiseModel(sigma=0.0)
     with pytest.raises(ValueError, match=r"no noise sigma .*\['D2'\]"):
         NoiseModel(sigma={"D1": 0.001}).std(m)
@@ -115,10 +115,14 @@ def test_measurement_converts_its_inputs_and_names_bad_values():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        ({"sigma": {"D1": 0.001, "D2": 0.0}}, r"sigma .*> 0 mm; got \{'D2': 0\.0\}"),
-        ({"delta": 0.0}, r"delta .*\(0, 1\); got 0\.0"),
-        ({"delta": 1.0}, r"delta .*\(0, 1\); got 1\.0"),
-        ({"delta": 1.5}, r"delta .*\(0, 1\); got 1\.5"),
+        ({"sigma": {"D1": 0.001, "D2": 0.0}}, r"sigma .*\[1e-07, 1e\+06\] mm; got \{'D2': 0\.0\}"),
+        ({"delta": 0.0}, r"delta .*\[1e-06, 1\); got 0\.0"),
+        ({"delta": 1.0}, r"delta .*\[1e-06, 1\); got 1\.0"),
+        ({"delta": 1.5}, r"delta .*\[1e-06, 1\); got 1\.5"),
+        # absurd: σ below the size of an atom (σ² underflowed: "inf× the noise"), δ below 1 ppm
+        ({"sigma": 1e-300}, r"sigma .*\[1e-07, 1e\+06\] mm; got 1e-300"),
+        ({"sigma": {"D1": 0.001, "D2": 1e-9}}, r"sigma .*\[1e-07, 1e\+06\] mm; got \{'D2': 1e-09\}"),
+        ({"delta": 1e-300}, r"delta .*\[1e-06, 1\); got 1e-300"),
     ],
 )
 def test_noise_model_bounds(kwargs, match):
@@ -304,16 +308,16 @@ def test_instrument_noise_takes_each_sensors_instrument():
         ({"sigma": float("inf")}, r"sigma \(mm\) .*finite.*got inf"),
         ({"sigma": {"D1": 0.001, "U1": float("nan")}},
          r"sigma of sensor 'U1' .*finite.*got nan"),
-        ({"sigma": 2e6}, r"sigma \(mm\) .*\[0\.0, 1000000\.0\]; got 2000000\.0"),
+        ({"sigma": 2e6}, r"sigma .*\[1e-07, 1e\+06\] mm; got 2000000\.0"),
         ({"delta": float("nan")}, r"delta .*finite.*got nan"),
         ({"sigma": 0.001, "delta": {"U1": float("inf")}},
          r"delta of sensor 'U1' .*finite.*got inf"),
         ({"covariance": np.array([[1.0, np.nan], [np.nan, 1.0]])},
          r"covariance .*finite.*NaN"),
-        ({"delta": {"D1": 0.01, "U1": 1.0}}, r"delta .*\[0, 1\).*got \{'U1': 1\.0\}"),
-        ({"delta": {"D1": 0.01, "U1": -0.01}}, r"delta .*\[0, 1\).*got \{'U1': -0\.01\}"),
+        ({"delta": {"D1": 0.01, "U1": 1.0}}, r"delta .*0 or in \[1e-06, 1\).*got \{'U1': 1\.0\}"),
+        ({"delta": {"D1": 0.01, "U1": -0.01}}, r"delta .*0 or in \[1e-06, 1\).*got \{'U1': -0\.01\}"),
         ({"delta": {"D1": 0.01, "U1": 0.0}}, r"delta of 0 needs .*sigma"),
-        ({"sigma": -0.001}, r"sigma \(mm\) .*\[0\.0, 1000000\.0\]; got -0\.001"),
+        ({"sigma": -0.001}, r"sigma .*\[1e-07, 1e\+06\] mm; got -0\.001"),
         ({"delta": 0.01, "covariance": np.eye(2)}, r"either a covariance or .*sigma"),
     ],
 )

@@ -183,12 +183,21 @@ def test_a_small_job_runs_serially_with_workers_2_and_says_why(tmp_path, referen
         raise AssertionError("a local cluster was started for a small job")
 
     monkeypatch.setattr(runner, "_dask_client", no_cluster)
+    monkeypatch.setattr(runner, "SERIAL_REASON_MIN_SAVING_S", 0.0)  # say why however small the saving
     path = tmp_path / "small.h5"
     summary = run_snapshots(path, COARSE, space, n=64, seed=7, workers=2)
     assert summary.executor.startswith("serial: 2 workers asked, but 64 runs ×"), summary.executor
     assert "local cluster" in summary.executor  # why: the cluster's start-up
     assert summary.done == 64 and summary.ran == 64
     _assert_same_store(path, reference)
+
+
+def test_a_job_too_small_for_its_reason_to_matter_runs_serially_without_a_word(tmp_path, space, monkeypatch):
+    """4 coarse runs would save milliseconds on a cluster ("4 runs × 0 ms per run would save 0.0 s"
+    before every small stage): plain "serial", no reason for the stage's notes."""
+    monkeypatch.setattr(runner, "_dask_client", lambda *args: pytest.fail("a local cluster was started"))
+    summary = run_snapshots(tmp_path / "tiny.h5", COARSE, space, n=4, seed=7, workers=2)
+    assert summary.executor == "serial" and summary.done == 4
 
 
 @pytest.mark.slow

@@ -281,7 +281,7 @@ def test_cli_sensors_writes_a_usable_layout(tmp_path):
         assert (out / name).exists(), name
     sim = runner.invoke(app, ["simulate", "diagonal_compression", "--spec", str(out / "layout.toml"), "--format", "csv"])
     assert sim.exit_code == 0, sim.output
-    assert len(sim.output.splitlines()[0].split(",")) == 4  # load + 3 chosen sensors
+    assert len(sim.stdout.splitlines()[0].split(",")) == 4  # load + 3 chosen sensors
     bad = runner.invoke(app, args[:9] + ["--k", "3", "--out", str(out)])
     assert bad.exit_code == 2 and "no candidates" in bad.output
 

@@ -57,7 +57,7 @@ def test_surrogate_settings_refuse_inconsistent_values(kwargs, fragments):
 def test_cli_options_build_settings_and_a_wrong_value_names_its_option():
     options = {"modes": ("--modes", 3), "energy": ("--energy", None), "nugget": ("--nugget", None)}
     assert settings_from_options(SurrogateSettings, options) == SurrogateSettings(modes=3)
-    with pytest.raises(ValueError, match="--nugget -1.0: .*>= 0"):
+    with pytest.raises(ValueError, match=r"--nugget -1.0: .*\[0, 1\]"):
         settings_from_options(SurrogateSettings, {"nugget": ("--nugget", -1.0)})
     with pytest.raises(ValueError, match="--modes 2.*either energy or modes"):
         settings_from_options(SurrogateSettings, {"energy": ("--energy", 0.9), "modes": ("--modes", 2)})

@@ -120,8 +120,51 @@ def test_run_writes_every_stage_and_a_summary(tiny):
     for name, (lo, hi) in calibration["region"]["intervals"].items():
         assert lo <= params[name] <= hi
     assert calibration["rvc"]["shear"]["outputs"] == ["top_ux@40", "D1@40"]
-    with np.load(out / "region.npz") as f:
+    with np.load(out / "region.npz") as f:  # columns named, with their units, readable without pickle
         assert len(f["samples"]) == calibration["region"]["n_members"]
+        assert f["names"].tolist() == calibration["region"]["names"] == ["kN_bj", "kV_bj"]
+        assert f["units"].tolist() == calibration["region"]["units"]
+    with np.load(out / "probe.npz") as f:
+        assert f["names"].tolist() == ["kN_bj", "kV_bj"] and f["X"].shape == (5, 2)
+        assert f["readings"].shape == (5, len(f["load_levels"]), len(f["sensor_names"])) and str(f["load_unit"]) == "kN"
+
+
+def test_region_files_name_their_columns_and_old_files_still_read(tmp_path):
+    """``region.npz`` names its columns; a file written before it did (no ``names``) reads as it
+    is; a file naming other parameters (another study's) is refused, naming both lists and the
+    remedy."""
+    from podkrig.online.region import Region
+    from podkrig.study.stages import region_members, save_region
+
+    samples, omega = np.arange(6.0).reshape(3, 2), np.array([1.0, 2.0, 3.0])
+    region = Region("likelihood-ratio", 0.95, samples, omega, 4.0, {}, ("E_b", "c"), ("MPa", "MPa"), 10, 1.0, {})
+    save_region(tmp_path / "region.npz", region)
+    got = region_members(tmp_path / "region.npz", ["E_b", "c"])
+    assert all(np.array_equal(a, b) for a, b in zip(got, (samples, omega)))  # npz round trip is exact
+    np.savez(tmp_path / "old.npz", samples=samples, omega=omega)
+    assert np.array_equal(region_members(tmp_path / "old.npz", ["E_b", "c"])[0], samples)
+    with pytest.raises(ValueError, match=r"\['E_b', 'c'\].*\['E_b', 'ft'\].*--out"):
+        region_members(tmp_path / "region.npz", ["E_b", "ft"])
+
+
+def test_a_first_look_without_the_diagnosis_then_the_diagnosis_alone(tiny, tmp_path, fe_counter):
+    """``podkrig run --skip-diagnosis`` leaves the model diagnosis out (no FE run, no diagnosis
+    stage, no diagnosis line); the same run without it then runs the diagnosis alone, every other
+    stage cached."""
+    study, out, _ = tiny
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    (copy / "stages" / "diagnosis.json").unlink()  # as if the study had never run its diagnosis
+    counter = fe_counter()
+    result = runner.invoke(app, ["run", str(study), "--out", str(copy), "--skip-diagnosis"])
+    assert result.exit_code == 0, result.output
+    assert counter.calls == 0 and re.search(r"\b0 FE runs in", result.output)  # the stages' count, all kinds
+    assert not (copy / "stages" / "diagnosis.json").exists() and "model diagnosis" not in result.output
+    assert "diagnosis" not in json.loads((copy / "summary.json").read_text())["stages"]
+    text = _run(study, copy)
+    ran = {name for name, m in _stages(copy).items() if m["finished"] != _stages(out)[name]["finished"]}
+    assert ran <= {"diagnosis", "measurement"} and "diagnosis" in ran  # the measurement check is 0 FE runs
+    assert re.search(rf"\b{_stages(copy)['diagnosis']['fe_runs']} FE runs in", text) and "model diagnosis" in text
 
 
 def test_rerun_with_nothing_changed_does_no_fe_work(tiny, fe_counter):

@@ -14,7 +14,7 @@ nodes (trapezoidal for 4 nodes, Simpson for 6) by default, which decouples the n
 ``rule="gauss"`` selects Gauss–Legendre points (as many as face nodes; exact for the elastic
 stiffness, a consistent rather than lumped interface stiffness). Lobatto is the default for
 nonlinear interfaces: with stiff (dummy) interfaces Gauss integration produces spurious traction
-oscillations [Vignollet, May & de Borst 2015, reference ``nonlinear-interfaces.md`` §4], while Day &
+oscillations [Vignollet, May & de Borst 2015, ``docs/references.md``], while Day &
 Potts (1994) attribute them to ill-conditioning, hence the switch.
 """
 

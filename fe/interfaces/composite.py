@@ -1,8 +1,7 @@
 """Lourenço–Rots composite interface law: tension cut-off, Coulomb friction, compressive cap.
 
-Thesis §2.2 (the mesoscale model) with the surfaces of Lourenço & Rots (1997) as given in
-``shared/reference/nonlinear-interfaces.md`` §1a (READ from OOFEM's Masonry02 and DIANA's
-"Combined Cracking-Shearing-Crushing"). Tension positive, traction ``t = (σ, τ)`` normal first,
+Thesis §2.2 (the mesoscale model) with the surfaces of Lourenço & Rots (1997, ``docs/references.md``;
+the equations as OOFEM's Masonry02 and DIANA's "Combined Cracking-Shearing-Crushing" state them). Tension positive, traction ``t = (σ, τ)`` normal first,
 ``t = D (u − u^p)``, ``D = diag(k_n, k_s)``:
 
 - f1 = σ − σ̄1(κ1),  σ̄1 = f_t exp(−f_t κ1 / G_f^I); associated flow m1 = (1, 0).

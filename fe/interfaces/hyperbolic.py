@@ -1,7 +1,7 @@
 """The thesis' hyperbolic Mode I/II interface surface (eq. 2.4 in 2D) with work softening.
 
-Yield function (``reference/thesis-opening.txt`` eq. (2.4), one shear component, tension
-positive), in the better-scaled √-form of ``reference/nonlinear-interfaces.md`` §1b:
+Yield function (thesis eq. (2.4), Macorini & Izzuddin 2011, one shear component, tension
+positive), in the better-scaled √-form:
 
 .. math:: F = \\sqrt{τ^2 + a^2} - (c - σ \\tanφ), \\qquad a = c - σ_t \\tanφ \\ge 0,
 
@@ -21,7 +21,7 @@ here; the flow and the softening are switchable only by replacing this law, the 
   In pure mode I (II) the dissipated energy is G_f^I (G_f^II above friction) and the softening is
   exponential in the plastic relative displacement, as in the composite law;
 - the compressive cap F2 (the thesis names "a second hyperbolic function" without its equation;
-  the reference infers the L&R ellipse), a configurable ``cap_shape``:
+  the Lourenço–Rots ellipse is the likely one), a configurable ``cap_shape``:
 
   * ``"ellipse"``: ``F2 = √(σ² + C_s τ²) − σ̄3(κ3)`` (the Lourenço–Rots cap with C_nn = 1,
     C_n = 0, in √-form);
@@ -481,7 +481,7 @@ def hyperbolic_properties(*, kn, ks, ft, GfI, c, tanphi0, tanphir=None, GfII, ta
 
     Parameters (units N, mm, MPa): ``kn``, ``ks`` (N/mm³); ``ft`` = σ_t (MPa), ``GfI`` (N/mm);
     ``c`` (MPa), ``tanphi0``, ``tanphir`` (default ``tanphi0``), ``GfII`` (N/mm), ``tanpsi``; the
-    cap (module docstring; INFERRED shape and law): ``fc`` (MPa; ``inf``, the default, switches it
+    cap (module docstring; INFERRED shape and law, ``docs/references.md``): ``fc`` (MPa; ``inf``, the default, switches it
     off), ``Cs`` (shear contribution), ``Gfc`` (N/mm, post-peak area above the residual),
     ``kappa_p`` (mm, plastic relative displacement at the peak), ``cap_ratios`` =
     (σ̄_i, σ̄_m, σ̄_r)/f_c, ``cap_shape`` (one of :data:`CAP_SHAPES`). ``where`` names the interface

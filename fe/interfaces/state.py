@@ -1,6 +1,6 @@
 """State of the integration points of nonlinear interfaces and the result of a law update.
 
-Conventions (``shared/reference/nonlinear-interfaces.md``): the relative displacement
+Conventions (those of Lourenço & Rots 1997, ``docs/references.md``): the relative displacement
 ``u = (u_n, u_s)`` (opening, slip; mm) and the traction ``t = (σ, τ)`` (MPa) are **normal
 first**, positive in tension/opening; ``t = D (u − u^p)`` with ``D = diag(k_n, k_s)`` (N/mm³).
 """

@@ -2,8 +2,7 @@
 
 An in-situ test loads a small region of a large wall; modelling the whole wall at the mesoscale is
 wasteful, cutting it free at a few unit lengths over-estimates the displacements (free edges,
-``shared/reference/flat-jack.md`` §2.4). :func:`add_ring` surrounds the wall's left, right and top
-sides with a band of ordinary continuum quads (a homogenised orthotropic material, one body) on a
+the finite-panel effect). :func:`add_ring` surrounds the wall's left, right and top sides with a band of ordinary continuum quads (a homogenised orthotropic material, one body) on a
 structured grid whose inner lines are the wall's boundary node lines, graded geometrically
 outwards. The ring's nodes on the wall boundary coincide with the wall's nodes there (one ring node
 for the one or two wall nodes at a joint end); :func:`add_ring` returns them as tie groups
@@ -43,7 +42,7 @@ def add_ring(mesh, width, n_layers=6):
     mesh : Mesh
         A brick-wall mesh (origin at its bottom-left corner).
     width : float
-        Ring width, mm (e.g. 1000 for reference §5.1).
+        Ring width, mm (e.g. 1000).
     n_layers : int
         Elements across the ring, graded from the wall's boundary element size outwards.
 

@@ -4,6 +4,7 @@ from ..exceptions import SpecError
 from .base import ParameterInfo, Scenario
 from .diagonal_compression import DiagonalCompression
 from .flat_jack import FlatJack
+from .flat_jack_nl import FlatJackShearNonlinear
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 from .specimens import CoupletTension, PrismCompression, TripletShear
@@ -13,7 +14,8 @@ from .walls_nonlinear import DiagonalCompressionNonlinear, ShearCompressionNonli
 SCENARIOS = {
     cls.name: cls
     for cls in (DiagonalCompression, ShearCompression, FlatJack, CoupletTension, TripletShear, PrismCompression,
-                ShearCompressionNonlinear, DiagonalCompressionNonlinear, WallOpeningNonlinear)
+                ShearCompressionNonlinear, DiagonalCompressionNonlinear, FlatJackShearNonlinear,
+                WallOpeningNonlinear)
 }
 
 

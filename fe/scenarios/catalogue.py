@@ -46,11 +46,10 @@ SENSOR_KINDS = {
 
 #: typical range of a parameter in tests of clay-brick masonry: (low, high) in the parameter's unit,
 #: a starting point for the [parameters] bounds of a study (wider than the values of one wall,
-#: narrower than what the model admits). Sources, all collected in ../shared/reference:
-#: flat-jack.md §5.2 (E_b, r_hj, Km, sigma0: prior ranges for sampling), nonlinear-interfaces.md
-#: "Parameters with units" (joint and unit-interface stiffness 10–10³ and 10⁵–10⁶ N/mm³,
-#: strengths, fracture energies, friction, dilatancy, cap). These are literature placeholders
-#: (marked INFERRED there), not measured values of any one specimen.
+#: narrower than what the model admits). Sources (docs/references.md): the small-assemblage tests
+#: summarised by Lourenço (joint strengths, fracture energies, friction, dilatancy), flat-jack
+#: practice (Km, sigma0) and the thesis (stiffnesses). These are literature ranges (INFERRED,
+#: docs/references.md "INFERRED choices"), not measured values of any one specimen.
 TYPICAL_RANGES = {
     "E_b": (5000.0, 16000.0), "nu_b": (0.1, 0.2), "kN_bj": (10.0, 1000.0), "kV_bj": (10.0, 1000.0),
     "r_hj": (0.2, 1.0), "kN_bb": (1e5, 1e6), "kV_bb": (1e5, 1e6),

@@ -4,26 +4,26 @@ A running-bond panel under an in-situ vertical pre-compression σ0 gets slots (h
 a bed joint, vertical ones through units and head joints); each slot holds a flat jack with a
 pressure history. Readings are taken at every step of the loading phases with the gauges zeroed
 before the cut, as in the field (ASTM C1196/C1197, RILEM MDT.D.4/D.5). Geometry, jacks, phases,
-layouts and defaults follow ``shared/reference/flat-jack.md`` §5 (a design for this project,
-INFERRED; **not** the layout of Chisari's thesis, which is not public).
+layouts and defaults are a design for this project (INFERRED, see ``docs/references.md`` "INFERRED
+choices"; **not** the layout of Chisari's thesis, which is not public).
 
-Panel (§5.1): expanded units 260 × 65 mm, 8 units × 24 courses = 2080 × 1560 mm, 120 mm thick;
+Panel: expanded units 260 × 65 mm, 8 units × 24 courses = 2080 × 1560 mm, 120 mm thick;
 course k (1-based) spans y ∈ [65(k−1), 65k]; odd courses have head joints at x = 260 i. Bottom
 edge u_y = 0 and u_x = 0 at its middle node (both nodes of the head joint there); top edge loaded by σ0; sides free. Mesh: ``nx × ny``
-Q8 per unit (default 2 × 1, i.e. 4 × 2 Q4-equivalent, §5.1) and twice as fine in ``refine``
-(default x ∈ [650, 1430], y ∈ [585, 1170], §5.1); node lines are added at every slot end
+Q8 per unit (default 2 × 1, i.e. 4 × 2 Q4-equivalent) and twice as fine in ``refine``
+(default x ∈ [650, 1430], y ∈ [585, 1170]); node lines are added at every slot end
 (8007 dofs; the 4 × 2 / 8 × 4 Q8 mesh, 24 315 dofs, changes the gauge readings by ≤ 0.5 %).
 
 Presets (``preset``):
 
-- ``"chisari"`` (§5.3–5.4): jack H in the bed joint y = 780 over x ∈ [845, 1235]; V1 and V2
+- ``"chisari"``: jack H in the bed joint y = 780 over x ∈ [845, 1235]; V1 and V2
   vertical at x = 845 and 1235 over y ∈ [780, 975]: a U-shaped cut round a 390 × 195 mm block
   held only by its top bed joint. Phases ``0b`` (cut, 1 step), ``1`` (p_H 0.1 → 1.0 MPa in 0.1
   steps, p_V1 = p_V2 = 0.05 seating, 10 steps), ``2`` (p_H = 1.0, p_V 0.10 → 0.50 in 0.05, 9
   steps), ``3`` (p_V2 = 0.5, p_V1 0.6 → 3.0 in 0.1, 25 steps; see *Phase 3* below). Layouts
-  ``L6``, ``L18`` (§5.5–5.6), ``DIC`` (1200 points, §5.7) or ``L18+DIC``; ``dic_subset`` (mm,
+  ``L6``, ``L18``, ``DIC`` (1200 points) or ``L18+DIC``; ``dic_subset`` (mm,
   0 = point values) makes each DIC reading the mean over a square subset, which straddles joints
-  as real DIC does (§5.7, :class:`fe.sensors.DICGrid`).
+  as real DIC does (:class:`fe.sensors.DICGrid`).
 - ``"single"``: jack H alone (ASTM C1196 / RILEM MDT.D.4); phases ``0b`` and ``1``
   (p 0.05 → 0.60 MPa in 0.05 steps); layout ``standard``: three vertical gauges across the slot
   (x = 975, 1040, 1105; gauge lengths 195, 260, 195 mm: the anchors avoid head joints).
@@ -55,14 +55,14 @@ vector**, whatever the number of steps. A jack acts over its central length ``Ka
 with the pressure ``Km × p`` (``Km`` the jack efficiency, a parameter; ``Ka`` per slot).
 
 Phase 3 (sliding of the block's top bed joint) runs elastic here, as a separate method
-:meth:`FlatJack.phase3_check` comparing the top-joint stresses with the statics estimate of §5.4
-(Δp_V,crit = (L_H/h_V)(c + p_H tanφ)); its nonlinear run needs the interface laws of the
-nonlinear issue.
+:meth:`FlatJack.phase3_check` comparing the top-joint stresses with the statics estimate
+(Δp_V,crit = (L_H/h_V)(c + p_H tanφ)); the scenario ``flat_jack_shear_nl``
+(:mod:`fe.scenarios.flat_jack_nl`) runs it nonlinearly, the joints sliding.
 
 Load levels are step numbers 1, 2, … (``load_unit = "step"``); :attr:`FlatJack.steps` gives each
 step's phase and jack pressures.
 
-Simplifications (reference §5.9): a 2D plane-stress slot is a through-thickness cut, whereas real
+Simplifications: a 2D plane-stress slot is a through-thickness cut, whereas real
 semicircular jacks load a circular segment, so 2D over-predicts the displacements (treat Km·Ka as
 a nuisance, as the example study does); the jack's stiffness and welded edges are ignored (Ka < 1
 removes the edges from the loaded length); collar joints and other wythes are ignored; the slot
@@ -83,6 +83,7 @@ import numpy as np
 
 from ..assembly import StiffnessPart, element_dofs
 from ..constraints import constraint_transform
+from ..display import Displayed
 from ..elements.interface import IL4, IL6
 from ..elements.quad import QUADS
 from ..exceptions import MeshError, SpecError
@@ -116,7 +117,7 @@ RING_PARTS = {
 
 def ring_moduli(values, unit_height, unit_length):
     """Coefficients ``(D11, D22, D12, D33)`` (MPa) of the ring's homogenised orthotropic material
-    (reference §2.5, INFERRED): ``1/E_y = 1/E_b + 1/(h kN)`` (series across bed joints),
+    (INFERRED, see ``docs/references.md`` "INFERRED choices"): ``1/E_y = 1/E_b + 1/(h kN)`` (series across bed joints),
     ``1/E_x = 1/E_b + 1/(l r kN)`` (a lower bound for running bond), ``1/G = 1/G_b + 1/(h kV)``,
     ``ν_xy = ν_b``, ``ν_yx = ν_xy E_y/E_x``; plane stress. The same moduli as
     :func:`podkrig.analytical.flat_jack.homogenised_moduli`."""
@@ -276,12 +277,12 @@ class FlatJackOptions:
     :data:`LAYOUTS` (``"standard"`` = the preset's standard gauges) and ``sensors`` adds gauges;
     ``frp`` stiffens the units at the ends of the vertical slots (x = at ± 130 mm, one course
     beyond each end) by a bonded fabric of in-plane stiffness ``frp_stiffness`` (N/mm, E_f × total
-    fabric thickness over both faces; default one 0.17 mm CFRP ply of 230 GPa per face, INFERRED)
+    fabric thickness over both faces; default one 0.17 mm CFRP ply of 230 GPa per face, INFERRED, ``docs/references.md``)
     smeared over the wall thickness. ``ring_width > 0`` surrounds the panel's sides and top with a
-    homogenised elastic ring of that width (mm; reference §5.1 suggests 1000), ``ring_layers``
-    elements across, graded (see :mod:`fe.mesh.ring`), of the orthotropic material of reference
-    §2.5: ``1/E_y = 1/E_b + 1/(h kN)``, ``1/E_x = 1/E_b + 1/(l r kN)``, ``1/G = 1/G_b + 1/(h kV)``,
-    ``ν_xy = ν_b`` (INFERRED); σ0 then acts on the ring's top.
+    homogenised elastic ring of that width (mm; 1000 is a good start), ``ring_layers``
+    elements across, graded (see :mod:`fe.mesh.ring`), of the orthotropic material of the
+    homogenised moduli: ``1/E_y = 1/E_b + 1/(h kN)``, ``1/E_x = 1/E_b + 1/(l r kN)``, ``1/G = 1/G_b + 1/(h kV)``,
+    ``ν_xy = ν_b`` (INFERRED, ``docs/references.md``); σ0 then acts on the ring's top.
     """
 
     preset: str = "chisari"
@@ -663,7 +664,7 @@ class FlatJack(Scenario):
     # --- phase 3 (elastic; sliding needs the nonlinear interfaces) -----------------------------------
 
     def phase3_check(self, params=None, c=0.25, tan_phi=0.70, block_joint=None):
-        """Elastic phase 3 against the statics estimate of reference §5.4 (see :class:`Phase3Check`).
+        """Elastic phase 3 against the statics estimate of the jack-loaded block (see :class:`Phase3Check`).
 
         Parameters
         ----------
@@ -715,9 +716,9 @@ class FlatJack(Scenario):
 
 
 
-@dataclass(frozen=True, eq=False)
-class Phase3Check:
-    """Elastic phase-3 state of the block's top bed joint against the statics of reference §5.4.
+@dataclass(frozen=True, eq=False, repr=False)
+class Phase3Check(Displayed):
+    """Elastic phase-3 state of the block's top bed joint against the statics of the jack-loaded block.
 
     Per step (arrays ``(n_steps,)``): jack pressures ``p_H`` and ``delta_p_V = p_V1 − p_V2``
     (gauge, MPa); the FE mean shear stress and mean normal compression on the joint (MPa); the
@@ -746,7 +747,7 @@ class Phase3Check:
 
 
 def homogeneous_slot_spec(size_factor, nx=4, ny=2, slot_length=260.0, spacing=None, gauge_offsets=(32.5, 97.5, 162.5, 292.5), x0=0.0):
-    """Spec of a verification panel (reference §5.10 items 1, 2, 4): stiff joints (kN = kV = 10⁷
+    """Spec of a verification panel (the homogeneous verification cases of ``scripts/verify_flat_jack.py``): stiff joints (kN = kV = 10⁷
     N/mm³, the homogeneous limit), E_b = 4000 MPa, ν = 0.2, Km = 1, σ0 = 0, one horizontal slot of
     ``slot_length`` (mm) at the panel centre, or two (``spacing`` mm apart, a multiple of the
     course height, centred), in a square-ish panel ``size_factor`` × the slot length wide and high,

@@ -4,8 +4,8 @@ Units stay elastic (expanded continua); bed joints, head joints and unit mid-pla
 interfaces (:class:`fe.interfaces.CompositeInterface`): bed and head joints with the full
 Lourenço–Rots law (head joints with ``r_hj`` times the bed-joint stiffness and the same
 strengths), unit mid-planes with a tension cut-off only (``ft_bb``, ``GfI_bb``; no friction or cap:
-the potential-crack interfaces of the reference §5 step 2, an INFERRED choice). The run follows the
-load path with :class:`fe.solvers.nonlinear.PathFollower`; the response holds the readings at the
+potential-crack interfaces, INFERRED, see ``docs/references.md`` "INFERRED choices"). The run
+follows the load path with :class:`fe.solvers.nonlinear.PathFollower`; the response holds the readings at the
 prescribed levels of the control displacement (``load_levels``, mm), the load there, and the peak.
 """
 
@@ -39,7 +39,7 @@ from .masonry import MASONRY_PARAMETERS, WallOptions, masonry_parts
 _BIG = 1e9
 
 #: Strength parameters of the nonlinear model (DESIGN.md); defaults: the TU Eindhoven "Set A" of
-#: reference §2.1 (k, f_t, G_f^I, c, tanφ, G_f^II READ in a third-party script; the rest INFERRED).
+#: Lourenço (1994) as quoted by a third-party J4D script (k, f_t, G_f^I, c, tanφ, G_f^II; the rest INFERRED).
 STRENGTH_PARAMETERS = (
     ParameterInfo("ft_bj", 0.25, "MPa", 0.0, _BIG, "tensile (bond) strength of the joints", lower_open=True),
     ParameterInfo("c_bj", 0.35, "MPa", 0.0, _BIG, "cohesion of the joints", lower_open=True),
@@ -65,7 +65,7 @@ class NonlinearOptions(WallOptions):
     path-following settings: the initial and largest increment of the control displacement (mm),
     the joint ``law`` (``"composite"``: Lourenço–Rots with cap; ``"hyperbolic"``: the thesis'
     eq. 2.4 surface, unit mid-planes keep the tension cut-off), the hyperbolic law's compressive
-    ``hyperbolic_cap`` (``"none"``, the default; ``"ellipse"`` or ``"hyperbola"``: the INFERRED
+    ``hyperbolic_cap`` (``"none"``, the default; ``"ellipse"`` or ``"hyperbola"``: the INFERRED (``docs/references.md``)
     shapes of :mod:`fe.interfaces.hyperbolic`, with ``fc``, ``Cs``, ``Gfc``, ``kappa_p``),
     the budget (``max_steps`` attempted increments, ``max_total_iterations`` Newton iterations,
     ``max_cpu_seconds`` CPU time of the process; ``max_seconds`` is a generous wall-clock guard
@@ -73,7 +73,7 @@ class NonlinearOptions(WallOptions):
     increment before it is cut back, the relative force ``tolerance``, and the interfaces'
     ``integration`` rule (``"lobatto"``: Newton–Cotes at the node pairs, the default, recommended
     for interfaces because Gauss points with stiff dummy interfaces give traction oscillations,
-    reference §4 [VMB15]; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness)."""
+    Vignollet, May & de Borst 2015; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness)."""
 
     increment: float = 0.01
     max_increment: float = 0.05
@@ -232,6 +232,14 @@ class NonlinearScenario(Scenario):
         ``settings`` (a :class:`PathSettings`) overrides the options' path settings.
         """
         values = self.resolve(params)
+        phases = self.phases(values)
+        path = self.path_follower(values, settings, field).run(phases)
+        return self._response(path, phases[-1].name, field)
+
+    def path_follower(self, values, settings=None, field=False):
+        """A :class:`PathFollower` on the model with the units and the interface law of ``values``
+        (a full parameter dict); ``settings`` overrides the options' path settings, ``field``
+        records the states."""
         model = self.model
         model.set_units(self.theta(values))
         props = interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
@@ -241,9 +249,7 @@ class NonlinearScenario(Scenario):
         settings = settings or self.options.path_settings(record_states=field)
         if field and not settings.record_states:
             settings = dataclasses.replace(settings, record_states=True)
-        phases = self.phases(values)
-        path = PathFollower(model, law, settings).run(phases)
-        return self._response(path, phases[-1].name, field)
+        return PathFollower(model, law, settings)
 
     def _hyperbolic_law(self, values, composite_props):
         """Joints with the hyperbolic law (and its cap when asked for), unit mid-planes with the

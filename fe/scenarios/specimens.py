@@ -181,7 +181,7 @@ class PrismOptions(SpecimenOptions):
 
 class PrismCompression(NonlinearScenario):
     """Compression of a stack-bonded prism: bottom face fixed, top plate pushed down (control: its
-    downward displacement, mm). Crushing is lumped into the joints' cap (reference §1a). Sensors:
+    downward displacement, mm). Crushing is lumped into the joints' cap (Lourenço & Rots 1997). Sensors:
     ``shortening`` (vertical gauge over the middle three courses, positive when shortening is
     negative: a gauge lengthens positive) and ``top_uy``."""
 

@@ -15,10 +15,10 @@ walls use their Set A): units E_b = 16 700 MPa, ν = 0.15; joints k_n = 110, k_s
 f_t = 0.16 MPa, G_f^I = 0.012 N/mm, c = 0.224 MPa, tanφ = tanφr = 0.75, tanψ = 0,
 G_f^II = 0.05 N/mm, cap f_c = 11.5 MPa, C_s = 9, G_fc = 5 N/mm, κ_p = 0.09 mm; unit mid-planes
 f_t = 2 MPa, G_f^I = 0.08 N/mm and the solid wall's dummy stiffness 10⁵ N/mm³. These values are a
-recollection of the publication, not checked against it (inferred): they are the defaults,
-every one a parameter.
+recollection of the publication, not checked against it (INFERRED, ``docs/references.md``): they are
+the defaults, every one a parameter.
 
-The opening: no source we hold gives its size or position (inferred). It is therefore four
+The opening: no source we hold gives its size or position (INFERRED). It is therefore four
 options, in mm, with defaults that are our choice: ``opening_left`` = 330 and ``opening_width`` =
 330 (1.5 units, centred: 330–660 mm), ``opening_sill`` = 372 and ``opening_height`` = 248 (four
 courses, centred: courses 7–10 of 16). Its sides must lie on the bond's half-unit grid (multiples
@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from .nonlinear import nonlinear_parameters
 from .walls_nonlinear import ShearCompressionNonlinear, ShearWallOptions
 
-#: "Set B" of Lourenço & Rots (1997) for J2G/J3G (inferred: a recollection, see the module
+#: "Set B" of Lourenço & Rots (1997) for J2G/J3G (INFERRED: a recollection, see the module
 #: docstring); parameters not listed keep the nonlinear model's defaults (unit mid-planes
 #: k = 10⁵ N/mm³, r_hj = 1).
 SET_B = {

@@ -1,12 +1,13 @@
 """Nonlinear wall tests: the TU Eindhoven shear walls and the diagonal compression test up to failure.
 
 ``shear_compression_nl``: the walls J4D–J7D of Raijmakers & Vermeltfoort (geometry and defaults as
-:mod:`fe.scenarios.shear_compression`, material "Set A" of ``reference/nonlinear-interfaces.md``
-§2.1). The vertical pre-compression ``precompression`` (0.30 / 1.21 / 2.12 MPa for J4D/J5D, J6D,
+:mod:`fe.scenarios.shear_compression`, material "Set A" of Lourenço (1994,
+``docs/references.md``)). The vertical pre-compression ``precompression`` (0.30 / 1.21 / 2.12 MPa for J4D/J5D, J6D,
 J7D) is applied first under load control through the rigid top beam (all top nodes share u_x and
 u_y); then the beam's horizontal displacement is ramped (control, mm) with the beam kept
 horizontal. ``top`` chooses the vertical condition of the beam after pre-compression:
-``"fixed_vertical"`` (u_y held: the confined set-up that the reference INFERS for the tests) or
+``"fixed_vertical"`` (u_y held: the confined set-up the tests most likely had, INFERRED, see
+``docs/references.md`` "INFERRED choices") or
 ``"constant_force"`` (N held at its pre-compression value). The vertical force on the wall
 (kN, compression positive) is reported at every level as ``vertical_reaction``.
 

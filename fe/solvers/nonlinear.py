@@ -13,7 +13,7 @@ scalar *path parameter* is driven from its current value to ``target``:
   the openings of a crack or of chosen dofs) with λ unknown: the bordered Newton step solves
   ``K δq_I = −r`` and ``K δq_II = f_ref`` on one factorisation and chooses δλ so that the constraint
   holds. A monotone crack opening passes snap-backs of the load–displacement curve that
-  displacement control cannot (DIANA's arc-length remark, reference §3).
+  displacement control cannot (as DIANA's manual remarks on arc-length control).
 
 Further dofs can be ``held`` (zero increment in the phase), e.g. the vertical dof of a loading beam
 fixed after pre-compression; their reactions are recorded.
@@ -80,6 +80,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..display import Displayed
 from ..exceptions import SolverError
 
 logger = logging.getLogger(__name__)
@@ -282,8 +283,8 @@ class Phase:
             raise ValueError(f"phase {self.name!r}: increment must be > 0; got {self.increment}")
 
 
-@dataclass
-class PathResult:
+@dataclass(repr=False)
+class PathResult(Displayed):
     """The converged path of a run.
 
     Attributes (one entry per converged step, in order; phase boundaries in ``phase``)
@@ -373,8 +374,8 @@ class PathResult:
         }
 
 
-@dataclass
-class Peak:
+@dataclass(repr=False)
+class Peak(Displayed):
     """The largest load of a phase, refined to a stated tolerance (module docstring).
 
     Attributes

@@ -1,7 +1,7 @@
 """Closed forms for flat-jack tests: pressurised elliptical hole and slot, several slots (DDM),
 classical evaluations of single and double flat-jack tests.
 
-Conventions (``shared/reference/flat-jack.md``, §2): units mm, N, MPa; plane problem in x, y;
+Conventions: units mm, N, MPa; plane problem in x, y;
 **tension positive**; a jack pressure ``p > 0`` pushes the slot faces apart; an in-situ
 compression σ0 is a positive magnitude (σy∞ = −σ0). ``plane="stress"`` (default) or
 ``"strain"``; stresses do not depend on ν, displacements do. Every function takes and returns
@@ -11,18 +11,19 @@ Contents
 --------
 - :func:`elliptical_hole_field`: Kolosov–Inglis elliptical hole (semi-axes a along x, b along y)
   with remote stresses (σx∞, σy∞, τ∞) and internal pressure p, stresses and displacements
-  everywhere outside the hole (Muskhelishvili's conformal-map potentials, reference §2.1).
+  everywhere outside the hole (Muskhelishvili's conformal-map potentials [1]_).
 - :func:`slot_opening_axis`, :func:`slot_stress_axis`, :func:`slot_stress_ahead`,
   :func:`slot_cod`, :func:`slot_stress_intensity`: the pressurised slot = pressurised crack
   (b → 0; Westergaard, Sneddon; the pin-displacement formula of Jaeger & Cook behind the rock
-  flat-jack modulus of ASTM D4729), reference §2.2.
+  flat-jack modulus of ASTM D4729) [3]_ [4]_.
 - :func:`solve_slots` → :class:`DDMSolution`: constant-element displacement-discontinuity method
-  (Crouch & Starfield 1983) for several pressurised slots of any orientation, reference §2.3.
+  (Crouch & Starfield 1983 [5]_) for several pressurised slots of any orientation.
 - :func:`insitu_stress`, :func:`cancellation_pressure`, :func:`jack_efficiency`,
   :func:`chord_modulus`, :func:`apparent_poisson`: the classical evaluations (σ = Km·Ka·p from
   the pressure that restores the pre-cut gauge readings; modulus from a double-jack test).
 - :func:`homogenised_moduli`, :func:`shear_lag_opening`, :func:`sliding_pressure_difference`:
-  the simplified masonry models of reference §2.5 and the phase-3 statics estimate of §5.4.
+  simplified masonry models (a reconstruction, INFERRED, see ``docs/references.md`` "INFERRED choices") and the statics estimate of the
+  flat-jack scenario's phase 3 (jacks V1, V2 push a block along its top bed joint).
 
 References
 ----------
@@ -40,6 +41,8 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+
+from podkrig.display import Displayed
 
 PLANES = ("stress", "strain")
 
@@ -102,7 +105,7 @@ def elliptical_hole_field(x, y, a, b, *, sx=0.0, sy=0.0, txy=0.0, p=0.0, E=None,
        ψ(ζ) = −pR g − R(Γ/ζ + \\bar A ζ) − R\\,g\\,\\frac{Γζ^2 − A}{ζ^2 − m},\\quad g = 1/ζ + mζ,
 
     σxx + σyy = 4 Re Φ, σyy − σxx + 2iτxy = 2(z̄ Φ'(z) + Ψ(z)) with Φ = φ'/ω', Ψ = ψ'/ω', and
-    ``2μ(u + iv) = κφ − ω conj(φ')/conj(ω') − conj(ψ)`` (reference §2.1; ψ' in closed form
+    ``2μ(u + iv) = κφ − ω conj(φ')/conj(ω') − conj(ψ)`` ([1]_; ψ' in closed form
     here, not by finite differences). Displacements of the remote field grow linearly; they are
     defined up to a rigid motion fixed by ``u(0) = 0`` of the uniform part.
 
@@ -253,7 +256,7 @@ def slot_opening_axis(y, a, p, E, nu, plane="stress"):
     """Vertical displacement ``u_y(0, y)`` (mm) on the axis of a pressurised slot, ``y ≥ 0``.
 
     Slot ``|x| < a, y = 0`` with pressure ``p`` (MPa) on its faces in an infinite plate
-    (Jaeger–Cook pin-displacement formula, reference §2.2), η = y/a:
+    (Jaeger–Cook pin-displacement formula [4]_), η = y/a:
 
     .. math:: u_y = \\frac{p a}{E}\\Big((1−ν)(\\sqrt{1+η^2} − η) + \\frac{1+ν}{\\sqrt{1+η^2}}\\Big)
 
@@ -346,8 +349,8 @@ def _ddm_kernels(x, y, a, nu):
     return ux, uy, sxx, syy, sxy
 
 
-@dataclass(frozen=True, eq=False)
-class DDMSolution:
+@dataclass(frozen=True, eq=False, repr=False)
+class DDMSolution(Displayed):
     """Displacement discontinuities of constant elements along slots in an infinite plate.
 
     Attributes
@@ -415,7 +418,7 @@ def solve_slots(slots, E, nu, n_elements=80, plane="stress", spacing="cosine"):
     Each slot is divided into ``n_elements`` constant elements (``spacing="cosine"`` refines
     towards the tips, ``"uniform"``); the mid-point of each element is collocated with normal
     traction ``−p`` (the jack pushes the faces apart) and zero shear. Plane stress uses the
-    plane-strain kernels with ν' = ν/(1+ν) and the same shear modulus (reference §2.3).
+    plane-strain kernels with ν' = ν/(1+ν) and the same shear modulus (Crouch & Starfield [5]_).
 
     Parameters
     ----------
@@ -478,7 +481,7 @@ def solve_slots(slots, E, nu, n_elements=80, plane="stress", spacing="cosine"):
 def insitu_stress(p_cancel, Km, Ka=1.0):
     """In-situ normal stress (MPa, compression positive) of a single flat-jack test.
 
-    ``σ = Km · Ka · p`` (ASTM C1196 §3, symbol form INFERRED in reference §1.5): ``p_cancel`` the
+    ``σ = Km · Ka · p`` (ASTM C1196 §3 [6]_; the symbols Km, Ka are the usual ones, INFERRED, see ``docs/references.md`` "INFERRED choices"): ``p_cancel`` the
     jack pressure (MPa) that restores the pre-cut gauge distances, ``Km`` the jack efficiency
     (calibration, ≤ 1), ``Ka = A_jack / A_slot`` (≤ 1).
     """
@@ -564,12 +567,12 @@ def apparent_poisson(strain_transverse, strain_axial):
 
 
 # --------------------------------------------------------------------------------------------
-# Simplified masonry models (reference §2.5) and the phase-3 statics (§5.4)
+# Simplified masonry models (INFERRED) and the phase-3 statics of the flat-jack scenario
 # --------------------------------------------------------------------------------------------
 
 
 def homogenised_moduli(E_b, nu_b, kN, kV, r_hj, unit_height, unit_length):
-    """Homogenised moduli ``(E_x, E_y, G_xy)`` (MPa) of a brick wall (reference §2.5, INFERRED).
+    """Homogenised moduli ``(E_x, E_y, G_xy)`` (MPa) of a brick wall (INFERRED, see ``docs/references.md`` "INFERRED choices").
 
     ``1/E_y = 1/E_b + 1/(h kN)`` (series across bed joints; exact for stack bond),
     ``1/E_x ≈ 1/E_b + 1/(l r kN)`` (a lower bound for running bond),
@@ -584,14 +587,14 @@ def homogenised_moduli(E_b, nu_b, kN, kV, r_hj, unit_height, unit_length):
 
 def shear_lag_opening(p, E_b, kV, strip_height):
     """Face displacement ``u0 = p/√(2 kV E_b / h_j)`` (mm) of the shear-lag strip pushed by a
-    vertical jack (reference §2.5 model 2, INFERRED); p MPa, E_b MPa, kV N/mm³, h_j mm."""
+    vertical jack (INFERRED, see ``docs/references.md`` "INFERRED choices"); p MPa, E_b MPa, kV N/mm³, h_j mm."""
     return p / np.sqrt(2.0 * kV * E_b / strip_height)
 
 
 def sliding_pressure_difference(c, tan_phi, p_H, slot_length, jack_height):
     """Phase-3 estimate of the critical ``Δp_V = p_V1 − p_V2`` (MPa) to slide the block's top bed joint.
 
-    Statics with frictionless jack faces (reference §5.4): the top bed joint carries the normal
+    Statics with frictionless jack faces: the top bed joint carries the normal
     stress ``p_H`` and the average shear ``Δp_V h_V / L_H``, so sliding starts at
     ``Δp_V = (L_H / h_V)(c + p_H tanφ)``; c and p_H in MPa, lengths in mm.
     """

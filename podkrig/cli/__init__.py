@@ -37,6 +37,9 @@ app = _App(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    # help texts are plain text: rich markup would take "[kN]", "[µm]" or "[scenario.sensors]" for
+    # style tags and drop them (every command and sub-app inherits this)
+    rich_markup_mode=None,
 )
 simulate.register(app)
 snapshots.register(app)

@@ -17,12 +17,15 @@ from enum import StrEnum
 import typer
 
 from fe.exceptions import FEError
-from podkrig.config import choices, field_info
+from podkrig.cli._terminal import Progress
+from podkrig.config import choices, make_settings
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, CONFIRM_STORE_BYTES
 from podkrig.offline.settings import Design
+from podkrig.online.data_check import MeasurementCheckError
 from podkrig.online.rigid_body import RIGID_BODY_CHOICES
 from podkrig.online.settings import RegionSettings
+from podkrig.reports.findings import refusal
 from podkrig.sensors.settings import SearchSettings
 from podkrig.surrogate.settings import SurrogateSettings
 
@@ -170,6 +173,8 @@ def os_error_message(e):
 
 def error_message(e):
     """The one-line message for an exception the CLI reports instead of a traceback, or None."""
+    if isinstance(e, MeasurementCheckError):
+        return refusal(e, "cli")
     if isinstance(e, (FEError, PodkrigError, ValueError, FileNotFoundError)) and not isinstance(e, UnicodeError):
         return str(e)
     if isinstance(e, OSError):
@@ -190,9 +195,12 @@ def error_message(e):
 
 @contextlib.contextmanager
 def user_errors():
-    """Turn domain, OS and format errors into ``error: <message>`` on stderr and exit code 2."""
+    """Turn domain, OS and format errors into ``error: <message>`` on stderr and exit code 2; while
+    the block runs outside a terminal, a progress line on stderr at least every 20 s
+    (:class:`podkrig.cli._terminal.Progress`)."""
     try:
-        yield
+        with Progress("podkrig"):
+            yield
     except (FEError, PodkrigError, ValueError, OSError, csv.Error, RecursionError, OverflowError,
             MemoryError) as e:
         typer.echo(f"error: {error_message(e)}", err=True)
@@ -214,23 +222,7 @@ def settings_from_options(cls, options):
     ValueError
         ``OPTION VALUE: what is wrong; allowed: ...`` (the settings' own words and allowed values).
     """
-    import pydantic
-
-    given = {k: v for k, (_, v) in options.items() if v is not None}
-    try:
-        return cls(**given)
-    except pydantic.ValidationError as e:
-        error = e.errors(include_url=False)[0]
-        ctx = error.get("ctx") or {}
-        if error["type"] == "settings":
-            key, what, allowed = (ctx["key"] or error["loc"] or ("",))[0], ctx["message"], ctx["allowed"]
-        else:
-            key, what = error["loc"][0], "out of range"
-            allowed = field_info(cls)[key]["allowed"]
-        option = options[key][0] if key in options else key
-        value = given.get(key)
-        raise ValueError(f"{option}{'' if value is None else f' {value!r}'}: {what}"
-                         + (f"; allowed: {allowed}" if allowed else "")) from None
+    return make_settings(cls, {k: v for k, (_, v) in options.items()}, {k: o for k, (o, _) in options.items() if o})
 
 
 def print_findings(console, findings):

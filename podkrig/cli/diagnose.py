@@ -2,7 +2,6 @@
 effect is missing?"""
 
 import json
-import sys
 from pathlib import Path
 
 import typer
@@ -17,6 +16,7 @@ from podkrig.cli._common import (
     settings_from_options,
     user_errors,
 )
+from podkrig.cli._terminal import Progress
 from podkrig.cli.invert import _NOISE_ABS, _NOISE_COV, _NOISE_REL, noise_model
 from podkrig.cli.simulate import load_spec, parse_assignment
 from podkrig.config import field_info
@@ -52,6 +52,9 @@ def register(app):
                                     help="FE snapshots of the base surrogate."),
         report: Path = typer.Option(None, "--report", help="Write an HTML report with figures to this folder."),
         format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output: text or json."),
+        range_check: bool = typer.Option(True, "--range-check/--no-range-check",
+                                         help="Refuse readings far outside every training run of the base surrogate "
+                                              "(20× larger or smaller, or of the opposite sign: a unit or sign error)."),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Calibrate the base model, test whether it explains the data within the noise, name the
@@ -78,12 +81,13 @@ def register(app):
             if both:
                 raise ValueError(f"parameter(s) {both} are both free (--param) and fixed (--set); choose one")
             measurement = read_measurement(data, sc.sensor_names, sc.load_levels, sc.load_unit)
-            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names)
+            noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names,
+                                            model_sensors=sc.sensor_names)
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
-            with _progress() as progress:
+            with Progress("diagnosis") as progress:
                 result = run_diagnosis(sc, measurement, noise, space, settings, fixed=fixed, candidates=names,
                                        progress=progress, rigid_body=str(rigid_body),
-                                       rigid_groups=parse_rigid_groups(rigid_group))
+                                       rigid_groups=parse_rigid_groups(rigid_group), range_check=range_check)
             out = result.to_dict()
             if report is not None:
                 from podkrig.reports.diagnosis import write_diagnosis_report
@@ -95,34 +99,11 @@ def register(app):
                 _print_text(out)
 
 
-class _progress:
-    """A rich progress bar on stderr, fed by ``diagnose``'s ``progress(stage, done, total)``."""
-
-    def __enter__(self):
-        from rich.progress import Progress
-
-        self._bar = Progress(transient=True, console=_stderr_console())
-        self._bar.start()
-        self._task = self._bar.add_task("diagnosis", total=1)
-        return self
-
-    def __call__(self, stage, done, total):
-        self._bar.update(self._task, description=stage, completed=done, total=max(total, 1))
-
-    def __exit__(self, *exc):
-        self._bar.stop()
-        return False
-
-
-def _stderr_console():
-    from rich.console import Console
-
-    return Console(file=sys.stderr)
-
-
 def _print_text(out):
+    from podkrig.reports.diagnosis import chi2_level_text  # the report's words; imported with the report code
+
     a = out["adequacy"]
-    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}, χ² test at α = {a['alpha']:g})")
+    typer.echo(f"verdict: {out['verdict']}  (χ²/dof = {a['chi2_dof']:.2f}, p = {a['p_value']:.3g}; α = {out['alpha']:g}, {chi2_level_text()})")
     typer.echo(f"  χ² includes: {a['basis']}; residuals {out['residual_convention']}")
     typer.echo("base fit: " + ", ".join(f"{k} = {v:.4g}" for k, v in out["base"]["parameters"].items()))
     if out["cause"] is not None:

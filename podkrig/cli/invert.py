@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
@@ -22,12 +21,14 @@ from podkrig.cli._common import (
     settings_from_options,
     user_errors,
 )
+from podkrig.cli._terminal import console as command_console
 from podkrig.cli.simulate import parse_assignment
 from podkrig.config import field_info
 from podkrig.io.measurement_log import REPEATS, ImportSettings, read_measurement, zero_phase
 from podkrig.io.surrogate_file import load_surrogate
-from podkrig.limits import MAX_JSON_BYTES, check_region_samples, read_bounded
+from podkrig.limits import MAX_JSON_BYTES, check_region_samples, quote, read_bounded
 from podkrig.online.calibrate import calibrate
+from podkrig.online.data_check import check_readings, surrogate_training_outputs
 from podkrig.online.findings import chi2_basis
 from podkrig.online.measurement import INSTRUMENTS, NoiseModel
 from podkrig.online.model_error import parse_model_form_error
@@ -44,11 +45,12 @@ _GA = field_info(InversionSettings)
 _IMPORT = ImportSettings()  # the defaults of reading a measurement log
 
 
-def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None):
+def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None, model_sensors=None):
     """The NoiseModel of the CLI options and the noise in words: --noise-abs (σ_res) and/or
     --noise-rel (δ), combined as σ² = σ_res² + (δ d)², or --instrument (needs the measured
     ``sensor_names``) — :class:`~podkrig.online.settings.NoiseSettings` — or --noise-cov (a full
-    covariance, mm²)."""
+    covariance, mm²). ``model_sensors``: the model's sensors, which a --noise-abs NAME=SIGMA must
+    name."""
     given = [bool(noise_abs) or noise_rel is not None, noise_cov is not None, instrument is not None]
     if sum(given) != 1:
         raise ValueError("give one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor) and/or "
@@ -72,6 +74,11 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
             sigma = dict(parse_assignment(t, "--noise-abs") for t in noise_abs)
     noise = settings_from_options(NoiseSettings, {"noise_abs": ("--noise-abs", sigma), "noise_rel": ("--noise-rel", noise_rel),
                                                   "instrument": ("--instrument", instrument)})
+    unknown = noise.unknown_sensors(model_sensors) if model_sensors is not None else []
+    if unknown:
+        name = unknown[0][1]
+        raise ValueError(f"--noise-abs: {quote(name)} (NAME=SIGMA) is not a sensor of the model; its sensors: "
+                         f"{', '.join(model_sensors)}")
     return noise.noise_model(sensor_names), noise.describe()
 
 
@@ -120,16 +127,35 @@ def parse_zero(text):
                          "'end of PHASE' (the last row of that phase in the --phase-column)") from None
 
 
+def import_settings(**options):
+    """The :class:`~podkrig.io.measurement_log.ImportSettings` of the options of the same names
+    (``load_tolerance`` is ``--load-tolerance``); a refused value is named by its option."""
+    try:
+        return ImportSettings(**options)
+    except ValueError as e:
+        field, _, rest = str(e).partition(" ")
+        if field not in options:
+            raise
+        raise ValueError(f"--{field.replace('_', '-')} {options[field]!r}: {rest}") from None
+
+
 def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, fix, import_settings=None,
-                  instrument=None, check=True, rigid_body="auto", rigid_groups=None):
+                  instrument=None, check=True, rigid_body="auto", rigid_groups=None, range_check=True):
     """Load the surrogate and data, and set up the inverse problem; returns (problem, model, noise text).
 
-    ``check``: refuse dof ≤ 0 (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``,
-    ``rigid_groups``: see :class:`~podkrig.online.problem.InverseProblem`."""
+    The measurement check of every door: the log's loads (by the reader) and, with
+    ``range_check``, its readings against the surrogate's training runs
+    (:mod:`podkrig.online.data_check`). ``check``: refuse dof ≤ 0
+    (:func:`~podkrig.online.problem.check_dof`); ``rigid_body``, ``rigid_groups``: see
+    :class:`~podkrig.online.problem.InverseProblem`."""
     model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
                                    model.load_response, import_settings)
-    noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names)
+    noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names,
+                                    model_sensors=model.sensor_names)
+    if range_check:
+        check_readings(measurement, noise, model.sensor_names, model.load_levels, model.load_response,
+                       surrogate_training_outputs(model.surrogate), runs="surrogate")
     free_names = None
     if free:
         free_names = tuple(n.strip() for item in free for n in item.split(",") if n.strip())
@@ -152,6 +178,11 @@ _SEED_OPTION = typer.Option(_GA["seed"]["default"], "--seed",
                             help="Seed of the GA, the region sampling, the posterior and the RVC.")
 _CONFIDENCE_OPTION = typer.Option(_CALIBRATION["confidence"]["default"], "--confidence",
                                   help="Confidence of the region of equivalence (and of the posterior's intervals).")
+#: the measurement's readings against the surrogate's training runs (the study file's
+#: ``[measurement] range_check``)
+RANGE_CHECK = typer.Option(True, "--range-check/--no-range-check",
+                           help="Refuse readings far outside every training run of the surrogate (20× larger or "
+                                "smaller, or of the opposite sign: a unit or sign error).")
 _INSTRUMENT = typer.Option(None, "--instrument", help="Noise of a typical instrument for every sensor: "
                            + ", ".join(INSTRUMENTS) + " (σ² = σ_res² + (δ d)², values in the docs).")
 
@@ -204,6 +235,7 @@ def register(app):
                                        help="Also sample the Bayesian posterior by MCMC (steps; 0 = off)."),
         fe_check: bool = typer.Option(_CALIBRATION["fe_check"]["default"], "--fe-check/--no-fe-check",
                                       help="Run the FE model once at the optimum."),
+        range_check: bool = RANGE_CHECK,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Identify the free parameters from measured readings against a surrogate."""
@@ -217,15 +249,16 @@ def register(app):
                                             model_form_error=model_form_error)
             if repeats not in REPEATS:
                 raise ValueError(f"--repeats must be one of {', '.join(REPEATS)}; got {repeats!r}")
-            reading = ImportSettings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
+            reading = import_settings(load_column=load_column, repeats=repeats, load_tolerance=load_tolerance,
                                       zero=parse_zero(zero), phase_column=phase_column,
                                       load_range=parse_load_range(load_range),
                                       delimiter={"tab": "\t", "\\t": "\t"}.get(delimiter, delimiter),
                                       decimal=decimal, sheet=sheet)
             problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
                                                        reading, instrument, rigid_body=rigid_body,
-                                                       rigid_groups=parse_rigid_groups(rigid_group))
-            out = calibrate(problem, settings)
+                                                       rigid_groups=parse_rigid_groups(rigid_group),
+                                                       range_check=False)
+            out = calibrate(problem, settings, range_check=range_check)  # the library's measurement check
             if report is not None:
                 write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text, rvc=False)
         if format == "json":
@@ -249,15 +282,17 @@ def register(app):
         format: TableFormat = typer.Option(TableFormat.table, "--format"),
         seed: int = _SEED_OPTION,
         confidence: float = _CONFIDENCE_OPTION,
+        range_check: bool = RANGE_CHECK,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Response variability (RVC) of the calibration and validation models over the region of equivalence."""
         configure_logging(verbose)
         with user_errors():
             settings = calibration_settings(seed=seed, confidence=confidence, fe_check=False)
-            problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix)
+            problem, model, noise_text = build_problem(surrogate, data, noise_abs, noise_rel, noise_cov, free, fix,
+                                                       range_check=False)
             models = {Path(path).stem: (SurrogateModel(load_surrogate(path)), None) for path in validation}
-            out = calibrate(problem, settings, validation=models, outputs=list(output) or None)
+            out = calibrate(problem, settings, validation=models, outputs=list(output) or None, range_check=range_check)
             results = out.rvc
             if report is not None:
                 write_inversion_report(report, out, load_unit=model.load_unit, noise_text=noise_text)
@@ -270,7 +305,7 @@ def register(app):
         for name, res in results.items():
             for k, o in enumerate(res.outputs):
                 table.add_row(name, o, f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}", f"{100 * res.range_ratio[k]:.3f}")
-        Console().print(table)
+        command_console().print(table)
 
     @app.command()
     def overparam(
@@ -308,7 +343,7 @@ def register(app):
         for r in rows:
             table.add_row(", ".join(r.free), f"{r.chi2_dof:.3g}", f"{r.aic:.4g}", f"{r.bic:.4g}",
                           ", ".join(r.unidentified) or "—", *[f"{100 * r.rvc[v]:.3g}" for v in vals])
-        Console().print(table)
+        command_console().print(table)
 
     return invert, rvc, overparam
 
@@ -331,7 +366,7 @@ def parameters_table(calibration, title):
 
 def _print_table(out, report):
     r = out.inversion
-    console = Console()
+    console = command_console()
     console.print(parameters_table(out, f"identified parameters (χ²/dof = {r.chi2_dof:.3g}, ω = {r.misfit:.4g}, "
                                         f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: "
                                         f"{r.chi2_basis}"))

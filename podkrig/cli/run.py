@@ -15,70 +15,59 @@ def examples_dir():
     return Path(__file__).resolve().parents[2] / "examples"
 
 
-def _rich_progress():
-    """A :class:`podkrig.study.pipeline.Progress` drawing one line or bar per stage on stderr."""
-    from rich.console import Console
-    from rich.markup import escape
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        SpinnerColumn,
-        TextColumn,
-        TimeElapsedColumn,
-    )
-
+def _stage_progress():
+    """A :class:`podkrig.study.pipeline.Progress` showing each stage on stderr
+    (:class:`~podkrig.cli._terminal.Progress`: a bar on a terminal, a line at least every 20 s
+    elsewhere) and one line per finished stage."""
+    from podkrig.cli._terminal import Progress
     from podkrig.study.pipeline import Progress as StageProgress
 
-    console = Console(stderr=True)
-
-    class RichProgress(StageProgress):
+    class CommandProgress(StageProgress):
         def __init__(self):
-            self.bar = None
-            self.task = None
+            self.display = Progress("study").__enter__()
+            self.title = "study"
 
         def stage_started(self, name, title, total=None):
-            if not console.is_terminal:  # a log file gets one line per finished stage
-                return
-            columns = [SpinnerColumn(), TextColumn("{task.description}")]
-            if total is not None:
-                columns += [BarColumn(), MofNCompleteColumn()]
-            self.bar = Progress(*columns, TimeElapsedColumn(), console=console, transient=True)
-            self.task = self.bar.add_task(title, total=total)
-            self.bar.start()
+            self.title = title
+            self.display.update(title, 0, total)
 
         def advance(self, completed, total):
-            if self.bar is not None:
-                self.bar.update(self.task, completed=completed, total=total)
+            self.display.update(self.title, completed, total)
 
         def stage_finished(self, record):
-            if self.bar is not None:
-                self.bar.stop()
-                self.bar = None
             if record.cached:
-                console.print(f"[dim]· {escape(record.title)}: cached[/]")
-            else:
-                fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
-                console.print(f"[green]✓[/] {escape(record.title)}: {record.seconds:.1f} s{fe}")
-                for note in record.result.get("notes", ()):  # e.g. a small job run serially, and why
-                    console.print(f"  [dim]{escape(note)}[/]")
+                self.display.finish(f"· {record.title}: cached")
+                return
+            fe = f", {record.fe_runs} FE runs" if record.fe_runs else ""
+            self.display.finish(f"✓ {record.title}: {record.seconds:.1f} s{fe}")
+            for note in record.result.get("notes", ()):  # e.g. a small job run serially, and why
+                self.display.print(f"  {note}")
 
         def stop(self):
-            if self.bar is not None:
-                self.bar.stop()
+            self.display.stop()
 
-    return RichProgress()
+    return CommandProgress()
 
 
-def _run(study_path, out, yes=False):
-    """Load, run and summarise a study (inside the CLI's error handling)."""
+SKIP_DIAGNOSIS_HELP = ("Leave the model diagnosis out of this run (most of the demo's FE runs), as 'enabled = "
+                       "false' in the study's diagnosis table would; a later run without this option adds the "
+                       "diagnosis, every other stage cached.")
+
+
+def _run(study_path, out, yes=False, skip_diagnosis=False):
+    """Load, run and summarise a study (inside the CLI's error handling); ``skip_diagnosis``: with
+    the study's diagnosis switched off."""
+    import dataclasses
+
     from podkrig.study import load_study, run_study
 
     study = load_study(study_path)
+    if skip_diagnosis:
+        study = dataclasses.replace(study, diagnosis=dataclasses.replace(study.diagnosis, enabled=False))
     if out is None:  # the study's name becomes a folder: a name, never a path
         out = Path("out") / check_name(study.name, f"the study name in {study_path}")
     check_output_folder(out)
-    progress = _rich_progress()
+    progress = _stage_progress()
     try:
         result = run_study(study, out, progress=progress,
                            confirm=lambda text, large: confirm_large_job(text, large, yes))
@@ -92,15 +81,15 @@ def _run(study_path, out, yes=False):
 
 
 def _print_summary(result):
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
+    from podkrig.cli._terminal import console as command_console
     from podkrig.cli.invert import parameters_table
     from podkrig.online.findings import RESIDUAL_CONVENTION
     from podkrig.reports.study import chi2_rows
 
-    console = Console()
+    console = command_console()
     calibration = result.calibration
     inv = calibration.inversion
     console.print(parameters_table(calibration, f"{result.study.name}: identified parameters (χ²/dof of the surrogate "
@@ -151,6 +140,7 @@ def register(app):
         yes: bool = typer.Option(False, "--yes", "-y", help=f"Start more than {CONFIRM_ROWS} FE runs or "
                                  f"{CONFIRM_FE_HOURS:g} h of estimated FE work without asking (required "
                                  "without a terminal)."),
+        skip_diagnosis: bool = typer.Option(False, "--skip-diagnosis", help=SKIP_DIAGNOSIS_HELP),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run a whole study: FE snapshots, surrogate, held-out check, inversion, region of equivalence, RVC, diagnosis.
@@ -160,17 +150,19 @@ def register(app):
         """
         configure_logging(verbose)
         with user_errors():
-            _run(study, out, yes)
+            _run(study, out, yes, skip_diagnosis)
 
     @app.command()
     def demo(
         out: Path = typer.Option(Path("out/demo"), "--out", help="Output folder."),
+        skip_diagnosis: bool = typer.Option(False, "--skip-diagnosis", help=SKIP_DIAGNOSIS_HELP),
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """Run the bundled default study: a diagonal compression test with pseudo-measured data.
 
         The study is examples/diagonal_compression.toml (see examples/README.md); writes
-        OUT/report/index.html. About a minute on two cores the first time, seconds when cached.
+        OUT/report/index.html. About a minute on two cores the first time, seconds when cached; the
+        model diagnosis is about 950 of its 1 300 FE runs (--skip-diagnosis leaves it out).
         """
         configure_logging(verbose)
         with user_errors():
@@ -180,4 +172,4 @@ def register(app):
                     f"the demo study {study} is missing: 'podkrig demo' runs from a source checkout "
                     "(git clone, then pip install -e .); or run your own study with 'podkrig run STUDY.toml'"
                 )
-            _run(study, out)
+            _run(study, out, skip_diagnosis=skip_diagnosis)

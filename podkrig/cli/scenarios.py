@@ -3,13 +3,13 @@
 import json
 
 import typer
-from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
 from fe.scenarios import SCENARIOS
 from fe.scenarios.catalogue import SENSOR_KINDS, describe_scenario, typical_range
 from podkrig.cli._common import user_errors
+from podkrig.cli._terminal import console as command_console
 
 
 def _fmt(v):
@@ -80,7 +80,7 @@ def register(app):
             typer.echo(json.dumps([d.to_dict() for d in descriptions] if not name else descriptions[0].to_dict(),
                                   indent=2))
             return
-        console = Console(highlight=False)
+        console = command_console(highlight=False)
         if name:
             _print_one(console, descriptions[0])
             return

@@ -6,6 +6,7 @@ from pathlib import Path
 import typer
 
 from podkrig.cli._common import TableFormat, configure_logging, settings_from_options, user_errors
+from podkrig.cli.invert import RANGE_CHECK
 from podkrig.cli.simulate import parse_assignment
 from podkrig.online.settings import SENSITIVITY, SensitivitySettings
 
@@ -26,6 +27,7 @@ def register(app):
                                          help="Level of the bootstrap intervals."),
         out: Path = typer.Option(Path("out/sensitivity"), "--out", help="Output folder (sensitivity.json, sensitivity.png)."),
         format: TableFormat = typer.Option(TableFormat.table, "--format", help="table or json."),
+        range_check: bool = RANGE_CHECK,
         verbose: bool = typer.Option(False, "--verbose", "-v"),
     ):
         """First-order and total Sobol' indices of every reading (and of the misfit with --data) over the
@@ -33,13 +35,14 @@ def register(app):
         sensitive to them (total index < 0.01 everywhere)."""
         configure_logging(verbose)
         # imported here: see podkrig.cli (the surrogate and online stacks and matplotlib take seconds)
-        from rich.console import Console
+        from rich.markup import escape
         from rich.table import Table
 
+        from podkrig.cli._terminal import console as command_console
         from podkrig.cli.invert import build_problem
         from podkrig.online.problem import SurrogateModel
         from podkrig.online.sensitivity import NEGLIGIBLE_TOTAL_INDEX, misfit_sensitivity, reading_sensitivity
-        from podkrig.reports.sensitivity import plot_sensitivity
+        from podkrig.reports.sensitivity import index_notes, plot_sensitivity
         from podkrig.io.surrogate_file import load_surrogate
 
         with user_errors():
@@ -51,7 +54,8 @@ def register(app):
             readings = reading_sensitivity(model, free=free_names, fixed=fixed, **options)
             misfit = None
             if data is not None:
-                problem, _, _ = build_problem(surrogate, data, noise_abs, noise_rel, None, list(free), list(fix))
+                problem, _, _ = build_problem(surrogate, data, noise_abs, noise_rel, None, list(free), list(fix),
+                                              range_check=range_check)
                 misfit = misfit_sensitivity(problem, **options)
             elif noise_abs or noise_rel is not None:
                 raise ValueError("a noise model needs --data (the misfit's indices); without it only the readings' are computed")
@@ -65,20 +69,28 @@ def register(app):
         if format == TableFormat.json:
             typer.echo(json.dumps(result, indent=2))
             return
-        console = Console()
+        console = command_console()
         table = Table(title=f"Sobol' indices over the box ({readings.n_evaluations} surrogate evaluations, "
                             f"{readings.seconds:.1f} s; largest over {len(readings.outputs)} readings)")
-        for col in ("parameter", "total (max)", "first order (same reading)", "reading", "misfit total") if misfit else (
-                "parameter", "total (max)", "first order (same reading)", "reading"):
-            table.add_column(col, justify="right" if col != "reading" else "left")
         T = readings.total
+        rows = []
         for j, name in enumerate(readings.parameters):
             k = max(range(len(readings.outputs)), key=lambda i: -1.0 if readings.variance[i] <= 0 else T[i, j])
             row = [name, f"{T[k, j]:.3f} [{readings.total_low[k, j]:.3f}, {readings.total_high[k, j]:.3f}]",
                    f"{readings.first[k, j]:.3f}", readings.outputs[k]]
+            shown = [(T[k, j], readings.total_low[k, j], readings.total_high[k, j]),
+                     (readings.first[k, j], readings.first_low[k, j], readings.first_high[k, j])]
             if misfit:
                 row.append(f"{misfit.total[0, j]:.3f} [{misfit.total_low[0, j]:.3f}, {misfit.total_high[0, j]:.3f}]")
-            table.add_row(*row)
+                shown.append((misfit.total[0, j], misfit.total_low[0, j], misfit.total_high[0, j]))
+            rows.append(row + [index_notes(*shown)])
+        columns = ["parameter", "total (max)", "first order (same reading)", "reading"] + (["misfit total"] if misfit else [])
+        if any(row[-1] for row in rows):  # a note column only when an index is negative
+            columns.append("note")
+        for col in columns:
+            table.add_column(col, justify="left" if col in ("reading", "note") else "right")
+        for row in rows:
+            table.add_row(*(escape(cell) for cell in row[:len(columns)]))
         console.print(table)
         fixing = result["propose_fixing"]
         if fixing:

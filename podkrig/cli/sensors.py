@@ -91,18 +91,12 @@ def register(app):
         configure_logging(verbose)
         # imported here, not at module top: the FE, surrogate and online stacks take ~6.5 s to import
         # (measured under load, 2026-11-24) and every other podkrig command would pay for them
-        from rich.console import Console
         from rich.markup import escape
-        from rich.progress import (
-            BarColumn,
-            MofNCompleteColumn,
-            Progress,
-            TextColumn,
-            TimeElapsedColumn,
-        )
         from rich.table import Table
 
         from fe.scenarios import SCENARIOS, build_scenario
+        from podkrig.cli._terminal import Progress
+        from podkrig.cli._terminal import console as command_console
         from podkrig.parameters import ParameterSpace, parse_params
         from podkrig.reports.sensors import comparison_markdown, comparison_rows, plot_layout
         from podkrig.sensors.candidates import Zone
@@ -133,25 +127,13 @@ def register(app):
                 "n_truths": ("--truths", truths)})
             settings = settings_from_options(PlacementSettings, {
                 "search": ("", search), "comparison": ("", comparison), "seed": ("--seed", seed)})
+            noise = settings_from_options(SensorNoise, {"lvdt": ("--noise-lvdt", noise_lvdt), "dic": ("--noise-dic", noise_dic),
+                                                        "relative": ("--noise-rel", noise_rel)})
             user = None if candidates_file is None else _read_candidates(candidates_file)
             cands = where.candidates(sc.mesh, user, forbidden=zones)
-            noise = SensorNoise(lvdt=noise_lvdt, dic=noise_dic, relative=noise_rel)
-            progress = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                                console=Console(stderr=True))
-            tasks = {}
-
-            def report(stage, done, total):
-                if not progress.live.is_started:
-                    progress.start()
-                if stage not in tasks:
-                    tasks[stage] = progress.add_task(stage, total=total)
-                progress.update(tasks[stage], completed=done, total=total)
-
-            try:
+            with Progress("sensors") as progress:
                 result = place_sensors(sc, space, cands, settings, noise=noise, fixed=fixed, forbidden=zones,
-                                       model=str(sensitivities), progress=report)
-            finally:
-                progress.stop()
+                                       model=str(sensitivities), progress=progress)
             out.mkdir(parents=True, exist_ok=True)
             (out / "layout.toml").write_text(spec_toml(result.spec()))
             (out / "scenario_table.toml").write_text(spec_toml(result.spec(), table="scenario"))
@@ -159,7 +141,7 @@ def register(app):
             (out / "comparison.md").write_text(comparison_markdown(result))
             plot_layout(result, out / "layout.png")
 
-        console = Console()
+        console = command_console()
         lay = result.layout
         criterion = search.criterion
         console.print(f"{len(cands)} candidates ({len(result.candidates)} with the current sensors); "

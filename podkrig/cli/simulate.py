@@ -143,10 +143,16 @@ def _print(sc, response, values, seconds, format):
         for level, row in zip(response.load_levels, response.readings):
             typer.echo(",".join([f"{level:g}"] + [f"{v:.8g}" for v in row]))
         return
-    from rich.console import Console
     from rich.table import Table
 
+    from podkrig.cli._terminal import console as command_console
+
     nonlinear = hasattr(response, "summary")
+    console = command_console()
+    if nonlinear and not response.converged:  # the first line says the run is not a result
+        from podkrig.reports.nonlinear import stop_line
+
+        console.print(stop_line(response), markup=False, highlight=False)
     table = Table(title=f"{sc.name}: readings in mm ({sc.n_dofs} dofs, {seconds:.3f} s)")
     table.add_column("sensor")
     for level in response.load_levels:
@@ -155,7 +161,6 @@ def _print(sc, response, values, seconds, format):
         table.add_row(f"load ({response.force_unit})", *[f"{v:.4g}" for v in response.loads])
     for j, name in enumerate(response.sensor_names):
         table.add_row(name, *[f"{v:+.5f}" for v in response.readings[:, j]])
-    console = Console()
     console.print(table)
     if nonlinear:
         console.print(f"peak load {response.peak_load:.4g} {response.force_unit} at {response.peak_displacement:.4g} mm; "

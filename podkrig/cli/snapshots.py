@@ -3,7 +3,6 @@
 import csv
 import json
 import math
-import time
 from pathlib import Path
 
 import typer
@@ -11,9 +10,10 @@ import typer
 from podkrig.cli._common import (
     SamplingMethod, TextFormat, configure_logging, confirm_large_job, settings_from_options, user_errors,
 )
+from podkrig.cli._terminal import Progress
 from podkrig.config import field_info
 from podkrig.exceptions import StoreError
-from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_rows, fe_job_estimate
+from podkrig.limits import CONFIRM_FE_HOURS, CONFIRM_ROWS, check_chunk_size, check_rows, check_workers, fe_job_estimate
 from podkrig.offline.settings import Design
 
 snapshots_app = typer.Typer(
@@ -63,16 +63,6 @@ def run(
     Any other change of arguments against an existing store is refused.
     """
     configure_logging(verbose)
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     from fe.scenarios import build_scenario
     from fe.scenarios.nonlinear import NonlinearScenario
 
@@ -85,6 +75,10 @@ def run(
     with user_errors():
         if workers is not None and scheduler is not None:
             raise ValueError("give either --workers (a local cluster) or --scheduler (an existing one), not both")
+        if workers is not None:
+            check_workers(workers, "--workers")  # the runner's own bounds, named by the option
+        if chunk_size is not None:
+            check_chunk_size(chunk_size, "--chunk-size")
         bounds = parse_params(param)
         sc = build_scenario(_scenario_spec(scenario, spec))
         space = ParameterSpace.from_scenario(sc, bounds)
@@ -95,30 +89,16 @@ def run(
         todo = rows_to_run(store, n, retry_failed)
         job = [(todo, sc.n_dofs, isinstance(sc, NonlinearScenario))]
         confirm_large_job(*fe_job_estimate(job, size if todo else 0), yes)
-        progress = Progress(
-            TextColumn("snapshots"), BarColumn(), MofNCompleteColumn(),
-            TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-            console=Console(stderr=True),
-        )
-        task = progress.add_task("run", total=None, rate="")
-        t0 = time.perf_counter()
-
-        def report(completed, total):
-            if not progress.live.is_started:  # only once rows complete: errors print no empty bar
-                progress.start()
-            rate = completed / (time.perf_counter() - t0)
-            progress.update(task, completed=completed, total=total, rate=f"{rate:.1f} snapshots/s")
-
         try:
-            summary = run_snapshots(
-                store, sc, space, **design.run_arguments(), fields=fields, workers=workers,
-                scheduler=scheduler, retry_failed=retry_failed, chunk_size=chunk_size, progress=report,
-            )
+            with Progress("snapshots", rate="snapshots/s") as progress:
+                summary = run_snapshots(
+                    store, sc, space, **design.run_arguments(), fields=fields, workers=workers, scheduler=scheduler,
+                    retry_failed=retry_failed, chunk_size=chunk_size,
+                    progress=lambda completed, total: progress.update("snapshots", completed, total),
+                )
         except KeyboardInterrupt:
             typer.echo(f"interrupted: finished rows are kept in {store}; rerun the same command to resume", err=True)
             raise typer.Exit(code=130) from None
-        finally:
-            progress.stop()
         result = OfflineResult.from_store(store, summary)
     rate = summary.snapshots_per_second
     typer.echo(

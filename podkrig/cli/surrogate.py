@@ -20,7 +20,7 @@ from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.refine import refine_surrogate
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult
-from podkrig.surrogate.settings import BACKENDS, SurrogateSettings, fit_surrogate
+from podkrig.surrogate.settings import BACKENDS, RefineSettings, SurrogateSettings, fit_surrogate
 from podkrig.surrogate.validation import compare_settings, held_out_errors
 
 surrogate_app = typer.Typer(
@@ -32,6 +32,7 @@ surrogate_app = typer.Typer(
 
 #: the defaults of the surrogate settings, shown in the options' help
 _DEFAULTS = {name: f["default"] for name, f in field_info(SurrogateSettings).items()}
+_REFINE = {name: f["default"] for name, f in field_info(RefineSettings).items()}
 #: the options that set our kriging (a library backend fits its own hyperparameters)
 _KRIGING_OPTIONS = {"variogram": "--variogram", "beta": "--beta", "criterion": "--criterion", "nugget": "--nugget"}
 
@@ -186,22 +187,27 @@ def refine(
     file: Path = typer.Argument(..., help="Surrogate file; rewritten with the refitted surrogate."),
     store: Path = typer.Option(..., "--store", help="Training snapshot store; new rows are appended and run."),
     held_out: Path = typer.Option(..., "--held-out", help="Snapshot store of held-out FE runs."),
-    target_error: float = typer.Option(0.005, "--target-error", help="Stop at this held-out median relative error (-)."),
-    budget: int = typer.Option(64, "--budget", help="At most this many new FE runs."),
-    batch: int = typer.Option(8, "--batch", help="FE runs added per round."),
-    candidates: int = typer.Option(4096, "--candidates", help="Size of the Sobol' candidate set."),
-    seed: int = typer.Option(1, "--seed", help="Seed of the candidate set."),
+    target_error: float = typer.Option(_REFINE["target_error"], "--target-error",
+                                       help="Stop at this held-out median relative error (-)."),
+    budget: int = typer.Option(_REFINE["budget"], "--budget", help="At most this many new FE runs."),
+    batch: int = typer.Option(_REFINE["batch"], "--batch", help="FE runs added per round."),
+    candidates: int = typer.Option(_REFINE["n_candidates"], "--candidates", help="Size of the Sobol' candidate set."),
+    seed: int = typer.Option(_REFINE["seed"], "--seed", help="Seed of the candidate set."),
     sampling: SamplingMethod = typer.Option(SamplingMethod(field_info(Design)["method"]["default"]), "--sampling",
                                             help="Candidate design."),
-    workers: int = typer.Option(1, "--workers", help="FE workers (1: in this process)."),
+    workers: int = typer.Option(_REFINE["workers"], "--workers", help="FE workers (1: in this process)."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Add FE runs where the surrogate is least certain until --target-error or --budget is reached."""
     configure_logging(verbose)
     with user_errors():
-        sur = refine_surrogate(load_surrogate(file), store, held_out, target_error=target_error, budget=budget,
-                               batch=batch, n_candidates=candidates, rng=seed, workers=workers,
-                               sampling=sampling.value)
+        r = settings_from_options(RefineSettings, {
+            "target_error": ("--target-error", target_error), "budget": ("--budget", budget),
+            "batch": ("--batch", batch), "n_candidates": ("--candidates", candidates), "seed": ("--seed", seed),
+            "workers": ("--workers", workers), "sampling": ("--sampling", sampling.value)})
+        sur = refine_surrogate(load_surrogate(file), store, held_out, target_error=r.target_error, budget=r.budget,
+                               batch=r.batch, n_candidates=r.n_candidates, rng=r.seed, workers=r.workers,
+                               sampling=r.sampling)
         save_surrogate(sur, file)
     result = sur.provenance_["refinement"]
     hist = result["history"]

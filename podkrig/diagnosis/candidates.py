@@ -575,7 +575,7 @@ class JackEfficiency(Candidate):
 
     def parameter(self, ctx, location):
         k0 = ctx.values["Km"]
-        # Km of a sound jack is 0.7–0.95 (reference flat-jack §1.5); 0.4–1.2 covers a bad one
+        # Km of a sound jack is 0.7–0.95 (calibrations per ASTM C1196/RILEM MDT.D.4); 0.4–1.2 covers a bad one
         return EffectParameter("Km", "-", k0, min(0.4, k0), max(1.2, k0), 0.8 * k0)
 
     def effect(self, ctx, values, location, c):
@@ -674,7 +674,7 @@ class NonlinearityOnset(Candidate):
        Each run gives the **departure** ``D(s) = R_nl(s) − R_el`` of the readings at the linear scenario's force
        levels (interpolated on the force–readings path: the twins are displacement controlled).
     2. A level *departs visibly* when some reading there moves by more than ``visible`` × the
-       largest elastic reading (INFERRED option, 1 %: the noise of the trials, about the spread
+       largest elastic reading (INFERRED option, ``docs/references.md``; 1 %: the noise of the trials, about the spread
        of two sound discretisations).
        The **location** is the first departing level ``k`` (the onset level): the scan strengths
        whose first departing level is ``k`` form its range, disjoint from the other levels'. Its

@@ -48,6 +48,7 @@ from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import CANDIDATES, DEFAULT_CANDIDATES, FEContext
 from podkrig.diagnosis.settings import DiagnosisSettings
 from podkrig.online.calibrate import model_form_error
+from podkrig.online.data_check import check_readings, surrogate_training_outputs
 from podkrig.online.model_error import DEFAULT_RATE, FALLBACK_TOLERANCE
 from podkrig.diagnosis.results import (
     CHI2_ALPHA_SHARE,
@@ -171,7 +172,8 @@ def data_covariance(measurement, noise, model_error=None):
 
 
 def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, surrogate=None, candidates=None,
-             model_error_rate=DEFAULT_RATE, refit_locations=3, progress=None, rigid_body="auto", rigid_groups=None):
+             model_error_rate=DEFAULT_RATE, refit_locations=3, progress=None, rigid_body="auto", rigid_groups=None,
+             range_check=True):
     """Diagnose a calibrated FE model against measured data, naming missing causes in turn.
 
     Parameters
@@ -216,10 +218,19 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
         sensors together, "keep" none. χ² dof lose 3 per group and load level.
     rigid_groups : dict of str to sequence of str, optional
         Group name → point displacement sensors whose rigid motion is fitted together.
+    range_check : bool
+        Refuse readings far outside every training run of the base surrogate (a unit or sign
+        error: :func:`~podkrig.online.data_check.check_readings`), before the calibration.
 
     Returns
     -------
     DiagnosisResult
+
+    Raises
+    ------
+    MeasurementCheckError
+        With ``range_check``: the readings of a sensor 20× larger or smaller than every training
+        run, or of the opposite sign.
     """
     if not measurement.complete or measurement.reference_load is not None:
         raise ValueError(f"{measurement.source}: the diagnosis needs every sensor read at each load level (no "
@@ -241,6 +252,9 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     if surrogate is None:
         surrogate = build_base_surrogate(scenario, space, values0, n_train=settings.n_train, rng=rng)
         ctx.n_runs += settings.n_train
+    if range_check:  # the measurement check of every door: the readings against the training runs
+        check_readings(measurement, noise, scenario.sensor_names, scenario.load_levels, "discrete",
+                       surrogate_training_outputs(surrogate), runs="surrogate")
     say("calibration", 1, 4)
     problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
     inv = invert(problem, **InversionSettings(seed=rng).options())

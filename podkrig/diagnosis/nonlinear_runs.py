@@ -14,7 +14,7 @@ there; a run has at most ``RUN_STEPS`` increments, ``50 RUN_STEPS`` Newton itera
 
 Joint strengths are varied by one **strength scale** ``s`` on the nonlinear scenario's defaults:
 ``ft_bj``, ``c_bj`` and ``fc`` times ``s``, the fracture energies ``GfI_bj``, ``GfII_bj``,
-``Gfc`` times ``s²`` (INFERRED choice, option "energies ∝ s²": it keeps ``ft²/G_f^I`` and hence the
+``Gfc`` times ``s²`` (INFERRED choice, ``docs/references.md``; option "energies ∝ s²": it keeps ``ft²/G_f^I`` and hence the
 local-uniqueness margin ``k_n > ft²/G_f^I`` of the defaults, so every ``s`` is admissible;
 friction, dilatancy and the units' mid-plane strength ``ft_bb`` stay at their defaults).
 

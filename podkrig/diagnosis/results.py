@@ -10,6 +10,7 @@ import numpy as np
 from fe.scenarios import build_scenario
 from fe.sensors import absolute_displacements
 from podkrig.diagnosis.candidates import EffectParameter, Location
+from podkrig.display import Displayed
 from podkrig.online.model_error import ModelError
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.online.measurement import Measurement
@@ -251,8 +252,8 @@ class Step:
                    float(d["p_value_after"]), d["dropped"])
 
 
-@dataclass(frozen=True, eq=False)
-class DiagnosisResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class DiagnosisResult(Displayed):
     """Outcome of :func:`diagnose`; :meth:`to_dict` is the JSON of ``podkrig diagnose``."""
 
     scenario: object

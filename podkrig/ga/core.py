@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize
 
+from podkrig.display import Displayed
 from podkrig.ga import operators as ops
 from podkrig.ga.options import GABudgetWarning, GAOptions
 
@@ -66,8 +67,8 @@ _STOP_MESSAGES = {
 _SUCCESSFUL_STOPS = ("target", "stall")
 
 
-@dataclass(frozen=True)
-class GAResult:
+@dataclass(frozen=True, repr=False)
+class GAResult(Displayed):
     """Outcome of a genetic-algorithm run (all arrays read-only, physical units).
 
     Attributes

@@ -20,9 +20,10 @@ What the reader does, in order:
   load within the range);
 * several readings at one load step (consecutive rows within ``load_tolerance``) are averaged or
   kept (``repeats``);
-* the measured loads are checked against the model: any load for a linear scenario (its readings
-  are affine in the load), the modelled range for a nonlinear one, the levels themselves for a
-  stepped test.
+* the measured loads are checked against the model: their unit and sign against its load levels
+  (:func:`podkrig.online.data_check.check_loads`: N under a ``kN`` header is refused), then any
+  load for a linear scenario (its readings are affine in the load), the modelled range for a
+  nonlinear one, the levels themselves for a stepped test.
 
 Every problem is reported with the file, the row (1-based, as a spreadsheet shows it) and the
 column.
@@ -43,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.limits import MAX_ABS_READING_MM, MAX_LOG_BYTES, quote, quote_cells, read_bounded
+from podkrig.online.data_check import check_loads
 from podkrig.online.measurement import LOAD_RESPONSES, Measurement, level_weights
 
 #: Largest log read, bytes (:data:`podkrig.limits.MAX_LOG_BYTES`): 100 000 rows of a dozen
@@ -623,6 +625,8 @@ class _Table:
         loads, values, rows = self._repeats(loads, values, rows)
         if not np.any(np.isfinite(values)):
             raise ValueError(f"{self.path}: no readings (every sensor cell is empty)")
+        check_loads(loads, load_levels, self.load_unit, source=str(self.path), column=self.header[self.load_col],
+                    rows=rows)
         self._check_loads(loads, rows, load_levels, load_response)
         if reference is not None:
             level_weights([reference], load_levels, load_response, self.load_unit,

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
 from podkrig.offline.store import SnapshotStore
 
 __all__ = ["OfflineResult"]
@@ -25,8 +26,8 @@ __all__ = ["OfflineResult"]
 SHOWN_FAILURES = 5
 
 
-@dataclass(frozen=True)
-class OfflineResult:
+@dataclass(frozen=True, repr=False)
+class OfflineResult(Displayed):
     """A snapshot store after an offline run.
 
     Attributes

@@ -63,6 +63,7 @@ from podkrig.limits import check_chunk_size, check_workers
 from podkrig.offline.files import acquire_lock, release_lock
 from podkrig.offline.sampling import METHODS, sample
 from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore
+from podkrig.parallel import close_local_cluster
 from podkrig.parameters import ParameterSpace
 
 logger = logging.getLogger(__name__)
@@ -88,6 +89,10 @@ MAX_CHUNK = 32
 #: (57 ms/run; end to end 8 runs: 0.46 s serial vs 7.4 s on the cluster, 64 runs: 1.9 vs 7.5 s).
 #: Below it, :func:`run_pending` runs serially and says so in :attr:`RunSummary.executor`.
 LOCAL_CLUSTER_STARTUP_S = 6.0
+#: Serial time a cluster would have saved, s, from which a job run serially despite ``workers > 1``
+#: says why (:attr:`RunSummary.executor` ``"serial: ..."``, a note of the study's stage): below
+#: it the job is over before the reason could matter, and the executor is plain ``"serial"``.
+SERIAL_REASON_MIN_SAVING_S = 2.0
 
 _SCENARIO_CACHE = {}  # (spec JSON, thread id) -> Scenario: each worker thread builds a scenario once
 _SCENARIO_CACHE_SIZE = 8
@@ -507,10 +512,10 @@ def run_pending(path, *, workers=None, scheduler=None, retry_failed=False, chunk
         finally:  # also on Ctrl-C: cancel what is left, stop a local cluster
             if results is not None:
                 results.close()
-            if client is not None:
+            if cluster is not None:  # a local cluster: in order, without its shutdown noise
+                close_local_cluster(client, cluster)
+            elif client is not None:  # an existing scheduler stays up; its workers are not ours
                 client.close()
-            if cluster is not None:
-                cluster.close()
         counts = store.counts()
     return RunSummary(path, counts["total"], counts["done"], counts["failed"], counts["pending"],
                       n_todo, n_failed, time.perf_counter() - t0, executor)
@@ -529,8 +534,9 @@ def _serial_if_small(spec_json, store, todo, X, workers):
     """Run the first two pending rows here to time an FE run, and decide whether a local cluster of
     ``workers`` pays for the rest: the serial time saved, ``n t (1 − 1/K)``, must exceed
     :data:`LOCAL_CLUSTER_STARTUP_S`. Returns (the first row's :class:`ChunkResult`, the executor
-    text: ``"serial (...)"`` with the reason, or the local cluster's); (None, "") when the cluster
-    start-up is set to 0 (always use the cluster)."""
+    text: ``"serial: ..."`` with the reason when the saving is at least
+    :data:`SERIAL_REASON_MIN_SAVING_S`, ``"serial"`` below, or the local cluster's); (None, "")
+    when the cluster start-up is set to 0 (always use the cluster)."""
     if LOCAL_CLUSTER_STARTUP_S <= 0:
         return None, ""
     # two rows: the first FE run in a process also pays one-off set-up (caches, JIT compilation)
@@ -538,6 +544,8 @@ def _serial_if_small(spec_json, store, todo, X, workers):
     t = float(np.min(probe.wall_times))
     rest = len(todo) - len(probe.rows)
     saved = rest * t * (1 - 1 / workers)
+    if saved < SERIAL_REASON_MIN_SAVING_S:
+        return probe, "serial"
     if saved < LOCAL_CLUSTER_STARTUP_S:
         return probe, (f"serial: {workers} workers asked, but {len(todo)} runs × {1000 * t:.0f} ms per run would save "
                        f"{saved:.1f} s on {workers} processes, less than a local cluster takes to start "

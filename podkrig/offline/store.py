@@ -86,6 +86,7 @@ import numpy as np
 
 from fe.exceptions import FEError
 from podkrig import __version__
+from podkrig.display import Displayed
 from podkrig.exceptions import IntegrityError, SchemaError, StoreError, StoreInUseError
 from podkrig.h5integrity import attrs_digest, metadata_digest, mismatched_rows, row_digests
 from podkrig.offline.files import (
@@ -210,8 +211,8 @@ def _datasets(fields):
     return _ROW_DATASETS + (("fields",) if fields else ())
 
 
-@dataclass
-class VerifyReport:
+@dataclass(repr=False)
+class VerifyReport(Displayed):
     """Outcome of :meth:`SnapshotStore.verify`.
 
     Attributes

@@ -29,6 +29,8 @@ import logging
 import time
 from dataclasses import dataclass
 
+from podkrig.display import Displayed, summary
+from podkrig.online.data_check import check_readings, surrogate_training_outputs
 from podkrig.online.findings import Finding, inversion_findings, measurement_findings, of_test
 from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
@@ -43,8 +45,8 @@ logger = logging.getLogger(__name__)
 __all__ = ["CalibrationResult", "calibrate", "model_form_error", "model_form_errors", "problems_by_test", "with_model_form_errors"]
 
 
-@dataclass(frozen=True, eq=False)
-class CalibrationResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class CalibrationResult(Displayed):
     """Outcome of :func:`calibrate`.
 
     Attributes
@@ -87,6 +89,17 @@ class CalibrationResult:
     n_fe_runs: int = 0
     model_form_errors: dict = dataclasses.field(default_factory=dict)
     responses: dict = dataclasses.field(default_factory=dict)
+
+    def _repr_lines(self):
+        """The optimum with its interval, the fit and the findings (repr)."""
+        inv, region = self.inversion, self.region
+        return [f"CalibrationResult: χ²/dof {summary(inv.chi2_dof)} (dof {inv.dof}), region {len(region.samples)} "
+                f"members ({100 * region.confidence:.0f} %), {len(self.findings)} findings, {self.n_fe_runs} FE runs, "
+                f"{summary(self.seconds)} s",
+                *(f"  {n} = {summary(float(v))} {u} in [{summary(float(region.intervals[n][0]))}, "
+                  f"{summary(float(region.intervals[n][1]))}]" if n in region.intervals
+                  else f"  {n} = {summary(float(v))} {u}"
+                  for n, u, v in zip(inv.free, inv.units, inv.x))]
 
     def to_dict(self, *, members=False):
         """JSON-able: ``inversion`` (:meth:`InverseResult.to_dict`), ``region``
@@ -208,7 +221,7 @@ def _region(problem, x, settings):
 
 
 def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, check_measurement=True,
-              keep_field=False, calibration_rvc=True, progress=None):
+              keep_field=False, calibration_rvc=True, progress=None, range_check=True):
     """Calibrate: model-form error, inversion, region, FE check, posterior, RVC and findings.
 
     Parameters
@@ -238,12 +251,29 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         Also the RVC of each test's calibration model (the validation models' always).
     progress : callable, optional
         ``progress(step, done, total)`` after each step.
+    range_check : bool
+        First compare each test's readings with its surrogate's training runs
+        (:func:`~podkrig.online.data_check.check_readings`; a model without training runs, such
+        as an FE model, is not compared): the measurement check of every door, which a caller
+        that compared them already (the study, with its probe and training runs) leaves out.
 
     Returns
     -------
     CalibrationResult
+
+    Raises
+    ------
+    MeasurementCheckError
+        With ``range_check``: a sensor's readings 20× larger or smaller than every training run,
+        or of the opposite sign (a unit or sign error), before any inversion.
     """
     settings = CalibrationSettings() if settings is None else settings
+    if range_check:
+        for p in problems_by_test(problem).values():
+            surrogate = getattr(p.model, "surrogate", None)
+            if getattr(surrogate, "U_", None) is not None:
+                check_readings(p.measurement, p.noise, p.model.sensor_names, p.model.load_levels,
+                               p.model.load_response, surrogate_training_outputs(surrogate), runs="surrogate")
     say = progress or (lambda *a: None)
     t0 = time.perf_counter()
     ga = settings.inversion.options()

@@ -101,7 +101,8 @@ class Finding:
     values : dict
         What was found: numbers (units in the key names), parameter and sensor names.
     level : str
-        ``"warning"`` (every finding today).
+        ``"warning"``, or ``"error"`` for a refusal of the measurement check
+        (:mod:`podkrig.online.data_check`).
     test : str or None
         The test of a joint calibration it concerns (None: the study or the one test).
     """

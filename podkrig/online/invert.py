@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig._qmc import rng_seed, scrambled_sobol
+from podkrig.display import Displayed, summary
 from podkrig.parallel import one_blas_thread
 from podkrig.ga import GeneticAlgorithm
 from podkrig.limits import check_generations, check_population, check_starts
@@ -25,8 +26,8 @@ from podkrig.online.settings import GA
 logger = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True, eq=False)
-class FECheck:
+@dataclass(frozen=True, eq=False, repr=False)
+class FECheck(Displayed):
     """One FE run at the optimum compared with the surrogate, at the observed entries.
 
     Attributes
@@ -64,8 +65,8 @@ class FECheck:
                    float(d["chi2_dof_fe"]), bool(d["ok"]))
 
 
-@dataclass(frozen=True, eq=False)
-class InverseResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class InverseResult(Displayed):
     """Outcome of :func:`invert`.
 
     Attributes
@@ -125,6 +126,15 @@ class InverseResult:
     def chi2_dof(self):
         """χ² per degree of freedom (≈ 1 when the model explains the data within the noise)."""
         return self.chi2 / max(self.dof, 1)
+
+    def _repr_lines(self):
+        """The optimum, its χ²/dof and FE check, one line per free parameter (repr)."""
+        fe = "" if self.fe_check is None else f", FE check χ²/dof {summary(self.fe_check.chi2_dof_fe)}"
+        bound = {n: " (on a bound)" for n in self.at_bound}
+        return [f"InverseResult: {len(self.free)} free parameters, χ²/dof {summary(self.chi2_dof)} (dof {self.dof})"
+                f"{fe}, ω {summary(self.misfit)}, {self.n_evaluations} evaluations, {summary(self.seconds)} s",
+                *(f"  {n} = {summary(float(v))} {u}{bound.get(n, '')}".rstrip()
+                  for n, u, v in zip(self.free, self.units, self.x))]
 
     @property
     def chi2_basis(self):

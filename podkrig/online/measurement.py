@@ -33,23 +33,34 @@ from podkrig.limits import MAX_ABS_READING_MM, check_finite
 LOAD_RESPONSES = ("affine", "path", "discrete")
 
 #: Typical noise of laboratory instruments: σ_res (mm, resolution / repeatability floor) and the
-#: relative part δ of σ_i² = σ_res² + (δ d_i)². Sources: ``shared/reference/flat-jack.md`` §5.7 —
-#: LVDT σ = 1–5 µm (INFERRED there as the levels to test), mechanical deformometer / dial gauge
-#: resolution 1 µm (READ, "millesimal"), DIC 2.5–5 µm per component at 0.25 mm/px (INFERRED
-#: typical); the relative part δ = 1 % is the thesis' "1.0 % error range" (§3.2 caption, the
-#: only noise level it states: READ there, its use as a calibration/linearity term INFERRED).
+#: relative part δ of σ_i² = σ_res² + (δ d_i)². LVDT σ = 1–5 µm and DIC 2.5–5 µm per component at
+#: 0.25 mm/px are typical values from flat-jack and laboratory practice (INFERRED defaults, see
+#: ``docs/references.md`` "INFERRED choices": ``noise_abs`` / ``noise_rel`` override them); a
+#: mechanical deformometer or dial gauge reads to 1 µm ("millesimal"); δ = 1 % is the "1.0 % error
+#: range" of the thesis (§3.2 caption, the only noise level it states; its use as a
+#: calibration/linearity term is a choice).
 INSTRUMENTS = {
     "lvdt": {"sigma_res_mm": 0.001, "delta": 0.01,
-             "text": "LVDT / extensometer: σ_res = 1 µm (§5.7: 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
+             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
     "dial_gauge": {"sigma_res_mm": 0.001, "delta": 0.01,
-                   "text": "dial gauge / mechanical deformometer: resolution 1 µm (§5.7, READ), δ = 1 %"},
+                   "text": "dial gauge / mechanical deformometer: resolution 1 µm, δ = 1 %"},
     "dic": {"sigma_res_mm": 0.0025, "delta": 0.0,
-            "text": "DIC point, per component: σ_res = 2.5 µm (§5.7: 2.5–5 µm, INFERRED), no relative part"},
+            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED), no relative part"},
 }
 #: Smallest credible σ of one reading, mm: half the finest resolution of the instruments above
 #: (1 µm). A smaller σ makes the region of equivalence optimistic (a 1 %-relative model
 #: gave the 2 µm U1 gauge σ ≈ 0.02 µm); :meth:`NoiseModel.below_floor` names such sensors.
 SIGMA_FLOOR_MM = 0.0005
+#: The range of σ a noise model may state, mm. Below 10⁻⁷ mm (0.1 nm, the size of an atom and
+#: 5000× finer than :data:`SIGMA_FLOOR_MM`) no displacement of a masonry specimen is defined, let
+#: alone measured — and σ² underflows towards 0 (σ = 10⁻³⁰⁰ gave "inf× the noise"); above 10⁶ mm
+#: (1 km, the largest reading accepted, :data:`~podkrig.limits.MAX_ABS_READING_MM`) σ weighs no
+#: reading. Refused outside, at every door (the study file, the command line, the library).
+SIGMA_RANGE_MM = (1e-7, MAX_ABS_READING_MM)
+#: The range of a relative noise δ: below 10⁻⁶ (one part in a million) is far beyond the
+#: calibration of any displacement transducer used on masonry (LVDTs, dial gauges and DIC are
+#: 0.1–1 %); 1 (100 % of each reading) or more is no measurement.
+DELTA_RANGE = (1e-6, 1.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -350,9 +361,11 @@ class NoiseModel:
     Parameters
     ----------
     sigma : float or dict of str to float, optional
-        Absolute standard deviation σ_res, mm (a dict gives one per sensor name).
+        Absolute standard deviation σ_res, mm, in :data:`SIGMA_RANGE_MM` (a dict gives one per
+        sensor name).
     delta : float or dict of str to float, optional
-        Relative noise level δ (a dict gives one per sensor name, 0 allowed there).
+        Relative noise level δ, in :data:`DELTA_RANGE` (a dict gives one per sensor name, 0
+        allowed there).
     covariance : ndarray of shape (n_obs, n_obs), optional
         Full data covariance ``C_d``, mm², in the measurement's (load-major) order.
     floor : float
@@ -370,20 +383,22 @@ class NoiseModel:
             raise ValueError("give either a covariance or an absolute sigma (mm) and/or a relative delta, not both")
         if self.covariance is None and self.sigma is None and self.delta is None:
             raise ValueError("give a noise model: an absolute sigma (mm), a relative delta, both, or a covariance")
+        lo, hi = SIGMA_RANGE_MM
         if isinstance(self.sigma, dict):
-            bad = {k: v for k, v in self.sigma.items() if not v > 0}
+            bad = {k: v for k, v in self.sigma.items() if not lo <= v <= hi}
             if bad:
-                raise ValueError(f"absolute noise sigma must be > 0 mm; got {bad}")
-        elif self.sigma is not None and not self.sigma > 0:
-            raise ValueError(f"absolute noise sigma must be > 0 mm; got {self.sigma}")
+                raise ValueError(f"absolute noise sigma must be in [{lo:g}, {hi:g}] mm; got {bad}")
+        elif self.sigma is not None and not lo <= self.sigma <= hi:
+            raise ValueError(f"absolute noise sigma must be in [{lo:g}, {hi:g}] mm; got {self.sigma}")
+        d_lo, d_hi = DELTA_RANGE
         if isinstance(self.delta, dict):
-            bad = {k: v for k, v in self.delta.items() if not 0 <= v < 1}
+            bad = {k: v for k, v in self.delta.items() if not (v == 0 or d_lo <= v < d_hi)}
             if bad:
-                raise ValueError(f"relative noise delta must be in [0, 1) per sensor; got {bad}")
+                raise ValueError(f"relative noise delta must be 0 or in [{d_lo:g}, {d_hi:g}) per sensor; got {bad}")
             if self.sigma is None and any(v == 0 for v in self.delta.values()):
                 raise ValueError("a relative delta of 0 needs an absolute sigma as well")
-        elif self.delta is not None and not 0 < self.delta < 1:
-            raise ValueError(f"relative noise delta must be in (0, 1); got {self.delta}")
+        elif self.delta is not None and not d_lo <= self.delta < d_hi:
+            raise ValueError(f"relative noise delta must be in [{d_lo:g}, {d_hi:g}); got {self.delta}")
 
     @property
     def is_diagonal(self):
@@ -475,7 +490,7 @@ def _require_finite_noise(noise):
     for sensor, sigma in sigmas.items():
         if sigma is not None:
             what = "absolute noise sigma (mm)" if sensor is None else f"absolute noise sigma of sensor {sensor!r} (mm)"
-            check_finite(sigma, what, lower=0.0, upper=MAX_ABS_READING_MM)
+            check_finite(sigma, what)
     deltas = noise.delta if isinstance(noise.delta, dict) else {None: noise.delta}
     for sensor, delta in deltas.items():
         if delta is not None:

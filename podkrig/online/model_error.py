@@ -24,6 +24,7 @@ import numpy as np
 
 from fe import build_scenario
 from fe.exceptions import SpecError
+from podkrig.display import Displayed
 
 #: convergence rate p assumed in Richardson's factor r^p/(r^p − 1) (2.35 at r = 2): the slowest
 #: rate observed for the default diagonal test (COMPUTED, BENCHMARKS "Supports that converge":
@@ -32,8 +33,8 @@ from fe.exceptions import SpecError
 DEFAULT_RATE = 0.8
 
 
-@dataclass(frozen=True, eq=False)
-class ModelError:
+@dataclass(frozen=True, eq=False, repr=False)
+class ModelError(Displayed):
     """Standard deviation of the model-form error of each observed reading.
 
     Attributes

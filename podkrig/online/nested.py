@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
 from podkrig.online.calibrate import calibrate
 from podkrig.online.settings import CONFIDENCE, CalibrationSettings, InversionSettings, RegionSettings
 
@@ -25,8 +26,8 @@ def information_criteria(result):
     return {"aic": result.chi2 + 2 * k, "bic": result.chi2 + k * np.log(n)}
 
 
-@dataclass(frozen=True)
-class NestedAnalysis:
+@dataclass(frozen=True, repr=False)
+class NestedAnalysis(Displayed):
     """One analysis of :func:`nested_analyses`.
 
     Attributes
@@ -75,8 +76,8 @@ class NestedAnalysis:
                    None if d.get("rvc") is None else dict(d["rvc"]))
 
 
-@dataclass(frozen=True)
-class OverparamResult:
+@dataclass(frozen=True, repr=False)
+class OverparamResult(Displayed):
     """Outcome of :func:`nested_analyses`: the analyses in the order given (iterable)."""
 
     analyses: tuple

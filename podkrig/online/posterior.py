@@ -17,14 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
 from podkrig.parallel import one_blas_thread
 from podkrig.online.settings import CONFIDENCE
 
 logger = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True, eq=False)
-class Posterior:
+@dataclass(frozen=True, eq=False, repr=False)
+class Posterior(Displayed):
     """MCMC samples of the posterior.
 
     Attributes

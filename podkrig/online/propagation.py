@@ -10,9 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
 
-@dataclass(frozen=True, eq=False)
-class RVCResult:
+
+@dataclass(frozen=True, eq=False, repr=False)
+class RVCResult(Displayed):
     """Spread of a model's outputs over a region of equivalence.
 
     Attributes

@@ -24,6 +24,7 @@ import numpy as np
 from scipy import stats
 
 from podkrig._qmc import scrambled_sobol
+from podkrig.display import Displayed, summary
 from podkrig.parallel import one_blas_thread
 from podkrig.limits import check_confidence, check_region_samples
 from podkrig.online.findings import UNIDENTIFIABLE_SHARE, is_identifiable
@@ -55,8 +56,8 @@ def identifiability(intervals, space):
     return {name: {"share": share, "identifiable": is_identifiable(share)} for name, share in shares.items()}
 
 
-@dataclass(frozen=True, eq=False)
-class Region:
+@dataclass(frozen=True, eq=False, repr=False)
+class Region(Displayed):
     """A region of equivalence.
 
     Attributes
@@ -90,6 +91,14 @@ class Region:
     n_evaluated: int
     seconds: float
     identifiability: dict
+
+    def _repr_lines(self):
+        """The method, the members and one interval per parameter (repr)."""
+        return [f"Region ({self.method}, {100 * self.confidence:.0f} %): {len(self.samples)} members of "
+                f"{self.n_evaluated} evaluations",
+                *(f"  {n} in [{summary(float(self.intervals[n][0]))}, {summary(float(self.intervals[n][1]))}] {u}"
+                  f"{'' if self.identifiability.get(n, {}).get('identifiable', True) else ' (not identified)'}".rstrip()
+                  for n, u in zip(self.names, self.units))]
 
     def to_dict(self, *, members=False):
         """JSON-able summary: ``method``, ``confidence``, ``threshold``, ``intervals``, ``names``,

@@ -32,6 +32,7 @@ import numpy as np
 from scipy import stats
 
 from podkrig._qmc import scrambled_sobol
+from podkrig.display import Displayed
 from podkrig.online.problem import fix_from_scenario, unit_template
 from podkrig.online.settings import SENSITIVITY
 
@@ -39,8 +40,8 @@ from podkrig.online.settings import SENSITIVITY
 NEGLIGIBLE_TOTAL_INDEX = 0.01
 
 
-@dataclass(frozen=True, eq=False)
-class SensitivityResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class SensitivityResult(Displayed):
     """Sobol' indices of several outputs over the free parameters.
 
     Attributes

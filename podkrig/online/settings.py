@@ -18,14 +18,13 @@ Examples
 """
 
 import dataclasses
-import math
 from typing import Annotated, Any
 
 from pydantic import AfterValidator, StrictBool, StrictFloat, StrictInt
 
 from podkrig import limits
 from podkrig.config import Seed, allowed, choice, field_info, limit, settings, settings_error, type_name
-from podkrig.online.measurement import INSTRUMENTS, NoiseModel, instrument_noise
+from podkrig.online.measurement import DELTA_RANGE, INSTRUMENTS, SIGMA_RANGE_MM, NoiseModel, instrument_noise
 from podkrig.online.model_error import parse_model_form_error
 
 __all__ = [
@@ -37,10 +36,14 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # noise
 
+_SIGMA_LO, _SIGMA_HI = SIGMA_RANGE_MM
+_DELTA_LO, _DELTA_HI = DELTA_RANGE
+#: σ_res in words, mm (:data:`~podkrig.online.measurement.SIGMA_RANGE_MM`)
+SIGMA_ALLOWED = f"σ_res in [{_SIGMA_LO:g}, {_SIGMA_HI:g}] mm"
 #: what a noise model may be, in words (shown with every noise error)
-NOISE_ALLOWED = ("noise_abs = σ_res > 0 mm (a number, or a table sensor = σ) and/or noise_rel = δ in (0, 1) "
-                 "(σ² = σ_res² + (δ d)²), or instrument = " + " | ".join(f'"{k}"' for k in INSTRUMENTS)
-                 + " (or a table sensor = instrument)")
+NOISE_ALLOWED = (f"noise_abs = {SIGMA_ALLOWED} (a number, or a table sensor = σ) and/or noise_rel = δ in "
+                 f"[{_DELTA_LO:g}, {_DELTA_HI:g}) (σ² = σ_res² + (δ d)²), or instrument = "
+                 + " | ".join(f'"{k}"' for k in INSTRUMENTS) + " (or a table sensor = instrument)")
 
 
 def _noise_abs(value):
@@ -51,13 +54,13 @@ def _noise_abs(value):
             raise settings_error("empty table", allowed=NOISE_ALLOWED)
         for sensor, sigma in value.items():
             if isinstance(sigma, bool) or not isinstance(sigma, int | float):
-                raise settings_error(f"must be a number; got {type_name(sigma)} {sigma!r}", sensor, "σ > 0 mm")
-            if not sigma > 0 or not math.isfinite(sigma):
-                raise settings_error(f"{sigma!r} is out of range", sensor, "σ > 0 mm")
+                raise settings_error(f"must be a number; got {type_name(sigma)} {sigma!r}", sensor, SIGMA_ALLOWED)
+            if not _SIGMA_LO <= sigma <= _SIGMA_HI:
+                raise settings_error(f"{sigma!r} is out of range", sensor, SIGMA_ALLOWED)
         return {k: float(v) for k, v in value.items()}
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise settings_error(f"must be a number; got {type_name(value)} {value!r}", allowed=NOISE_ALLOWED)
-    if not value > 0 or not math.isfinite(value):
+    if not _SIGMA_LO <= value <= _SIGMA_HI:
         raise settings_error(f"{value!r} is out of range", allowed=NOISE_ALLOWED)
     return float(value)
 
@@ -82,7 +85,7 @@ def _instrument(value):
 #: σ_res, mm: one number for every sensor or a table sensor → σ_res
 NoiseAbs = Annotated[Any, AfterValidator(_noise_abs), allowed(NOISE_ALLOWED, unit="mm")]
 #: δ, relative to each reading
-NoiseRel = Annotated[StrictFloat, allowed(NOISE_ALLOWED, unit="-", gt=0, lt=1)] | None
+NoiseRel = Annotated[StrictFloat, allowed(NOISE_ALLOWED, unit="-", ge=_DELTA_LO, lt=_DELTA_HI)] | None
 #: an instrument of :data:`~podkrig.online.measurement.INSTRUMENTS`, or a table sensor → instrument
 Instrument = Annotated[Any, AfterValidator(_instrument), allowed(NOISE_ALLOWED)]
 
@@ -120,6 +123,14 @@ class NoiseSettings:
                 raise ValueError("an instrument noise model needs the measured sensor names")
             return instrument_noise(self.instrument, sensor_names)
         return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel)
+
+    def unknown_sensors(self, sensor_names):
+        """The per-sensor entries naming no sensor of ``sensor_names`` (the model's): a list of
+        ``(field, sensor)``, e.g. ``[("noise_abs", "D9")]`` — the front door words them with its
+        file and key or its option."""
+        known = set(sensor_names)
+        return [(name, key) for name in ("noise_abs", "instrument") if isinstance(getattr(self, name), dict)
+                for key in getattr(self, name) if key not in known]
 
     def _kinds(self):
         return {self.instrument} if isinstance(self.instrument, str) else set(self.instrument.values())

@@ -12,8 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
+from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import RESIDUAL_CONVENTION
-from podkrig.reports.figures import colourbar, pyplot, save
+from podkrig.reports.figures import colourbar, load_label, pyplot, save
+from podkrig.reports.flat_jack import shade_phases
 from podkrig.reports.html import Page, fmt
 
 
@@ -153,7 +155,9 @@ def plot_residuals_vs_load(diagnosis, path, max_channels=12):
             ax.plot(m.load_levels, re[:, j], "s--", color="C0", label="extended")
         ax.axhline(0, color="k", lw=0.6)
         ax.set_title(m.sensor_names[j], fontsize=9)
-        ax.set_xlabel(f"load ({diagnosis.scenario.load_unit})")
+        if getattr(diagnosis.scenario, "steps", None):  # a flat-jack test: steps, its phases shaded
+            shade_phases(ax, diagnosis.scenario, labels=False)
+        ax.set_xlabel(load_label(diagnosis.scenario.load_unit))
         ax.set_ylabel(f"{RESIDUAL_CONVENTION} (-)")
     for ax in axes.ravel()[n:]:
         ax.axis("off")
@@ -188,6 +192,12 @@ def plot_candidate_scores(diagnosis, path):
     fig.tight_layout()
     save(fig, path, dpi=110)
     return path
+
+
+def chi2_level_text():
+    """The level of the χ² test in terms of the one significance level α of the settings
+    (``[diagnosis] alpha``): a share of α, never a second α."""
+    return f"χ² test at α × {CHI2_ALPHA_SHARE:g}"
 
 
 def fitted_parameter_text(candidate, alpha):

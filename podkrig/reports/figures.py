@@ -87,6 +87,12 @@ def describe(fig):
     return panels
 
 
+def load_label(unit):
+    """The label of a load axis in ``unit``: ``"load (kN)"``; ``"step"`` for a test whose levels are
+    the steps of a loading sequence (a flat-jack test's ``load_unit``: a step is no load)."""
+    return "step" if unit == "step" else f"load ({unit})"
+
+
 def colourbar(fig, mappable, axes, **kwargs):
     """``fig.colorbar(mappable, ax=axes)`` for a colour scale shared by ``axes`` whose artists
     took their colours from ``mappable`` by hand (e.g. lines coloured with ``cmap(norm(v))``):

@@ -16,8 +16,11 @@ Example
 'check the noise level; if it is right, a physical effect is missing from the model: the model diagnosis below names it.'
 """
 
+import math
+import re
 from dataclasses import dataclass
 
+from podkrig.limits import quote
 from podkrig.reports.html import num
 
 CONTEXTS = ("cli", "study")
@@ -38,7 +41,7 @@ class FindingText:
     remedy : str
         What to do about it.
     level : str
-        ``"warning"`` (every finding today).
+        ``"warning"``, or ``"error"`` for a refusal of the measurement check.
     """
 
     code: str
@@ -202,6 +205,82 @@ def _diagnosis_cause(v, context, diagnosis_enabled):
             "and calibrate again: the parameters identified without it are biased.")
 
 
+# the measurement check's refusals (:mod:`podkrig.online.data_check`, level "error")
+
+
+def _where(v):
+    row = f", row {v['row']}" if v.get("row") is not None else ""
+    return f"{v['source']}{row}, column {quote(v['column'])}"
+
+
+def _load_scale(v, context, diagnosis_enabled):
+    unit, likely = v["unit"], v.get("likely_unit")
+    guess = f": loads in {likely} under a {unit} header?" if likely else ": a unit error?"
+    how = ("--load-column names the column" if context == "cli"
+           else "[measurement] load_column names the column")
+    base = re.split(r"[\[(]", v["column"])[0].strip() or "load"
+    example = (f"here probably {quote(f'{base} [{likely}]')}" if likely
+               else f"e.g. {quote(f'{base} [N]')} for loads in newtons")
+    return (f"{_where(v)}: a load of {v['load_max']:g} {unit} is about {_power_of_ten(v['ratio'])}× the model's top "
+            f"load level {v['level_max']:g} {unit}{guess}",
+            f"state the load's unit in the header of the load column ({example}) or convert the column to {unit} "
+            f"({how}).")
+
+
+def _load_sign(v, context, diagnosis_enabled):
+    unit = v["unit"]
+    side = "positive" if v["level_min"] >= 0 else "negative"
+    rows = ("--load-range LOWER,UPPER" if context == "cli" else "[measurement] load_range = [lower, upper]")
+    return (f"{_where(v)}: {v['n_loads']} load(s) are {'negative' if side == 'positive' else 'positive'} (as far as "
+            f"{v['load_min']:g} {unit}) while the model's load levels are {side} ({v['level_min']:g} to "
+            f"{v['level_max']:g} {unit}): a sign convention?",
+            f"the load is the magnitude of the applied load: negate the load column, or leave those rows out "
+            f"({rows}).")
+
+
+def _runs_text(v):
+    n = v["n_runs"]
+    if v["runs"] == "probe":
+        return f"{n} probe FE run(s) (the box centre" + ("" if n == 1 else " and each parameter at its bounds") + ")"
+    if v["runs"] == "surrogate":
+        return f"surrogate's {n} training FE runs"
+    return f"{n} training FE runs"
+
+
+def _reading_problem(v):
+    if v["code"] == "reading-sign":
+        return (f"{v['sensor']} has the opposite sign of every FE run at every reading beyond 3σ: a sign error (a "
+                "gauge mounted the other way round, or another sign convention)?")
+    if v["direction"] == "larger":
+        guess = ": µm read as mm?" if v["unit_slip"] else ": a unit error?"
+    else:
+        guess = ": mm read as µm (or m)?" if v["unit_slip"] else ": a unit error?"
+    return f"{v['sensor']} is about {_power_of_ten(v['ratio'])}× {v['direction']} than every FE run{guess}"
+
+
+def _reading_remedy(context):
+    off = ("--no-range-check inverts anyway" if context == "cli"
+           else "[measurement] range_check = false runs anyway")
+    return (f"state the unit in the column header (e.g. 'D1 [µm]'), check the sign convention, or widen the "
+            f"parameter bounds; {off}.")
+
+
+def _reading_scale(v, context, diagnosis_enabled):
+    return (f"{v['source']}: {_reading_problem({**v, 'code': 'reading-scale'})}", _reading_remedy(context))
+
+
+def _reading_sign(v, context, diagnosis_enabled):
+    return (f"{v['source']}: {_reading_problem({**v, 'code': 'reading-sign'})}", _reading_remedy(context))
+
+
+def _power_of_ten(r):
+    if not r < float("inf"):
+        return "infinitely"
+    if r >= 3:
+        return f"{10 ** round(math.log10(r)):g}"
+    return f"{r:.2g}"
+
+
 #: code → the function that words it
 WORDS = {
     "fe-check": _fe_check,
@@ -216,6 +295,10 @@ WORDS = {
     "surrogate-coverage": _surrogate_coverage,
     "diagnosis-unexplained": _diagnosis_unexplained,
     "diagnosis-cause": _diagnosis_cause,
+    "load-scale": _load_scale,
+    "load-sign": _load_sign,
+    "reading-scale": _reading_scale,
+    "reading-sign": _reading_sign,
 }
 
 
@@ -256,4 +339,36 @@ def words(findings, context="cli", *, diagnosis_enabled=False):
     return [word(f, context, diagnosis_enabled=diagnosis_enabled) for f in findings]
 
 
-__all__ = ["CONTEXTS", "WORDS", "FindingText", "identifiability_text", "word", "words"]
+def refusal(error, context="cli"):
+    """The one-paragraph message of a measurement refused by the measurement check
+    (:class:`~podkrig.online.data_check.MeasurementCheckError`): each problem, then what to do.
+
+    Readings flagged against FE runs are grouped in one sentence: ``FILE: the readings do not look
+    like any of the 7 probe FE run(s) (...) — D1 is about 1000× larger than every FE run: µm read as
+    mm?; ... State the unit ...``.
+
+    Parameters
+    ----------
+    error : MeasurementCheckError
+    context : {"cli", "study"}
+    """
+    if context not in CONTEXTS:
+        raise ValueError(f"context must be one of {CONTEXTS}; got {context!r}")
+    findings = list(error.findings)
+    readings = [f for f in findings if f.code in ("reading-scale", "reading-sign")]
+    parts = []
+    for f in findings:
+        if f not in readings:
+            message, remedy = WORDS[f.code](f.values, context, False)
+            parts.append(f"{message}{'' if message[-1] in '.?!' else '.'} {remedy[0].upper()}{remedy[1:]}")
+    if readings:
+        v = readings[0].values
+        listed = "; ".join(_reading_problem({**f.values, "code": f.code}) for f in readings)
+        remedy = _reading_remedy(context)
+        end = "" if listed[-1] in ".?!" else "."
+        parts.append(f"{v['source']}: the readings do not look like any of the {_runs_text(v)} — {listed}{end} "
+                     f"{remedy[0].upper()}{remedy[1:]}")
+    return " ".join(parts)
+
+
+__all__ = ["CONTEXTS", "WORDS", "FindingText", "identifiability_text", "refusal", "word", "words"]

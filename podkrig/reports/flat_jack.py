@@ -107,8 +107,9 @@ def plot_setup(scenario, path):
     return Path(path)
 
 
-def _phase_bands(ax, scenario):
-    """Shade the steps of each loading phase alternately and name the phase above the axes."""
+def shade_phases(ax, scenario, labels=True):
+    """Shade the steps of each loading phase alternately on an axis of step numbers (x) and, with
+    ``labels``, name the phase above the axes."""
     steps = getattr(scenario, "steps", None)
     if not steps:
         return
@@ -116,15 +117,70 @@ def _phase_bands(ax, scenario):
     bounds = [0] + [i for i in range(1, len(phases)) if phases[i] != phases[i - 1]] + [len(phases)]
     for k, (i, j) in enumerate(itertools.pairwise(bounds)):
         ax.axvspan(i + 0.5, j + 0.5, color=("#f2f2f2", "#dedede")[k % 2], zorder=0)
-        ax.text(0.5 * (i + j) + 0.5, 1.0, f"phase {phases[i]}", transform=ax.get_xaxis_transform(),
-                ha="center", va="bottom", fontsize=8)
+        if labels:
+            ax.text(0.5 * (i + j) + 0.5, 1.0, f"phase {phases[i]}", transform=ax.get_xaxis_transform(),
+                    ha="center", va="bottom", fontsize=8)
+
+
+def jack_pressures(steps, load_levels):
+    """The jack pressure that drives each load level of a flat-jack test, and its phase.
+
+    The load levels of a flat-jack test are step numbers (``load_unit = "step"``); a figure of
+    readings reads better against the pressure the phase raises. A phase is driven by the jacks
+    whose pressure changes from step to step inside it (a one-step phase: from the step before;
+    none for the cut, phase ``0b``, where every jack is at 0).
+
+    Parameters
+    ----------
+    steps : sequence of fe.scenarios.flat_jack.Step
+        The scenario's steps (``scenario.steps``): index, phase and gauge pressure of every jack, MPa.
+    load_levels : array_like of shape (n_loads,)
+        Step numbers of the levels to map (e.g. the measured ones).
+
+    Returns
+    -------
+    pressure : ndarray of shape (n_loads,)
+        Gauge pressure of the first driving jack of each level's phase, MPa (the largest pressure of
+        the step where no jack drives the phase).
+    phases : ndarray of shape (n_loads,) of str
+        Each level's phase.
+    labels : dict of str to str
+        Per phase (in the order of the steps): ``"phase 1: p_H"``, ``"phase 2: p_V1 = p_V2"``
+        (jacks raised together), ``"phase 0b: no jack raised"`` (the cut).
+    """
+    by_index = {s.index: k for k, s in enumerate(steps)}
+    missing = [v for v in load_levels if int(round(v)) not in by_index]
+    if missing:
+        raise ValueError(f"load levels {missing} are not steps of this test (steps 1 to {len(steps)})")
+    drivers = {}
+    for k, s in enumerate(steps):
+        before = steps[k - 1].pressures if k else dict.fromkeys(s.pressures, 0.0)
+        same_phase = k > 0 and steps[k - 1].phase == s.phase
+        alone = not same_phase and (k + 1 == len(steps) or steps[k + 1].phase != s.phase)
+        jacks = drivers.setdefault(s.phase, [])
+        if same_phase or alone:
+            jacks += sorted(j for j in s.pressures if s.pressures[j] != before.get(j) and j not in jacks)
+    labels = {}
+    for phase, jacks in drivers.items():
+        together = all(len({steps[k].pressures[j] for j in jacks}) == 1 for k in range(len(steps))
+                       if steps[k].phase == phase)
+        if not jacks:
+            labels[phase] = f"phase {phase}: no jack raised"
+        elif together:
+            labels[phase] = f"phase {phase}: " + " = ".join(f"p_{j}" for j in jacks)
+        else:
+            labels[phase] = f"phase {phase}: p_{jacks[0]} (also varying: {', '.join(jacks[1:])})"
+    picked = [steps[by_index[int(round(v))]] for v in load_levels]
+    pressure = np.array([s.pressures[drivers[s.phase][0]] if drivers[s.phase] else max(s.pressures.values(), default=0.0)
+                         for s in picked], dtype=float)
+    return pressure, np.array([s.phase for s in picked]), labels
 
 
 def plot_readings(scenario, response, path):
     """Readings (µm) per step, phases shaded; grids (DIC) as the median and maximum |u| per step."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(10, 5))
-    _phase_bands(ax, scenario)
+    shade_phases(ax, scenario)
     steps = response.load_levels
     gauge_names = [n for s in scenario.sensors if s.kind != "dic" for n in s.channel_names]
     for name in gauge_names:
@@ -231,7 +287,8 @@ def write_simulation_report(scenario, response, values, out_dir, *, seconds=None
 
 
 def _phase3_table(page, scenario, values, c=0.25, tan_phi=0.70):
-    """Phase 3, elastic: the block's top bed joint against the statics of reference §5.4."""
+    """Phase 3, elastic: the block's top bed joint against the statics of the jack-loaded block
+    (:func:`podkrig.analytical.flat_jack.sliding_pressure_difference`)."""
     try:
         chk = scenario.phase3_check(values, c=c, tan_phi=tan_phi)
     except ValueError as e:  # not the three-jack set-up
@@ -241,7 +298,7 @@ def _phase3_table(page, scenario, values, c=0.25, tan_phi=0.70):
     page.paragraph(
         "Phase 3 runs elastic here (sliding needs the nonlinear interfaces). The mean stresses on the "
         "block's top bed joint equal the statics by equilibrium; local Mohr–Coulomb exceedance "
-        f"(c = {c:g} MPa, tanφ = {tan_phi:g}, the §5.2 defaults) marks where progressive slip would start; "
+        f"(c = {c:g} MPa, tanφ = {tan_phi:g}, the scenario's defaults) marks where progressive slip would start; "
         "the statics estimate of the critical gauge Δp_V is (L_H/h_V)(c + Km p_H tanφ)/Km.")
     page.table(["step", "Δp_V (MPa)", "mean τ FE (MPa)", "statics τ (MPa)", "peak τ (MPa)", "mean σ_n FE (MPa)",
                 "statics σ_n (MPa)", "local slip", "statics Δp_V,crit (MPa)"],

@@ -8,7 +8,8 @@ when a figure is drawn (:func:`_pyplot`), with the backend the user chose.
 - :func:`plot_statistics` — best, mean and standard deviation of the population per generation
   (thesis Fig. 3.17);
 - :func:`plot_parameters` — objective against each parameter's value, one panel per parameter
-  (thesis Fig. 3.23), labelled with the parameter names and units.
+  (thesis Fig. 3.23), labelled with the parameter names and units, with the optimum the caller
+  reports (e.g. an inversion's, after its least-squares polishes) marked.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ def _use_log(values, log):
     return log
 
 
-def plot_history(result, ax=None, *, log=None):
+def plot_history(result, ax=None, *, log=None, optimum=None):
     """Individual history chart: objective of every evaluated individual vs generation.
 
     Parameters
@@ -53,6 +54,9 @@ def plot_history(result, ax=None, *, log=None):
     log : bool or None
         Logarithmic objective axis; None chooses it when all values are positive and span
         more than two decades.
+    optimum : float or None
+        The objective of the optimum the caller reports (e.g. an inversion's misfit after its
+        least-squares polishes), drawn as a dashed horizontal line (label ``"reported optimum"``).
 
     Returns
     -------
@@ -71,6 +75,8 @@ def plot_history(result, ax=None, *, log=None):
                    alpha=0.6, label="local polish")
     ax.plot(np.arange(result.ngen + 1), result.generation_best, color="k", lw=1.2,
             label="best in population")
+    if optimum is not None:
+        ax.axhline(optimum, color="tab:red", lw=1.0, ls="--", label="reported optimum")
     if _use_log(f, log):
         ax.set_yscale("log")
     ax.set_xlabel("generation")
@@ -110,7 +116,7 @@ def plot_statistics(result, ax=None, *, log=None):
     return ax
 
 
-def plot_parameters(result, axes=None, *, log=None, xscale=None):
+def plot_parameters(result, axes=None, *, log=None, xscale=None, optimum=None):
     """Objective of every evaluated individual against each parameter (one panel each).
 
     Parameters
@@ -122,6 +128,13 @@ def plot_parameters(result, axes=None, *, log=None, xscale=None):
         Logarithmic objective axis (None: automatic).
     xscale : sequence of {"linear", "log"} or None
         Scale of each parameter axis (e.g. the parameter space's scales).
+    optimum : tuple (x, f) or None
+        The optimum the caller reports: ``x`` of shape (n_params,) in physical units and its
+        objective ``f`` — e.g. an inversion's ``(result.x, result.misfit)``, which its
+        least-squares polishes may have moved away from the GA's best. Drawn on every panel as a
+        star at ``(x[i], f)`` on a dashed line (label ``"reported optimum"``); the GA's own best,
+        where it differs, as a dotted grey line (label ``"GA best before the polish"``). None:
+        the GA's best is the optimum.
 
     Returns
     -------
@@ -134,13 +147,21 @@ def plot_parameters(result, axes=None, *, log=None, xscale=None):
         axes = list(axes[0])
     elif len(axes) != n_params:
         raise ValueError(f"axes must hold {n_params} axes, one per parameter; got {len(axes)}")
+    x_opt, f_opt = (result.x, result.fun) if optimum is None else optimum
+    x_opt = np.asarray(x_opt, dtype=float)
+    if x_opt.shape != (n_params,):
+        raise ValueError(f"optimum x must hold {n_params} values, one per parameter; got shape {x_opt.shape}")
     f = result.f_history
     use_log = _use_log(f, log)
     units = result.parameter_units
     for i, ax in enumerate(axes):
         points = ax.scatter(result.X_history[:, i], f, s=5, alpha=0.4, c=result.generation_history,
                             cmap="viridis")
-        ax.axvline(result.x[i], color="k", lw=0.8, ls="--")
+        if optimum is not None and result.x[i] != x_opt[i]:
+            ax.axvline(result.x[i], color="0.5", lw=0.8, ls=":", label="GA best before the polish")
+        ax.axvline(x_opt[i], color="k", lw=0.8, ls="--")
+        ax.plot([x_opt[i]], [f_opt], "*", color="tab:red", mec="k", mew=0.5, ms=11, zorder=5,
+                label="reported optimum")
         unit = f" ({units[i]})" if units is not None and units[i] else ""  # "(unit)" as on every report axis
         ax.set_xlabel(f"{result.parameter_names[i]}{unit}")
         ax.set_ylabel("objective f")
@@ -148,5 +169,6 @@ def plot_parameters(result, axes=None, *, log=None, xscale=None):
             ax.set_yscale("log")
         if xscale is not None:
             ax.set_xscale(xscale[i])
+    axes[0].legend(loc="upper right", fontsize="small")
     colourbar(axes[0].figure, points, list(axes), label="generation", shrink=0.9)  # one scale for every panel
     return axes

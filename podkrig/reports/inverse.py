@@ -11,6 +11,7 @@ import numpy as np
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.reports.findings import words
 from podkrig.reports.figures import pyplot, save
+from podkrig.reports.flat_jack import jack_pressures
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
 from podkrig.reports.html import Page, fmt, num, pct, unit_cell
 
@@ -34,10 +35,14 @@ def log_axis(ax, which, lo, hi):
         axis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:.4g}"))
 
 
-def plot_fit(result, path, *, load_unit="kN"):
+def plot_fit(result, path, *, load_unit="kN", steps=None):
     """Measured and fitted readings per sensor, load on the vertical axis (the convention of test
     reports: reading (mm) across, load up), measured with ±2σ noise bars, the calibrated surrogate
-    as a line with its ±2σ band."""
+    as a line with its ±2σ band.
+
+    ``steps`` (a flat-jack test's ``scenario.steps``, its load levels being step numbers): the
+    vertical axis is the jack pressure (MPa) that drives each step's phase instead
+    (:func:`~podkrig.reports.flat_jack.jack_pressures`), one colour and one line per phase."""
     plt = pyplot()
     meas = result.problem.measurement
     pred, std = result.predicted()
@@ -46,31 +51,44 @@ def plot_fit(result, path, *, load_unit="kN"):
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
-    load = np.asarray(meas.load_levels, float)
+    if steps is None:
+        load = np.asarray(meas.load_levels, float)
+        groups = [(np.ones(len(load), bool), "k", "tab:red", "")]
+        ylabel = f"load ({load_unit})"
+    else:
+        load, phases, labels = jack_pressures(steps, meas.load_levels)
+        groups = [(phases == ph, f"C{k}", f"C{k}", labels[ph]) for k, ph in enumerate(labels) if (phases == ph).any()]
+        ylabel = "jack pressure (MPa)"
     for j, name in enumerate(meas.sensor_names):
         ax = axes.flat[j]
-        ax.errorbar(meas.values[:, j], load, xerr=2 * sd[:, j], fmt="o", color="k", ms=4, capsize=3,
-                    label="measured ±2σ noise")
-        ax.plot(pred[:, j], load, "-", color="tab:red", label="calibrated model (surrogate)")
-        if std is not None:
-            ax.fill_betweenx(load, pred[:, j] - 2 * std[:, j], pred[:, j] + 2 * std[:, j], color="tab:red",
-                             alpha=0.2, label="surrogate ±2σ")
+        for sel, colour, line_colour, label in groups:  # with steps: the phase names the points, by colour
+            ax.errorbar(meas.values[sel, j], load[sel], xerr=2 * sd[sel, j], fmt="o", color=colour, ms=4, capsize=3,
+                        label=label or "measured ±2σ noise")
+            ax.plot(pred[sel, j], load[sel], "-", color=line_colour,
+                    label=None if label else "calibrated model (surrogate)")
+            if std is not None:
+                ax.fill_betweenx(load[sel], pred[sel, j] - 2 * std[sel, j], pred[sel, j] + 2 * std[sel, j],
+                                 color=line_colour, alpha=0.2, label=None if label else "surrogate ±2σ")
         ax.set_title(name)
         ax.set_xlabel(f"{name} reading (mm)")
-        ax.set_ylabel(f"load ({load_unit})")
+        ax.set_ylabel(ylabel)
         ax.locator_params(axis="x", nbins=4)  # µm-size readings: few, readable ticks
         ax.ticklabel_format(axis="x", style="sci", scilimits=(-3, 4))
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
+    if steps is not None:  # what the marks are, once: points measured (±2σ), lines the surrogate (±2σ band)
+        axes.flat[0].plot([], [], "o", color="0.4", label="measured ±2σ noise")
+        axes.flat[0].plot([], [], "-", color="0.4", label="calibrated model (surrogate)" + ("" if std is None else " ±2σ"))
     axes.flat[0].legend(fontsize=7)
     fig.tight_layout()
     save(fig, path, dpi=110)
     return path
 
 
-def plot_residuals(result, path, *, load_unit="kN"):
+def plot_residuals(result, path, *, load_unit="kN", steps=None):
     """Standardised residuals (measured − model)/σ (:data:`RESIDUAL_CONVENTION`) per sensor and load
-    level, as a heat map with its colour bar."""
+    level, as a heat map with its colour bar; with a flat-jack test's ``steps``, each row named by
+    its step, phase and driving jack pressure (MPa)."""
     plt = pyplot()
     meas = result.problem.measurement
     pred, _ = result.predicted()
@@ -80,8 +98,12 @@ def plot_residuals(result, path, *, load_unit="kN"):
     lim = max(3.0, float(np.abs(z).max()))
     im = ax.imshow(z, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
     ax.set_xticks(range(len(meas.sensor_names)), meas.sensor_names, rotation=45)
-    ax.set_yticks(range(len(meas.load_levels)),
-                  [f"step {v:g}" if load_unit == "step" else f"{v:g} {load_unit}" for v in meas.load_levels])
+    if steps is not None:
+        pressure, phases, _ = jack_pressures(steps, meas.load_levels)
+        names = [f"step {v:g} (phase {ph}, {p:g} MPa)" for v, ph, p in zip(meas.load_levels, phases, pressure)]
+    else:
+        names = [f"step {v:g}" if load_unit == "step" else f"{v:g} {load_unit}" for v in meas.load_levels]
+    ax.set_yticks(range(len(meas.load_levels)), names)
     for (i, j), v in np.ndenumerate(z):  # white on the dark ends of the scale
         ax.text(j, i, f"{v:+.1f}", ha="center", va="center", fontsize=7, color="w" if abs(v) > 0.6 * lim else "k")
     fig.colorbar(im, ax=ax, label=f"{RESIDUAL_CONVENTION} (-)")
@@ -220,8 +242,10 @@ def render_fit(page, inv, folder="", deformed=False):
                    caption="FE check at the best fit")
         if fe.ok:
             page.success("At the best fit the surrogate agrees with the FE model within the measurement noise.")
+    up = ("the jack pressure driving each phase (MPa) up, one colour per phase" if m["load_unit"] == "step"
+          else "load up")
     page.figure(f"{folder}fit.png", "Measured readings (±2σ noise) and the calibrated surrogate with its ±2σ band: "
-                                    "reading (mm) across, load up, one panel per gauge.")
+                                    f"reading (mm) across, {up}, one panel per gauge.")
     page.figure(f"{folder}residuals.png", f"Standardised residuals {RESIDUAL_CONVENTION} of the surrogate at the best "
                                           "fit, per gauge and load level, with their colour scale (-).")
     if deformed:
@@ -232,10 +256,12 @@ def render_fit(page, inv, folder="", deformed=False):
 
 def render_ga(page):
     """The GA's figures (``ga_history.png``, ``ga_parameters.png``)."""
-    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation, and population statistics "
-                                  "(thesis Fig. 3.17).")
+    page.figure("ga_history.png", "Genetic algorithm: every evaluated misfit by generation with the reported "
+                                  "optimum's misfit (dashed), and population statistics (thesis Fig. 3.17).")
     page.figure("ga_parameters.png", "Genetic algorithm: parameter values of the evaluated individuals against misfit, "
-                                     "coloured by generation (log axes for log-sampled parameters; thesis Fig. 3.23).")
+                                     "coloured by generation, with the reported optimum (star on a dashed line; dotted: "
+                                     "the GA's own best before the least-squares polish, where it differs) (log axes "
+                                     "for log-sampled parameters; thesis Fig. 3.23).")
 
 
 def render_region(page, region, posterior=None):
@@ -313,8 +339,10 @@ def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="
     page.heading("Identified parameters")
     render_parameters(page, calibration)
     page.heading("Fit to the measurements")
-    plot_fit(result, out / "fit.png", load_unit=load_unit)
-    plot_residuals(result, out / "residuals.png", load_unit=load_unit)
+    # a flat-jack test: readings against the jack pressure of each phase (its steps, from the spec)
+    steps = getattr(problem.model.scenario(), "steps", None) if load_unit == "step" else None
+    plot_fit(result, out / "fit.png", load_unit=load_unit, steps=steps)
+    plot_residuals(result, out / "residuals.png", load_unit=load_unit, steps=steps)
     render_fit(page, result)
     page.heading("Region of equivalence")
     plot_region(region, out / "region.png", best=result.x, posterior=posterior, space=problem.free_space)
@@ -324,27 +352,31 @@ def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="
         plot_rvc(calibration.rvc, out / "rvc.png")
         render_rvc(page, calibration.rvc)
     page.heading("Genetic algorithm")
-    plot_ga_history(result.ga, out / "ga_history.png")
-    plot_ga_parameters(result.ga, out / "ga_parameters.png", problem.free_space)
+    plot_ga_history(result, out / "ga_history.png")
+    plot_ga_parameters(result, out / "ga_parameters.png")
     render_ga(page)
     return page.write(out / "index.html")
 
 
-def plot_ga_history(ga, path):
-    """The GA's history: every evaluated misfit by generation, and population statistics."""
+def plot_ga_history(inversion, path):
+    """The GA of an inversion (:class:`~podkrig.online.invert.InverseResult`): every evaluated
+    misfit by generation with the reported optimum's misfit, and population statistics."""
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    plot_history(ga, ax=axes[0])
-    plot_statistics(ga, ax=axes[1])
+    plot_history(inversion.ga, ax=axes[0], optimum=inversion.misfit)
+    plot_statistics(inversion.ga, ax=axes[1])
     fig.tight_layout()
     save(fig, path, dpi=110)
     return path
 
 
-def plot_ga_parameters(ga, path, space=None):
+def plot_ga_parameters(inversion, path):
     """Parameter values of the GA's evaluated individuals against their misfit, coloured by
-    generation; a log axis for each parameter the search space samples on a log scale."""
+    generation, with the inversion's reported optimum (after its least-squares polishes: ``x``,
+    ``misfit``) marked and the GA's own best where it differs; a log axis for each parameter the
+    search space samples on a log scale."""
     pyplot()
-    fig = np.ravel(plot_parameters(ga, xscale=None if space is None else list(space.scales)))[0].figure
-    save(fig, path, dpi=110)
+    space = inversion.problem.free_space
+    axes = plot_parameters(inversion.ga, xscale=list(space.scales), optimum=(inversion.x, inversion.misfit))
+    save(axes[0].figure, path, dpi=110)
     return path

@@ -1,24 +1,24 @@
-"""HTML tables of the online results for Jupyter: the best fit and its χ², the region of equivalence.
+"""HTML of the result objects for Jupyter: the best fit and its χ², the region of equivalence, a
+study (every other result shows a table of its fields, :func:`fe.display.fields_html`).
 
-The result objects of the numerics draw nothing and write no HTML; this module renders them, and
-:func:`register_formatters` tells a running IPython to show an
-:class:`~podkrig.online.calibrate.CalibrationResult`, an
-:class:`~podkrig.online.invert.InverseResult` or a :class:`~podkrig.online.region.Region` as these
-tables instead of the dataclass ``repr``. ``import podkrig`` in a notebook registers them (by
-type name: nothing is imported until a result is shown); ``%load_ext podkrig.reports.jupyter``
-does the same explicitly.
+The result objects of the numerics draw nothing and write no HTML: each mixes in
+:class:`podkrig.display.Displayed`, whose ``_repr_html_`` calls the renderer registered for its
+class in :mod:`podkrig.display` (a registry at the bottom of the layers). This module registers its
+renderers there (:data:`RENDERERS`) when it is imported: ``import podkrig`` in a running IPython
+imports it, and so does loading a study; ``%load_ext podkrig.reports.jupyter`` does it explicitly.
 """
 
 import html
 import math
 
+from podkrig.display import register_html
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 
-#: (module, class name) → name of the function of this module that renders it
-FORMATTERS = {
-    ("podkrig.online.calibrate", "CalibrationResult"): "calibration_html",
-    ("podkrig.online.invert", "InverseResult"): "inverse_result_html",
-    ("podkrig.online.region", "Region"): "region_html",
+#: "module.Class" → name of the function of this module that renders it
+RENDERERS = {
+    "podkrig.online.calibrate.CalibrationResult": "calibration_html",
+    "podkrig.online.invert.InverseResult": "inverse_result_html",
+    "podkrig.online.region.Region": "region_html",
 }
 
 
@@ -82,19 +82,36 @@ def region_html(region):
                               f"{len(region.samples)} members of {region.n_evaluated} evaluations")
 
 
-def register_formatters(ipython):
-    """Show the online results as the tables of this module in ``ipython`` (a running
-    ``InteractiveShell``): its ``text/html`` formatter gets one function per type, registered by
-    type name (:data:`FORMATTERS`)."""
-    formatter = ipython.display_formatter.formatters["text/html"]
-    for (module, name), function in FORMATTERS.items():
-        formatter.for_type_by_name(module, name, globals()[function])
+def study_html(study):
+    """A :class:`~podkrig.study.settings.Study` before it runs: each test's scenario and designs,
+    the free parameters with their search ranges and the fixed ones, as HTML tables."""
+    tests = html_table(["test", "scenario", "training design", "held-out design"],
+                       [["—" if t.name is None else t.name, t.spec.scenario,
+                         f"{t.train.n} FE runs ({t.train.method}, seed {t.train.seed})",
+                         f"{t.held_out.n} FE runs ({t.held_out.method}, seed {t.held_out.seed})"]
+                        for t in study.calibration_tests],
+                       caption=f"Study {study.name} ({study.path}); diagnosis "
+                               f"{'on' if study.diagnosis.enabled else 'off'}")
+    free = html_table(["parameter", "unit", "low", "high", "scale"],
+                      [[p.name, p.unit, number(float(p.lower)), number(float(p.upper)), p.scale]
+                       for p in study.free_parameters], caption="Free parameters (search range)")
+    fixed = html_table(["parameter", "value"], [[n, number(float(v))] for n, v in study.fixed.items()],
+                       caption="Fixed parameters") if study.fixed else ""
+    return tests + free + fixed
+
+
+def register():
+    """Register the renderers of this module with :mod:`podkrig.display` (done on import)."""
+    for name, function in RENDERERS.items():
+        register_html(name, globals()[function])
 
 
 def load_ipython_extension(ipython):
-    """``%load_ext podkrig.reports.jupyter``: :func:`register_formatters`."""
-    register_formatters(ipython)
+    """``%load_ext podkrig.reports.jupyter``: :func:`register` (the results then show as HTML)."""
+    register()
 
 
-__all__ = ["FORMATTERS", "calibration_html", "html_table", "inverse_result_html", "load_ipython_extension", "number", "region_html",
-           "register_formatters"]
+register()
+
+__all__ = ["RENDERERS", "calibration_html", "html_table", "inverse_result_html", "load_ipython_extension", "number",
+           "region_html", "register", "study_html"]

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.reports.figures import pyplot, save
-from podkrig.reports.html import Page, fmt
+from podkrig.reports.html import Page, fmt, num
 from podkrig.reports.step_slider import build_step_slider, step_slider_html
 
 #: each limit of a run's budget (``response.limit``, :data:`fe.solvers.nonlinear.LIMITS`): its name in
@@ -16,6 +16,22 @@ LIMITS = {"steps": ("step", "max_steps"), "iterations": ("iteration", "max_total
           "cpu": ("CPU-time", "max_cpu_seconds"), "wall": ("wall-clock (hang guard)", "max_seconds")}
 #: the options of a run's budget
 BUDGET_OPTIONS = "max_steps, max_total_iterations, max_cpu_seconds"
+
+#: the unit of each path-following setting (:class:`fe.solvers.nonlinear.PathSettings`, the
+#: report's solver table): what a count counts, s, "-" for a ratio (with what it is relative to),
+#: "on/off" for a switch, "choice" for one of a set of words
+SETTING_UNITS = {
+    "max_steps": "increments", "max_iterations": "iterations per increment",
+    "max_total_iterations": "iterations", "max_cpu_seconds": "s (CPU)", "max_seconds": "s (wall clock)",
+    "tolerance": "- (force residual / force)", "line_search": "on/off", "growth": "- (increment factor)",
+    "cutback": "- (increment factor)", "easy_iterations": "iterations",
+    "min_increment_fraction": "- (of the initial increment)", "max_increment_fraction": "- (of the initial increment)",
+    "record_states": "on/off", "elastic_fallback": "on/off", "stagnation_iterations": "iterations",
+    "elastic_iterations": "iterations", "arc_length_fallback": "on/off", "max_detour_steps": "increments",
+    "detour_after_failures": "failed increments", "relaxed_factor": "- (× tolerance)", "predictor": "choice",
+    "step_rule": "choice", "peak_tolerance": "- (load change / load)", "max_peak_steps": "increments",
+    "max_peak_levels": "bracket halvings", "peak_newton_tolerance": "- (force residual / force)",
+}
 
 
 def plot_load_displacement(scenario, response, path):
@@ -90,8 +106,53 @@ def _early_stop_remedy(response):
     return remedy + ", lower the increment, or check the parameters; the converged part of the path is shown."
 
 
+def stop_line(response):
+    """One line on a nonlinear run that did not reach its control range: the status, the limit
+    that ended it (and the option setting it) or that Newton did not converge, and the control
+    value reached against the target (the last response level); None for a run that reached it.
+    The first line of the run's HTML page and of ``podkrig simulate``'s table output."""
+    if response.converged:
+        return None
+    if response.limit in LIMITS:
+        words, option = LIMITS[response.limit]
+        why = f"the {words} limit ({option}) ended it"
+    else:
+        why = "Newton did not converge at the smallest increment"
+    return (f"stopped early, status {response.status}: {why}; control reached {response.reached:.4g} of "
+            f"{response.load_levels[-1]:.4g} {response.load_unit}")
+
+
+def _cell(value):
+    """A solver setting or count for the table: numbers as numbers, switches as on/off."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    return str(value) if isinstance(value, int) else num(value)
+
+
+def _solver_tables(page, response):
+    """The run's path-following record in tables with units: what it did, its peaks, its settings."""
+    d = response.path.to_dict()
+    rows = [["status", d["status"], "-"], ["limit that ended it", d["limit"] or "—", "-"],
+            ["converged steps", d["steps"], "steps"], ["attempted increments", d["attempted_steps"], "increments"],
+            ["failed increments (cut back)", d["failed_steps"], "increments"],
+            ["peak refinement increments", d["peak_steps"], "increments"],
+            ["Newton iterations", d["total_iterations"], "iterations"],
+            ["steps accepted at a relaxed tolerance", len(d["relaxed_steps"]), "steps"],
+            ["wall time", d["seconds"], "s"], ["CPU time", d["cpu_seconds"], "s"]]
+    page.table(["quantity", "value", "unit"], [[k, _cell(v), u] for k, v, u in rows], caption="Path following")
+    if d["peaks"]:
+        page.table(["phase", f"control at the peak ({response.load_unit})", f"peak load ({response.force_unit})",
+                    "load change across the final bracket (-)", "tolerance (-)", "resolved"],
+                   [[ph, fmt(pk["path"]), fmt(pk["load"]), fmt(pk["change"]), fmt(pk["tolerance"]),
+                     "yes" if pk["resolved"] else "no"] for ph, pk in d["peaks"].items()], caption="Load maxima")
+    page.table(["setting", "value", "unit"],
+               [[k, _cell(v), SETTING_UNITS.get(k, "")] for k, v in d["settings"].items()],
+               caption="Solver settings (scenario options of the same names)")
+
+
 def write_nonlinear_report(scenario, response, values, out_dir):
-    """Figures plus an HTML page in ``out_dir``; returns the page path."""
+    """Figures plus an HTML page in ``out_dir``; returns the page path. The page's first line says
+    whether the run reached its control range (:func:`stop_line` when it did not)."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plot_load_displacement(scenario, response, out / "load_displacement.png")
@@ -100,7 +161,7 @@ def write_nonlinear_report(scenario, response, values, out_dir):
         page.success(f"Reached {response.reached:g} {response.load_unit}: peak {response.peak_load:.4g} "
                      f"{response.force_unit} at {response.peak_displacement:.4g} mm.")
     else:
-        page.warning(f"The run stopped early ({response.status}): {response.message}", _early_stop_remedy(response))
+        page.warning(f"{stop_line(response)}. {response.message}".rstrip(" ."), _early_stop_remedy(response))
     page.figure("load_displacement.png", "Load against the control displacement (every converged step).")
     if response.path.displacements:
         plot_deformed_mesh(scenario, response, out / "deformed.png")
@@ -108,9 +169,10 @@ def write_nonlinear_report(scenario, response, values, out_dir):
         page.heading("Step by step")
         page.fragment(step_slider_html(build_step_slider(scenario, response)))
     header = [f"level ({response.load_unit})", f"load ({response.force_unit})"] + [f"{n} (mm)" for n in response.sensor_names]
-    rows = [[fmt(lv), fmt(ld)] + [fmt(v) for v in row]
+    rows = [[fmt(lv), num(ld)] + [num(v) for v in row]  # "—" at the levels a stopped run did not reach
             for lv, ld, row in zip(response.load_levels, response.loads, response.readings)]
     page.table(header, rows, caption="Readings at the response levels")
-    page.table(["parameter", "value"], [[k, fmt(v)] for k, v in values.items()], caption="Parameters")
-    page.table(["solver", "value"], [[k, str(v)] for k, v in response.path.to_dict().items()], caption="Path following")
+    page.table(["parameter", "value", "unit"], [[k, fmt(v), scenario.parameters[k].unit] for k, v in values.items()],
+               caption="Parameters")
+    _solver_tables(page, response)
     return page.write(out / "index.html")

@@ -1,8 +1,53 @@
-"""Figure of a global sensitivity analysis (reads a :class:`~podkrig.online.sensitivity.SensitivityResult`)."""
+"""Figure and words of a global sensitivity analysis (reads a
+:class:`~podkrig.online.sensitivity.SensitivityResult`).
+
+A Sobol' index is a share of variance, ≥ 0 by definition, but its sampling estimate of a
+parameter with no effect scatters around 0 and can come out slightly negative (e.g. −0.0009).
+Wherever an index is printed, :func:`negative_index` says which of two cases a negative
+estimate is: estimator noise (0 lies inside its bootstrap interval: read it as 0) or an estimate
+negative beyond its interval, which is flagged (too few base samples for this output).
+"""
+
+import math
 
 import numpy as np
 
 from podkrig.reports.figures import pyplot, save
+
+#: the words of a negative index estimate, by :func:`negative_index`'s kind
+NEGATIVE_INDEX = {
+    "noise": "negative estimate: sampling noise around 0 (0 lies inside its bootstrap interval); read it as 0",
+    "suspect": "negative beyond its bootstrap interval: the estimate is not reliable; raise the base samples n",
+}
+
+
+def negative_index(value, low, high):
+    """The kind of a negative Sobol' index estimate.
+
+    Parameters
+    ----------
+    value : float or None
+        The estimate (-); None or NaN for an output without variance.
+    low, high : float or None
+        Its bootstrap interval (-).
+
+    Returns
+    -------
+    {None, "noise", "suspect"}
+        None for an estimate ≥ 0 (or missing); ``"noise"`` when the interval contains 0 (the
+        negative value is within the estimator's noise); ``"suspect"`` otherwise (:data:`NEGATIVE_INDEX`).
+    """
+    if value is None or not math.isfinite(value) or value >= 0:
+        return None
+    inside = low is not None and high is not None and low <= 0.0 <= high
+    return "noise" if inside else "suspect"
+
+
+def index_notes(*estimates):
+    """The note of a table row showing the index estimates ``(value, low, high)``: the words of
+    :data:`NEGATIVE_INDEX` for each kind found (a suspect one first), joined; "" when none is negative."""
+    kinds = {negative_index(*e) for e in estimates} - {None}
+    return "; ".join(NEGATIVE_INDEX[k] for k in ("suspect", "noise") if k in kinds)
 
 
 def plot_sensitivity(result, path, misfit=None):

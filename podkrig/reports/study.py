@@ -17,10 +17,11 @@ from pathlib import Path
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
-from podkrig.reports.diagnosis import fitted_parameter_text
+from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text
 from podkrig.reports.html import Page, num, pct, unit_cell
 from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
+from podkrig.reports.sensitivity import index_notes
 from podkrig.reports.surrogate import fit_tables, held_out_tables
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 
@@ -298,10 +299,14 @@ def _sensitivity(page, study, r):
             if name in one["parameters"]:
                 k = one["parameters"].index(name)
                 best.append(max((t[k] for t in one["total"] if t[k] is not None and math.isfinite(t[k])), default=0.0))
+        estimates = [(m[k][0][j], m[f"{k}_low"][0][j], m[f"{k}_high"][0][j]) for k in ("total", "first")]
         rows.append([name, num(max(best, default=0.0), 3), num(m["total"][0][j], 3), num(m["first"][0][j], 3),
-                     "yes" if name in r["propose_fixing"] else ""])
-    page.table(["parameter", "largest total index over the readings (-)", "total index of the misfit (-)",
-                "first-order index of the misfit (-)", f"propose fixing (< {r['threshold']:g})"], rows)
+                     "yes" if name in r["propose_fixing"] else "", index_notes(*estimates)])
+    header = ["parameter", "largest total index over the readings (-)", "total index of the misfit (-)",
+              "first-order index of the misfit (-)", f"propose fixing (< {r['threshold']:g})", "note"]
+    if not any(row[-1] for row in rows):  # the note column only when an index needs one
+        header, rows = header[:-1], [row[:-1] for row in rows]
+    page.table(header, rows)
     if not r["propose_fixing"]:
         page.success(f"Every free parameter explains at least {r['threshold']:g} of the variance of some reading and "
                      "of the misfit.")
@@ -328,8 +333,10 @@ def _diagnosis(page, r, folder=""):
         page.paragraph("Switched off for this study: set [diagnosis] enabled = true in the study file to run it.")
         return
     a = r["adequacy"]
-    adequacy = f"{num(a['chi2_dof'], 3)} (p = {num(a['p_value'], 3)}, significance level {a['alpha']:g})"
-    rows = [["verdict", r["verdict"]], ["χ²/dof of the FE model at the base fit (-)", adequacy],
+    alpha = r.get("alpha", a["alpha"] / CHI2_ALPHA_SHARE)  # the settings' α (older manifests lack it)
+    adequacy = f"{num(a['chi2_dof'], 3)} (p = {num(a['p_value'], 3)}; {chi2_level_text()})"
+    rows = [["verdict", r["verdict"]], ["significance level α (-)", f"{alpha:g}"],
+            ["χ²/dof of the FE model at the base fit (-)", adequacy],
             ["χ² includes", a.get("basis", chi2_basis("diagnosis"))],
             ["cause", r["cause"] or "none"]]
     d = r["detail"]
@@ -350,7 +357,6 @@ def _diagnosis(page, r, folder=""):
         page.success("The calibrated model explains the data within the noise; no candidate cause improves the fit "
                      "significantly.")
     cands = [c for c in r["candidates"] if c["applicable"]]
-    alpha = r.get("alpha", r["adequacy"]["alpha"] / CHI2_ALPHA_SHARE)  # candidates' α (older manifests lack it)
     if not cands:
         page.paragraph("No candidate cause applies to this scenario and these sensors.")
     else:

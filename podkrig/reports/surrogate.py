@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from podkrig.reports.figures import pyplot, save
+from podkrig.reports.figures import load_label, pyplot, save
 from podkrig.reports.html import Page, num, pct
 
 logger = logging.getLogger(__name__)
@@ -52,7 +52,7 @@ def plot_reading_modes(pod, sensor_names, load_levels, load_unit, path, n_show=4
         for j, name in enumerate(sensor_names):
             ax.plot(load_levels, mode[:, j], "o-", ms=3, label=name)
         ax.set_title(f"mode {k + 1}")
-        ax.set_xlabel(f"load ({load_unit})")
+        ax.set_xlabel(load_label(load_unit))
         ax.set_ylabel("mode component (mm per unit coefficient)" if k == 0 else "")
         ax.axhline(0, color="k", lw=0.5)
     axes[0, 0].legend(fontsize=7)

@@ -49,17 +49,30 @@ References
 """
 
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
 import scipy.sparse as sp
+from pydantic import AfterValidator
+
+from podkrig.config import allowed, finite, settings
+from podkrig.online.measurement import DELTA_RANGE, SIGMA_RANGE_MM
 
 CRITERIA = ("d", "a", "e", "pod")
 UNIFORM_PRIOR_INFORMATION = 12.0  # 1 / variance of U(0, 1): the box as a Gaussian prior, unit coords
 
 
-@dataclass(frozen=True)
+_SIGMA = Annotated[float, AfterValidator(finite),
+                   allowed(f"σ in [{SIGMA_RANGE_MM[0]:g}, {SIGMA_RANGE_MM[1]:g}] mm", unit="mm", ge=SIGMA_RANGE_MM[0],
+                           le=SIGMA_RANGE_MM[1])]
+
+
+@settings
 class SensorNoise:
     """Noise per sensor kind: absolute σ (mm) for LVDTs/gauges and for DIC points, or a relative level.
+
+    σ and δ take the ranges of a measurement's noise model
+    (:data:`~podkrig.online.measurement.SIGMA_RANGE_MM`, :data:`~podkrig.online.measurement.DELTA_RANGE`).
 
     Parameters
     ----------
@@ -70,20 +83,15 @@ class SensorNoise:
     relative : float or None
         If given, σ = max(relative × |reading|, floor) per reading (overrides the absolute values).
     floor : float
-        Smallest σ of the relative model, mm.
+        Smallest σ of the relative model, mm (a numerical floor: any number > 0).
     """
 
-    lvdt: float = 0.002
-    dic: float = 0.005
-    relative: float | None = None
-    floor: float = 1e-4
-
-    def __post_init__(self):
-        for name in ("lvdt", "dic", "floor"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"noise {name} must be > 0 mm; got {getattr(self, name)}")
-        if self.relative is not None and not 0 < self.relative < 1:
-            raise ValueError(f"relative noise must be in (0, 1); got {self.relative}")
+    lvdt: _SIGMA = 0.002
+    dic: _SIGMA = 0.005
+    relative: Annotated[float, AfterValidator(finite),
+                        allowed(f"δ in [{DELTA_RANGE[0]:g}, {DELTA_RANGE[1]:g})", unit="-", ge=DELTA_RANGE[0],
+                                lt=DELTA_RANGE[1])] | None = None
+    floor: Annotated[float, AfterValidator(finite), allowed("a number > 0 mm", unit="mm", gt=0)] = 1e-4
 
     def sigma(self, kind):
         """Absolute σ of a sensor kind, mm."""

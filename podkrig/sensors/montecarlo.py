@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig._qmc import rng_seed
+from podkrig.display import Displayed
 from podkrig.offline.sampling import sobol
 from podkrig.online.invert import invert
 from podkrig.online.problem import InverseProblem
@@ -75,8 +76,8 @@ class LayoutModel:
         return (mean, None) if return_std else mean
 
 
-@dataclass(frozen=True, eq=False)
-class MonteCarloResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class MonteCarloResult(Displayed):
     """Identified parameters under noise for one layout.
 
     Attributes

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fe.scenarios import ScenarioSpec
+from podkrig.display import Displayed
 from podkrig.sensors.candidates import current_candidates, user_candidates
 from podkrig.sensors.criteria import (
     LayoutCriterion,
@@ -39,8 +40,8 @@ logger = logging.getLogger(__name__)
 SENSITIVITY_SOURCES = ("exact", "fe", "auto")  # see place_sensors(model=...)
 
 
-@dataclass(frozen=True, eq=False)
-class LayoutScore:
+@dataclass(frozen=True, eq=False, repr=False)
+class LayoutScore(Displayed):
     """One layout judged by every criterion (and optionally by Monte Carlo).
 
     Attributes
@@ -69,8 +70,8 @@ class LayoutScore:
                 "monte_carlo": None if self.monte_carlo is None else self.monte_carlo.to_dict()}
 
 
-@dataclass(frozen=True, eq=False)
-class PlacementResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class PlacementResult(Displayed):
     """Outcome of :func:`place_sensors`.
 
     Attributes

@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from podkrig.display import Displayed
 from podkrig.ga import GeneticAlgorithm
 
 logger = logging.getLogger(__name__)
@@ -142,8 +143,8 @@ class PlacementProblem:
         return np.all(self.violations(layouts) <= 1e-12, axis=1)
 
 
-@dataclass(frozen=True, eq=False)
-class LayoutResult:
+@dataclass(frozen=True, eq=False, repr=False)
+class LayoutResult(Displayed):
     """The chosen layout.
 
     Attributes

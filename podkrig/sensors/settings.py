@@ -41,6 +41,14 @@ def _grid_range(text):
 
 _Range = Annotated[StrictStr, AfterValidator(_grid_range), allowed(_RANGE_ALLOWED, unit="mm")]
 _Cost = Annotated[StrictFloat, AfterValidator(finite), allowed("a number > 0", gt=0)]
+_Length = Annotated[StrictFloat, AfterValidator(finite), allowed("MIN:MAX with 0 < MIN <= MAX, mm", gt=0)]
+_Angle = Annotated[StrictFloat, AfterValidator(finite), allowed("finite angles, degrees from x", unit="°")]
+
+
+def _ordered(lengths):
+    if lengths[0] > lengths[1]:
+        raise settings_error(f"MIN {lengths[0]:g} > MAX {lengths[1]:g}", allowed="MIN:MAX with 0 < MIN <= MAX, mm")
+    return lengths
 
 
 @settings
@@ -51,8 +59,10 @@ class CandidateSettings:
 
     grid_x: _Range | None = None
     grid_y: _Range | None = None
-    lengths: tuple[StrictFloat, StrictFloat] = (50.0, 400.0)
-    orientations: tuple[StrictFloat, ...] = (0.0, 45.0, 90.0, 135.0)
+    lengths: Annotated[tuple[_Length, _Length], AfterValidator(_ordered),
+                       allowed("MIN:MAX with 0 < MIN <= MAX, mm", unit="mm")] = (50.0, 400.0)
+    orientations: Annotated[tuple[_Angle, ...], allowed("finite angles, degrees from x", unit="°")] = (
+        0.0, 45.0, 90.0, 135.0)
     dic_x: _Range | None = None
     dic_y: _Range | None = None
     cost_lvdt: _Cost = 1.0

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from podkrig import __version__
+from podkrig.display import Displayed, summary
 from podkrig.locks import folder_lock
-from podkrig.online.calibrate import CalibrationResult
 from podkrig.online.findings import (
     CHI2_BASIS,
     RESIDUAL_CONVENTION,
@@ -32,11 +32,11 @@ from podkrig.online.findings import (
 from podkrig.reports.findings import words
 from podkrig.reports.study import study_summary_html, write_study_report
 from podkrig.study import stages
-from podkrig.study.cache import Progress, StageRecord, now, read_arrays, write_json
+from podkrig.study.cache import Progress, StageRecord, now, write_json
 
 
-@dataclass(frozen=True)
-class StudyResult:
+@dataclass(frozen=True, repr=False)
+class StudyResult(Displayed):
     """Outcome of :func:`run_study`.
 
     Attributes
@@ -75,6 +75,15 @@ class StudyResult:
         """FE runs done by this run, all stages."""
         return sum(r.fe_runs for r in self.stages)
 
+    def _repr_lines(self):
+        """The study, its stages (run or cached), FE runs, warnings and the report (repr)."""
+        ran = [r.name for r in self.stages if not r.cached]
+        return [f"StudyResult {self.study.name!r}: {len(self.stages)} stages ({len(ran)} run, "
+                f"{len(self.stages) - len(ran)} cached), {self.fe_runs} FE runs, {len(self.warnings)} warnings, "
+                f"{summary(self.seconds)} s",
+                f"  out: {self.out}", f"  report: {self.report}",
+                *(f"  warning: {summary(w.message, 100)}" for w in self.warnings)]
+
     #: report figures shown inline by :meth:`_repr_html_`, in this order (those that exist)
     INLINE_FIGURES = ("fit.png", "residuals.png", "region.png", "deformed.png")
 
@@ -82,8 +91,7 @@ class StudyResult:
     def calibration(self):
         """The calibration (:class:`~podkrig.online.calibrate.CalibrationResult`), read back from its
         manifest and ``region.npz``."""
-        f = read_arrays(self.out / "region.npz")
-        return CalibrationResult.from_dict(self.stage("calibration").result, samples=f["samples"], omega=f["omega"])
+        return stages.calibration_result(self.out, self.stage("calibration").result)
 
     def diagnoses(self):
         """Each test's diagnosis result dict (None when the diagnosis is off), by test name."""

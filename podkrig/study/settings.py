@@ -36,6 +36,7 @@ from podkrig.config import Seed, finite as _finite, settings as _settings, type_
 from podkrig.config import allowed as _allowed, choice as _choice, settings_error as study_error
 from podkrig.config import field_info
 from podkrig.diagnosis.settings import DiagnosisSettings
+from podkrig.display import Displayed, summary
 from podkrig.offline.settings import ROWS_ALLOWED as _ROWS_ALLOWED
 from podkrig.offline.settings import SAMPLING_METHODS, Design, SamplingSettings, TrainingDesign
 from podkrig.offline.settings import training_rows as _training_rows
@@ -62,6 +63,7 @@ from podkrig.online.settings import (
     check_noise,
 )
 from podkrig.parameters import SCALES, ParameterSpace
+from podkrig.reports.jupyter import study_html
 from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAMS, SurrogateSettings
 
 __all__ = [
@@ -399,8 +401,8 @@ class ValidationModel:
     outputs: tuple | None = None
 
 
-@dataclasses.dataclass(frozen=True)
-class Study:
+@dataclasses.dataclass(frozen=True, repr=False)
+class Study(Displayed):
     """A validated study file.
 
     Attributes
@@ -449,6 +451,32 @@ class Study:
     diagnosis: DiagnosisSettings
     sensitivity: SensitivityTable = SensitivityTable()
     tests: tuple = ()
+
+    def _repr_lines(self):
+        """Each test's scenario and designs, then one line per free parameter (repr)."""
+        tests = self.calibration_tests
+        lines = [f"Study {self.name!r}: {len(tests)} test{'s' if len(tests) > 1 else ''}, "
+                 f"{len(self.free_parameters)} free parameters, diagnosis {'on' if self.diagnosis.enabled else 'off'}",
+                 f"  file: {self.path}"]
+        lines += [f"  {'' if t.name is None else f'test {t.name}: '}scenario {t.spec.scenario}, {t.train.n} training "
+                  f"and {t.held_out.n} held-out FE runs" for t in tests]
+        return lines + [f"  {p.name} in [{summary(p.lower)}, {summary(p.upper)}] {p.unit} ({p.scale})"
+                        for p in self.free_parameters]
+
+    @property
+    def free_parameters(self):
+        """Every free parameter of the study, shared and each test's own, in order (tuple of
+        :class:`~podkrig.parameters.Parameter`)."""
+        found = {}
+        for test in self.calibration_tests:
+            for p in test.space.parameters:
+                found.setdefault(p.name, p)
+        return tuple(found.values())
+
+    def _repr_html_(self):
+        """The scenario, designs, free and fixed parameters as HTML tables, for Jupyter
+        (:func:`podkrig.reports.jupyter.study_html`)."""
+        return study_html(self)
 
     def calibration_settings(self):
         """The :class:`~podkrig.online.settings.CalibrationSettings` of the study: its

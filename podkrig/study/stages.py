@@ -47,12 +47,13 @@ from podkrig.diagnosis import diagnose
 from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.io.measurement_log import read_measurement
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
-from podkrig.limits import fe_job_estimate
+from podkrig.limits import fe_job_estimate, quote
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
+from podkrig.online.data_check import MeasurementCheckError, check_readings
 from podkrig.online.joint import JointProblem
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.rigid_body import rigid_body_modes
@@ -65,6 +66,7 @@ from podkrig.reports import inverse as inverse_figures
 from podkrig.reports import surrogate as surrogate_figures
 from podkrig.reports.diagnosis import write_diagnosis_report
 from podkrig.reports.fields import plot_deformed_field
+from podkrig.reports.findings import refusal
 from podkrig.reports.sensitivity import plot_sensitivity
 from podkrig.study.cache import StageCache, file_sha256, read_arrays
 from podkrig.surrogate.podkriging import training_data
@@ -201,20 +203,13 @@ def _run_store(run, path, spec, space, design):
     return summary, notes
 
 
-#: A sensor whose readings are this many times larger (or smaller) than in every FE run (of the
-#: probe, or of the training design) is a probable unit error (µm read as mm is 1000×); a factor 20
-#: leaves room for parameter bounds that are somewhat off, and for the spread of the box beyond the
-#: probe's points, while catching every power-of-ten unit slip from 100× up.
-RANGE_FACTOR = 20.0
-#: A ratio in this range (1000× give or take the parameter box) is named as a µm ↔ mm slip ("µm read
-#: as mm?"); any other ratio beyond :data:`RANGE_FACTOR` as "a unit error?".
-UNIT_SLIP_RATIO = (300.0, 3000.0)
-
-
 def read_study_measurement(test, sensor_names, load_levels, load_unit, load_response):
     """A test's measurement log read for a model: (Measurement, NoiseModel)."""
     m = test.measurement
-    data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
+    try:
+        data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
+    except MeasurementCheckError as e:
+        raise ValueError(refusal(e, "study")) from None
     return data, m.noise.noise_model(data.sensor_names)
 
 
@@ -230,6 +225,12 @@ def measurement_check(run, test):
     def compute():
         sc = run.scenario(test)
         response = getattr(sc, "load_response", "discrete")
+        unknown = m.noise.unknown_sensors(sc.sensor_names)
+        if unknown:
+            field, sensor = unknown[0]
+            table = "[measurement]" if test.name is None else f"[test.measurement] of test {test.name!r}"
+            raise ValueError(f"{study.path}: {table} {field}: {quote(sensor)} is not a sensor of scenario "
+                             f"{sc.name}; its sensors: {', '.join(sc.sensor_names)}")
         data, noise = run.measurement(test)
         rigid = rigid_body_modes(data, absolute_displacements(sc.sensors), m.rigid_body, m.rigid_groups)
         check_dof(data.n_obs, test.space.names, str(m.file), 0 if rigid is None else rigid.n_removed)
@@ -280,11 +281,17 @@ def _probe_inputs(test):
     return {"spec": test.spec.to_dict(), "space": test.space.to_dict()}
 
 
+def _strings(values):
+    """A NumPy array of text (read back without pickle)."""
+    return np.array([str(v) for v in values], dtype=str)
+
+
 def probe(run, test):
     """The probe FE runs (:func:`probe_points`) of a test's scenario into ``probe.npz`` (``X
     (n_runs, n_params)`` physical values, ``readings (n_runs, n_levels, n_sensors)`` mm, NaN where a
-    run failed or stopped early): the number of runs and of those not used (failed, or a nonlinear
-    run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
+    run failed or stopped early; the columns named by ``names`` and ``units``, the readings by
+    ``sensor_names``, ``load_levels`` and ``load_unit``): the number of runs and of those not used
+    (failed, or a nonlinear run stopped early — as failed rows of a store are not). Skipped with ``[measurement]
     range_check = false``; cached by the scenario and the parameter box, so a new measurement file
     reruns no FE."""
     if not test.measurement.range_check:
@@ -309,7 +316,9 @@ def probe(run, test):
                     notes.append(f"probe run {i + 1} at {params} stopped early ({response.status}); not used")
             run.progress.advance(i + 1, len(X))
         (run.out / filename).parent.mkdir(parents=True, exist_ok=True)
-        np.savez(run.out / filename, X=X, readings=Y)
+        np.savez(run.out / filename, X=X, readings=Y, names=_strings(test.space.names),
+                 units=_strings(test.space.units), sensor_names=_strings(sc.sensor_names),
+                 load_levels=np.asarray(sc.load_levels, float), load_unit=np.str_(sc.load_unit))
         n_failed = int(np.sum(~np.all(np.isfinite(Y.reshape(len(X), -1)), axis=1)))
         return {"n_runs": len(X), "n_failed": n_failed, "notes": notes}, [filename], len(X)
 
@@ -319,14 +328,16 @@ def probe(run, test):
 
 def range_check(run, test, source):
     """Stop when a sensor's readings lie far outside every FE run of a test (a unit or sign error):
-    :func:`measurement_range_problems` against the probe runs (``source = "probe"``, before the
-    training snapshots) or against the training design (``source = "train"``, right after its
+    :func:`~podkrig.online.data_check.check_readings` against the probe runs (``source = "probe"``,
+    before the training snapshots) or against the training design (``source = "train"``, right after its
     snapshots: the whole box). Nothing with ``[measurement] range_check = false``.
 
     Raises
     ------
     ValueError
-        Naming the file, the FE runs compared with, each sensor and its factor.
+        Naming the file, the FE runs compared with, each sensor and its factor
+        (:func:`podkrig.online.data_check.check_readings`, worded by
+        :func:`podkrig.reports.findings.refusal`).
     """
     if not test.measurement.range_check:
         return
@@ -335,78 +346,18 @@ def range_check(run, test, source):
         Y = read_arrays(run.out / test.file("probe.npz"))["readings"]
         Y = Y[np.all(np.isfinite(Y.reshape(len(Y), -1)), axis=1)]  # complete runs, as only_done of a store
         sensor_names, levels, unit = list(sc.sensor_names), sc.load_levels, sc.load_unit
-        what = (f"{len(Y)} probe FE run(s) (the box centre" + ("" if len(Y) == 1 else " and each parameter at its bounds")
-                + ")")
     else:
         with SnapshotStore.open(run.out / test.file("train.h5")) as store:
             Y = store.readings(only_done=True)
             sensor_names, levels, unit = list(store.sensor_names), store.load_levels, store.load_unit
-        what = f"{len(Y)} training FE runs"
     if not len(Y):
         return
     response = getattr(sc, "load_response", "discrete")
     data, noise = run.measurement(test, sensor_names, levels, unit, response)
-    problems = measurement_range_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1))
-    if problems:
-        raise ValueError(
-            f"{test.measurement.file}: the readings do not look like any of the {what} — "
-            + "; ".join(problems) + ". State the unit in the column header (e.g. 'D1 [µm]'), check the sign "
-            "convention, or widen the parameter bounds; [measurement] range_check = false runs anyway")
-
-
-def measurement_range_problems(data, noise, sensor_names, levels, response, Y, factor=RANGE_FACTOR):
-    """Sensors whose readings are ``factor``× larger or smaller than in every FE run, or of the
-    opposite sign: one sentence each, naming the sensor and the factor.
-
-    A sensor is flagged when its largest reading beyond 3σ exceeds ``factor`` × the largest of any
-    run (or its largest reading plus 3σ is below every run's largest ÷ ``factor``). The factor named
-    is the ratio to the geometric mean of the runs' smallest and largest extremes — the middle of
-    the range the parameter box spans, so a box whose runs differ 10× among themselves still names
-    a µm ↔ mm slip as "about 1000×" (:data:`UNIT_SLIP_RATIO`).
-
-    Parameters
-    ----------
-    data : Measurement
-    Y : ndarray of shape (n_runs, n_loads * n_sensors)
-        FE readings (mm) at the model's levels, load-major.
-    """
-    op = data.observation(sensor_names, levels, response)
-    G = np.nan_to_num(op.apply(Y), nan=0.0)  # (n_runs, n_obs): every FE run at the measured loads (partial
-    # rows of a nonlinear store are NaN past the level they reached)
-    d = data.data
-    sd = noise.std(data)
-    col = np.broadcast_to(np.arange(len(data.sensor_names)), data.values.shape)[data.mask]
-    lo, hi = UNIT_SLIP_RATIO
-    problems = []
-    for j, name in enumerate(data.sensor_names):
-        sel = col == j
-        dj, sj, gj = d[sel], sd[sel], G[:, sel]
-        run_max = np.abs(gj).max(axis=1)  # each run's largest reading of this sensor, mm
-        excess = float(np.max(np.abs(dj) - 3 * sj))  # beyond the noise: a noise-level gauge is no unit error
-        upper = float(np.max(np.abs(dj) + 3 * sj))
-        moved = run_max[run_max > 0]
-        middle = float(np.sqrt(moved.min() * moved.max())) if len(moved) else 0.0  # mm
-        if excess > factor * run_max.max():
-            r = float(np.max(np.abs(dj))) / middle if middle > 0 else np.inf
-            problems.append(f"{name} is about {_power_of_ten(r)}× larger than every FE run"
-                            + (": µm read as mm?" if lo <= r <= hi else ": a unit error?"))
-        elif run_max.min() > factor * upper:
-            r = middle / upper
-            problems.append(f"{name} is about {_power_of_ten(r)}× smaller than every FE run"
-                            + (": mm read as µm (or m)?" if lo <= r <= hi else ": a unit error?"))
-        else:
-            signal = np.abs(dj) > 3 * sj
-            fe_sign = np.sign(gj[:, signal])
-            if fe_sign.size and np.all(fe_sign == -np.sign(dj[signal])[None, :]):
-                problems.append(f"{name} has the opposite sign of every FE run at every reading beyond 3σ: a sign "
-                                "error (a gauge mounted the other way round, or another sign convention)?")
-    return problems
-
-
-def _power_of_ten(r):
-    if not np.isfinite(r):
-        return "infinitely"
-    return f"{10 ** round(np.log10(r)):g}" if r >= 3 else f"{r:.2g}"
+    try:
+        check_readings(data, noise, sensor_names, levels, response, Y, runs=source if source == "probe" else "training")
+    except MeasurementCheckError as e:
+        raise ValueError(refusal(e, "study")) from None
 
 
 def offline(run, test, name, title, filename, design):
@@ -515,11 +466,12 @@ def calibration(run):
         problem = run.calibration_problem()
         validation = {m.name: (run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs)
                       for m in study.validation}
+        # the readings were compared with the probe and training runs by range_check already
         result = calibrate(problem, settings, scenarios=lambda name: run.scenario(tests[name]), validation=validation,
-                           check_measurement=False, keep_field=True,
+                           check_measurement=False, range_check=False, keep_field=True,
                            progress=lambda step, done, total: run.progress.advance(done, total))
         region = result.region
-        np.savez(run.out / "region.npz", samples=region.samples, omega=region.omega)
+        save_region(run.out / "region.npz", region)
         files = ["region.npz"] + _draw_calibration(run, result)
         return result.to_dict(), files, result.n_fe_runs
 
@@ -533,8 +485,9 @@ def _draw_calibration(run, result):
     for test in run.study.calibration_tests:
         one = result.tests[test.name]
         unit = one.problem.model.load_unit
-        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit)
-        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit)
+        steps = getattr(run.scenario(test), "steps", None) if unit == "step" else None  # flat jack: vs pressure
+        inverse_figures.plot_fit(one, run.figure(test, "fit.png"), load_unit=unit, steps=steps)
+        inverse_figures.plot_residuals(one, run.figure(test, "residuals.png"), load_unit=unit, steps=steps)
         drawn = ["fit.png", "residuals.png"]
         response = result.responses.get(test.name)
         if getattr(response, "field", None) is not None:
@@ -543,19 +496,50 @@ def _draw_calibration(run, result):
             drawn.append("deformed.png")
         files += [f"report/{test.file(f)}" for f in drawn]
     inv = result.inversion
-    inverse_figures.plot_ga_history(inv.ga, run.figures / "ga_history.png")
-    inverse_figures.plot_ga_parameters(inv.ga, run.figures / "ga_parameters.png", inv.problem.free_space)
+    inverse_figures.plot_ga_history(inv, run.figures / "ga_history.png")
+    inverse_figures.plot_ga_parameters(inv, run.figures / "ga_parameters.png")
     inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
                                 space=inv.problem.free_space)
     inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
     return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png"]
 
 
+def save_region(path, region):
+    """The members of a :class:`~podkrig.online.region.Region` into ``path`` (``.npz``): ``samples``
+    ``(n_members, n_free)`` in the units ``units`` of the parameters ``names`` (one per column) and
+    their misfit ``omega`` ``(n_members,)``."""
+    np.savez(path, samples=region.samples, omega=region.omega, names=_strings(region.names),
+             units=_strings(region.units))
+
+
+def region_members(path, names):
+    """``samples, omega`` of a region file written by :func:`save_region` for the parameters
+    ``names`` (a file written before the columns were named has no ``names``: read as it is),
+    read within the cap of :func:`~podkrig.study.cache.read_arrays`.
+
+    Raises
+    ------
+    ValueError
+        The file names other parameters (it belongs to another study).
+    """
+    f = read_arrays(path)
+    if "names" in f and f["names"].tolist() != list(names):
+        raise ValueError(f"{path} holds the region of the parameters {f['names'].tolist()}, not of this calibration's "
+                         f"{list(names)}: run the study again into this folder, or give another --out")
+    return f["samples"], f["omega"]
+
+
 def load_calibration(run):
     """The calibration stage's :class:`~podkrig.online.calibrate.CalibrationResult` (its manifest,
     and ``region.npz`` for the region's members)."""
-    f = read_arrays(run.out / "region.npz")
-    return CalibrationResult.from_dict(run.manifest("calibration")["result"], samples=f["samples"], omega=f["omega"])
+    return calibration_result(run.out, run.manifest("calibration")["result"])
+
+
+def calibration_result(out, result):
+    """The :class:`~podkrig.online.calibrate.CalibrationResult` of the calibration stage's
+    manifest ``result`` with the region's members from ``out/region.npz``."""
+    samples, omega = region_members(out / "region.npz", result["region"]["names"])
+    return CalibrationResult.from_dict(result, samples=samples, omega=omega)
 
 
 def sensitivity(run, errors):
@@ -602,6 +586,7 @@ def diagnosis(run, test):
         result = diagnose(run.scenario(test), problem.measurement, problem.noise, test.space, study.diagnosis,
                           fixed=test.fixed, surrogate=problem.model.surrogate,
                           rigid_body=test.measurement.rigid_body, rigid_groups=test.measurement.rigid_groups,
+                          range_check=False,  # checked against these training runs already (range_check)
                           progress=lambda stage, done, total: run.progress.advance(done, total))
         write_diagnosis_report(result, folder, noise_text=test.measurement.noise.describe())
         files = sorted(str(p.relative_to(run.out)) for p in folder.iterdir())

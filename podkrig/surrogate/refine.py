@@ -18,9 +18,11 @@ from scipy.spatial import cKDTree
 
 from podkrig._qmc import rng_seed
 from podkrig.offline.runner import run_pending
-from podkrig.offline.sampling import METHODS, sample
+from podkrig.config import make_settings
+from podkrig.offline.sampling import sample
 from podkrig.offline.store import SnapshotStore
 from podkrig.surrogate.podkriging import fit_from_store, training_data
+from podkrig.surrogate.settings import RefineSettings
 from podkrig.surrogate.validation import held_out_errors
 
 logger = logging.getLogger(__name__)
@@ -71,7 +73,8 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
     held_out : str or Path
         Held-out snapshot store (read only).
     target_error : float
-        Held-out median relative error to reach (-).
+        Held-out median relative error to reach (-). Every setting is checked against the ranges
+        of :class:`~podkrig.surrogate.settings.RefineSettings`.
     budget : int
         Maximum number of new FE runs.
     batch : int
@@ -93,13 +96,10 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
         Fitted on the final store, with ``provenance_["refinement"]``: ``added`` (FE runs),
         ``history`` (per round: ``n_train``, ``median``, ``p95``), ``stop_reason``.
     """
-    for name, v, least in (("budget", budget, 0), ("batch", batch, 1), ("n_candidates", n_candidates, 1)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < least:
-            raise ValueError(f"{name} must be an integer >= {least}; got {v!r}")
-    if not target_error > 0:
-        raise ValueError(f"target_error must be > 0; got {target_error!r}")
-    if sampling not in METHODS:
-        raise ValueError(f"sampling must be one of {', '.join(METHODS)}; got {sampling!r}")
+    make_settings(RefineSettings, {  # the ranges of RefineSettings, each refused value named
+        "target_error": target_error, "budget": budget, "batch": batch, "n_candidates": n_candidates,
+        "seed": None if isinstance(rng, np.random.Generator) else rng, "workers": workers, "sampling": sampling},
+        {"seed": "rng"})
     store, held_out, seed = Path(store), Path(held_out), rng_seed(rng)
     template = surrogate
     output = template.provenance_.get("output", "readings")

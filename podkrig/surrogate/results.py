@@ -21,14 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
 from podkrig.offline.results import OfflineResult
 from podkrig.surrogate.kriging import OrdinaryKriging
 
 __all__ = ["HeldOutResult", "SurrogateFitResult", "ValidationModelResult"]
 
 
-@dataclass(frozen=True)
-class SurrogateFitResult:
+@dataclass(frozen=True, repr=False)
+class SurrogateFitResult(Displayed):
     """A fitted surrogate in numbers.
 
     Attributes
@@ -89,8 +90,8 @@ class SurrogateFitResult:
                    training_seconds=None if d.get("training_seconds") is None else float(d["training_seconds"]))
 
 
-@dataclass(frozen=True)
-class HeldOutResult:
+@dataclass(frozen=True, repr=False)
+class HeldOutResult(Displayed):
     """A surrogate's errors on held-out FE runs: the summary of a
     :class:`~podkrig.surrogate.validation.HeldOutReport` and its absolute errors.
 
@@ -170,8 +171,8 @@ class HeldOutResult:
                    max_abs_error_mm=float(d["max_abs_error_mm"]), **{k: d.get(k) for k in cls._OPTIONAL})
 
 
-@dataclass(frozen=True)
-class ValidationModelResult:
+@dataclass(frozen=True, repr=False)
+class ValidationModelResult(Displayed):
     """A study's validation model: its snapshot store and its surrogate.
 
     Attributes

@@ -22,7 +22,9 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, StrictFloat, StrictInt
 
-from podkrig.config import allowed, choice, finite, settings, settings_error, type_name
+from podkrig import limits
+from podkrig.config import Seed, allowed, choice, finite, settings, settings_error, type_name
+from podkrig.offline.settings import SAMPLING_METHODS
 from podkrig.surrogate.backends import BACKENDS as _BACKEND_REGISTRY
 from podkrig.surrogate.backends import make_backend
 from podkrig.surrogate.kriging import DEFAULT_BETA, VARIOGRAMS as _VARIOGRAM_REGISTRY, OrdinaryKriging
@@ -30,7 +32,7 @@ from podkrig.surrogate.kriging.ordinary import CRITERIA
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import DEFAULT_ENERGY, fit_from_store
 
-__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "VARIOGRAMS", "SurrogateSettings", "fit_surrogate"]
+__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "VARIOGRAMS", "RefineSettings", "SurrogateSettings", "fit_surrogate"]
 
 #: semivariogram models of the kriging (:mod:`podkrig.surrogate.kriging.variogram`)
 VARIOGRAMS = tuple(_VARIOGRAM_REGISTRY)
@@ -55,7 +57,8 @@ class SurrogateSettings:
     beta: Annotated[Any, allowed(BETA_ALLOWED, unit="-")] = DEFAULT_BETA
     criterion: choice(CRITERIA) = "ml"
     nugget: Annotated[StrictFloat, AfterValidator(finite),
-                      allowed("a number >= 0 (relative to the sill)", unit="-", ge=0)] = 0.0
+                      allowed("a number in [0, 1] (relative to the sill: 1 is as much noise as signal)", unit="-",
+                              ge=0, le=1)] = 0.0
     backend: choice(BACKENDS) = "podkrig"
 
     def __post_init__(self):
@@ -82,6 +85,28 @@ class SurrogateSettings:
             return pod, make_backend(self.backend)
         return pod, OrdinaryKriging(variogram=self.variogram, beta=self.beta, criterion=self.criterion,
                                     nugget=self.nugget)
+
+
+_WORKERS_ALLOWED = f"an integer in [1, {limits.MAX_WORKERS}] (FE processes; 1 runs them in this process)"
+
+
+@settings
+class RefineSettings:
+    """Adaptive refinement of a surrogate (:func:`~podkrig.surrogate.refine.refine_surrogate`): add
+    ``batch`` FE runs per round where the surrogate is least certain among ``n_candidates`` points
+    of a ``sampling`` design (seeded by ``seed``), until the held-out median relative error is at
+    most ``target_error`` or ``budget`` FE runs were added; ``workers`` FE processes."""
+
+    target_error: Annotated[StrictFloat, allowed("a number in (0, 1] (held-out median relative error)", unit="-",
+                                                 gt=0, le=1)] = 0.005
+    budget: Annotated[StrictInt, allowed(f"an integer in [0, {limits.MAX_ROWS}] (new FE runs)", ge=0,
+                                         le=limits.MAX_ROWS)] = 64
+    batch: Annotated[StrictInt, allowed("an integer >= 1 (FE runs per round)", ge=1)] = 8
+    n_candidates: Annotated[StrictInt, allowed(f"an integer in [1, {limits.MAX_ROWS}] (candidate points)", ge=1,
+                                               le=limits.MAX_ROWS)] = 4096
+    seed: Seed = 1
+    workers: Annotated[StrictInt, allowed(_WORKERS_ALLOWED, ge=1, le=limits.MAX_WORKERS)] = 1
+    sampling: choice(SAMPLING_METHODS) = "sobol"
 
 
 def fit_surrogate(store, settings, output="readings"):

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from podkrig.display import Displayed
 from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
 from podkrig.surrogate.podkriging import PODKriging
 
@@ -88,8 +89,8 @@ def summarize(errors):
             "mean": float(np.mean(e))}
 
 
-@dataclass(frozen=True, eq=False)
-class HeldOutReport:
+@dataclass(frozen=True, eq=False, repr=False)
+class HeldOutReport(Displayed):
     """Errors of a surrogate on held-out FE runs.
 
     Attributes

@@ -27,8 +27,7 @@ References
 ----------
 .. [1] J. Sacks, W. J. Welch, T. J. Mitchell, H. P. Wynn, "Design and analysis of computer
    experiments", Statistical Science 4(4), 409–423, 1989.
-.. [2] The thesis, ch. 4 (semivariograms with exponent 1.2, 1.5, 1.8); see
-   ``shared/reference/method-notes.md``.
+.. [2] The thesis, ch. 4 (semivariograms with exponent 1.2, 1.5, 1.8); see ``docs/references.md``.
 """
 
 import numpy as np
