@@ -76,6 +76,9 @@ class NonlinearResponse(Response):
         Further per-level quantities (e.g. ``vertical_reaction`` in kN).
     path : object
         The full :class:`~fe.solvers.nonlinear.PathResult` (every converged step).
+    mesh_objective_limit : float or None
+        Control value (``load_unit``) up to which the scenario's curve is known not to depend on
+        the mesh (its mesh-convergence study); None when the study found no such limit.
     """
 
     loads: np.ndarray | None = None
@@ -88,10 +91,18 @@ class NonlinearResponse(Response):
     reached: float = float("nan")
     extra: dict | None = None
     path: object = None
+    mesh_objective_limit: float | None = None
 
     @property
     def converged(self):
         return self.status == "converged"
+
+    @property
+    def mesh_objective(self):
+        """False when the levels go past :attr:`mesh_objective_limit`: the readings there, and a
+        peak found there, depend on the mesh."""
+        limit = self.mesh_objective_limit
+        return limit is None or float(self.load_levels[-1]) <= limit * (1 + 1e-9)
 
     def summary(self):
         """Plain dict of the scalar results and the per-level loads (JSON-ready)."""
@@ -99,6 +110,7 @@ class NonlinearResponse(Response):
             "status": self.status, "limit": self.limit, "message": self.message, "reached": float(self.reached),
             "peak_load": float(self.peak_load), "peak_displacement": float(self.peak_displacement),
             "force_unit": self.force_unit,
+            "mesh_objective": self.mesh_objective, "mesh_objective_limit": self.mesh_objective_limit,
             "loads": [None if not np.isfinite(v) else float(v) for v in self.loads],
             **{k: [None if not np.isfinite(x) else float(x) for x in v] for k, v in (self.extra or {}).items()},
         }

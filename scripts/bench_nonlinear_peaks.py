@@ -10,7 +10,7 @@ refinements included), Newton iterations, process CPU time (``time.process_time`
 to one thread), the reported peak and its displacement, and whether the peak was resolved to the
 tolerance. The counts are the comparison; the CPU times are indicative on a shared machine.
 
-Usage: python scripts/bench_nonlinear_peaks.py [--case j4d|j4d-coarse|j6d-coarse|diagonal-coarse|specimens ...]
+Usage: python scripts/bench_nonlinear_peaks.py [--case j4d|j4d-4x2|j4d-coarse|j6d-coarse|diagonal-coarse|specimens ...]
        [--finer]
 """
 
@@ -25,6 +25,8 @@ from fe.scenarios import build_scenario
 
 CASES = {
     "j4d": [{"scenario": "shear_compression_nl", "top": top} for top in ("fixed_vertical", "constant_force")],
+    "j4d-4x2": [{"scenario": "shear_compression_nl", "top": top, "nx": 4, "ny": 2}
+                for top in ("fixed_vertical", "constant_force")],
     "j4d-coarse": [{"scenario": "shear_compression_nl", "top": top, "nx": 2, "ny": 1}
                    for top in ("fixed_vertical", "constant_force")],
     "j6d-coarse": [{"scenario": "shear_compression_nl", "top": top, "nx": 2, "ny": 1, "precompression": 1.21}

@@ -392,7 +392,7 @@ FAST_PEAK_SPECS = [
     {"scenario": "prism_compression"},
 ]
 SLOW_PEAK_SPECS = [
-    {"scenario": "shear_compression_nl", "nx": 2, "ny": 1, "top": "fixed_vertical"},
+    {"scenario": "shear_compression_nl", "top": "fixed_vertical"},
     {"scenario": "diagonal_compression_nl", "nx": 2, "ny": 1},
     {"scenario": "shear_compression_nl", "top": "constant_force"},
 ]
@@ -401,8 +401,8 @@ SLOW_PEAK_SPECS = [
 @pytest.mark.parametrize("spec", FAST_PEAK_SPECS + [pytest.param(s, marks=pytest.mark.slow) for s in SLOW_PEAK_SPECS],
                          ids=lambda s: "-".join(str(v) for v in s.values()))
 def test_reported_peak_agrees_with_ten_times_finer_increments(spec):
-    """Every nonlinear scenario at its default settings (walls and panel on the coarse Q8 2 × 1
-    mesh, except J4D with N constant on its default mesh, see below): the reported peak is within
+    """Every nonlinear scenario at its default settings (the panel on the coarse Q8 2 × 1 mesh): the
+    reported peak is within
     0.2 % of the same run's with ten times finer increments. The peak is refined to 0.1 %; what is
     left is the path's own dependence on the increment. J4D with N constant on the coarse mesh is
     not in the list: its path branches between 0.6 and 0.7 mm depending on the increment (load at
@@ -411,8 +411,9 @@ def test_reported_peak_agrees_with_ten_times_finer_increments(spec):
     r = build_scenario(spec).run()
     fine = build_scenario(_finer(spec)).run()
     assert r.path.peaks and fine.path.peaks
-    # the diagonal panel stops after its peak (Newton cycling): the peak is still on the path
-    assert r.status == fine.status
+    # the diagonal panel (coarse) stops after its peak with the default increments (Newton cycling
+    # at 0.84 mm; ten times finer ones reach 1 mm): the peak is on both paths
+    assert r.reached > r.peak_displacement and fine.reached > fine.peak_displacement
     assert r.peak_load == pytest.approx(fine.peak_load, rel=0.002)
 
 

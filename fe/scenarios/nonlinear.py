@@ -180,6 +180,9 @@ class NonlinearScenario(Scenario):
     load_response = "path"  # interpolate along the control displacement, never past the last level
     force_unit = "kN"
     control_sign = 1.0
+    #: control value (mm) up to which the curve is mesh-objective (the scenario's mesh-convergence
+    #: study, ``scripts/mesh_convergence.py``); None: the whole studied range
+    mesh_objective_limit = None
 
     @classmethod
     def parameter_constraints(cls, options):
@@ -310,7 +313,7 @@ class NonlinearScenario(Scenario):
             peak_load=peak_load, peak_displacement=peak_displacement,
             status=path.status, limit=path.limit, message=path.message,
             reached=float(disp[-1]) if len(disp) else 0.0,
-            extra=self.extra_outputs(path, at), path=path)
+            extra=self.extra_outputs(path, at), path=path, mesh_objective_limit=self.mesh_objective_limit)
 
     def _control_phase(self, name, dof, f_const, held=(), f_scale=1e-3):
         o = self.options

@@ -60,7 +60,9 @@ class WallOpeningOptions(ShearWallOptions):
     bottom above the bottom of the wall) and ``opening_height``, in mm, on the half-unit grid
     (multiples of ``unit_length / 2``) and course boundaries (multiples of ``unit_height``),
     strictly inside the wall. Mesh (Q8 6 × 2 per unit, see the module docstring), increments and
-    levels are this scenario's own defaults, independent of the solid wall's."""
+    levels (0–3 mm under both top conditions: mesh-objective here, see
+    :attr:`WallOpeningNonlinear.mesh_objective_limit`) are this scenario's own defaults, independent
+    of the solid wall's."""
 
     nx: int = 6
     ny: int = 2
@@ -107,3 +109,8 @@ class WallOpeningNonlinear(ShearCompressionNonlinear):
                "pre-compression, then a horizontal top displacement up to failure.")
     Options = WallOpeningOptions
     PARAMETERS = nonlinear_parameters(SET_B)
+    #: The curve is mesh-objective over the whole 0–3 mm under both top conditions: from the default
+    #: mesh up every mesh of the ladder stays within 1 % of Q8 12 × 4 at every level
+    #: (``scripts/bench_wall_opening.py``), unlike the solid wall's confined curve past 1.75 mm; so
+    #: both ``control_range`` choices give the same levels, and no level is flagged.
+    mesh_objective_limit = None

@@ -166,6 +166,9 @@ def _print(sc, response, values, seconds, format):
         console.print(f"peak load {response.peak_load:.4g} {response.force_unit} at {response.peak_displacement:.4g} mm; "
                       f"status {response.status}; reached {response.reached:.4g} {response.load_unit}"
                       + (f" ({response.message})" if response.message else ""))
+        if not response.mesh_objective:
+            console.print(f"not mesh-objective past {response.mesh_objective_limit:g} {response.load_unit}: the "
+                          "readings and a peak beyond it depend on the mesh (the scenario's mesh-convergence study)")
         _print_curve(console, sc, response)
     changed = {k: v for k, v in values.items() if v != sc.parameters[k].default}
     console.print(
