@@ -12,11 +12,12 @@ whose peak load lies within 1 % of the finest mesh's (the line below each table 
 which is the cheapest whose load at every level also does); a peak at the end of the control
 range is the largest load reached, not a maximum, and is marked so.
 
-With ``--finer`` it also compares the default mesh's peak under constant N with the peak of the
+``--factor N`` runs the ladder with increments N times finer (budgets N times larger), to tell
+the mesh's effect from the step's. With ``--finer`` it also compares the default mesh's peak under constant N with the peak of the
 same run with ten times finer increments.
 
 Usage: python scripts/bench_wall_opening.py [--mesh 2x1 4x1 4x2 6x2 8x2 8x3 12x4] [--top fixed_vertical constant_force]
-       [--jobs 2] [--finer]
+       [--jobs 2] [--factor 4] [--finer]
 """
 
 import argparse
@@ -92,12 +93,14 @@ def main(argv=None):
     parser.add_argument("--mesh", nargs="+", default=list(MESHES), help="meshes NXxNY, coarse to fine")
     parser.add_argument("--top", nargs="+", default=list(TOPS), choices=TOPS)
     parser.add_argument("--jobs", type=int, default=1, help="processes running meshes side by side")
+    parser.add_argument("--factor", type=int, default=1,
+                        help="run the ladder with increments this many times finer than the default")
     parser.add_argument("--finer", action="store_true",
                         help="also: the default mesh under constant N with ten times finer increments")
     args = parser.parse_args(argv)
     cases = [(m, t) for t in args.top for m in args.mesh]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        results = list(pool.map(run, *zip(*cases)))
+        results = list(pool.map(run, *zip(*cases), [args.factor] * len(cases)))
     for top in args.top:
         print(table([r for r in results if r["top"] == top]))
     if args.finer:
