@@ -69,7 +69,7 @@ class SurrogateSettings:
                       allowed("a number in [0, 1] (relative to the sill: 1 is as much noise as signal)", unit="-",
                               ge=0, le=1)] = 0.0
     backend: choice(BACKENDS) = "podkrig"
-    failed_rows: choice(FAILED_ROWS, "'drop' (train on the finished rows, naming the failed ones) or 'refuse'") = "drop"
+    failed_rows: choice(FAILED_ROWS) = "drop"
 
     def __post_init__(self):
         if self.energy is not None and self.modes is not None:
