@@ -123,15 +123,25 @@ def test_the_failure_report_reaches_the_offline_result_and_snapshots_info(partia
 
 
 @pytest.mark.slow
-def test_nonlinear_rows_on_a_local_dask_cluster_match_the_serial_store(partial_store, tmp_path, monkeypatch):
-    """Two local Dask worker processes run the same nonlinear rows: the same done and partial rows,
-    readings within the Newton tolerance (the same solver in another process)."""
+@pytest.mark.parametrize("executor", ["local", "scheduler"])
+def test_nonlinear_rows_on_a_dask_cluster_match_the_serial_store(partial_store, tmp_path, monkeypatch, executor):
+    """Two local Dask worker processes, or the workers of an existing cluster reached by its
+    scheduler's address (as a remote one is), run the same nonlinear rows: the same done and
+    partial rows, readings within the Newton tolerance (the same solver in another process)."""
     path, summary = partial_store
     monkeypatch.setattr(runner, "LOCAL_CLUSTER_STARTUP_S", 0.0)  # use the cluster however small the job
     sc = build_scenario(BUDGET)
-    dask = run_snapshots(tmp_path / "d.h5", sc, ParameterSpace.from_scenario(sc, BOX), n=32, seed=0, workers=2,
-                         chunk_size=4)
-    assert dask.executor == "local Dask cluster, 2 workers"
+    space = ParameterSpace.from_scenario(sc, BOX)
+    if executor == "local":
+        dask = run_snapshots(tmp_path / "d.h5", sc, space, n=32, seed=0, workers=2, chunk_size=4)
+        assert dask.executor == "local Dask cluster, 2 workers"
+    else:
+        from distributed import LocalCluster
+
+        with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, dashboard_address=None) as cluster:
+            dask = run_snapshots(tmp_path / "d.h5", sc, space, n=32, seed=0, scheduler=cluster.scheduler_address,
+                                 chunk_size=4)
+        assert dask.executor.startswith("Dask scheduler tcp://")
     with SnapshotStore.open(path) as serial, SnapshotStore.open(tmp_path / "d.h5") as other:
         assert np.array_equal(serial.status(), other.status())
         assert serial.partial_rows() == other.partial_rows()
