@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from podkrig.display import Displayed
 from podkrig.offline.store import FAILED, PENDING
 
 __all__ = ["DRIVING_SHARE", "MIN_CLASS", "REGULARISATION", "FailureRegion", "FailureReport", "failure_report"]
@@ -118,8 +119,8 @@ class FailureRegion:
                    float(d["accuracy"]))
 
 
-@dataclass(frozen=True)
-class FailureReport:
+@dataclass(frozen=True, repr=False)
+class FailureReport(Displayed):
     """Failed rows of a store: how many, why, and where.
 
     Attributes
