@@ -8,7 +8,7 @@ import typer
 
 from fe.scenarios import build_scenario
 from podkrig.cli._common import (
-    KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
+    FailedRows, KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
     settings_from_options, user_errors,
 )
 from podkrig.config import choices, field_info
@@ -47,7 +47,8 @@ def _beta(text):
         return text
 
 
-def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget, pod=None, scaling=None):
+def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget, failed_rows=None, pod=None,
+                       scaling=None):
     """The :class:`~podkrig.surrogate.settings.SurrogateSettings` of ``podkrig surrogate build``'s
     options (None: not given, the settings' default); a kriging option with another backend than
     ours is refused, as that backend fits its own hyperparameters."""
@@ -58,7 +59,7 @@ def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugge
             raise ValueError(f"{', '.join(given)} set(s) the podkrig kriging; backend {backend!r} fits its own "
                              "hyperparameters: drop the option(s) or use --backend podkrig")
     options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend),
-               "pod": ("--pod", pod), "scaling": ("--scaling", scaling)}
+               "failed_rows": ("--failed-rows", failed_rows), "pod": ("--pod", pod), "scaling": ("--scaling", scaling)}
     options.update({k: (_KRIGING_OPTIONS[k], v) for k, v in ours.items()})
     return settings_from_options(SurrogateSettings, options)
 
@@ -95,13 +96,17 @@ def build(
                                                         "snapshots pooled per unit or per sensor, or raw values "
                                                         f"(default {_DEFAULTS['scaling']})."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
+    failed_rows: FailedRows = typer.Option(FailedRows(_DEFAULTS["failed_rows"]), "--failed-rows",
+                                           help="Failed rows of STORE (FE runs that raised or stopped early): 'drop' "
+                                                "trains on the finished rows and names the failed ones, 'refuse' "
+                                                "stops."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
         settings = surrogate_settings(energy, modes, backend.value, variogram and variogram.value, beta,
-                                      criterion and criterion.value, nugget, pod, scaling)
+                                      criterion and criterion.value, nugget, failed_rows.value, pod, scaling)
         with SnapshotStore.open(store) as s:
             sur = fit_surrogate(s, settings, output="field" if field else "readings")
         save_surrogate(sur, out)
@@ -112,6 +117,8 @@ def build(
         f"{out}: {fit.n_train} snapshots, {fit.n_modes} POD modes (retained energy {fit.retained_energy:.10f}), "
         f"{fitted}, trained in {fit.training_seconds:.2f} s"
     )
+    if fit.dropped_rows:
+        typer.echo(figs.dropped_text(fit.dropped_rows), err=True)
 
 
 @surrogate_app.command("validate")

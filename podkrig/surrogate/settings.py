@@ -17,6 +17,7 @@ Examples
 'sklearn-gpr'
 """
 
+import logging
 import time
 from typing import Annotated, Any
 
@@ -24,6 +25,8 @@ from pydantic import AfterValidator, StrictFloat, StrictInt
 
 from podkrig import limits
 from podkrig.config import Seed, allowed, choice, finite, settings, settings_error, type_name
+from podkrig.exceptions import StoreError
+from podkrig.offline.failures import failure_report
 from podkrig.offline.settings import SAMPLING_METHODS
 from podkrig.surrogate.backends import BACKENDS as _BACKEND_REGISTRY
 from podkrig.surrogate.backends import make_backend
@@ -32,7 +35,7 @@ from podkrig.surrogate.kriging.ordinary import CRITERIA
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import DEFAULT_ENERGY, LAYOUTS, SCALINGS, fit_from_store
 
-__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "VARIOGRAMS", "RefineSettings", "SurrogateSettings", "fit_surrogate"]
+__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "FAILED_ROWS", "VARIOGRAMS", "RefineSettings", "SurrogateSettings", "fit_surrogate"]
 
 #: semivariogram models of the kriging (:mod:`podkrig.surrogate.kriging.variogram`)
 VARIOGRAMS = tuple(_VARIOGRAM_REGISTRY)
@@ -40,6 +43,11 @@ VARIOGRAMS = tuple(_VARIOGRAM_REGISTRY)
 BETA_MODES = ("fit", "fit-shared")
 #: surrogate backends behind the one surrogate interface (:mod:`podkrig.surrogate.backends`)
 BACKENDS = tuple(_BACKEND_REGISTRY)
+
+logger = logging.getLogger(__name__)
+
+#: what a fit does with a store's failed rows (:func:`fit_surrogate`)
+FAILED_ROWS = ("drop", "refuse")
 
 BETA_ALLOWED = "a number in (0, 2] (below 2 for the power variogram), \"fit\" or \"fit-shared\""
 
@@ -51,7 +59,9 @@ class SurrogateSettings:
     and the surrogate ``backend`` (another backend than ``"podkrig"`` fits its own hyperparameters:
     the kriging settings do not apply to it); ``pod``: one POD over the responses stacked at all
     control levels or a POD + kriging per level (thesis §4.3.3), and the ``scaling`` of mixed outputs
-    (kN and mm) before the POD (:class:`~podkrig.surrogate.PODKriging`)."""
+    (kN and mm) before the POD (:class:`~podkrig.surrogate.PODKriging`); ``failed_rows``: whether a
+    store with failed rows trains on its finished rows (``"drop"``, stating how many and which) or is
+    refused."""
 
     energy: Annotated[StrictFloat, allowed("a number in (0, 1], e.g. 0.99999999", unit="-", gt=0, le=1)] | None = None
     modes: Annotated[StrictInt, allowed("an integer >= 1", ge=1)] | None = None
@@ -67,6 +77,7 @@ class SurrogateSettings:
     scaling: choice(SCALINGS, "unit, sensor or none (each output divided before the POD by the standard "
                               "deviation over the snapshots pooled per unit or per sensor: kN and mm weigh "
                               "alike)") = "unit"
+    failed_rows: choice(FAILED_ROWS) = "drop"
 
     def __post_init__(self):
         if self.energy is not None and self.modes is not None:
@@ -120,10 +131,18 @@ class RefineSettings:
 def fit_surrogate(store, settings, output="readings"):
     """Fit a surrogate of these settings on a snapshot store, timed.
 
+    Only finished rows train it. Failed rows — FE runs that raised, and nonlinear runs that
+    stopped early (partial rows: their readings end where the run stopped) — are never used
+    silently: with ``settings.failed_rows == "refuse"`` a store holding any is refused; with
+    ``"drop"`` they are left out with a warning naming how many and which, and recorded in the
+    surrogate's provenance (``dropped_rows``, ``failed_share``) with the classifier of where runs
+    fail (``failure_region``, :class:`~podkrig.offline.failures.FailureRegion`), which the
+    inversion uses to warn when its best fit lies in that region.
+
     Parameters
     ----------
     store : podkrig.offline.store.SnapshotStore
-        An open store (its finished rows train the surrogate).
+        An open store.
     settings : SurrogateSettings
     output : {"readings", "field"}
 
@@ -132,10 +151,35 @@ def fit_surrogate(store, settings, output="readings"):
     PODKriging
         Fitted, with ``provenance_["training_seconds"]`` (s, wall time of the fit) beside the
         store's provenance (:func:`~podkrig.surrogate.podkriging.fit_from_store`).
+
+    Raises
+    ------
+    StoreError
+        ``failed_rows="refuse"`` and the store has failed rows (the message names them).
     """
+    failures = failure_report(store) if store.counts()["failed"] else None
+    if failures is not None:
+        rows = _rows_text(failures.rows)
+        why = ", ".join(f"{n} {reason}" for reason, n in sorted(failures.reasons.items()))
+        if settings.failed_rows == "refuse":
+            raise StoreError(
+                f"{store.path}: {failures.n_failed} of {failures.n_run} FE runs failed or stopped early ({why}; "
+                f"rows {rows}); failed_rows='refuse' does not fit a surrogate on such a store: rerun them with other "
+                "solver settings, or set failed_rows='drop' to train on the finished rows only")
+        logger.warning("%s: %d of %d FE runs failed or stopped early (%s; rows %s) and are left out of the surrogate "
+                       "(failed_rows='drop')", store.path, failures.n_failed, failures.n_run, why, rows)
     pod, regressor = settings.templates()
     t0 = time.perf_counter()
     sur = fit_from_store(store, pod=pod, kriging=regressor, output=output, layout=settings.pod,
                          scaling=settings.scaling)
     sur.provenance_["training_seconds"] = time.perf_counter() - t0
+    if failures is not None:
+        sur.provenance_.update({
+            "dropped_rows": list(failures.rows), "failed_share": failures.share, "failed_reasons": failures.reasons,
+            "failure_region": None if failures.region is None else failures.region.to_dict()})
     return sur
+
+
+def _rows_text(rows, limit=20):
+    more = f" and {len(rows) - limit} more" if len(rows) > limit else ""
+    return ", ".join(map(str, rows[:limit])) + more
