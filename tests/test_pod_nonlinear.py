@@ -15,7 +15,7 @@ from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import PODKriging
-from podkrig.surrogate.results import HeldOutResult
+from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult
 from podkrig.surrogate.settings import SurrogateSettings
 from podkrig.surrogate.validation import compare_layouts, held_out_errors
 
@@ -133,7 +133,7 @@ def test_scales_are_the_pooled_standard_deviations_of_each_unit_or_sensor():
 def test_save_and_load_round_trip_of_both_layouts(tmp_path, layout, scaling):
     """A surrogate of either layout, scaled, predicts after a save and load exactly what it
     predicted before (mean and σ, bitwise in one process), with its layout, scaling, units and
-    scales back; the file records them."""
+    scales back (and in its fit result); the file records them."""
     sur = _fit(layout, scaling)
     save_surrogate(sur, tmp_path / "s.h5")
     back = load_surrogate(tmp_path / "s.h5")
@@ -142,6 +142,8 @@ def test_save_and_load_round_trip_of_both_layouts(tmp_path, layout, scaling):
     assert (back.layout, back.scaling, back.units_) == (layout, scaling, UNITS)
     assert_array_equal(back.scale_, sur.scale_)
     assert back.pod_.retained_energy_ == sur.pod_.retained_energy_
+    fit = SurrogateFitResult.from_surrogate(back)
+    assert (fit.pod, fit.scaling) == (layout, scaling) and SurrogateFitResult.from_dict(fit.to_dict()) == fit
     with h5py.File(tmp_path / "s.h5") as f:
         assert int(f.attrs["schema_version"]) == 4 and f["scale"].shape == (3 * len(LEVELS),)
         assert ("block_modes" in f["pod"]) == (layout == "per_level")

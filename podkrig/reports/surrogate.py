@@ -127,13 +127,16 @@ def plot_predicted_vs_fe(report, path, unit="mm"):
 
 def fit_tables(page, result):
     """A surrogate fit (:class:`~podkrig.surrogate.results.SurrogateFitResult`) as a table on ``page``:
-    training snapshots, POD modes, retained energy, the exponents per mode (our kriging) or the
-    backend's description, training time."""
+    training snapshots, the POD's layout and scaling, POD modes, retained energy, the exponents per
+    mode (our kriging) or the backend's description, training time."""
     regression = (", ".join(f"{b:.3g}" for b in result.beta) if result.beta is not None
                   else result.description or result.backend)
-    page.table(["training snapshots", "POD modes", "retained energy (-)",
+    layout = {"stacked": "stacked over the levels", "per_level": "per level"}.get(result.pod, result.pod)
+    scaled = {"unit": "scaled per unit", "sensor": "scaled per sensor", "none": "unscaled"}.get(result.scaling,
+                                                                                              result.scaling)
+    page.table(["training snapshots", "POD", "POD modes", "retained energy (-)",
                 "β per mode (-)" if result.beta is not None else "backend", "training time (s)"],
-               [[result.n_train, result.n_modes, f"{result.retained_energy:.10f}", regression,
+               [[result.n_train, f"{layout}, {scaled}", result.n_modes, f"{result.retained_energy:.10f}", regression,
                  num(result.training_seconds, 3)]])
     if result.dropped_rows:
         page.paragraph(dropped_text(result.dropped_rows))

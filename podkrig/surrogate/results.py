@@ -51,6 +51,9 @@ class SurrogateFitResult(Displayed):
     dropped_rows : tuple of int
         Failed rows of the training store left out of the fit (``failed_rows="drop"``,
         :func:`~podkrig.surrogate.settings.fit_surrogate`).
+    pod, scaling : str
+        The POD layout (``"stacked"`` over the control levels or ``"per_level"``) and the scaling
+        of the outputs (:class:`~podkrig.surrogate.PODKriging`).
     """
 
     n_train: int
@@ -61,6 +64,8 @@ class SurrogateFitResult(Displayed):
     description: str | None = None
     training_seconds: float | None = None
     dropped_rows: tuple = ()
+    pod: str = "stacked"
+    scaling: str = "none"
 
     @classmethod
     def from_surrogate(cls, sur):
@@ -72,7 +77,8 @@ class SurrogateFitResult(Displayed):
                    backend=sur.backend_, beta=tuple(float(b) for b in sur.kriging_.beta_) if ours else None,
                    description=None if ours else sur.kriging_.describe(),
                    training_seconds=None if seconds is None else float(seconds),
-                   dropped_rows=tuple(int(i) for i in sur.provenance_.get("dropped_rows", ())))
+                   dropped_rows=tuple(int(i) for i in sur.provenance_.get("dropped_rows", ())),
+                   pod=sur.layout, scaling=sur.scaling)
 
     def to_dict(self):
         """JSON-able dict (the study's ``surrogate`` manifest): ``beta`` for our kriging,
@@ -86,6 +92,7 @@ class SurrogateFitResult(Displayed):
         out["training_seconds"] = self.training_seconds
         if self.dropped_rows:
             out["dropped_rows"] = list(self.dropped_rows)
+        out.update(pod=self.pod, scaling=self.scaling)
         return out
 
     @classmethod
@@ -95,7 +102,8 @@ class SurrogateFitResult(Displayed):
                    beta=None if d.get("beta") is None else tuple(float(b) for b in d["beta"]),
                    description=d.get("description"),
                    training_seconds=None if d.get("training_seconds") is None else float(d["training_seconds"]),
-                   dropped_rows=tuple(int(i) for i in d.get("dropped_rows", ())))
+                   dropped_rows=tuple(int(i) for i in d.get("dropped_rows", ())),
+                   pod=d.get("pod", "stacked"), scaling=d.get("scaling", "none"))
 
 
 @dataclass(frozen=True, repr=False)
