@@ -16,12 +16,14 @@ FE runs take CPU time (a triplet run about 1–3 s, J4D 2–7 s): run under ``ni
 keeps the stores so that a second call only refits.
 
 Usage: nice -n 5 python scripts/bench_pod_nonlinear.py [--train 32] [--held 16] [--j4d]
-       [--store-dir DIR]
+       [--j4d-train 64] [--store-dir DIR]
+(BENCHMARKS.md: ``--j4d --held 32``.)
 """
 
 import argparse
 import os
 import platform
+import tempfile
 import time
 from pathlib import Path
 
@@ -115,19 +117,21 @@ def main(argv=None):
     ap.add_argument("--held", type=int, default=16, help="held-out runs per scenario")
     ap.add_argument("--j4d", action="store_true", help="also J4D (shear_compression_nl, fixed_vertical)")
     ap.add_argument("--j4d-train", type=int, default=64)
-    ap.add_argument("--store-dir", default="bench_pod_nonlinear_stores")
+    ap.add_argument("--store-dir", help="keep the stores here (default: a temporary directory)")
     args = ap.parse_args(argv)
-    Path(args.store_dir).mkdir(parents=True, exist_ok=True)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; load {os.getloadavg()[0]:.1f}", flush=True)
     rows = []
-    for p in (0.2, 0.6, 1.0):
-        spec = {"scenario": "triplet_shear", "precompression": p}
-        train, held = stores(spec, TRIPLET, args.train, args.held, args.store_dir, f"triplet_{p:g}MPa")
-        rows += compare(train, held, f"triplet {p:g} MPa")
-    if args.j4d:
-        spec = {"scenario": "shear_compression_nl", "top": "fixed_vertical"}
-        train, held = stores(spec, J4D, args.j4d_train, args.held, args.store_dir, "j4d")
-        rows += compare(train, held, "J4D")
+    with tempfile.TemporaryDirectory() as tmp:
+        store_dir = Path(args.store_dir or tmp)
+        store_dir.mkdir(parents=True, exist_ok=True)
+        for p in (0.2, 0.6, 1.0):
+            spec = {"scenario": "triplet_shear", "precompression": p}
+            train, held = stores(spec, TRIPLET, args.train, args.held, store_dir, f"triplet_{p:g}MPa")
+            rows += compare(train, held, f"triplet {p:g} MPa")
+        if args.j4d:
+            spec = {"scenario": "shear_compression_nl", "top": "fixed_vertical"}
+            train, held = stores(spec, J4D, args.j4d_train, args.held, store_dir, "j4d")
+            rows += compare(train, held, "J4D")
     table(rows)
 
 
