@@ -61,7 +61,7 @@ def make(out=OUT, seed=SEED, noise_rel=NOISE_REL, truth=None, noise_res=NOISE_RE
     noisy = clean + sigma * np.random.default_rng(seed).standard_normal(clean.shape)
     with Path(out).open("w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(["load [kN]", *(f"{name} [mm]" for name in header[1:])])
+        w.writerow(header)  # simulate's header: load [kN], D1 [mm] ...
         for row, values in zip(body, noisy):
             w.writerow([row[0], *(f"{v:.6g}" for v in values)])
     return Path(out)

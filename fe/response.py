@@ -52,7 +52,9 @@ class NonlinearResponse(Response):
     """Readings of a nonlinear virtual test at prescribed levels of its control variable.
 
     Besides :class:`Response`'s fields (``load_levels`` are the control levels, in ``load_unit``,
-    e.g. the top displacement in mm; readings are NaN at levels the run did not reach):
+    e.g. the top displacement in mm; readings are NaN at levels the run did not reach; after the
+    gauges they hold the load readings of :class:`~fe.scenarios.nonlinear.NonlinearScenario` —
+    ``F``, equal to ``loads``, in ``force_unit``, and with ``peak_readings`` ``F_peak`` and ``d_peak``):
 
     Attributes
     ----------

@@ -1,5 +1,5 @@
 """Which layout identifies what: 95 % region widths of the flat-jack parameters for the gauge
-layouts L6, L18 and the DIC grid at the noise levels of reference §5.7 (issue 15).
+layouts L6, L18 and the DIC grid at the instrument noise levels of docs/measurements.md.
 
 The region of equivalence {m : χ²(m) − χ²(m*) ≤ χ²_p(0.95)} is linearised at the truth (the
 Gauss–Newton curvature that :func:`podkrig.online.region.likelihood_ratio_region` starts

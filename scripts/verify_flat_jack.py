@@ -1,4 +1,4 @@
-"""The verification ladder of the flat-jack scenario (``shared/reference/flat-jack.md`` §5.10).
+"""The verification ladder of the flat-jack scenario (docs/benchmarks/flat-jack.md).
 
 Prints Markdown tables for BENCHMARKS.md:
 

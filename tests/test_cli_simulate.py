@@ -1,6 +1,7 @@
 """``podkrig simulate`` through typer's CliRunner."""
 
 import json
+import re
 import shlex
 from pathlib import Path
 
@@ -57,10 +58,14 @@ def test_scenario_options_on_the_command_line(tmp_path):
 
 def test_a_nonlinear_run_that_stops_early_fails(tmp_path):
     """A run ended by its budget prints what it reached and exits 1 (its missing levels are NaN,
-    not a result); the same run with the default budget exits 0."""
+    not a result), its partial result still written (the report, whose first line says it
+    stopped); the same run with the default budget exits 0."""
     stopped = runner.invoke(app, ["simulate", "couplet_tension", "--option", "max_total_iterations=3",
-                                  "--format", "json"])
+                                  "--format", "json", "--report", str(tmp_path / "r")])
     assert stopped.exit_code == 1 and "iterations limit" in stopped.output
+    assert json.loads(stopped.stdout)["status"] == "budget_exhausted"
+    page = (tmp_path / "r" / "index.html").read_text(encoding="utf-8")
+    assert re.search(r"</h1>\s*<div class=\"warn\">.*?budget_exhausted.*?</div>", page)
     assert runner.invoke(app, ["simulate", "couplet_tension", "--format", "json"]).exit_code == 0
 
 
@@ -70,7 +75,7 @@ def test_csv_and_table_output(tmp_path):
     result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec), "--format", "csv"])
     assert result.exit_code == 0, result.output
     lines = result.stdout.strip().splitlines()
-    assert lines[0].startswith("load,top_ux") and len(lines) == 5
+    assert lines[0].startswith("load [kN],top_ux [mm]") and len(lines) == 5
     result = runner.invoke(app, ["simulate", "shear_compression", "--spec", str(spec)])
     assert result.exit_code == 0 and "readings in mm" in result.output
 
@@ -117,7 +122,7 @@ def test_flat_jack_report(tmp_path):
     result = runner.invoke(app, ["simulate", "flat_jack", "--spec", str(spec), "--report", str(out), "--format", "csv"])
     assert result.exit_code == 0, result.output
     rows = result.stdout.strip().splitlines()
-    assert rows[0] == "load,S1,S2,S3" and len(rows) == 1 + 13  # the cut, then 12 pressure steps
+    assert rows[0] == "load,S1 [mm],S2 [mm],S3 [mm]" and len(rows) == 1 + 13  # the cut, then 12 pressure steps
     assert float(rows[1].split(",")[1]) < 0  # the cut closes the gauges
     names = {p.name for p in out.iterdir()}
     assert {"index.html", "setup.png", "readings.png", "deformed_step1.png", "deformed_step13.png"} <= names

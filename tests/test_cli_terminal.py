@@ -66,7 +66,7 @@ def test_a_wide_table_is_printed_whole_when_piped():
     assert table.exit_code == 0, table.output
     data = runner.invoke(app, [*args, "--format", "csv"])
     lines = data.stdout.strip().splitlines()
-    sensors = lines[0].split(",")[1:]
+    sensors = [c.split(" [")[0] for c in lines[0].split(",")[1:]]  # "G1 [mm]" → "G1"
     readings = np.array([[float(v) for v in line.split(",")[1:]] for line in lines[1:]])
     assert "…" not in table.stdout
     for j, name in enumerate(sensors):
@@ -323,7 +323,7 @@ def test_every_command_reports_that_it_is_alive_when_piped(monkeypatch):
                                  "--format", "csv"])
     assert result.exit_code == 0, result.output
     assert re.search(r"^podkrig: .*elapsed$", result.stderr, re.MULTILINE)
-    assert result.stdout.startswith("load,")  # the output itself is untouched
+    assert result.stdout.startswith("load [kN],")  # the output itself is untouched
 
 
 def test_an_inner_display_speaks_for_the_command():

@@ -136,6 +136,74 @@ def test_variance_paths_agree_and_mean_is_the_same_with_or_without_std(data, mon
     assert ok.predict(Xp[:0], return_std=True)[1].shape == (0, Y.shape[1])
 
 
+def _dense_ordinary_variance(X, Xp, ranges, beta, nugget):
+    """σ²/σ̂² of ordinary kriging from the whole bordered system [[R, 1], [1ᵀ, 0]] solved densely
+    (np.linalg.solve): 1 - λᵀr - μ with [R 1; 1ᵀ 0][λ; μ] = [r; 1], R with the fit's diagonal."""
+    n = len(X)
+    corr = lambda A, B: np.exp(-np.sum(np.abs(A[:, None, :] - B[None, :, :]) ** beta / np.asarray(ranges) ** beta,
+                                       axis=-1))
+    R = corr(X, X)
+    np.fill_diagonal(R, 1.0 + nugget + (10 + n) * np.finfo(float).eps)
+    A = np.block([[R, np.ones((n, 1))], [np.ones((1, n)), np.zeros((1, 1))]])
+    rhs = np.vstack([corr(X, Xp), np.ones((1, len(Xp)))])
+    return 1.0 - np.einsum("ip,ip->p", np.linalg.solve(A, rhs), rhs)
+
+
+@pytest.mark.parametrize("explicit_inverse", [True, False])
+@pytest.mark.parametrize("n, d, beta, nugget", [(12, 2, 1.0, 0.0), (80, 6, 1.5, 0.0), (300, 8, 1.9, 1e-8),
+                                                (300, 6, 2.0, 1e-3)])
+def test_variance_is_the_dense_ordinary_kriging_formula(monkeypatch, explicit_inverse, n, d, beta, nugget):
+    """The Cholesky form of the variance (stored L^-1 product, or triangular solves) against the
+    bordered ordinary-kriging system solved densely, on random designs and ranges, with and without
+    a nugget; at the training points the variance vanishes without a nugget and is at the
+    nugget's level (relative to the sill) with one. Defects: a lost trend term (1 - wᵀk)² c0, the sill or
+    the nugget in the wrong place, the factor of another output, a point's row mixed into another's."""
+    from podkrig.surrogate.kriging import ordinary
+
+    monkeypatch.setattr(ordinary, "EXPLICIT_INVERSE_BYTES", 2**40 if explicit_inverse else 0)
+    rng = np.random.default_rng(n + d)
+    X, Xp = rng.random((n, d)), rng.random((50, d))
+    ranges = rng.uniform(0.3, 1.5, size=(2, d))
+    Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1], X @ rng.random(d)])
+    ok = OrdinaryKriging(beta=beta, ranges=ranges, nugget=nugget, optimizer=None).fit(X, Y)
+    assert (ok._L_inverse is not None) == explicit_inverse
+    var = ok.predict_variance(Xp)
+    at_data = ok.predict_variance(X) / ok.sigma2_
+    for j in range(2):
+        dense = _dense_ordinary_variance(X, Xp, ranges[j], beta, nugget)
+        # both sides are 1 - (a sum of O(1) terms); the bordered system's condition number (up to
+        # ~1e9 for the Gaussian at n = 300) costs the dense solve its last digits: 1e-9 of the sill
+        assert_allclose(var[:, j] / ok.sigma2_[j], dense, rtol=1e-8, atol=1e-9)
+        # at a training point the variance is the nugget's share, less what the neighbours tell
+        # (0.85-1 of it here), plus the fit's diagonal (10 + n) eps = 7e-14 and rounding
+        assert np.all(at_data[:, j] <= nugget + 1e-12) and np.all(at_data[:, j] >= 0.5 * nugget)
+
+
+def test_outputs_with_the_same_factor_share_one_triangular_product(monkeypatch):
+    """Outputs at equal hyperparameters have bitwise-equal Cholesky factors: the O(n²) part of
+    their variances is computed once per block and they keep one L^-1 between them; each variance
+    is that of the output fitted alone. An output at other ranges keeps its own. Defects: sharing
+    across different ranges or exponents, the sill of the first output given to the others."""
+    from podkrig.surrogate.kriging import ordinary
+
+    rng = np.random.default_rng(3)
+    X, Xp = rng.random((60, 4)), rng.random((30, 4))
+    Y = np.column_stack([np.sin(3 * X[:, 0]), X[:, 1] ** 2, 10 * X[:, 2] * X[:, 3], X[:, 0] - X[:, 3]])
+    ranges = np.array([[0.5, 0.7, 0.9, 1.1]] * 3 + [[0.6, 0.7, 0.9, 1.1]])
+    ok = OrdinaryKriging(beta=1.7, ranges=ranges, optimizer=None).fit(X, Y)
+    assert list(ok._shared) == [0, 0, 0, 3] and sorted(ok._L_inverse) == [0, 3]
+    calls = []
+    real = ordinary.dtrmm
+    monkeypatch.setattr(ordinary, "dtrmm", lambda *a, **k: calls.append(1) or real(*a, **k))
+    mean, std = ok.predict(Xp, return_std=True)
+    assert len(calls) == 2
+    for j in range(4):
+        alone = OrdinaryKriging(beta=1.7, ranges=ranges[j], optimizer=None).fit(X, Y[:, j])
+        m, s = alone.predict(Xp, return_std=True)
+        assert_allclose(mean[:, j], m, rtol=1e-13, atol=1e-13 * np.abs(Y[:, j]).max())
+        assert_allclose(std[:, j], s, rtol=1e-10)
+
+
 def test_fit_shared_uses_the_first_outputs_exponent_for_all(data):
     X, Y, _ = data
     assert Y.shape[1] > 1

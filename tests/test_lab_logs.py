@@ -23,6 +23,7 @@ from podkrig.study import load_study, stages
 from podkrig.study.pipeline import Progress
 from podkrig.study.schema import StudyError
 from podkrig.study.stages import probe_points
+from lab_study import STUDY
 
 SENSORS = ("D1", "D2", "U1")
 LEVELS = (10.0, 20.0, 30.0, 40.0)
@@ -289,32 +290,6 @@ def test_noise_floor_is_flagged():
 
 
 # --------------------------------------------------------------------------- podkrig run: checked early
-
-STUDY = """\
-name = "lab"
-[scenario]
-scenario = "diagonal_compression"
-nx = 2
-ny = 1
-[parameters]
-kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
-kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
-E_b = { lower = 8000.0, upper = 14000.0 }
-[fixed]
-r_hj = 0.6
-[sampling]
-train = { n = 8, seed = 0 }
-held_out = { n = 4, seed = 1, method = "random" }
-workers = 1
-[measurement]
-file = "log.csv"
-instrument = "lvdt"
-[inversion]
-population_size = 8
-generations = 2
-n_starts = 1
-region_samples = 1024
-"""
 
 
 def _study(tmp_path, csv_text):

@@ -211,9 +211,9 @@ def test_path_scenarios_interpolate_inside_and_name_every_load_outside():
     index, w = level_weights([1.5, 0.25, 3.0, 0.5, 2.5], [0.25, 1.0, 2.0, 3.0], "path", "mm")
     assert index.tolist() == [[1, 2], [0, 0], [3, 0], [0, 1], [2, 3]]
     assert_allclose(w, [[0.5, 0.5], [1.0, 0.0], [1.0, 0.0], [2 / 3, 1 / 3], [0.5, 0.5]], rtol=1e-14)
-    with pytest.raises(ValueError, match=r"log\.csv: 3 measured load\(s\).*\[0\.25, 3\] mm.*3\.5 mm.*0\.1 and 4 mm.*load_range.*load_levels"):
+    with pytest.raises(ValueError, match=r"log\.csv: 3 measured control value\(s\).*\[0\.25, 3\] mm.*3\.5 mm.*0\.1 and 4 mm.*load_range.*load_levels"):
         level_weights([1.5, 3.5, 0.1, 4.0], [0.25, 1.0, 2.0, 3.0], "path", "mm", "log.csv")
-    with pytest.raises(ValueError, match=r"measurement: 1 measured load\(s\).*\[0\.25, 3\] of"):
+    with pytest.raises(ValueError, match=r"measurement: 1 measured control value\(s\).*\[0\.25, 3\] of"):
         level_weights([0.2], [0.25, 1.0, 2.0, 3.0], "path")
 
 
@@ -296,7 +296,7 @@ def test_instrument_noise_takes_each_sensors_instrument():
     m = Measurement([[0.2, 0.2]], ("D1", "U1"), [10.0])
     assert_allclose(noise.std(m), [np.hypot(0.001, 0.002), 0.0025], rtol=1e-12)
     assert instrument_noise("dial_gauge", ["a", "b"]).sigma == {"a": 0.001, "b": 0.001}
-    with pytest.raises(ValueError, match=r"\{'U1': 'laser'\}.*\['dial_gauge', 'dic', 'lvdt'\]"):
+    with pytest.raises(ValueError, match=r"\{'U1': 'laser'\}.*\['dial_gauge', 'dic', 'load_cell', 'lvdt'\]"):
         instrument_noise({"D1": "lvdt", "U1": "laser"}, ("D1", "U1"))
     with pytest.raises(ValueError, match=r"no instrument given for sensor\(s\) \['U1'\]"):
         instrument_noise({"D1": "lvdt"}, ("D1", "U1"))

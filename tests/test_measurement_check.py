@@ -36,6 +36,7 @@ from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.online.problem import InverseProblem, SurrogateModel
 from podkrig.online.settings import CalibrationSettings, InversionSettings, RegionSettings
 from podkrig.reports.findings import refusal
+from lab_study import STUDY
 
 runner = CliRunner()
 LEVELS = np.array([25.0, 50.0, 75.0, 100.0])  # kN: the diagonal compression test's levels
@@ -329,32 +330,6 @@ def test_diagnose_refuses_readings_unlike_its_base_surrogates_training_runs(lab,
 
 
 # ----------------------------------------------------------------------------- podkrig run
-
-STUDY = """\
-name = "lab"
-[scenario]
-scenario = "diagonal_compression"
-nx = 2
-ny = 1
-[parameters]
-kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
-kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
-E_b = { lower = 8000.0, upper = 14000.0 }
-[fixed]
-r_hj = 0.6
-[sampling]
-train = { n = 8, seed = 0 }
-held_out = { n = 4, seed = 1, method = "random" }
-workers = 1
-[measurement]
-file = "log.csv"
-instrument = "lvdt"
-[inversion]
-population_size = 8
-generations = 2
-n_starts = 1
-region_samples = 1024
-"""
 
 
 def _run(tmp_path, log, replace=None):

@@ -283,7 +283,7 @@ def test_a_path_scenario_names_the_first_load_it_cannot_evaluate(tmp_path):
     m = _read(tmp_path, "load [mm],D1\n1.5,1\n2,1\n", unit="mm", response="path", levels=(1, 3))
     assert_allclose(m.load_levels, [1.5, 2.0])
     message = _error(tmp_path, "load [mm],D1\n1.5,1\n2,1\n0.5,2\n", unit="mm", response="path", levels=(1, 3))
-    assert message.startswith("{p}, row 4, column 1 (load [mm]): 1 measured load(s) lie outside")
+    assert message.startswith("{p}, row 4, column 1 (load [mm]): 1 measured control value(s) lie outside")
 
 
 def test_a_single_level_model_refuses_any_other_load(tmp_path):

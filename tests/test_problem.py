@@ -83,6 +83,31 @@ def test_omega_is_the_closed_form_of_each_misfit_kind():
         assert problem.omega(x)[0] == pytest.approx(omega, rel=1e-12), (kind, model_error)
 
 
+def test_the_model_std_is_asked_for_only_when_it_enters_c_d():
+    """With ``model_error`` the model's std is asked for at every evaluated row, on both entry
+    points; without it only the means (for kriging the std costs O(n²) per point against O(n d)),
+    and ω is the same as when the std was computed and dropped. Defects: the std computed without
+    model_error, or dropped with it."""
+
+    class AskingModel(UnitLineModel):
+        def predict(self, X, return_std=False):
+            self.asked.append(return_std)
+            return super().predict(X, return_std)
+
+    x = np.array([[0.5, 0.9], [0.2, 1.4]])
+    for model_error in (True, False):
+        model = AskingModel()
+        model.asked = []
+        problem = InverseProblem(model, _data(model, TRUTH), NoiseModel(sigma=SIGMA), model_error=model_error)
+        omega = problem.omega(x)
+        omega_unit = problem.omega_unit(problem.free_space.to_unit(x))
+        assert model.asked == [model_error, model_error]
+        r = model.clean(x) - model.clean(TRUTH)
+        var = SIGMA**2 + (model.std(x) ** 2 if model_error else 0.0)
+        assert_allclose(omega, 0.5 * np.sum(r**2 / var, axis=1), rtol=1e-12)
+        assert_allclose(omega_unit, omega, rtol=1e-12)
+
+
 def test_frozen_model_error_uses_the_std_at_the_freezing_point():
     """Defects: the std not frozen (or frozen at another point), a model without predictive variance
     not returned as it is, the unit-cube path of a frozen problem ignoring the frozen std."""

@@ -187,6 +187,35 @@ def test_damaged_artefacts_are_refused_naming_the_cap(tmp_path, monkeypatch, cap
     assert "m.json: larger than 5 B (5 bytes), the cap for a stage manifest" in caplog.text
 
 
+
+def test_a_surrogate_file_over_the_cap_is_refused_naming_it(tmp_path, monkeypatch):
+    """A surrogate file (HDF5) is held to the array-file cap on disk and in what its arrays unpack
+    to (as their headers declare it, before anything is read): a small file of compressed zeros is
+    refused as surely as a large one."""
+    import shutil
+
+    import h5py
+    import numpy as np
+
+    from podkrig.exceptions import StoreError
+    from podkrig.io import surrogate_file
+
+    path = tmp_path / "surrogate.h5"
+    shutil.copy(Path(__file__).parent / "data" / "surrogate_v1.h5", path)
+    assert surrogate_file.load_surrogate(path) is not None
+    size = path.stat().st_size
+    monkeypatch.setattr(surrogate_file, "MAX_ARRAY_FILE_BYTES", size - 1)
+    with pytest.raises(StoreError, match=rf"surrogate\.h5: larger than .*\({size - 1} bytes\), the cap for a "
+                                         r"surrogate file: it is"):
+        surrogate_file.load_surrogate(path)
+    with h5py.File(path, "r+") as f:
+        f.create_dataset("padding", data=np.zeros(2**20), compression="gzip")  # 8 MiB unpacked, ~10 kB on disk
+    monkeypatch.setattr(surrogate_file, "MAX_ARRAY_FILE_BYTES", 2**20)
+    assert path.stat().st_size < 2**20
+    with pytest.raises(StoreError, match=r"surrogate\.h5: larger than 1\.0 MiB \(1048576 bytes\), the cap for a "
+                                         r"surrogate file: its arrays unpack to 8\.\d MiB"):
+        surrogate_file.load_surrogate(path)
+
 # ----------------------------------------------------------------------------- measurement paths, quoting
 def _study_with_measurement(folder, file_value):
     """The demo study copied to ``folder`` with its scenario and validation spec inline and its

@@ -8,8 +8,8 @@ positive), in the better-scaled √-form:
 which meets the σ-axis at σ = σ_t with a vertical tangent (no tension/shear corner) and tends to
 the Coulomb line |τ| = c − σ tanφ in compression.
 
-INFERRED choices (the Macorini–Izzuddin potential, cap and softening laws are NOT FOUND; named
-here; the flow and the softening are switchable only by replacing this law, the cap through
+INFERRED choices (``docs/references.md`` "INFERRED choices": the Macorini–Izzuddin potential, cap
+and softening laws are not at hand; named here; the flow and the softening are switchable only by replacing this law, the cap through
 :func:`hyperbolic_properties`):
 
 - flow (non-potential): ``m = (tanψ + (tanφ − tanψ) a/ρ, τ/ρ)``, ``ρ = √(τ² + a²)``: associated

@@ -23,6 +23,11 @@ from .mesh import INTERFACE_KINDS, Mesh
 _ROUND = 6  # decimals used to match coincident coordinates (mm): 1 nm
 
 
+def _on_grid(value, step):
+    """True when ``value`` is a whole multiple of ``step`` (to 1e-9 of a step)."""
+    return abs(value / step - round(value / step)) < 1e-9
+
+
 @dataclass(frozen=True)
 class BrickWallLayout:
     """Geometry and discretisation of a brick wall.
@@ -65,6 +70,13 @@ class BrickWallLayout:
         ``block_unit`` (bottom, then top). The beams' nodes are the node sets ``bottom_beam`` and
         ``top_beam``: a scenario holds or ties all of them, so the beams are rigid. The wall's own
         nodes and their numbers are those of the wall without beams (the beams' come after).
+    openings : tuple of (x0, x1, y0, y1)
+        Rectangular openings (mm) left without units, e.g. a window. Their sides lie on the bond's
+        half-unit grid (multiples of ``unit_length / 2``) and on course boundaries (multiples of
+        ``unit_height``), strictly inside the wall, so that the units beside an opening are whole or
+        half units (running bond: a half unit beside the opening every other course) and no element
+        lies in it. A unit cut by an opening keeps its part outside as a unit of its own; the
+        opening's sides are free faces (no joint).
     """
 
     unit_length: float = 260.0
@@ -80,6 +92,7 @@ class BrickWallLayout:
     cuts: tuple = ()
     refine: tuple = ()
     base_joints: bool = False
+    openings: tuple = ()
 
     def __post_init__(self):
         for name in ("unit_length", "unit_height"):
@@ -117,8 +130,42 @@ class BrickWallLayout:
                     f"cuts: ({x:g}, {y0:g}, {y1:g}) mm must span whole courses: y0 < y1 multiples of "
                     f"the unit height {self.unit_height:g} mm within the wall"
                 )
+        object.__setattr__(self, "openings", tuple(tuple(float(v) for v in o) for o in self.openings))
+        for o in self.openings:
+            self._check_opening(o)
+        for a, b in itertools.combinations(self.openings, 2):
+            if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
+                raise MeshError(f"openings {a} and {b} overlap; give one rectangle for their union")
         if self.refine and (len(self.refine) != 4 or not (self.refine[0] < self.refine[1] and self.refine[2] < self.refine[3])):
             raise MeshError(f"refine must be () or (x0, x1, y0, y1) with x0 < x1, y0 < y1 (mm); got {self.refine}")
+
+    def _check_opening(self, o):
+        """An opening is (x0, x1, y0, y1) mm on the half-unit grid and course boundaries, inside."""
+        if len(o) != 4:
+            raise MeshError(f"openings: each opening is (x0, x1, y0, y1) in mm; got {o}")
+        x0, x1, y0, y1 = o
+        half, H = self.unit_length / 2, self.unit_height
+        if not (0 < x0 < x1 < self.width and _on_grid(x0, half) and _on_grid(x1, half)):
+            raise MeshError(
+                f"openings: x0 = {x0:g}, x1 = {x1:g} mm must satisfy 0 < x0 < x1 < {self.width:g} (the wall) and lie on "
+                f"the half-unit grid (multiples of {half:g} mm) so that the units beside the opening are whole or half")
+        if not (0 < y0 < y1 < self.height and _on_grid(y0, H) and _on_grid(y1, H)):
+            raise MeshError(
+                f"openings: y0 = {y0:g}, y1 = {y1:g} mm must satisfy 0 < y0 < y1 < {self.height:g} (the wall) and lie "
+                f"on course boundaries (multiples of the unit height {H:g} mm)")
+
+    def in_opening(self, x, y):
+        """True where the points ``(x, y)`` (mm, arrays) lie strictly inside an opening."""
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        inside = np.zeros(np.broadcast(x, y).shape, bool)
+        for x0, x1, y0, y1 in self.openings:
+            inside |= (x > x0) & (x < x1) & (y > y0) & (y < y1)
+        return inside
+
+    def course_openings(self, course):
+        """x of the sides of the openings that cross a course (mm)."""
+        y0, y1 = course * self.unit_height, (course + 1) * self.unit_height
+        return [x for o in self.openings if o[2] <= y0 + 1e-9 and y1 <= o[3] + 1e-9 for x in o[:2]]
 
     @property
     def width(self):
@@ -243,12 +290,16 @@ def brick_wall(layout=BrickWallLayout()):
     for course in range(layout.n_courses):
         y0, y1 = course * H, (course + 1) * H
         ys = np.linspace(y0, y1, layout.course_ny(course) + 1)
-        cuts = layout.course_cuts(course)
+        cuts = layout.course_cuts(course) + layout.course_openings(course)
         for ux0, ux1 in layout.course_units(course):
             full = abs((ux1 - ux0) - L) < 1e-9
             splits = [ux0, 0.5 * (ux0 + ux1), ux1] if full and layout.brick_interfaces else [ux0, ux1]
             splits = sorted(set(np.round(splits + [x for x in cuts if ux0 + 1e-9 < x < ux1 - 1e-9], _ROUND)))
-            for bx0, bx1 in itertools.pairwise(splits):
+            blocks = [(bx0, bx1) for bx0, bx1 in itertools.pairwise(splits)
+                      if not layout.in_opening(0.5 * (bx0 + bx1), 0.5 * (y0 + y1))]
+            if not blocks:
+                continue  # a unit wholly inside an opening
+            for bx0, bx1 in blocks:
                 xs = lines[(lines >= bx0 - 1e-9) & (lines <= bx1 + 1e-9)]
                 if regular:  # the plain wall: nodes exactly as linspace over the block gives them
                     xs = np.linspace(bx0, bx1, len(xs))

@@ -8,12 +8,14 @@ from .flat_jack_nl import FlatJackShearNonlinear
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 from .specimens import CoupletTension, PrismCompression, TripletShear
+from .wall_opening import WallOpeningNonlinear
 from .walls_nonlinear import DiagonalCompressionNonlinear, ShearCompressionNonlinear
 
 SCENARIOS = {
     cls.name: cls
     for cls in (DiagonalCompression, ShearCompression, FlatJack, CoupletTension, TripletShear, PrismCompression,
-                ShearCompressionNonlinear, DiagonalCompressionNonlinear, FlatJackShearNonlinear)
+                ShearCompressionNonlinear, DiagonalCompressionNonlinear, FlatJackShearNonlinear,
+                WallOpeningNonlinear)
 }
 
 

@@ -150,6 +150,11 @@ class Scenario(abc.ABC):
     def n_dofs(self):
         return self.model.n_dofs
 
+    @property
+    def sensor_units(self):
+        """Sensor name → unit of its readings (mm: every sensor of a linear scenario is a displacement)."""
+        return dict.fromkeys(self.sensor_names, "mm")
+
     def sensor_definitions(self):
         """Sensor name → definition dict (mm)."""
         return {s.name: s.to_dict() for s in self.sensors}

@@ -171,6 +171,7 @@ class FlatJackShearNonlinear(NonlinearScenario):
     Options = FlatJackShearOptions
     PARAMETERS = nonlinear_parameters(FLAT_JACK_NL_DEFAULTS) + FLAT_JACK_PARAMETERS[-2:]  # + Km, sigma0
     force_unit = "MPa"
+    force_sensor = None  # the load is V1's gauge pressure, not a load cell's force: no reading of it
 
     def _build(self):
         o = self.options

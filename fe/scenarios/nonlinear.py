@@ -7,6 +7,11 @@ strengths), unit mid-planes with a tension cut-off only (``ft_bb``, ``GfI_bb``; 
 potential-crack interfaces, INFERRED, see ``docs/references.md`` "INFERRED choices"). The run
 follows the load path with :class:`fe.solvers.nonlinear.PathFollower`; the response holds the readings at the
 prescribed levels of the control displacement (``load_levels``, mm), the load there, and the peak.
+
+The load is a reading like the gauges: the sensor :attr:`NonlinearScenario.force_sensor` (``F``, kN)
+is the reaction of the controlled degree of freedom — the force the actuator's load cell measures,
+positive in the direction of the control (a push, a pull, a compression) — appended after the gauges,
+so that a surrogate, a measurement file and an inversion treat a force–displacement curve as data.
 """
 
 import dataclasses
@@ -73,7 +78,10 @@ class NonlinearOptions(WallOptions):
     increment before it is cut back, the relative force ``tolerance``, and the interfaces'
     ``integration`` rule (``"lobatto"``: Newton–Cotes at the node pairs, the default, recommended
     for interfaces because Gauss points with stiff dummy interfaces give traction oscillations,
-    Vignollet, May & de Borst 2015; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness)."""
+    Vignollet, May & de Borst 2015; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness).
+    ``peak_readings`` adds the peak as two readings, ``F_peak`` (kN) and ``d_peak`` (the control
+    displacement there, mm), the same at every level (a measurement gives each once, at any control
+    value of its log)."""
 
     increment: float = 0.01
     max_increment: float = 0.05
@@ -86,6 +94,7 @@ class NonlinearOptions(WallOptions):
     law: str = "composite"
     hyperbolic_cap: str = "none"
     integration: str = "lobatto"
+    peak_readings: bool = False
 
     def __post_init__(self):
         super().__post_init__()
@@ -174,15 +183,64 @@ class NonlinearScenario(Scenario):
     Subclasses set ``mesh``, ``sensors``, ``model`` (a :class:`~fe.nonlinear_model.NonlinearModel`)
     in ``_build`` and define :meth:`phases` (the loading phases for a parameter dict) and
     ``control_sign`` (+1: the control displacement is the positive direction of its dof).
+
+    Attributes
+    ----------
+    force_sensor : str or None
+        The name of the load reading (the reaction of the control, ``force_unit``, the last column
+        of the readings), or None where the load is no force a load cell reads (the flat jack's
+        gauge pressure).
     """
 
     load_unit = "mm"
     load_response = "path"  # interpolate along the control displacement, never past the last level
     force_unit = "kN"
+    force_sensor = "F"
     control_sign = 1.0
     #: control value (mm) up to which the curve is mesh-objective (the scenario's mesh-convergence
     #: study, ``scripts/mesh_convergence.py``); None: the whole studied range
     mesh_objective_limit = None
+
+    def __init__(self, spec=None, solver="auto"):
+        super().__init__(spec, solver)
+        given = getattr(self.options, "sensors", None) or {}  # the spec's own sensors (the defaults never clash)
+        taken = [n for n in self._load_readings() if n in given]
+        if taken:
+            raise SpecError(f"{self.name}: sensor name {taken[0]!r} is a load reading (the reaction of the control "
+                            "or its peak); give the gauge another name")
+
+    def _load_readings(self):
+        """Name → (unit, definition) of the readings of the load after the gauges: :attr:`force_sensor`
+        and, with the option ``peak_readings``, the peak load and its control displacement."""
+        if not self.force_sensor:
+            return {}
+        out = {self.force_sensor: (self.force_unit, {"kind": "force", "unit": self.force_unit,
+                                                     "at": "the control (its reaction, positive along the control)"})}
+        if getattr(self.options, "peak_readings", False):
+            out["F_peak"] = (self.force_unit, {"kind": "peak", "unit": self.force_unit,
+                                               "reads": "the largest load of the curve (the same at every level)"})
+            out["d_peak"] = (self.load_unit, {"kind": "peak", "unit": self.load_unit,
+                                              "reads": "the control displacement at the peak load"})
+        return out
+
+    @property
+    def sensor_names(self):
+        """The gauges' channels, then :attr:`force_sensor` (when there is one), then ``F_peak`` and
+        ``d_peak`` with the option ``peak_readings``."""
+        return tuple(self.model.channel_names) + tuple(self._load_readings())
+
+    @property
+    def sensor_units(self):
+        """Sensor name → unit of its readings: mm, and ``force_unit`` for the load readings."""
+        units = dict.fromkeys(self.model.channel_names, "mm")
+        units.update({n: u for n, (u, _) in self._load_readings().items()})
+        return units
+
+    def sensor_definitions(self):
+        """Sensor name → definition dict (mm); the load readings as ``{"kind": "force" or "peak", "unit": …}``."""
+        out = super().sensor_definitions()
+        out.update({n: d for n, (_, d) in self._load_readings().items()})
+        return out
 
     @classmethod
     def parameter_constraints(cls, options):
@@ -277,7 +335,7 @@ class NonlinearScenario(Scenario):
         mask = path.of_phase(control_phase)
         disp = self.control_sign * path.path[mask] if mask.any() else np.zeros(0)
         load = path.load[mask]
-        readings = np.full((len(levels), len(self.sensor_names)), np.nan)
+        readings = np.full((len(levels), len(self.model.channel_names)), np.nan)
         loads = np.full(len(levels), np.nan)
         at = np.full(len(levels), -1)
         idx = np.flatnonzero(mask)
@@ -308,6 +366,11 @@ class NonlinearScenario(Scenario):
             for k in range(len(levels)):
                 if at[k] >= 0:
                     u[k] = path.displacements[at[k]]
+        extra_columns = {"F_peak": peak_load, "d_peak": peak_displacement}
+        columns = [loads if n == self.force_sensor else np.full(len(levels), extra_columns[n])
+                   for n in self._load_readings()]
+        if columns:
+            readings = np.column_stack([readings, *columns])
         return NonlinearResponse(
             readings, self.sensor_names, levels, self.load_unit, u, loads=loads, force_unit=self.force_unit,
             peak_load=peak_load, peak_displacement=peak_displacement,

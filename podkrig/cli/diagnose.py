@@ -80,8 +80,10 @@ def register(app):
             both = sorted(set(fixed) & set(space.names))
             if both:
                 raise ValueError(f"parameter(s) {both} are both free (--param) and fixed (--set); choose one")
-            measurement = read_measurement(data, sc.sensor_names, sc.load_levels, sc.load_unit)
+            measurement = read_measurement(data, sc.sensor_names, sc.load_levels, sc.load_unit,
+                                           sensor_units=sc.sensor_units)
             noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, sensor_names=measurement.sensor_names,
+                                            sensor_units=measurement.sensor_units,
                                             model_sensors=sc.sensor_names)
             names = None if candidates is None else [c.strip() for c in candidates.split(",") if c.strip()]
             with Progress("diagnosis") as progress:

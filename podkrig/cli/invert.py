@@ -45,12 +45,14 @@ _GA = field_info(InversionSettings)
 _IMPORT = ImportSettings()  # the defaults of reading a measurement log
 
 
-def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None, model_sensors=None):
+def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=None, model_sensors=None,
+                sensor_units=None):
     """The NoiseModel of the CLI options and the noise in words: --noise-abs (σ_res) and/or
     --noise-rel (δ), combined as σ² = σ_res² + (δ d)², or --instrument (needs the measured
     ``sensor_names``) — :class:`~podkrig.online.settings.NoiseSettings` — or --noise-cov (a full
     covariance, mm²). ``model_sensors``: the model's sensors, which a --noise-abs NAME=SIGMA must
-    name."""
+    name; ``sensor_units``: the measured sensors' units (mm; kN for a load reading, which an
+    --instrument for all gives the load cell)."""
     given = [bool(noise_abs) or noise_rel is not None, noise_cov is not None, instrument is not None]
     if sum(given) != 1:
         raise ValueError("give one noise model: --noise-abs SIGMA_MM (or NAME=SIGMA_MM per sensor) and/or "
@@ -79,7 +81,7 @@ def noise_model(noise_abs, noise_rel, noise_cov, instrument=None, sensor_names=N
         name = unknown[0][1]
         raise ValueError(f"--noise-abs: {quote(name)} (NAME=SIGMA) is not a sensor of the model; its sensors: "
                          f"{', '.join(model_sensors)}")
-    return noise.noise_model(sensor_names), noise.describe()
+    return noise.noise_model(sensor_names, sensor_units), noise.describe()
 
 
 def calibration_settings(*, seed=None, population_size=None, generations=None, n_starts=None, confidence=None,
@@ -150,8 +152,9 @@ def build_problem(surrogate_path, data, noise_abs, noise_rel, noise_cov, free, f
     :class:`~podkrig.online.problem.InverseProblem`."""
     model = SurrogateModel(load_surrogate(surrogate_path))
     measurement = read_measurement(data, model.sensor_names, model.load_levels, model.load_unit,
-                                   model.load_response, import_settings)
+                                   model.load_response, import_settings, model.sensor_units)
     noise, noise_text = noise_model(noise_abs, noise_rel, noise_cov, instrument, measurement.sensor_names,
+                                    sensor_units=measurement.sensor_units,
                                     model_sensors=model.sensor_names)
     if range_check:
         check_readings(measurement, noise, model.sensor_names, model.load_levels, model.load_response,

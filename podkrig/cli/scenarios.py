@@ -40,7 +40,8 @@ def _print_one(console, d):
         console.print(t)
     else:
         console.print("constraints between parameters: none (each parameter only within its admissible range)")
-    t = Table(title=escape("options (keys of the [scenario] table or a spec file; lengths mm)"), title_justify="left")
+    t = Table(title=escape("options (keys of the [scenario] table or a spec file, --option of simulate; "
+                           "lengths mm)"), title_justify="left")
     t.add_column("option")
     t.add_column("default", justify="right")
     for k, v in d.options.items():

@@ -137,11 +137,9 @@ def _print(sc, response, values, seconds, format):
         typer.echo(json.dumps(out, indent=2))
         return
     if format == "csv":
-        # the measurement-file layout (first column "load" in the scenario load unit, readings in mm),
-        # so that a simulated response can serve as pseudo-measured data
-        typer.echo(",".join(["load"] + list(response.sensor_names)))
-        for level, row in zip(response.load_levels, response.readings):
-            typer.echo(",".join([f"{level:g}"] + [f"{v:.8g}" for v in row]))
+        from podkrig.io.measurement_log import response_csv
+
+        typer.echo(response_csv(sc, response), nl=False)
         return
     from rich.table import Table
 
@@ -157,10 +155,14 @@ def _print(sc, response, values, seconds, format):
     table.add_column("sensor")
     for level in response.load_levels:
         table.add_column(f"{level:g} {response.load_unit}", justify="right")
-    if nonlinear:
+    units = sc.sensor_units
+    if nonlinear and getattr(sc, "force_sensor", None) is None:  # a load that is no reading (a pressure)
         table.add_row(f"load ({response.force_unit})", *[f"{v:.4g}" for v in response.loads])
     for j, name in enumerate(response.sensor_names):
-        table.add_row(name, *[f"{v:+.5f}" for v in response.readings[:, j]])
+        if units.get(name, "mm") == "mm":
+            table.add_row(name, *[f"{v:+.5f}" for v in response.readings[:, j]])
+        else:  # the load reading: a force, kN
+            table.add_row(f"{name} ({units[name]})", *[f"{v:.4g}" for v in response.readings[:, j]])
     console.print(table)
     if nonlinear:
         console.print(f"peak load {response.peak_load:.4g} {response.force_unit} at {response.peak_displacement:.4g} mm; "

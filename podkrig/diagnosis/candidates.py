@@ -597,7 +597,7 @@ class JackEfficiency(Candidate):
 class SlotContact(Candidate):
     """Jack pressure lost over part of the slot.
 
-    INFERRED choices (named options): the lost contact sits at an end of the jack's loaded length
+    INFERRED choices (named options, ``docs/references.md``): the lost contact sits at an end of the jack's loaded length
     ``Ka × slot length`` (``"start"``: the end at the slot's smaller coordinate, ``"end"``: the
     other, ``"both"``: the same length ℓ at both ends, i.e. a jack shorter than the slot or a slot
     not cut to full depth at its ends); the pressure there is zero (no partial contact) and the

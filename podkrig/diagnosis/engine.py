@@ -89,6 +89,7 @@ def build_base_surrogate(scenario, space, values, n_train=64, rng=0):
     sur.provenance_.update({  # what an inversion model needs to know (as fit_from_store records it)
         "scenario_spec": scenario.spec.to_dict(), "sensor_names": list(scenario.sensor_names),
         "load_levels": scenario.load_levels.tolist(), "load_unit": scenario.load_unit, "output": "readings",
+        "sensor_units": [scenario.sensor_units[n] for n in scenario.sensor_names],
         "n_train": n_train,
     })
     return sur

@@ -162,7 +162,8 @@ class ImportSettings:
             raise ValueError("a comma cannot be both the delimiter and the decimal mark")
 
 
-def read_measurement(path, sensor_names, load_levels, load_unit="kN", load_response="discrete", settings=None):
+def read_measurement(path, sensor_names, load_levels, load_unit="kN", load_response="discrete", settings=None,
+                     sensor_units=None):
     """Read and check a laboratory log against a model's sensors and load levels.
 
     Parameters
@@ -180,12 +181,16 @@ def read_measurement(path, sensor_names, load_levels, load_unit="kN", load_respo
         How the model's readings depend on the load (:mod:`podkrig.online.measurement`): which
         measured loads the model can be evaluated at.
     settings : ImportSettings, optional
+    sensor_units : dict of str to str, optional
+        Sensor name → the unit of the model's readings (``Scenario.sensor_units``: mm, and kN for
+        a nonlinear scenario's load reading ``F``); a column is converted to its sensor's unit. Default:
+        every sensor in mm.
 
     Returns
     -------
     Measurement
-        Readings in mm (NaN where missing) at the measured loads, with ``notes`` on what the
-        import did.
+        Readings in their sensors' units (mm; kN for a force) (NaN where missing) at the measured
+        loads, with ``notes`` on what the import did.
 
     Raises
     ------
@@ -204,15 +209,16 @@ def read_measurement(path, sensor_names, load_levels, load_unit="kN", load_respo
         text = _read_text(path, notes)
         delimiter = s.delimiter or _detect_delimiter(text, s.load_column)
         rows = _csv_rows(path, text, delimiter)
-    table = _Table(path, rows, s, sensor_names, load_unit, notes)
+    table = _Table(path, rows, s, sensor_names, load_unit, notes, sensor_units)
     table.parse_header()
     table.parse_numbers(delimiter)
     return table.measurement(load_levels, load_response)
 
 
-def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN", load_response="discrete", settings=None):
+def read_measurement_csv(path, sensor_names, load_levels, load_unit="kN", load_response="discrete", settings=None,
+                         sensor_units=None):
     """:func:`read_measurement` (the name of the exact-load reader it replaces)."""
-    return read_measurement(path, sensor_names, load_levels, load_unit, load_response, settings)
+    return read_measurement(path, sensor_names, load_levels, load_unit, load_response, settings, sensor_units)
 
 
 # --------------------------------------------------------------------------------------------- files
@@ -351,7 +357,9 @@ def unit_factor(unit, target, where, what="reading"):
     try:
         factor = float(q.to(target).magnitude)
     except Exception:  # noqa: BLE001 - DimensionalityError and friends
-        want = "a length (readings are displacements)" if what == "reading" else f"convertible to {target}"
+        want = ("a length (readings are displacements)" if what == "reading" and target == "mm"
+                else f"a force (this sensor reads the load, {target})" if what == "reading"
+                else f"convertible to {target}")
         raise ValueError(f"{where}: unit {quote(unit)} is not {want}") from None
     if not (math.isfinite(factor) and factor > 0):
         raise ValueError(f"{where}: unit {quote(unit)} has no usable conversion to {target}")
@@ -374,9 +382,10 @@ class _Table:
     """One log being read: header, columns used, numbers (an implementation detail of
     :func:`read_measurement`)."""
 
-    def __init__(self, path, rows, settings, sensor_names, load_unit, notes):
+    def __init__(self, path, rows, settings, sensor_names, load_unit, notes, sensor_units=None):
         self.path, self.settings, self.notes = path, settings, notes
         self.sensor_names = list(sensor_names)
+        self.sensor_units = {n: (sensor_units or {}).get(n, "mm") for n in self.sensor_names}
         self.load_unit = load_unit
         self.rows = rows
 
@@ -471,17 +480,18 @@ class _Table:
         self.factors = []
         bare = []
         for j, sensor in zip(self.sensor_cols, self.sensors):
-            u = units[j]
+            u, target = units[j], self.sensor_units[sensor]
             if u is None:
-                bare.append(sensor)
+                bare.append((sensor, target))
                 self.factors.append(1.0)
                 continue
-            f = unit_factor(u, "mm", self._where(self.header_row, j + 1, header[j]))
+            f = unit_factor(u, target, self._where(self.header_row, j + 1, header[j]))
             self.factors.append(f)
             if f != 1.0:
-                self.notes.append(f"{sensor} converted from {u} to mm (× {f:g})")
-        if bare:
-            self.notes.append(f"no unit in the header of {', '.join(bare)}: read as mm")
+                self.notes.append(f"{sensor} converted from {u} to {target} (× {f:g})")
+        for target in dict.fromkeys(t for _, t in bare):
+            names = ", ".join(n for n, t in bare if t == target)
+            self.notes.append(f"no unit in the header of {names}: read as {target}")
         self.header = header
 
     def _find_phase_column(self, names, header):
@@ -541,9 +551,10 @@ class _Table:
         big = np.abs(values) > MAX_ABS_READING_MM
         if np.any(big):
             i, k = np.argwhere(big)[0]
+            unit = self.sensor_units[self.sensors[k]]
             raise ValueError(f"{self._where(int(row_numbers[i]), self.sensor_cols[k] + 1, self.header[self.sensor_cols[k]])}: "
-                             f"{values[i, k]:g} mm is out of range (readings are at most {MAX_ABS_READING_MM:g} mm "
-                             "in magnitude)")
+                             f"{values[i, k]:g} {unit} is out of range (readings are at most {MAX_ABS_READING_MM:g} "
+                             f"{unit} in magnitude)")
         self.loads, self.values, self.row_numbers = loads[~no_load], values[~no_load], row_numbers[~no_load]
         if self.phase_col is not None:
             self.phases = np.array([phase_label(c) for c in columns[self.phase_col]], dtype=object)[~no_load]
@@ -632,7 +643,8 @@ class _Table:
             level_weights([reference], load_levels, load_response, self.load_unit,
                           f"{self.path} (zero reference {reference:g}{unit})")
         return Measurement(values, tuple(self.sensors), loads, source=str(self.path), reference_load=reference,
-                           notes=tuple(self.notes), ignored_columns=tuple(self.ignored))
+                           notes=tuple(self.notes), ignored_columns=tuple(self.ignored),
+                           sensor_units=tuple(self.sensor_units[n] for n in self.sensors))
 
     def _zero_at_phase_end(self, loads, values, rows):
         """Readings zeroed at the last row of the phase ``zero = "end of PHASE"`` names: the rows
@@ -748,6 +760,40 @@ class _Table:
             raise ValueError(f"{where}: {e}".replace(f"{self.path}: ", "", 1)) from None
 
 
+def response_csv(scenario, response):
+    """A simulated response as the measurement file :func:`read_measurement` reads back unchanged
+    (what ``podkrig simulate --format csv`` prints).
+
+    The column ``load`` (the scenario's load, or a nonlinear scenario's control displacement, with
+    its unit; step numbers bare), then each sensor with its unit (mm; the load reading ``F`` in
+    kN); levels to 6 significant digits, readings to 8; a level the run did not reach has empty
+    cells (missing readings). A reading the same at every level (the peak readings ``F_peak``,
+    ``d_peak``: sensor definitions of kind ``"peak"``) is written in the first row only — one
+    observation, as a lab log states it.
+
+    Parameters
+    ----------
+    scenario : fe.scenarios.Scenario
+        Its ``sensor_units`` and ``sensor_definitions()``.
+    response : fe.response.Response
+
+    Returns
+    -------
+    str
+    """
+    units = scenario.sensor_units
+    once = {n for n, d in scenario.sensor_definitions().items() if d.get("kind") == "peak"}
+    unit = response.load_unit
+    header = ["load" if unit == "step" else f"load [{unit}]"]
+    header += [f"{name} [{units.get(name, 'mm')}]" for name in response.sensor_names]
+    lines = [",".join(header)]
+    for k, (level, row) in enumerate(zip(response.load_levels, response.readings)):
+        cells = [f"{v:.8g}" if np.isfinite(v) and (k == 0 or name not in once) else ""
+                 for name, v in zip(response.sensor_names, row)]
+        lines.append(",".join([f"{level:g}", *cells]))
+    return "\n".join(lines) + "\n"
+
+
 def write_measurement_csv(path, measurement):
     """Write a measurement in the plain form :func:`read_measurement` reads (missing readings empty)."""
     with Path(path).open("w", newline="") as fh:
@@ -758,4 +804,4 @@ def write_measurement_csv(path, measurement):
 
 
 __all__ = ["MAX_FILE_BYTES", "REPEATS", "ImportSettings", "phase_label", "read_measurement", "read_measurement_csv",
-           "split_header", "unit_factor", "write_measurement_csv", "zero_phase"]
+           "response_csv", "split_header", "unit_factor", "write_measurement_csv", "zero_phase"]

@@ -45,6 +45,7 @@ import numpy as np
 
 from podkrig import __version__, h5integrity
 from podkrig.exceptions import SchemaError, StoreError
+from podkrig.limits import MAX_ARRAY_FILE_BYTES, human_bytes
 from podkrig.surrogate.podkriging import PODKriging
 
 logger = logging.getLogger(__name__)
@@ -121,13 +122,18 @@ def load_surrogate(path):
     Raises
     ------
     StoreError
-        Missing, unreadable, damaged or non-surrogate file.
+        Missing, unreadable, damaged or non-surrogate file, or one over
+        :data:`~podkrig.limits.MAX_ARRAY_FILE_BYTES` on disk or in its arrays unpacked (naming the cap).
     SchemaError
         Unknown schema version.
     """
     path = Path(path)
     if not path.is_file():
         raise StoreError(f"no surrogate file at {path}; build one with 'podkrig surrogate build'")
+    cap = MAX_ARRAY_FILE_BYTES
+    too_large = f"{path}: larger than {human_bytes(cap)} ({cap} bytes), the cap for a surrogate file: "
+    if path.stat().st_size > cap:
+        raise StoreError(f"{too_large}it is {human_bytes(path.stat().st_size)}")
     if not h5integrity.verify(path, "surrogate"):
         logger.warning("%s has no checksum (written by an older podkrig): damage cannot be detected; rebuild it", path)
     try:
@@ -143,6 +149,10 @@ def load_surrogate(path):
         if version not in READABLE_SCHEMAS:
             raise SchemaError(f"{path} has surrogate schema version {version!r}; "
                               f"this podkrig reads {', '.join(map(str, READABLE_SCHEMAS))}; rebuild it")
+        sizes = []  # the arrays' sizes as their headers declare them (a compressed array unpacks to these)
+        f.visititems(lambda name, item: sizes.append(item.nbytes) if isinstance(item, h5py.Dataset) else None)
+        if sum(sizes) > cap:
+            raise StoreError(f"{too_large}its arrays unpack to {human_bytes(sum(sizes))}")
         try:
             attrs = {name: json.loads(f.attrs[name]) for name in _JSON_ATTRS}
             if "backend" in f.attrs:  # schema 1: always ours

@@ -25,13 +25,19 @@ written by :mod:`podkrig.reports.findings` at the edge (the command line, the st
 Codes and their ``values``
 --------------------------
 - ``load-scale``: ``source``, ``column``, ``row`` (1-based, or None), ``load_max`` and
-  ``level_max`` (load unit), ``unit``, ``ratio`` (-), ``likely_unit`` (str or None);
+  ``level_max`` (load unit), ``unit``, ``ratio`` (-), ``likely_unit`` (str or None), ``quantity``;
 - ``load-sign``: ``source``, ``column``, ``row``, ``n_loads``, ``load_min``, ``level_min``,
-  ``level_max``, ``unit``;
+  ``level_max``, ``unit``, ``quantity``;
+
+``quantity`` is ``"load"``, or ``"control displacement"`` for a displacement-controlled
+(nonlinear) scenario, whose "loads" are the levels of its control displacement (a length unit):
+the checks are the same — a µm log under a ``mm`` header is 1000× the last level, a control of the
+other sign a sign convention — while the force is a reading (checked by :func:`check_readings`,
+which lets it fall past the peak).
 - ``reading-scale``: ``source``, ``sensor``, ``direction`` ("larger" or "smaller"), ``ratio``
   (-; the factor to the middle of the runs' range), ``unit_slip`` (bool: the ratio lies in
-  :data:`UNIT_SLIP_RATIO`, a µm ↔ mm slip), ``runs`` ("probe", "training" or "surrogate"),
-  ``n_runs``;
+  :data:`UNIT_SLIP_RATIO`, a µm ↔ mm slip — N ↔ kN for a force), ``runs`` ("probe", "training" or
+  "surrogate"), ``n_runs``, ``unit`` (the sensor's: mm, or kN for a load reading);
 - ``reading-sign``: ``source``, ``sensor``, ``runs``, ``n_runs``.
 
 Thresholds
@@ -62,6 +68,9 @@ UNIT_SLIP_RATIO = (300.0, 3000.0)
 #: Loads of the opposite sign of every model level are refused beyond this share of the top
 #: level's magnitude (a load cell's offset at rest is smaller).
 LOAD_OFFSET_SHARE = 0.02
+
+#: Load units that are lengths: the scenario is displacement-controlled, its "load" the control displacement.
+CONTROL_UNITS = ("mm",)
 
 #: unit → {power of ten of (value as read) / (value in the unit): the unit the file was probably in}
 _NEIGHBOURS = {
@@ -147,6 +156,7 @@ def check_loads(loads, levels, load_unit="", *, source="measurement", column="lo
         return None if rows is None else int(rows[i])
 
     found = []
+    quantity = "control displacement" if load_unit in CONTROL_UNITS else "load"
     sign = 1.0 if np.all(levels >= 0) else -1.0 if np.all(levels <= 0) else 0.0
     if sign:
         wrong = sign * loads < -LOAD_OFFSET_SHARE * top
@@ -155,14 +165,14 @@ def check_loads(loads, levels, load_unit="", *, source="measurement", column="lo
             found.append(Finding("load-sign", "measurement", {
                 "source": str(source), "column": column, "row": row(i), "n_loads": int(wrong.sum()),
                 "load_min": float(loads[i]), "level_min": float(levels.min()), "level_max": float(levels.max()),
-                "unit": load_unit}, level="error"))
+                "unit": load_unit, "quantity": quantity}, level="error"))
     i = int(np.argmax(np.abs(loads)))
     ratio = float(abs(loads[i])) / top
     if ratio >= RANGE_FACTOR:
         found.append(Finding("load-scale", "measurement", {
             "source": str(source), "column": column, "row": row(i), "load_max": float(loads[i]),
             "level_max": float(levels[np.argmax(np.abs(levels))]), "unit": load_unit, "ratio": ratio,
-            "likely_unit": likely_unit(load_unit, ratio)}, level="error"))
+            "likely_unit": likely_unit(load_unit, ratio), "quantity": quantity}, level="error"))
     if found:
         raise MeasurementCheckError(found)
 
@@ -203,6 +213,7 @@ def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="tr
     lo, hi = UNIT_SLIP_RATIO
     found = []
     for j, name in enumerate(data.sensor_names):
+        common["unit"] = data.sensor_units[j]
         sel = col == j
         dj, sj, gj = d[sel], sd[sel], G[:, sel]
         if not len(dj):

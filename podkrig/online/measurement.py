@@ -1,9 +1,10 @@
 """Measured responses, how a model is evaluated at them, and their noise model (no file reading
 here; see :mod:`podkrig.io.measurement_log`).
 
-A :class:`Measurement` holds measured readings ``(n_loads, n_sensors)`` in mm for a subset of a
-scenario's sensors, at any measured loads (a lab log: 10.03, 10.41 … kN); a missing reading is
-NaN. :meth:`Measurement.observation` gives the :class:`ObservationOperator` that evaluates a
+A :class:`Measurement` holds measured readings ``(n_loads, n_sensors)`` in mm (in kN for the load
+reading ``F`` of a displacement-controlled scenario: a force–displacement curve is data) for a
+subset of a scenario's sensors, at any measured loads (a lab log: 10.03, 10.41 … kN; or control
+displacements, mm); a missing reading is NaN. :meth:`Measurement.observation` gives the :class:`ObservationOperator` that evaluates a
 model's flattened (load-major, C order) output vector at the observed entries:
 
 * at a modelled load level, the model's own output;
@@ -38,15 +39,27 @@ LOAD_RESPONSES = ("affine", "path", "discrete")
 #: ``docs/references.md`` "INFERRED choices": ``noise_abs`` / ``noise_rel`` override them); a
 #: mechanical deformometer or dial gauge reads to 1 µm ("millesimal"); δ = 1 % is the "1.0 % error
 #: range" of the thesis (§3.2 caption, the only noise level it states; its use as a
-#: calibration/linearity term is a choice).
+#: calibration/linearity term is a choice). A load cell (the force of a displacement-controlled
+#: test, kN): σ_res = 0.05 kN and δ = 1 % (INFERRED typical values of a 0.5–1 % class cell on a
+#: 50–100 kN range).
 INSTRUMENTS = {
     "lvdt": {"sigma_res_mm": 0.001, "delta": 0.01,
-             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED), δ = 1 % (thesis §3.2)"},
+             "text": "LVDT / extensometer: σ_res = 1 µm (typical 1–5 µm, INFERRED: docs/references.md), δ = 1 % (thesis §3.2)"},
     "dial_gauge": {"sigma_res_mm": 0.001, "delta": 0.01,
                    "text": "dial gauge / mechanical deformometer: resolution 1 µm, δ = 1 %"},
     "dic": {"sigma_res_mm": 0.0025, "delta": 0.0,
-            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED), no relative part"},
+            "text": "DIC point, per component: σ_res = 2.5 µm (typical 2.5–5 µm, INFERRED: docs/references.md), no relative part"},
+    "load_cell": {"sigma_res_mm": 0.05, "delta": 0.01, "unit": "kN",
+                  "text": "load cell (a force, kN): σ_res = 0.05 kN, δ = 1 % (typical values, INFERRED: docs/references.md)"},
 }
+
+
+def instrument_unit(name):
+    """The unit instrument ``name`` of :data:`INSTRUMENTS` reads, ``"mm"`` unless its entry says
+    ``unit`` (the load cell: ``"kN"``; its ``sigma_res_mm`` is then in that unit)."""
+    return INSTRUMENTS[name].get("unit", "mm")
+
+
 #: Smallest credible σ of one reading, mm: half the finest resolution of the instruments above
 #: (1 µm). A smaller σ makes the region of equivalence optimistic (a 1 %-relative model
 #: gave the 2 µm U1 gauge σ ≈ 0.02 µm); :meth:`NoiseModel.below_floor` names such sensors.
@@ -191,7 +204,7 @@ def level_weights(loads, levels, load_response="discrete", load_unit="", source=
             if np.any(outside):
                 bad = loads[outside]
                 raise ValueError(
-                    f"{source}: {int(outside.sum())} measured load(s) lie outside the modelled range "
+                    f"{source}: {int(outside.sum())} measured control value(s) lie outside the modelled range "
                     f"[{L[0]:g}, {L[-1]:g}]{unit} of this nonlinear scenario (e.g. {bad[0]:g}{unit}; extremes "
                     f"{bad.min():g} and {bad.max():g}{unit}); the model is not extrapolated past its levels: "
                     "restrict the measurement's load range (load_range) or extend the scenario's load_levels")
@@ -224,6 +237,8 @@ class Measurement:
         What the import did (columns ignored, units converted, sensors not used ...), for the user.
     ignored_columns : tuple of str
         Columns of the file that name no sensor of the model (time, channel numbers ...).
+    sensor_units : tuple of str
+        The unit of each sensor's readings (mm; kN for a load reading); empty: every sensor in mm.
     """
 
     values: np.ndarray
@@ -233,12 +248,18 @@ class Measurement:
     reference_load: float | None = None
     notes: tuple = ()
     ignored_columns: tuple = ()
+    sensor_units: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "values", np.asarray(self.values, dtype=float))
         object.__setattr__(self, "load_levels", np.asarray(self.load_levels, dtype=float))
         object.__setattr__(self, "sensor_names", tuple(self.sensor_names))
         object.__setattr__(self, "notes", tuple(self.notes))
+        units = tuple(self.sensor_units) or ("mm",) * len(self.sensor_names)
+        if len(units) != len(self.sensor_names):
+            raise ValueError(f"{self.source}: sensor_units must give one unit per sensor ({len(self.sensor_names)}); "
+                             f"got {len(units)}")
+        object.__setattr__(self, "sensor_units", units)
         shape = (len(self.load_levels), len(self.sensor_names))
         if self.values.shape != shape:
             raise ValueError(f"{self.source}: values must have shape {shape} (n_loads, n_sensors); got {self.values.shape}")
@@ -282,7 +303,7 @@ class Measurement:
         values = np.full(self.values.shape, np.nan)
         values[self.mask] = d
         return Measurement(values, self.sensor_names, self.load_levels, source or self.source,
-                           self.reference_load, self.notes, self.ignored_columns)
+                           self.reference_load, self.notes, self.ignored_columns, self.sensor_units)
 
     def check_summary(self, sensor_names, noise, floor=SIGMA_FLOOR_MM):
         """What a user should know before any FE work: counts, columns not used, σ below ``floor``
@@ -370,12 +391,16 @@ class NoiseModel:
         Full data covariance ``C_d``, mm², in the measurement's (load-major) order.
     floor : float
         Smallest σ of a purely relative model, mm (a reading of zero is not known exactly either).
+    units : dict of str to str, optional
+        Sensor name → the unit of its readings and σ_res where it is not mm (a load reading ``F``:
+        kN), for :meth:`describe`.
     """
 
     sigma: float | dict | None = None
     delta: float | dict | None = None
     covariance: np.ndarray | None = field(default=None, repr=False)
     floor: float = 1e-6
+    units: dict | None = None
 
     def __post_init__(self):
         _require_finite_noise(self)
@@ -444,9 +469,12 @@ class NoiseModel:
         if self.covariance is not None:
             return "full covariance C_d"
 
+        units = self.units or {}
+
         def fmt(v, unit, scale=1.0):
             if isinstance(v, dict):
-                return ", ".join(f"{k} {scale * x:g}{unit}" for k, x in v.items())
+                return ", ".join(f"{k} {scale * x:g}{unit if unit != ' mm' else ' ' + units.get(k, 'mm')}"
+                                 for k, x in v.items())
             return f"{scale * v:g}{unit}"
         parts = []
         if self.sigma is not None:
@@ -458,30 +486,47 @@ class NoiseModel:
         return ("absolute, " if self.sigma is not None else "relative, ") + parts[0]
 
 
-def instrument_noise(instruments, sensor_names):
+def instrument_noise(instruments, sensor_names, sensor_units=None):
     """Per-sensor σ_res and δ of named instruments (:data:`INSTRUMENTS`).
 
     Parameters
     ----------
     instruments : str or dict of str to str
-        One instrument for every sensor, or sensor name → instrument.
+        One instrument for every sensor of its unit, or sensor name → instrument. One name given
+        for all: the sensors of another unit take ``load_cell`` (a force, kN) — a displacement
+        instrument never weighs a force.
     sensor_names : sequence of str
+    sensor_units : sequence of str, optional
+        The unit of each sensor (mm; kN for a load reading); default all mm. An instrument of
+        another unit than its sensor's is refused.
 
     Returns
     -------
     NoiseModel
     """
+    units = dict(zip(sensor_names, sensor_units or ("mm",) * len(sensor_names)))
     if isinstance(instruments, str):
-        instruments = dict.fromkeys(sensor_names, instruments)
+        if instruments in INSTRUMENTS:
+            forces = [n for n in sensor_names if units[n] != instrument_unit(instruments) and units[n] == "kN"]
+            instruments = {n: "load_cell" if n in forces else instruments for n in sensor_names}
+        else:
+            instruments = dict.fromkeys(sensor_names, instruments)
     unknown = {k: v for k, v in instruments.items() if v not in INSTRUMENTS}
     if unknown:
         raise ValueError(f"unknown instrument(s) {unknown}; known: {sorted(INSTRUMENTS)}")
     missing = [s for s in sensor_names if s not in instruments]
     if missing:
         raise ValueError(f"no instrument given for sensor(s) {missing}")
-    sigma = {s: INSTRUMENTS[instruments[s]]["sigma_res_mm"] for s in sensor_names}
+    wrong = [s for s in sensor_names if instrument_unit(instruments[s]) != units[s]]
+    if wrong:
+        s = wrong[0]
+        raise ValueError(f"instrument {instruments[s]!r} of sensor {s!r} reads {instrument_unit(instruments[s])}, but "
+                         f"{s} reads {units[s]}: give {s} an instrument in {units[s]} (e.g. "
+                         f"{'load_cell' if units[s] == 'kN' else 'lvdt'})")
+    sigma = {s: INSTRUMENTS[instruments[s]]["sigma_res_mm"] for s in sensor_names}  # in each sensor's unit
     delta = {s: INSTRUMENTS[instruments[s]]["delta"] for s in sensor_names}
-    return NoiseModel(sigma=sigma, delta=delta)
+    other = {s: u for s, u in units.items() if u != "mm"}
+    return NoiseModel(sigma=sigma, delta=delta, units=other or None)
 
 
 def _require_finite_noise(noise):

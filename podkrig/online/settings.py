@@ -24,7 +24,8 @@ from pydantic import AfterValidator, StrictBool, StrictFloat, StrictInt
 
 from podkrig import limits
 from podkrig.config import Seed, allowed, choice, field_info, limit, settings, settings_error, type_name
-from podkrig.online.measurement import DELTA_RANGE, INSTRUMENTS, SIGMA_RANGE_MM, NoiseModel, instrument_noise
+from podkrig.online.measurement import (DELTA_RANGE, INSTRUMENTS, SIGMA_RANGE_MM, NoiseModel, instrument_noise,
+                                         instrument_unit)
 from podkrig.online.model_error import parse_model_form_error
 
 __all__ = [
@@ -115,13 +116,14 @@ class NoiseSettings:
     def __post_init__(self):
         check_noise(self.noise_abs, self.noise_rel, self.instrument)
 
-    def noise_model(self, sensor_names=None):
+    def noise_model(self, sensor_names=None, sensor_units=None):
         """The :class:`~podkrig.online.measurement.NoiseModel` (``sensor_names``: the measured
-        sensors, needed for ``instrument``)."""
+        sensors, needed for ``instrument``; ``sensor_units``: their units, mm or kN for a load
+        reading, see :func:`~podkrig.online.measurement.instrument_noise`)."""
         if self.instrument is not None:
             if sensor_names is None:
                 raise ValueError("an instrument noise model needs the measured sensor names")
-            return instrument_noise(self.instrument, sensor_names)
+            return instrument_noise(self.instrument, sensor_names, sensor_units)
         return NoiseModel(sigma=self.noise_abs, delta=self.noise_rel)
 
     def unknown_sensors(self, sensor_names):
@@ -148,7 +150,8 @@ class NoiseSettings:
             return self.noise_rel, self.noise_abs
         kinds = self._kinds()
         rel = min(INSTRUMENTS[k]["delta"] for k in kinds)
-        return (rel or None), min(INSTRUMENTS[k]["sigma_res_mm"] for k in kinds)
+        mm = [INSTRUMENTS[k]["sigma_res_mm"] for k in kinds if instrument_unit(k) == "mm"]  # not a load cell's kN
+        return (rel or None), (min(mm) if mm else None)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -215,6 +215,8 @@ def _where(v):
 
 def _load_scale(v, context, diagnosis_enabled):
     unit, likely = v["unit"], v.get("likely_unit")
+    if v.get("quantity") == "control displacement":
+        return _control_scale(v, context)
     guess = f": loads in {likely} under a {unit} header?" if likely else ": a unit error?"
     how = ("--load-column names the column" if context == "cli"
            else "[measurement] load_column names the column")
@@ -227,10 +229,29 @@ def _load_scale(v, context, diagnosis_enabled):
             f"({how}).")
 
 
+def _control_scale(v, context):
+    """``load-scale`` of a displacement-controlled scenario: the control column's unit."""
+    unit, likely = v["unit"], v.get("likely_unit")
+    guess = f": displacements in {likely} under a {unit} header?" if likely else ": a unit error?"
+    how = "--load-column names the column" if context == "cli" else "[measurement] load_column names the column"
+    base = re.split(r"[\[(]", v["column"])[0].strip() or "load"
+    example = f"here probably {quote(f'{base} [{likely}]')}" if likely else f"e.g. {quote(f'{base} [µm]')}"
+    return (f"{_where(v)}: a control displacement of {v['load_max']:g} {unit} is about {_power_of_ten(v['ratio'])}× "
+            f"the model's last control level {v['level_max']:g} {unit}{guess}",
+            f"state the unit in the header of the control column ({example}) or convert the column to {unit} ({how}).")
+
+
 def _load_sign(v, context, diagnosis_enabled):
     unit = v["unit"]
     side = "positive" if v["level_min"] >= 0 else "negative"
     rows = ("--load-range LOWER,UPPER" if context == "cli" else "[measurement] load_range = [lower, upper]")
+    if v.get("quantity") == "control displacement":
+        return (f"{_where(v)}: {v['n_loads']} control displacement(s) are "
+                f"{'negative' if side == 'positive' else 'positive'} (as far as {v['load_min']:g} {unit}) while the "
+                f"model's control levels are {side} ({v['level_min']:g} to {v['level_max']:g} {unit}): a sign "
+                "convention?",
+                f"the control is the displacement along the loading direction (a push, a pull, a shortening), "
+                f"positive: negate the control column, or leave those rows out ({rows}).")
     return (f"{_where(v)}: {v['n_loads']} load(s) are {'negative' if side == 'positive' else 'positive'} (as far as "
             f"{v['load_min']:g} {unit}) while the model's load levels are {side} ({v['level_min']:g} to "
             f"{v['level_max']:g} {unit}): a sign convention?",
@@ -251,10 +272,12 @@ def _reading_problem(v):
     if v["code"] == "reading-sign":
         return (f"{v['sensor']} has the opposite sign of every FE run at every reading beyond 3σ: a sign error (a "
                 "gauge mounted the other way round, or another sign convention)?")
+    force = v.get("unit") == "kN"  # the load reading of a curve
     if v["direction"] == "larger":
-        guess = ": µm read as mm?" if v["unit_slip"] else ": a unit error?"
+        slip = ": N read as kN?" if force else ": µm read as mm?"
     else:
-        guess = ": mm read as µm (or m)?" if v["unit_slip"] else ": a unit error?"
+        slip = ": kN read as N (or MN)?" if force else ": mm read as µm (or m)?"
+    guess = slip if v["unit_slip"] else ": a unit error?"
     return f"{v['sensor']} is about {_power_of_ten(v['ratio'])}× {v['direction']} than every FE run{guess}"
 
 

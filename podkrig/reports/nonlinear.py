@@ -31,6 +31,7 @@ SETTING_UNITS = {
     "detour_after_failures": "failed increments", "relaxed_factor": "- (× tolerance)", "predictor": "choice",
     "step_rule": "choice", "peak_tolerance": "- (load change / load)", "max_peak_steps": "increments",
     "max_peak_levels": "bracket halvings", "peak_newton_tolerance": "- (force residual / force)",
+    "divergence_factor": "- (× distance of the first iterate)",
 }
 
 

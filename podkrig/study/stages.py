@@ -102,15 +102,16 @@ class StudyRun(StageCache):
     def measurement(self, test, sensor_names=None, load_levels=None, load_unit=None, load_response=None):
         """A test's measurement log read once for its scenario's sensors and loads (or those given):
         (Measurement, NoiseModel)."""
+        sc = self.scenario(test)
+        sensor_units = sc.sensor_units  # mm, and kN for a nonlinear scenario's load reading
         if sensor_names is None:
-            sc = self.scenario(test)
             sensor_names, load_levels, load_unit = sc.sensor_names, sc.load_levels, sc.load_unit
             load_response = getattr(sc, "load_response", "discrete")
         key = (test.name, tuple(sensor_names), tuple(np.asarray(load_levels, dtype=float).tolist()), load_unit,
                load_response)
         if key not in self._measurements:
             self._measurements[key] = read_study_measurement(test, sensor_names, load_levels, load_unit,
-                                                             load_response)
+                                                             load_response, sensor_units)
         return self._measurements[key]
 
     def surrogate(self, path):
@@ -203,14 +204,16 @@ def _run_store(run, path, spec, space, design):
     return summary, notes
 
 
-def read_study_measurement(test, sensor_names, load_levels, load_unit, load_response):
-    """A test's measurement log read for a model: (Measurement, NoiseModel)."""
+def read_study_measurement(test, sensor_names, load_levels, load_unit, load_response, sensor_units=None):
+    """A test's measurement log read for a model: (Measurement, NoiseModel); ``sensor_units``:
+    sensor → unit (mm, kN for a load reading; default all mm)."""
     m = test.measurement
     try:
-        data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings())
+        data = read_measurement(m.file, sensor_names, load_levels, load_unit, load_response, m.import_settings(),
+                                sensor_units)
     except MeasurementCheckError as e:
         raise ValueError(refusal(e, "study")) from None
-    return data, m.noise.noise_model(data.sensor_names)
+    return data, m.noise.noise_model(data.sensor_names, data.sensor_units)
 
 
 def measurement_check(run, test):

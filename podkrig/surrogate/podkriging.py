@@ -467,6 +467,10 @@ def fit_from_store(store, pod=None, kriging=None, output="readings"):
         "load_levels": np.asarray(store.load_levels).tolist(),
         "load_unit": store.load_unit,
         "reading_unit": store.reading_unit,
+        # the unit of each sensor: mm, a load reading's own (sensor_definitions kind "force")
+        "sensor_units": [store.sensor_definitions.get(n, {}).get("unit", "mm")
+                         if store.sensor_definitions.get(n, {}).get("kind") == "force" else "mm"
+                         for n in store.sensor_names],
         "output": output,
         "n_nodes": int(store.n_nodes),
         "n_train": len(X),

@@ -60,7 +60,8 @@ CRITERIA = ("ml", "loo")
 # why: L^-1 of every output is kept for the variance while it takes at most this much memory
 # (6 outputs of 1 024 snapshots: 50 MB); beyond, triangular solves per output
 EXPLICIT_INVERSE_BYTES = 64 * 2**20
-# why: the (n_outputs, block, n) cross-covariances of one variance block stay this small
+# why: the (n_outputs, block, n) cross-covariances of one variance block stay this small; 8-64 MB
+# changed the variance rate by < 15 % at n = 1 024 and 4 096 (4 outputs, one core): BLAS-bound
 VARIANCE_BLOCK_BYTES = 16 * 2**20
 # why (fit_subset="auto"): above this many samples the hyperparameters are fitted on a random
 # subset of SUBSET_SIZE samples and the kriging system of all samples is factorised once per
@@ -326,7 +327,9 @@ class OrdinaryKriging:
     forming the cross-covariance matrix (one exponential per output and training point, plus one
     logarithm per training point and dimension for exponents other than 1, 1.5 and 2; numba
     threads split the prediction points, with results independent of their number);
-    ``return_std`` forms it and costs :math:`O(n_{pred} n^2)` per output.
+    ``return_std`` forms it and costs :math:`O(n_{pred} n^2)` per output: :math:`n^2` flops per point
+    for :math:`\\lVert L^{-1} k \\rVert^2`, at the BLAS rate (about 2 700 points per CPU second per
+    output at n = 4 096 on one AVX-512 core), once for all outputs whose hyperparameters coincide.
 
     References
     ----------
@@ -691,22 +694,33 @@ class OrdinaryKriging:
           (:func:`podkrig.surrogate.kriging._kernels.plan`, ~50 µs, as much as predicting a few points);
         - ``_ones_weights``: :math:`w_j = K_j^{-1} 1 = L_j^{-T} L_j^{-1} 1` per output (exponential
           family), ``(n_outputs, n)``;
-        - ``_L_inverse``: :math:`L_j^{-1}` per output, a list of ``(n, n)`` when it takes at most
-          :data:`EXPLICIT_INVERSE_BYTES` (Fortran order, for ``dtrmm``; a triangular product is 2-3x faster
-          than triangular solves for GA-sized batches; variances agree with the solves to ~1e-14 relative on the
-          demo surrogate, see tests), else ``None``.
+        - ``_shared``: per output, the first output with a bitwise-equal Cholesky factor (equal
+          ranges and exponent: fixed hyperparameters, or fitted ones that met), ``(n_outputs,)``;
+          such outputs share one :math:`\\lVert L^{-1} k \\rVert^2` per point, the O(n²) part of
+          the variance, so a POD of many modes at shared hyperparameters costs one mode's variance;
+        - ``_L_inverse``: :math:`L_j^{-1}` per distinct factor, a dict output -> ``(n, n)`` when
+          they take at most :data:`EXPLICIT_INVERSE_BYTES` (Fortran order, for ``dtrmm``; a triangular
+          product is 2-3x faster than triangular solves for GA-sized batches; variances agree with the
+          solves to ~1e-14 relative on the demo surrogate, see tests), else ``None``.
         """
         hp = self.hyperparameters_
         self._theta = hp.theta
         self._plan_unit = _kernels.plan(self._theta, hp.beta, 1.0)
         ones = np.ones(self.X_.shape[0])
         self._L_inverse = self._ones_weights = None
+        self._shared = np.arange(self.n_outputs_)
         if self.kind_ == EXPONENTIAL:
             n = self.X_.shape[0]
-            if self.L_.size * 8 <= EXPLICIT_INVERSE_BYTES:
+            for j in range(1, self.n_outputs_):
+                same = (i for i in range(j) if self._shared[i] == i and hp.beta[i] == hp.beta[j]
+                        and np.array_equal(hp.ranges[i], hp.ranges[j]) and np.array_equal(self.L_[i], self.L_[j]))
+                self._shared[j] = next(same, j)
+            distinct = np.unique(self._shared)
+            if len(distinct) * n * n * 8 <= EXPLICIT_INVERSE_BYTES:
                 eye = np.eye(n)
-                self._L_inverse = [np.asfortranarray(solve_triangular(L, eye, lower=True, check_finite=False))
-                                   for L in self.L_]
+                self._L_inverse = {int(j): np.asfortranarray(solve_triangular(self.L_[j], eye, lower=True,
+                                                                              check_finite=False))
+                                   for j in distinct}
             u = [solve_triangular(L, ones, lower=True, check_finite=False) for L in self.L_]
             self._ones_weights = np.stack([solve_triangular(L, uj, lower=True, trans="T", check_finite=False)
                                            for L, uj in zip(self.L_, u)])
@@ -905,6 +919,9 @@ class OrdinaryKriging:
             return sigma2 * (self.c0_[:, None] - 2.0 * np.einsum("jpi,ji->jp", K, self.q1_) - quad)
         quad = np.empty(K.shape[:2])
         for j in range(self.n_outputs_):  # a handful of POD modes, each one BLAS-3 call
+            if self._shared[j] != j:  # the same factor (and covariances) as an earlier output
+                quad[j] = quad[self._shared[j]]
+                continue
             if self._L_inverse is not None:  # triangular product: half the flops of a full one
                 V = dtrmm(1.0, self._L_inverse[j], K[j].T, side=0, lower=1)
             else:
