@@ -283,7 +283,8 @@ def test_diagnosis_findings_name_every_cause_in_order():
 
 def test_every_code_of_the_policy_has_words():
     """Defect: a code the policy emits without an entry in the words (a KeyError in a report)."""
-    emitted = {"fe-check", "at-bound", "chi2-dof", "unidentified", "insensitive", "fe-failed", "measurement-columns",
+    emitted = {"fe-check", "at-bound", "chi2-dof", "unidentified", "insensitive", "fe-failed", "near-failure",
+               "measurement-columns",
                "noise-below-floor", "surrogate-error", "surrogate-coverage", "diagnosis-unexplained",
                "diagnosis-cause",
                # the measurement check's refusals (podkrig.online.data_check)

@@ -245,7 +245,7 @@ def test_training_data_are_the_finished_rows_of_the_store(store_path, tmp_path, 
 def test_fit_from_store_fits_the_store_on_its_space_and_records_where_it_came_from(store_path):
     """Defects: the store's space not used for scaling, the templates not passed on, a provenance
     entry missing or wrong (store path, content hash, scenario, sensors, load levels and unit,
-    reading unit, output kind, node count, training size)."""
+    reading unit, each sensor's unit, output kind, node count, training size)."""
     with SnapshotStore.open(store_path) as s:
         sur = fit_from_store(s, pod=POD(n_modes=1), kriging=OrdinaryKriging(beta=1.5))
         X, Y = training_data(s)
@@ -261,6 +261,7 @@ def test_fit_from_store_fits_the_store_on_its_space_and_records_where_it_came_fr
             "scenario_spec": s.spec.to_dict(), "sensor_names": list(s.sensor_names),
             "load_levels": list(s.load_levels), "load_unit": s.load_unit, "reading_unit": "mm",
             "output": "readings", "n_nodes": s.n_nodes, "n_train": 5,
+            "sensor_units": ["mm"] * len(s.sensor_names),  # a linear test: every reading is a length
         }
         field = fit_from_store(s, output="field")
         assert field.provenance_["output"] == "field"

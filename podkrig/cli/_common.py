@@ -32,6 +32,7 @@ from podkrig.surrogate.settings import SurrogateSettings
 __all__ = [
     "KrigingCriterion",
     "LinearSolver",
+    "FailedRows",
     "PlacementCriterion",
     "RegionMethod",
     "ResponseFormat",
@@ -74,6 +75,8 @@ Variogram = _choices_enum("Variogram", SurrogateSettings, "variogram",
 KrigingCriterion = _choices_enum("KrigingCriterion", SurrogateSettings, "criterion",
                                  "Hyperparameters by likelihood or by leave-one-out (``--criterion``).")
 SurrogateBackend = _choices_enum("SurrogateBackend", SurrogateSettings, "backend", "Surrogate backend (``--backend``).")
+FailedRows = _choices_enum("FailedRows", SurrogateSettings, "failed_rows",
+                           "What a surrogate fit does with a store's failed rows (``--failed-rows``).")
 PlacementCriterion = _choices_enum("PlacementCriterion", SearchSettings, "criterion",
                                    "Criterion of the sensor layout (``podkrig sensors --criterion``).")
 

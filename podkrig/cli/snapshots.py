@@ -69,7 +69,7 @@ def run(
     from podkrig.offline.results import OfflineResult
     from podkrig.offline.runner import rows_to_run, run_snapshots
     from podkrig.parameters import ParameterSpace, parse_params
-    from podkrig.reports.offline import rows_text
+    from podkrig.reports.offline import failure_lines, rows_text
     from podkrig.offline.store import store_bytes_per_row
 
     with user_errors():
@@ -106,6 +106,8 @@ def run(
         f"({rate if math.isfinite(rate) else 0:.1f} snapshots/s, {result.executor})"
     )
     if result.failed:
+        for line in failure_lines(result.failure):
+            typer.echo(line, err=True)
         typer.echo(
             f"{result.failed} rows failed: see 'podkrig snapshots info {store}'; rerun with --retry-failed "
             "to run them again", err=True,
@@ -117,14 +119,18 @@ def info(
     path: Path = typer.Argument(..., help="Snapshot store."),
     format: TextFormat = typer.Option(TextFormat.text, "--format", help="Output format: text or json."),
 ):
-    """Describe a snapshot store: provenance, scenario, parameters, sensors, row status."""
+    """Describe a snapshot store: provenance, scenario, parameters, sensors, row status, failed runs."""
+    from podkrig.offline.failures import failure_report
     from podkrig.offline.store import SnapshotStore
+    from podkrig.reports.offline import failure_lines
 
     with user_errors():
         if format not in ("text", "json"):
             raise ValueError(f"--format must be text or json; got {format!r}")
         with SnapshotStore.open(path) as store:
             d = store.info()
+            failure = failure_report(store) if d["rows"]["failed"] else None
+        d["failure"] = None if failure is None else failure.to_dict()
     if format == "json":
         typer.echo(json.dumps(d, indent=2, ensure_ascii=False))
         return
@@ -159,8 +165,12 @@ def info(
         source = f", {event['source']}" if "source" in event else ""
         lines.append(f"history      {event['time']} {event['event']} ({event['rows']} rows{source})")
     lines.append(f"content      {d['content_hash']}")
-    for failure in d["failures"]:
-        lines.append(f"failed row {failure['row']}: {failure['error']}")
+    if d["solver_settings"]:
+        lines.append(f"solver       {json.dumps(d['solver_settings'])}")
+    for line in failure_lines(failure) if failure is not None else ():
+        lines.append(f"failures     {line}")
+    for row in d["failures"]:
+        lines.append(f"failed row {row['row']}: {row['error']}")
     typer.echo("\n".join(lines))
 
 

@@ -8,7 +8,7 @@ import typer
 
 from fe.scenarios import build_scenario
 from podkrig.cli._common import (
-    KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
+    FailedRows, KrigingCriterion, SamplingMethod, SurrogateBackend, TableFormat, Variogram, configure_logging,
     settings_from_options, user_errors,
 )
 from podkrig.config import field_info
@@ -47,7 +47,7 @@ def _beta(text):
         return text
 
 
-def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget):
+def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugget, failed_rows=None):
     """The :class:`~podkrig.surrogate.settings.SurrogateSettings` of ``podkrig surrogate build``'s
     options (None: not given, the settings' default); a kriging option with another backend than
     ours is refused, as that backend fits its own hyperparameters."""
@@ -57,7 +57,8 @@ def surrogate_settings(energy, modes, backend, variogram, beta, criterion, nugge
         if given:
             raise ValueError(f"{', '.join(given)} set(s) the podkrig kriging; backend {backend!r} fits its own "
                              "hyperparameters: drop the option(s) or use --backend podkrig")
-    options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend)}
+    options = {"energy": ("--energy", energy), "modes": ("--modes", modes), "backend": ("--backend", backend),
+               "failed_rows": ("--failed-rows", failed_rows)}
     options.update({k: (_KRIGING_OPTIONS[k], v) for k, v in ours.items()})
     return settings_from_options(SurrogateSettings, options)
 
@@ -87,13 +88,17 @@ def build(
     criterion: KrigingCriterion = typer.Option(None, "--criterion", help=f"Hyperparameters by 'ml' (likelihood) or 'loo' (leave-one-out); default {_DEFAULTS['criterion']!r} (podkrig backend)."),
     nugget: float = typer.Option(None, "--nugget", help=f"Nugget relative to the sill (default {_DEFAULTS['nugget']:g}: exact interpolation) (podkrig backend)."),
     field: bool = typer.Option(False, "--field", help="Model the displacement fields instead of the readings."),
+    failed_rows: FailedRows = typer.Option(FailedRows(_DEFAULTS["failed_rows"]), "--failed-rows",
+                                           help="Failed rows of STORE (FE runs that raised or stopped early): 'drop' "
+                                                "trains on the finished rows and names the failed ones, 'refuse' "
+                                                "stops."),
     verbose: bool = typer.Option(False, "--verbose", "-v"),
 ):
     """Fit a POD-kriging surrogate on the finished rows of STORE and save it to --out."""
     configure_logging(verbose)
     with user_errors():
         settings = surrogate_settings(energy, modes, backend.value, variogram and variogram.value, beta,
-                                      criterion and criterion.value, nugget)
+                                      criterion and criterion.value, nugget, failed_rows.value)
         with SnapshotStore.open(store) as s:
             sur = fit_surrogate(s, settings, output="field" if field else "readings")
         save_surrogate(sur, out)
@@ -104,6 +109,8 @@ def build(
         f"{out}: {fit.n_train} snapshots, {fit.n_modes} POD modes (retained energy {fit.retained_energy:.10f}), "
         f"{fitted}, trained in {fit.training_seconds:.2f} s"
     )
+    if fit.dropped_rows:
+        typer.echo(figs.dropped_text(fit.dropped_rows), err=True)
 
 
 @surrogate_app.command("validate")

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from podkrig.display import Displayed
+from podkrig.offline.failures import FailureReport, failure_report
 from podkrig.offline.store import SnapshotStore
 
 __all__ = ["OfflineResult"]
@@ -46,6 +47,9 @@ class OfflineResult(Displayed):
         ``"row I: error"`` of the first :data:`SHOWN_FAILURES` failed rows.
     notes : tuple of str
         What else a user should know (a store kept aside and rebuilt, a serial run of a small job).
+    failure : FailureReport or None
+        With failed rows: their share, reasons and the classifier of where they fail
+        (:func:`~podkrig.offline.failures.failure_report`).
     """
 
     total: int
@@ -58,6 +62,7 @@ class OfflineResult(Displayed):
     fe_seconds_total: float
     failures: tuple = ()
     notes: tuple = ()
+    failure: FailureReport | None = None
 
     @classmethod
     def from_store(cls, path, summary, notes=()):
@@ -67,17 +72,19 @@ class OfflineResult(Displayed):
             wall = store.wall_times()
             failures = [f"row {i}: {e}" for i, e in store.errors().items()][:SHOWN_FAILURES] if summary.failed else []
             n_dofs = store.n_dofs
+            failure = failure_report(store) if summary.failed else None
         ran = wall[np.isfinite(wall)]
         return cls(total=summary.total, done=summary.done, failed=summary.failed, pending=summary.pending,
                    executor=summary.executor, n_dofs=n_dofs,
                    fe_ms_per_run=float(1000 * ran.mean()) if len(ran) else None,
-                   fe_seconds_total=float(ran.sum()), failures=tuple(failures), notes=tuple(notes))
+                   fe_seconds_total=float(ran.sum()), failures=tuple(failures), notes=tuple(notes), failure=failure)
 
     def to_dict(self):
         """JSON-able dict (a study's offline manifest); :meth:`from_dict` reads it back."""
         return {"total": self.total, "done": self.done, "failed": self.failed, "pending": self.pending,
                 "executor": self.executor, "n_dofs": self.n_dofs, "fe_ms_per_run": self.fe_ms_per_run,
-                "fe_seconds_total": self.fe_seconds_total, "failures": list(self.failures), "notes": list(self.notes)}
+                "fe_seconds_total": self.fe_seconds_total, "failures": list(self.failures), "notes": list(self.notes),
+                "failure": None if self.failure is None else self.failure.to_dict()}
 
     @classmethod
     def from_dict(cls, d):
@@ -85,4 +92,5 @@ class OfflineResult(Displayed):
                    executor=d["executor"], n_dofs=int(d["n_dofs"]),
                    fe_ms_per_run=None if d["fe_ms_per_run"] is None else float(d["fe_ms_per_run"]),
                    fe_seconds_total=float(d["fe_seconds_total"]), failures=tuple(d.get("failures", ())),
-                   notes=tuple(d.get("notes", ())))
+                   notes=tuple(d.get("notes", ())),
+                   failure=None if d.get("failure") is None else FailureReport.from_dict(d["failure"]))

@@ -22,9 +22,13 @@ podkrig version differs from the store's is refused with a list of the differenc
 exception: **growing** ``n`` of a Sobol' store appends rows that continue the same scrambled
 sequence (points ``n_old .. n-1``), then runs them.
 
+A nonlinear scenario's solver settings (increments, budgets, tolerance: :data:`~podkrig.offline.store.SOLVER_SETTINGS`)
+are part of its spec, so a store records them and a rerun with another one is refused naming it.
 A failed FE run (any exception from ``Scenario.run``) becomes a ``failed`` row with its error
-text; a nonlinear run that stops early (budget or non-convergence) becomes a ``failed`` row whose
-error starts with ``NotConverged`` and which keeps the readings of the levels it reached; infrastructure failures (a task that cannot run, a worker with another podkrig version,
+text; a nonlinear run that stops early (budget or non-convergence) becomes a ``failed`` row, a
+*partial row*, whose error starts with ``NotConverged`` and its reach (the budget limit that ended
+it and the control value reached, :func:`~podkrig.offline.store.partial_error`) and which keeps
+the readings of the levels it reached; infrastructure failures (a task that cannot run, a worker with another podkrig version,
 workers that keep dying) stop the run with a :class:`~podkrig.exceptions.PodkrigError` after
 keeping every finished row.
 
@@ -62,7 +66,7 @@ from podkrig.exceptions import PodkrigError, StoreError
 from podkrig.limits import check_chunk_size, check_workers
 from podkrig.offline.files import acquire_lock, release_lock
 from podkrig.offline.sampling import METHODS, sample
-from podkrig.offline.store import DONE, FAILED, PARTIAL_PREFIX, SnapshotStore
+from podkrig.offline.store import DONE, FAILED, SOLVER_SETTINGS, SnapshotStore, partial_error
 from podkrig.parallel import close_local_cluster
 from podkrig.parameters import ParameterSpace
 
@@ -259,7 +263,8 @@ def run_chunk(spec_json, names, rows, X, field=False, limit_threads=False):
             if getattr(response, "status", "converged") != "converged":
                 # a nonlinear run that stopped early: a failed row with its reason and partial readings
                 status[j] = FAILED
-                errors[j] = f"{PARTIAL_PREFIX} ({response.status}): {response.message}"
+                errors[j] = partial_error(response.status, response.limit, response.reached, sc.load_unit,
+                                          response.message)
 
         except Exception as e:  # noqa: BLE001 - any FE failure is a failed row, never a crash
             status[j] = FAILED
@@ -290,7 +295,8 @@ def _differences(store, scenario, space, n, seed, sampling, fields):
     new = json.loads(scenario.spec.to_json())
     for key in sorted(set(old) | set(new)):
         if old.get(key) != new.get(key):
-            diffs.append(f"scenario spec {key!r}: {old.get(key)!r} (store) vs {new.get(key)!r} (now)")
+            what = "solver setting" if key in SOLVER_SETTINGS else "scenario spec"
+            diffs.append(f"{what} {key!r}: {old.get(key)!r} (store) vs {new.get(key)!r} (now)")
     if store.space.names != space.names:
         diffs.append(f"free parameters: {list(store.space.names)} (store) vs {list(space.names)} (now)")
     else:

@@ -17,7 +17,8 @@ Layout (``n`` rows, ``d`` free parameters, readings in mm, loads in the scenario
     /unit_parameters      (n, d) float64, the design in the unit cube
     /readings             (n, n_loads, n_sensors) float64, mm; NaN until done
     /status               (n,) enum int8: pending = 0, done = 1, failed = 2
-    /error                (n,) fixed-length UTF-8 bytes (first 512 bytes of the error text)
+    /error                (n,) fixed-length UTF-8 bytes (first 512 bytes of the error text; a partial
+                          row's starts with its status, limit and reach: partial_error)
     /wall_time            (n,) float64, s; wall time of the FE run, NaN until run
     /cpu_time             (n,) float64, s; CPU time of the thread that ran it (below wall time when
                           the worker waited for a core), NaN until run
@@ -77,6 +78,7 @@ import hashlib
 import json
 import logging
 import os
+import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -113,6 +115,13 @@ SCHEMA_VERSION = 1
 PENDING, DONE, FAILED = 0, 1, 2
 #: Error prefix of failed rows that hold a partial response (a nonlinear run that stopped early)
 PARTIAL_PREFIX = "NotConverged"
+#: Keys of a nonlinear scenario's spec that set its path following (increments, budgets, tolerance):
+#: the solver settings a store records in its scenario spec and shows apart (:meth:`SnapshotStore.info`)
+SOLVER_SETTINGS = ("increment", "max_increment", "max_steps", "max_iterations", "max_total_iterations",
+                   "max_cpu_seconds", "max_seconds", "tolerance")
+#: The head of a partial row's error text: its status, the budget limit that ended it and its reach
+_PARTIAL_HEAD = re.compile(rf"^{PARTIAL_PREFIX} \((?P<status>\w+)(?:: (?P<limit>\w+))?, reached (?P<reached>\S+) "
+                           r"(?P<unit>[^)]*)\): ")
 STATUS_NAMES = {PENDING: "pending", DONE: "done", FAILED: "failed"}
 ERROR_BYTES = 512
 
@@ -143,6 +152,27 @@ def software_versions():
         "hdf5": h5py.version.hdf5_version,
         "python": sys.version.split()[0],
     }
+
+
+def partial_error(status, limit, reached, unit, message):
+    """Error text of a nonlinear run that stopped early (a partial row), e.g.
+    ``"NotConverged (budget_exhausted: iterations, reached 0.0123 mm): iteration budget of 40 ..."``;
+    :meth:`SnapshotStore.partial_rows` reads its head back.
+
+    Parameters
+    ----------
+    status : str
+        ``"budget_exhausted"`` or ``"not_converged"`` (:attr:`fe.NonlinearResponse.status`).
+    limit : str or None
+        The budget limit that ended the run (``"steps"``, ``"iterations"``, ``"cpu"``, ``"wall"``).
+    reached : float
+        Last converged value of the control variable, ``unit``.
+    unit : str
+        Unit of the control variable.
+    message : str
+        The solver's reason.
+    """
+    return f"{PARTIAL_PREFIX} ({status}{f': {limit}' if limit else ''}, reached {float(reached):.6g} {unit}): {message}"
 
 
 def _now():
@@ -819,6 +849,20 @@ class SnapshotStore:
         raw = self._read("error")
         return {int(i): raw[i].decode("utf-8", errors="replace") for i in rows}
 
+    def partial_rows(self):
+        """Failed rows that hold a partial response (nonlinear runs that stopped early), with their
+        reach: ``{row: {"status", "limit", "reached", "unit"}}`` — the solver status, the budget
+        limit that ended the run (None: it did not converge), the last converged control value in
+        ``unit``. Rows written before the reach was recorded have ``limit`` and ``reached`` None."""
+        out = {}
+        for row, text in self.errors().items():
+            if not text.startswith(PARTIAL_PREFIX):
+                continue
+            m = _PARTIAL_HEAD.match(text)
+            out[row] = ({"status": m["status"], "limit": m["limit"], "reached": float(m["reached"]), "unit": m["unit"]}
+                        if m else {"status": None, "limit": None, "reached": None, "unit": self.load_unit})
+        return out
+
     def wall_times(self):
         """Wall time of each row's FE run, ndarray of shape (n_rows,), s; NaN where not run."""
         return self._read("wall_time")
@@ -904,6 +948,7 @@ class SnapshotStore:
             "software": self.software,
             "history": self.history,
             "scenario_spec": self.spec.to_dict(),
+            "solver_settings": {k: v for k, v in self.spec.to_dict().items() if k in SOLVER_SETTINGS},
             "parameter_space": self.space.to_dict(),
             "sampling": {"method": self.sampling, "seed": self.seed},
             "run_arguments": self.run_arguments,
@@ -919,6 +964,7 @@ class SnapshotStore:
             "wall_time_s": {"total": float(wall[ran].sum()), "mean": float(wall[ran].mean()) if ran.any() else None},
             "cpu_time_s": {"total": float(cpu.sum()), "mean": float(cpu.mean()) if len(cpu) else None},
             "failures": [{"row": i, "error": e} for i, e in list(errors.items())[:20]],
+            "partial_rows": {str(i): v for i, v in self.partial_rows().items()},
             "content_hash": self.content_hash(),
             "checksums": self.checksummed,
         }

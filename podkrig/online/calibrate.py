@@ -29,9 +29,12 @@ import logging
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from podkrig.display import Displayed, summary
 from podkrig.online.data_check import check_readings, surrogate_training_outputs
-from podkrig.online.findings import Finding, inversion_findings, measurement_findings, of_test
+from podkrig.offline.failures import FailureRegion
+from podkrig.online.findings import Finding, failure_findings, inversion_findings, measurement_findings, of_test
 from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
 from podkrig.online.model_error import DEFAULT_RATE, ModelError, discretisation_error, tolerance_error
@@ -220,6 +223,21 @@ def _region(problem, x, settings):
     return likelihood_ratio_region(problem, x, confidence=settings.confidence, n_samples=s.samples, rng=seed)
 
 
+
+def _near_failure(problem, result):
+    """The ``near-failure`` finding of one test: its best fit against the classifier of the failed
+    runs of the store its surrogate was trained on (none for an FE model, or a store without one)."""
+    prov = getattr(getattr(problem.model, "surrogate", None), "provenance_", None) or {}
+    if not prov.get("failure_region"):
+        return []
+    region = FailureRegion.from_dict(prov["failure_region"])
+    space = problem.model.space
+    if tuple(space.names) != region.names:
+        return []
+    x = np.array([[result.parameters[n] for n in space.names]])
+    return failure_findings(region, prov["failed_share"], space.to_unit(x)[0])
+
+
 def calibrate(problem, settings=None, *, scenarios=None, validation=None, outputs=None, check_measurement=True,
               keep_field=False, calibration_rvc=True, progress=None, range_check=True):
     """Calibrate: model-form error, inversion, region, FE check, posterior, RVC and findings.
@@ -336,5 +354,7 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
     found += inversion_findings(result, region)
     for name in result.tests:
         found += of_test(name, inversion_findings(result.tests[name], per_test=True))
+    for name, p in per_test.items():
+        found += of_test(name, _near_failure(p, result if name is None else result.tests[name]))
     return CalibrationResult(result, region, posterior, rvcs, found, settings, time.perf_counter() - t0, n_fe,
                              errors, responses)

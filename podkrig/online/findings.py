@@ -20,6 +20,9 @@ Thresholds
   the bound.
 - :data:`COVERAGE_LIMIT`: fewer held-out readings than this share inside the surrogate's ±2σ
   means its error bars are too narrow.
+- :data:`FAILURE_PROBABILITY_LIMIT`: a best fit where the classifier of the training runs that
+  failed (:class:`~podkrig.offline.failures.FailureRegion`) predicts at least this probability
+  of failure lies in or near the failing region, where the surrogate had no data.
 
 The functions take result objects (:class:`~podkrig.online.invert.InverseResult`,
 :class:`~podkrig.online.region.Region`) or, for stages a study reads back from its cache, their
@@ -27,12 +30,15 @@ The functions take result objects (:class:`~podkrig.online.invert.InverseResult`
 
 Codes and their ``values``
 --------------------------
-- ``fe-check``: ``max_diff_over_noise`` (-), ``max_abs_diff_mm``;
+- ``fe-check``: ``max_diff_over_noise`` (-), ``max_abs_diff_mm``, and ``stopped`` when the FE run
+  at the optimum stopped early (:attr:`~podkrig.online.invert.FECheck.stopped`);
 - ``at-bound``: ``parameter``, ``value``, ``unit``;
 - ``chi2-dof``: ``chi2_dof`` (-);
 - ``unidentified``: ``parameter``, ``low``, ``high``, ``unit``, ``share`` (-);
 - ``insensitive``: ``parameter``, ``threshold`` (-);
 - ``fe-failed``: ``stage``, ``failed``, ``total``, ``failures`` (list of str);
+- ``near-failure``: ``probability`` (-, predicted failure probability at the best fit),
+  ``failed_share`` (-, of the training runs), ``driving`` (list of ``{"parameter", "towards"}``);
 - ``measurement-columns``: ``not_used``, ``ignored`` (lists of names);
 - ``noise-below-floor``: ``sigma_mm`` (sensor → smallest σ, mm), ``sigma_floor_mm``;
 - ``surrogate-error``: ``median_rel_error`` and ``noise_rel`` (-), or ``rms_abs_error_mm`` and
@@ -46,6 +52,8 @@ Codes and their ``values``
 import dataclasses
 from dataclasses import dataclass, field
 
+import numpy as np
+
 #: χ²/dof above which the calibrated model does not reproduce the data within the noise (-)
 CHI2_DOF_LIMIT = 2.0
 #: largest |FE − surrogate| / σ_noise at the optimum for which the surrogate counts as exact (-)
@@ -57,6 +65,10 @@ UNIDENTIFIABLE_SHARE = 0.5
 AT_BOUND_SHARE = 0.005
 #: least share of held-out FE readings within ±2σ of the surrogate (-)
 COVERAGE_LIMIT = 0.8
+#: predicted probability of a failed FE run at the best fit from which it lies near the failing
+#: region (-): the classifier's 50 % boundary is the region's edge, and 0.2 is where its log-odds
+#: are 1.4 short of it — within the transition band of the training runs, not inside the region
+FAILURE_PROBABILITY_LIMIT = 0.2
 
 
 #: the one sign convention of standardised residuals, on every page, table and JSON field:
@@ -168,8 +180,8 @@ def inversion_findings(result, region=None, *, per_test=False):
     found = []
     fe = result.fe_check
     if fe is not None and not fe.ok:
-        found.append(Finding("fe-check", "inversion", {"max_diff_over_noise": float(fe.max_diff_over_noise),
-                                                       "max_abs_diff_mm": float(fe.max_abs_diff)}))
+        values = {"max_diff_over_noise": float(fe.max_diff_over_noise), "max_abs_diff_mm": float(fe.max_abs_diff)}
+        found.append(Finding("fe-check", "inversion", values | ({"stopped": fe.stopped} if fe.stopped else {})))
     units = dict(zip(result.free, result.units))
     for name in () if per_test else result.at_bound:
         found.append(Finding("at-bound", "inversion", {"parameter": name, "value": result.free_parameters[name],
@@ -184,6 +196,33 @@ def inversion_findings(result, region=None, *, per_test=False):
             found.append(Finding("unidentified", "region", {"parameter": name, "low": float(lo), "high": float(hi),
                                                             "unit": units[name], "share": float(v["share"])}))
     return found
+
+
+def failure_findings(region, failed_share, u):
+    """A ``near-failure`` finding when the best fit lies in or near the region where the training
+    runs failed.
+
+    Parameters
+    ----------
+    region : FailureRegion
+        The classifier of the training store's failed runs (:mod:`podkrig.offline.failures`).
+    failed_share : float
+        Failed share of the training runs (-).
+    u : array_like of shape (d,)
+        The best fit in the unit cube of the store's parameters (``region.names``).
+
+    Returns
+    -------
+    list of Finding
+        One ``near-failure`` when the predicted failure probability at ``u`` is at least
+        :data:`FAILURE_PROBABILITY_LIMIT`, else none.
+    """
+    p = float(region.probability(np.asarray(u, dtype=float)[None])[0])
+    if p < FAILURE_PROBABILITY_LIMIT:
+        return []
+    return [Finding("near-failure", "inversion", {
+        "probability": p, "failed_share": float(failed_share),
+        "driving": [{"parameter": n, "towards": region.direction(n)} for n in region.driving()]})]
 
 
 def sensitivity_findings(result):
@@ -279,7 +318,8 @@ def diagnosis_findings(d):
 
 
 __all__ = [
-    "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FE_CHECK_LIMIT", "Finding",
+    "AT_BOUND_SHARE", "CHI2_BASIS", "CHI2_DOF_LIMIT", "COVERAGE_LIMIT", "FAILURE_PROBABILITY_LIMIT", "FE_CHECK_LIMIT",
+    "Finding", "failure_findings",
     "RESIDUAL_CONVENTION", "UNIDENTIFIABLE_SHARE", "at_bound", "chi2_basis", "diagnosis_findings", "fe_check_ok",
     "held_out_findings", "inversion_findings", "is_identifiable", "measurement_findings", "of_test", "offline_findings",
     "sensitivity_findings",

@@ -44,6 +44,11 @@ class FECheck(Displayed):
         The difference is within the noise (:data:`~podkrig.online.findings.FE_CHECK_LIMIT`).
     fe_readings : ndarray of shape (n_obs,) or None
         FE readings at the observed entries, mm (not part of :meth:`to_dict`).
+    stopped : str or None
+        How a nonlinear FE run at the optimum stopped early — its status, the budget limit that
+        ended it and the control value reached, e.g. ``"budget_exhausted: iterations, reached
+        0.04 mm"`` — or None when it reached every level. The differences are then over the
+        entries it reached, χ²/dof is NaN, and the check fails.
     """
 
     max_abs_diff: float
@@ -52,17 +57,18 @@ class FECheck(Displayed):
     chi2_dof_fe: float
     ok: bool
     fe_readings: np.ndarray | None = None
+    stopped: str | None = None
 
     def to_dict(self):
         """The numbers, without the FE readings (JSON-able)."""
         return {"max_abs_diff": self.max_abs_diff, "max_diff_over_noise": self.max_diff_over_noise,
                 "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe,
-                "chi2_dof_fe_basis": chi2_basis("fe_check"), "ok": self.ok}
+                "chi2_dof_fe_basis": chi2_basis("fe_check"), "ok": self.ok, "stopped": self.stopped}
 
     @classmethod
     def from_dict(cls, d):
         return cls(float(d["max_abs_diff"]), float(d["max_diff_over_noise"]), float(d["rel_diff"]),
-                   float(d["chi2_dof_fe"]), bool(d["ok"]))
+                   float(d["chi2_dof_fe"]), bool(d["ok"]), stopped=d.get("stopped"))
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -321,19 +327,26 @@ def fe_check(result, scenario, response=None):
     fe = response.readings.ravel()
     fe_obs = problem.misfit.observation.apply(fe[None])[0]
     mean, _ = problem.misfit.predict(result.x[None])
-    diff = fe_obs - mean[0]
-    sd = problem.misfit.noise_std
+    status = getattr(response, "status", "converged")
+    stopped = None
+    if status != "converged":  # a nonlinear run that stopped early: compare the entries it reached
+        limit = f": {response.limit}" if response.limit else ""
+        stopped = f"{status}{limit}, reached {response.reached:.6g} {scenario.load_unit}"
+    reached = np.isfinite(fe_obs)
+    diff = (fe_obs - mean[0])[reached]
+    sd = np.broadcast_to(problem.misfit.noise_std, fe_obs.shape)[reached]
     noise_only = problem.misfit if problem.misfit.form_error is None else dataclasses.replace(problem.misfit,
                                                                                               form_error=None)
     resid = noise_only.whiten(fe_obs - problem.measurement.data)[0]  # noise only, rigid motion removed
-    over_noise = float(np.max(np.abs(diff) / sd))
+    over_noise = float(np.max(np.abs(diff) / sd)) if len(diff) else float("nan")
     return FECheck(
-        max_abs_diff=float(np.max(np.abs(diff))),
+        max_abs_diff=float(np.max(np.abs(diff))) if len(diff) else float("nan"),
         max_diff_over_noise=over_noise,
-        rel_diff=float(np.linalg.norm(diff) / np.linalg.norm(fe_obs)),
+        rel_diff=float(np.linalg.norm(diff) / np.linalg.norm(fe_obs[reached])) if len(diff) else float("nan"),
         chi2_dof_fe=float(resid @ resid / max(result.dof, 1)),
-        ok=fe_check_ok(over_noise),
+        ok=stopped is None and fe_check_ok(over_noise),
         fe_readings=fe_obs,
+        stopped=stopped,
     )
 
 

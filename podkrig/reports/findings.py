@@ -96,6 +96,13 @@ def identifiability_text(name, interval, unit, verdict):
 
 
 def _fe_check(v, context, diagnosis_enabled):
+    if v.get("stopped"):
+        return (f"the FE run at the optimum stopped early ({v['stopped']}): the surrogate's best fit cannot be "
+                "checked at the levels it did not reach"
+                + (f", and at those it reached they differ by up to {v['max_diff_over_noise']:.2f}× the noise."
+                   if v["max_diff_over_noise"] == v["max_diff_over_noise"] else "."),
+                "raise the scenario's solver budgets (max_total_iterations, max_cpu_seconds) so that the FE run at "
+                "the optimum finishes, then build the snapshots and the surrogate again.")
     return (f"at the optimum the surrogate differs from the FE model by up to {v['max_diff_over_noise']:.2f}× the "
             f"noise ({v['max_abs_diff_mm']:.3g} mm): the identification is limited by the surrogate, not by the data.",
             "refine the surrogate near the optimum ('podkrig surrogate refine', or more snapshots in a narrower box) "
@@ -146,6 +153,19 @@ def _fe_failed(v, context, diagnosis_enabled):
     return (f"{v['failed']} of {v['total']} FE runs failed in stage '{v['stage']}' ({'; '.join(v['failures'])}).",
             "the surrogate was trained without them; read the errors (e.g. a parameter range that makes the "
             "model singular) and narrow the bounds, or inspect the store with 'podkrig snapshots info'.")
+
+
+def _near_failure(v, context, diagnosis_enabled):
+    towards = " and ".join(f"{d['towards']} {d['parameter']}" for d in v["driving"])
+    where = f" (towards {towards})" if towards else ""
+    return (f"the best fit lies where {100 * v['failed_share']:.0f} % of the training FE runs failed{where}: the "
+            f"classifier of the failed runs predicts a {100 * v['probability']:.0f} % chance that an FE run fails "
+            "there, so the surrogate had few or no complete runs near the optimum.",
+            ("run the FE model at the optimum ('podkrig simulate' with the identified values); if it stops early, "
+             "raise the scenario's budgets (max_total_iterations, max_cpu_seconds in its spec) and run the snapshots "
+             "into a new store." if context == "cli" else
+             "check the FE run at the optimum; if it stops early, raise the scenario's solver budgets "
+             "(max_total_iterations, max_cpu_seconds) and run again."))
 
 
 def _measurement_columns(v, context, diagnosis_enabled):
@@ -312,6 +332,7 @@ WORDS = {
     "unidentified": _unidentified,
     "insensitive": _insensitive,
     "fe-failed": _fe_failed,
+    "near-failure": _near_failure,
     "measurement-columns": _measurement_columns,
     "noise-below-floor": _noise_below_floor,
     "surrogate-error": _surrogate_error,

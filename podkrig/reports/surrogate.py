@@ -135,6 +135,15 @@ def fit_tables(page, result):
                 "β per mode (-)" if result.beta is not None else "backend", "training time (s)"],
                [[result.n_train, result.n_modes, f"{result.retained_energy:.10f}", regression,
                  num(result.training_seconds, 3)]])
+    if result.dropped_rows:
+        page.paragraph(dropped_text(result.dropped_rows))
+
+
+def dropped_text(rows, limit=20):
+    """The failed training rows a fit left out, in words (``rows``: their indices)."""
+    more = f" and {len(rows) - limit} more" if len(rows) > limit else ""
+    return (f"{len(rows)} failed training runs (rows {', '.join(map(str, rows[:limit]))}{more}) were left out of "
+            "the fit (failed_rows = 'drop').")
 
 
 def held_out_tables(page, result):

@@ -48,6 +48,9 @@ class SurrogateFitResult(Displayed):
         The backend's own description of its fit, for another backend; else None.
     training_seconds : float or None
         Wall time of the fit, s (None: not recorded, a surrogate file of an older podkrig).
+    dropped_rows : tuple of int
+        Failed rows of the training store left out of the fit (``failed_rows="drop"``,
+        :func:`~podkrig.surrogate.settings.fit_surrogate`).
     """
 
     n_train: int
@@ -57,6 +60,7 @@ class SurrogateFitResult(Displayed):
     beta: tuple | None = None
     description: str | None = None
     training_seconds: float | None = None
+    dropped_rows: tuple = ()
 
     @classmethod
     def from_surrogate(cls, sur):
@@ -67,7 +71,8 @@ class SurrogateFitResult(Displayed):
         return cls(n_train=len(sur.X_), n_modes=int(sur.n_modes_), retained_energy=float(sur.pod_.retained_energy_),
                    backend=sur.backend_, beta=tuple(float(b) for b in sur.kriging_.beta_) if ours else None,
                    description=None if ours else sur.kriging_.describe(),
-                   training_seconds=None if seconds is None else float(seconds))
+                   training_seconds=None if seconds is None else float(seconds),
+                   dropped_rows=tuple(int(i) for i in sur.provenance_.get("dropped_rows", ())))
 
     def to_dict(self):
         """JSON-able dict (the study's ``surrogate`` manifest): ``beta`` for our kriging,
@@ -79,6 +84,8 @@ class SurrogateFitResult(Displayed):
         if self.description is not None:
             out["description"] = self.description
         out["training_seconds"] = self.training_seconds
+        if self.dropped_rows:
+            out["dropped_rows"] = list(self.dropped_rows)
         return out
 
     @classmethod
@@ -87,7 +94,8 @@ class SurrogateFitResult(Displayed):
                    backend=d.get("backend", "podkrig"),
                    beta=None if d.get("beta") is None else tuple(float(b) for b in d["beta"]),
                    description=d.get("description"),
-                   training_seconds=None if d.get("training_seconds") is None else float(d["training_seconds"]))
+                   training_seconds=None if d.get("training_seconds") is None else float(d["training_seconds"]),
+                   dropped_rows=tuple(int(i) for i in d.get("dropped_rows", ())))
 
 
 @dataclass(frozen=True, repr=False)

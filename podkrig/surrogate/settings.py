@@ -17,6 +17,7 @@ Examples
 'sklearn-gpr'
 """
 
+import logging
 import time
 from typing import Annotated, Any
 
@@ -24,6 +25,8 @@ from pydantic import AfterValidator, StrictFloat, StrictInt
 
 from podkrig import limits
 from podkrig.config import Seed, allowed, choice, finite, settings, settings_error, type_name
+from podkrig.exceptions import StoreError
+from podkrig.offline.failures import failure_report
 from podkrig.offline.settings import SAMPLING_METHODS
 from podkrig.surrogate.backends import BACKENDS as _BACKEND_REGISTRY
 from podkrig.surrogate.backends import make_backend
@@ -32,7 +35,7 @@ from podkrig.surrogate.kriging.ordinary import CRITERIA
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import DEFAULT_ENERGY, fit_from_store
 
-__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "VARIOGRAMS", "RefineSettings", "SurrogateSettings", "fit_surrogate"]
+__all__ = ["BACKENDS", "BETA_MODES", "CRITERIA", "FAILED_ROWS", "VARIOGRAMS", "RefineSettings", "SurrogateSettings", "fit_surrogate"]
 
 #: semivariogram models of the kriging (:mod:`podkrig.surrogate.kriging.variogram`)
 VARIOGRAMS = tuple(_VARIOGRAM_REGISTRY)
@@ -40,6 +43,11 @@ VARIOGRAMS = tuple(_VARIOGRAM_REGISTRY)
 BETA_MODES = ("fit", "fit-shared")
 #: surrogate backends behind the one surrogate interface (:mod:`podkrig.surrogate.backends`)
 BACKENDS = tuple(_BACKEND_REGISTRY)
+
+logger = logging.getLogger(__name__)
+
+#: what a fit does with a store's failed rows (:func:`fit_surrogate`)
+FAILED_ROWS = ("drop", "refuse")
 
 BETA_ALLOWED = "a number in (0, 2] (below 2 for the power variogram), \"fit\" or \"fit-shared\""
 
@@ -49,7 +57,8 @@ class SurrogateSettings:
     """POD truncation (``energy`` or ``modes``; neither: energy 1 − 10⁻⁸), the kriging of the POD
     coefficients (semivariogram, exponent β, hyperparameter criterion, nugget relative to the sill)
     and the surrogate ``backend`` (another backend than ``"podkrig"`` fits its own hyperparameters:
-    the kriging settings do not apply to it)."""
+    the kriging settings do not apply to it); ``failed_rows``: whether a store with failed rows
+    trains on its finished rows (``"drop"``, stating how many and which) or is refused."""
 
     energy: Annotated[StrictFloat, allowed("a number in (0, 1], e.g. 0.99999999", unit="-", gt=0, le=1)] | None = None
     modes: Annotated[StrictInt, allowed("an integer >= 1", ge=1)] | None = None
@@ -60,6 +69,7 @@ class SurrogateSettings:
                       allowed("a number in [0, 1] (relative to the sill: 1 is as much noise as signal)", unit="-",
                               ge=0, le=1)] = 0.0
     backend: choice(BACKENDS) = "podkrig"
+    failed_rows: choice(FAILED_ROWS) = "drop"
 
     def __post_init__(self):
         if self.energy is not None and self.modes is not None:
@@ -112,10 +122,18 @@ class RefineSettings:
 def fit_surrogate(store, settings, output="readings"):
     """Fit a surrogate of these settings on a snapshot store, timed.
 
+    Only finished rows train it. Failed rows — FE runs that raised, and nonlinear runs that
+    stopped early (partial rows: their readings end where the run stopped) — are never used
+    silently: with ``settings.failed_rows == "refuse"`` a store holding any is refused; with
+    ``"drop"`` they are left out with a warning naming how many and which, and recorded in the
+    surrogate's provenance (``dropped_rows``, ``failed_share``) with the classifier of where runs
+    fail (``failure_region``, :class:`~podkrig.offline.failures.FailureRegion`), which the
+    inversion uses to warn when its best fit lies in that region.
+
     Parameters
     ----------
     store : podkrig.offline.store.SnapshotStore
-        An open store (its finished rows train the surrogate).
+        An open store.
     settings : SurrogateSettings
     output : {"readings", "field"}
 
@@ -124,9 +142,34 @@ def fit_surrogate(store, settings, output="readings"):
     PODKriging
         Fitted, with ``provenance_["training_seconds"]`` (s, wall time of the fit) beside the
         store's provenance (:func:`~podkrig.surrogate.podkriging.fit_from_store`).
+
+    Raises
+    ------
+    StoreError
+        ``failed_rows="refuse"`` and the store has failed rows (the message names them).
     """
+    failures = failure_report(store) if store.counts()["failed"] else None
+    if failures is not None:
+        rows = _rows_text(failures.rows)
+        why = ", ".join(f"{n} {reason}" for reason, n in sorted(failures.reasons.items()))
+        if settings.failed_rows == "refuse":
+            raise StoreError(
+                f"{store.path}: {failures.n_failed} of {failures.n_run} FE runs failed or stopped early ({why}; "
+                f"rows {rows}); failed_rows='refuse' does not fit a surrogate on such a store: rerun them with other "
+                "solver settings, or set failed_rows='drop' to train on the finished rows only")
+        logger.warning("%s: %d of %d FE runs failed or stopped early (%s; rows %s) and are left out of the surrogate "
+                       "(failed_rows='drop')", store.path, failures.n_failed, failures.n_run, why, rows)
     pod, regressor = settings.templates()
     t0 = time.perf_counter()
     sur = fit_from_store(store, pod=pod, kriging=regressor, output=output)
     sur.provenance_["training_seconds"] = time.perf_counter() - t0
+    if failures is not None:
+        sur.provenance_.update({
+            "dropped_rows": list(failures.rows), "failed_share": failures.share, "failed_reasons": failures.reasons,
+            "failure_region": None if failures.region is None else failures.region.to_dict()})
     return sur
+
+
+def _rows_text(rows, limit=20):
+    more = f" and {len(rows) - limit} more" if len(rows) > limit else ""
+    return ", ".join(map(str, rows[:limit])) + more
