@@ -13,12 +13,22 @@ wall time of the whole study and the machine load, then the parameters and the e
 failed run. ``--busy`` keeps one core busy with a second process (a Python spin loop) for the
 whole run: whether a snapshot reaches the end must not depend on it.
 
+``--per-run`` instead runs the same Sobol' points one after the other in this process (BLAS on
+one thread, no store) and prints one row per run with the solver's counts: converged steps,
+failed (cut-back) increments, attempted increments, Newton iterations, relaxed steps, CPU time,
+peak and the end reached, then the CPU mean and maximum and the totals. ``--rows`` picks points
+and ``--set NAME=VALUE`` overrides a :class:`fe.solvers.nonlinear.PathSettings` field (a JSON
+value), so that a change of the step control can be compared run by run on the slow points.
+
 Usage: python scripts/bench_nonlinear_snapshots.py [--n 256] [--workers 2]
        [--top fixed_vertical constant_force] [--busy] [--store-dir DIR]
+       python scripts/bench_nonlinear_snapshots.py --per-run [--n 16] [--rows 0 3] [--set cutback=0.25]
 """
 
 import argparse
 import collections
+import dataclasses
+import json
 import os
 import platform
 import subprocess
@@ -75,6 +85,52 @@ def study(top, n, workers, spread, store_dir):
     return row, failed
 
 
+def settings_overrides(items):
+    """``NAME=VALUE`` strings (VALUE as JSON, e.g. ``cutback=0.25``, ``line_search=false``) → dict."""
+    out = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"--set expects NAME=VALUE; got {item!r}")
+        out[name] = json.loads(value)
+    return out
+
+
+def per_run(top, n, spread, rows=None, overrides=None):
+    """Run Sobol' points of one top condition in this process; returns one dict of counts per run."""
+    from threadpoolctl import threadpool_limits
+
+    from podkrig.offline.sampling import sample
+
+    sc = build_scenario({"scenario": "shear_compression_nl", "top": top})
+    space = space_around_defaults(sc, spread)
+    X = space.from_unit(sample("sobol", n, space.n_params, 0))
+    settings = dataclasses.replace(sc.options.path_settings(), **(overrides or {}))
+    out = []
+    with threadpool_limits(1):
+        for i in range(n) if rows is None else rows:
+            c0 = time.process_time()
+            r = sc.run(space.as_params(X[i]), settings=settings)
+            p = r.path
+            out.append(dict(row=i, status=r.status, steps=len(p.path), failed=p.failed_steps,
+                            attempted=p.attempted_steps, iterations=p.total_iterations,
+                            relaxed=len(p.relaxed_steps), cpu=time.process_time() - c0, peak=r.peak_load,
+                            at=r.peak_displacement, end=float(p.path[-1]) if len(p.path) else float("nan")))
+    return out
+
+
+def print_per_run(top, runs):
+    print(f"\n{top}\n\n| row | status | steps | failed | attempted | iterations | relaxed | CPU s | peak kN | at mm "
+          "| end mm |\n|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for d in runs:
+        print(f"| {d['row']} | {d['status']} | {d['steps']} | {d['failed']} | {d['attempted']} | {d['iterations']} "
+              f"| {d['relaxed']} | {d['cpu']:.2f} | {d['peak']:.4f} | {d['at']:.4f} | {d['end']:.4g} |", flush=True)
+    cpu = np.array([d["cpu"] for d in runs])
+    print(f"\n{top}: CPU s per run mean {cpu.mean():.2f}, max {cpu.max():.2f}; failed increments "
+          f"{sum(d['failed'] for d in runs)}, Newton iterations {sum(d['iterations'] for d in runs)}, "
+          f"steps {sum(d['steps'] for d in runs)} over {len(runs)} runs")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n", type=int, default=256, help="Sobol' points per top condition (a power of two)")
@@ -84,7 +140,19 @@ def main(argv=None):
     ap.add_argument("--spread", type=float, default=0.2, help="bounds: default × (1 ± spread)")
     ap.add_argument("--busy", action="store_true", help="keep one core busy with a second process during the run")
     ap.add_argument("--store-dir", help="keep the stores here (default: a temporary directory)")
+    ap.add_argument("--per-run", action="store_true",
+                    help="run the points one by one in this process and print the solver's counts per run")
+    ap.add_argument("--rows", type=int, nargs="+", help="with --per-run: only these Sobol' points")
+    ap.add_argument("--set", nargs="+", default=[], metavar="NAME=VALUE",
+                    help="with --per-run: override PathSettings fields (JSON values)")
     args = ap.parse_args(argv)
+    if args.per_run:
+        overrides = settings_overrides(args.set)
+        print(f"load average {load()}; {args.n} Sobol' points, Set A ± {100 * args.spread:g} %, "
+              f"settings overrides {overrides or 'none'}; CPU times with BLAS on one thread")
+        for top in args.top:
+            print_per_run(top, per_run(top, args.n, args.spread, args.rows, overrides))
+        return
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores; {args.n} J4D snapshots per top condition on "
           f"{args.workers} workers; parameters {', '.join(PARAMETERS)} at Set A ± {100 * args.spread:g} %"
           + ("; one core kept busy by a second process" if args.busy else ""), flush=True)

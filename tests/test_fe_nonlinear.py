@@ -475,3 +475,22 @@ def test_peak_benchmark_script_imports_without_side_effects_and_runs_a_specimen(
     assert before["status"] == now["status"] == CONVERGED
     assert before["resolved"] == "-" and now["resolved"] == "yes"
     assert now["peak"] == pytest.approx(A * 0.25 / 1000, rel=0.005)
+
+
+def test_snapshot_benchmark_per_run_counts_apply_the_settings_overrides():
+    """``bench_nonlinear_snapshots.py --per-run`` runs a Sobol' point in-process with PathSettings
+    overrides: a 5-increment step budget ends the run on that budget after exactly 5 attempts."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py"
+    spec = importlib.util.spec_from_file_location("bench_nonlinear_snapshots", path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    overrides = bench.settings_overrides(["max_steps=5", "line_search=true"])
+    assert overrides == {"max_steps": 5, "line_search": True}
+    (run,) = bench.per_run("fixed_vertical", 2, 0.2, rows=[1], overrides=overrides)
+    assert run["row"] == 1 and run["status"] == BUDGET
+    assert run["attempted"] == 5 and run["steps"] <= 5 and run["cpu"] > 0
+    with pytest.raises(SystemExit, match="NAME=VALUE"):
+        bench.settings_overrides(["cutback"])

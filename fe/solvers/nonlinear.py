@@ -535,6 +535,7 @@ class PathFollower:
         elastic = False  # after max_iterations Newton iterations: initial-stiffness iterations
         limit = s.max_iterations
         it = 0
+        last_flowing = None  # flowing points of the last iterate (debug log)
         while True:
             self._check_budget()
             f_ext = phase.f_const + lam * f_ref
@@ -543,9 +544,18 @@ class PathFollower:
             rn = np.linalg.norm(r)
             scale = max(np.linalg.norm(fint), np.linalg.norm(f_ext), 1e-12)
             remaining = self._remaining(phase, q, target)
-            logger.debug("  it %d%s: residual %.3e N (tol %.3e), remaining %.3e, sub-stepped points %d", it,
-                         " (elastic)" if elastic else "", rn, tol * scale, remaining,
-                         int(np.count_nonzero(upd.status == 1)))
+            if logger.isEnabledFor(logging.DEBUG):
+                # points flowing plastically (κ above the converged state) and how many of them
+                # switched since the last iterate: a few switching back and forth is Newton
+                # cycling at a kink of the return map (loading/unloading)
+                flowing = np.any(upd.state.kappa > self.state.kappa, axis=1)
+                switched = -1 if last_flowing is None else int(np.count_nonzero(flowing != last_flowing))
+                last_flowing = flowing
+                logger.debug("  it %d%s: residual %.3e N (tol %.3e), remaining %.3e, sub-stepped points %d, "
+                             "flowing points %d (%s switched since the last iterate)", it,
+                             " (elastic)" if elastic else "", rn, tol * scale, remaining,
+                             int(np.count_nonzero(upd.status == 1)), int(flowing.sum()),
+                             "-" if switched < 0 else switched)
             if ((it > 0 or predicted is not None) and rn <= tol * scale
                     and abs(remaining) <= 1e-9 * max(abs(target), 1.0)):
                 return q, lam, upd, fint, it  # a prediction within tolerance is accepted as it is
@@ -607,7 +617,7 @@ class PathFollower:
             # backtracking line search on the residual norm
             eta = 1.0
             for _ in range(4 if s.line_search and not elastic else 1):
-                q_try = q + eta * dq
+                q_try, used = q + eta * dq, eta
                 lam_try = lam + eta * dlam
                 upd_t, data_t, fint_t = self._evaluate(q_try, self.state)
                 if data_t is not None:
@@ -618,6 +628,7 @@ class PathFollower:
                 eta *= 0.5
             if data_t is None:
                 raise SolverError(f"interface return mapping failed at {upd_t.failed} points")
+            logger.debug("    line search: step %.4g of the Newton direction", used)
             q, lam, upd, data, fint = q_try, lam_try, upd_t, data_t, fint_t
         raise _NotConverged(f"no convergence in {limit} iterations (residual {rn:.3g} N)", best, goal)
 
