@@ -24,7 +24,7 @@ import numpy as np
 
 #: the hidden values: cohesion (MPa), initial friction coefficient (-), mode-II fracture energy
 #: (N/mm) of the joints; the tensile strength ft_bj (MPa) the study also leaves free
-TRUTH = {"c_bj": 0.30, "tanphi_bj": 0.85, "GfII_bj": 0.10, "ft_bj": 0.15}
+TRUTH = {"c_bj": 0.30, "tanphi_bj": 0.85, "GfII_bj": 0.10, "ft_bj": 0.10}
 #: pre-compressions of the series (MPa) and the file of each
 PRECOMPRESSIONS = (0.2, 0.6, 1.0)
 #: control levels (mm of slip): the elastic branch, the peak (0.03-0.15 mm) and the softening branch
