@@ -393,7 +393,6 @@ FAST_PEAK_SPECS = [
     {"scenario": "prism_compression"},
 ]
 SLOW_PEAK_SPECS = [
-    {"scenario": "shear_compression_nl", "top": "fixed_vertical"},
     {"scenario": "diagonal_compression_nl", "nx": 2, "ny": 1},
     {"scenario": "shear_compression_nl", "top": "constant_force"},
 ]
@@ -408,7 +407,10 @@ def test_reported_peak_agrees_with_ten_times_finer_increments(spec):
     left is the path's own dependence on the increment. J4D with N constant on the coarse mesh is
     not in the list: its path branches between 0.6 and 0.7 mm depending on the increment (load at
     0.7 mm 31.30 kN with the default increments, 31.16 with 1/10, 31.07 with 1/80), so its peak
-    moves by 0.4 % (31.53 against 31.41 kN) however exactly it is found (docs/nonlinear.md)."""
+    moves by 0.4 % (31.53 against 31.41 kN) however exactly it is found (docs/nonlinear.md). J4D
+    with the top vertically fixed has no load maximum in its default range (0–1.75 mm, the load still
+    rising); past it the curve depends on the mesh and on the increment (`control_range = "full"`:
+    60.8 kN with the default increments, 65.9 kN with 1/10), which is why the range ends there."""
     r = build_scenario(spec).run()
     fine = build_scenario(_finer(spec)).run()
     assert r.path.peaks and fine.path.peaks

@@ -177,7 +177,8 @@ def check_loads(loads, levels, load_unit="", *, source="measurement", column="lo
         raise MeasurementCheckError(found)
 
 
-def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="training", factor=RANGE_FACTOR):
+def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="training", factor=RANGE_FACTOR,
+                     signs=True):
     """Sensors whose readings are ``factor``× larger or smaller than in every FE run, or of the
     opposite sign: a ``reading-scale`` or ``reading-sign`` finding each (level ``"error"``).
 
@@ -199,6 +200,10 @@ def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="tr
         reached.
     runs : {"probe", "training", "surrogate"}
         What ``Y`` is, for the message.
+    signs : bool
+        Also flag sensors of the opposite sign. The diagnosis passes ``False``: a reversed or
+        faulty gauge is one of the causes it exists to find (its ``gauge_fault`` candidate), while
+        a unit slip of 1000× is not.
 
     Returns
     -------
@@ -234,7 +239,7 @@ def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="tr
             found.append(Finding("reading-scale", "measurement", {
                 **common, "sensor": name, "direction": "smaller", "ratio": r, "unit_slip": bool(lo <= r <= hi)},
                 level="error"))
-        else:
+        elif signs:
             signal = np.abs(dj) > 3 * sj
             fe_sign = np.sign(gj[:, signal])
             if fe_sign.size and np.all(fe_sign == -np.sign(dj[signal])[None, :]):
@@ -242,7 +247,8 @@ def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="tr
     return found
 
 
-def check_readings(data, noise, sensor_names, levels, response, Y, *, runs="training", factor=RANGE_FACTOR):
+def check_readings(data, noise, sensor_names, levels, response, Y, *, runs="training", factor=RANGE_FACTOR,
+                   signs=True):
     """:func:`reading_problems`, raised.
 
     Raises
@@ -254,7 +260,7 @@ def check_readings(data, noise, sensor_names, levels, response, Y, *, runs="trai
     if not len(Y):
         return
     found = reading_problems(data, noise, sensor_names, levels, response, Y.reshape(len(Y), -1), runs=runs,
-                             factor=factor)
+                             factor=factor, signs=signs)
     if found:
         raise MeasurementCheckError(found)
 

@@ -14,7 +14,7 @@ Examples
 >>> SurrogateFitResult.from_dict(fit.to_dict()) == fit
 True
 >>> sorted(fit.to_dict())
-['backend', 'beta', 'n_modes', 'n_train', 'retained_energy', 'training_seconds']
+['backend', 'beta', 'n_modes', 'n_train', 'pod', 'retained_energy', 'scaling', 'training_seconds']
 """
 
 from dataclasses import dataclass
