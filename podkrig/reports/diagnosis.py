@@ -56,6 +56,30 @@ def _mark_causes(ax, diagnosis):
         _mark_cause(ax, diagnosis, cause)
 
 
+def unnamed_significant(d):
+    """Of a diagnosis's JSON ``d`` with no cause named: its candidates whose corrected
+    likelihood-ratio test is significant, as text ("gauge_fault at sensor D2, gain (corrected p =
+    0.003)"), "" when none is."""
+    alpha = d.get("alpha", d["adequacy"]["alpha"] / CHI2_ALPHA_SHARE)  # older results lack "alpha"
+    found = [c for c in d["candidates"] if c["applicable"] and c["p_corrected"] < alpha]
+    return "; ".join(f"{c['name']} at {c['location']} (corrected p = {c['p_corrected']:.2g})" for c in found)
+
+
+def _mark_causes(ax, diagnosis):
+    for cause in diagnosis.causes:
+        _mark_cause(ax, diagnosis, cause)
+
+
+def unnamed_significant(d, names=False):
+    """Of a diagnosis's JSON ``d`` with no cause named: its candidates whose corrected
+    likelihood-ratio test is significant, as text ("gauge_fault at D2 gain (corrected p = 0.003)")
+    or, with ``names``, as a list of names; "" / [] when none is."""
+    found = [c for c in d["candidates"] if c["applicable"] and c["p_corrected"] < d["alpha"]]
+    if names:
+        return [c["name"] for c in found]
+    return "; ".join(f"{c['name']} at {c['location']} (corrected p = {c['p_corrected']:.2g})" for c in found)
+
+
 def _mark_cause(ax, diagnosis, cause):
     d = cause.location.detail
     if cause.name == "weak_joint":
@@ -232,6 +256,15 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
             f"The calibrated base model explains the data within the noise: χ²/dof = {d['adequacy']['chi2_dof']:.2f} "
             f"(p = {d['adequacy']['p_value']:.3g}) and no candidate cause improves the fit significantly at α = {diagnosis.alpha:g} "
             "after correcting for the number of candidates and locations tried.")
+    elif d["cause"] is None and unnamed_significant(d):
+        page.warning(
+            f"The base model misses something (χ²/dof = {d['adequacy']['chi2_dof']:.2f}, p = {d['adequacy']['p_value']:.2g}): "
+            f"a candidate cause improves the fit significantly ({unnamed_significant(d)}) "
+            f" at α = {diagnosis.alpha:g} after correcting for the number of candidates and locations tried, "
+            "but what is left of the effect after refitting the base parameters is too small or too diffuse to name "
+            "as a cause: no candidate explains the data.",
+            "look at the residual pattern below; a longer load range, more load levels or a sensor near the "
+            "candidate's location would tell whether the effect is real.")
     elif d["cause"] is None:
         page.warning(
             f"The base model does not explain the data (χ²/dof = {d['adequacy']['chi2_dof']:.2f}, p = {d['adequacy']['p_value']:.2g}), "
