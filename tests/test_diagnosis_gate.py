@@ -9,6 +9,8 @@ diagonal test (coarse mesh, 2 × 1 Q8 per unit) with its six gauges and a 5 × 6
 - clean data raise at most one alarm in 20 noise seeds.
 """
 
+import pathlib
+
 import numpy as np
 import pytest
 
@@ -17,7 +19,7 @@ from diagnosis_trials import make_trial, make_whole_joint_trial
 from fe import build_scenario
 from podkrig.diagnosis import CANDIDATES, DiagnosisSettings, FEContext, build_base_surrogate, diagnose
 from podkrig.parameters import ParameterSpace
-from podkrig.reports.diagnosis import unnamed_significant
+from podkrig.reports.diagnosis import unnamed_significant, write_diagnosis_report
 
 DIC_5X6 = {"kind": "dic", "x0": 65.0, "y0": 32.5, "x1": 1105.0, "y1": 1072.5, "nx": 5, "ny": 6}
 TRUTH = {"kN_bj": 100.0, "kV_bj": 40.0}
@@ -83,7 +85,7 @@ def test_clean_data_raise_at_most_one_alarm_in_20(wall):
 
 
 @pytest.mark.slow
-def test_an_effect_too_diffuse_to_name_but_significant_is_not_adequate(wall):
+def test_an_effect_too_diffuse_to_name_but_significant_is_not_adequate(wall, tmp_path):
     """Softer units (E_b × 0.7): under 2σ on any reading after refitting, so the omnibus χ² over
     ~260 dof passes and no cause is named, but the candidate's one-parameter likelihood-ratio test
     sees it. Before the gate had the candidates' power this read "adequate"."""
@@ -94,7 +96,11 @@ def test_an_effect_too_diffuse_to_name_but_significant_is_not_adequate(wall):
                            rng=np.random.default_rng(seed))
         assert trial.identifiable_effect < 2.0  # below the smallest effect the diagnosis names
         d = wall.diagnose(trial, seed)
-        seen.append((d.verdict, d.cause, d.chi2_p_value, unnamed_significant(d.to_dict())))
+        seen.append((d.verdict, d.cause, d.chi2_p_value, unnamed_significant(d.to_dict()), d))
     hidden = [s for s in seen if s[2] >= 1e-3]  # the omnibus χ² test alone would call these adequate
     assert len(hidden) >= 2, seen
-    assert all(v == "inadequate" and c is None and "unit_stiffness" in u for v, c, _, u in hidden), seen
+    assert all(v == "inadequate" and c is None and "unit_stiffness" in u for v, c, _, u, _ in hidden), seen
+    # the report says so: a significant candidate, nothing named
+    page = write_diagnosis_report(hidden[0][4], tmp_path)
+    text = " ".join(pathlib.Path(page).read_text(encoding="utf-8").split())
+    assert "no candidate explains the data" in text and "unit_stiffness" in text

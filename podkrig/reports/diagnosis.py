@@ -65,21 +65,6 @@ def unnamed_significant(d):
     return "; ".join(f"{c['name']} at {c['location']} (corrected p = {c['p_corrected']:.2g})" for c in found)
 
 
-def _mark_causes(ax, diagnosis):
-    for cause in diagnosis.causes:
-        _mark_cause(ax, diagnosis, cause)
-
-
-def unnamed_significant(d, names=False):
-    """Of a diagnosis's JSON ``d`` with no cause named: its candidates whose corrected
-    likelihood-ratio test is significant, as text ("gauge_fault at D2 gain (corrected p = 0.003)")
-    or, with ``names``, as a list of names; "" / [] when none is."""
-    found = [c for c in d["candidates"] if c["applicable"] and c["p_corrected"] < d["alpha"]]
-    if names:
-        return [c["name"] for c in found]
-    return "; ".join(f"{c['name']} at {c['location']} (corrected p = {c['p_corrected']:.2g})" for c in found)
-
-
 def _mark_cause(ax, diagnosis, cause):
     d = cause.location.detail
     if cause.name == "weak_joint":
