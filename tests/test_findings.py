@@ -355,3 +355,16 @@ def test_remedies_name_options_commands_and_settings_that_exist():
     assert "enabled" in fields(settings.DiagnosisSettings) and "nugget" in fields(settings.SurrogateSettings)
     assert "n" in fields(settings.TrainingDesign) and "train" in fields(settings.SamplingSettings)
     assert {"noise_abs", "noise_rel", "instrument"} <= set(fields(settings.MeasurementSettings))
+
+
+def test_an_unpinned_strength_parameter_names_the_test_that_would_inform_it():
+    """Defects: a study that cannot identify the joints' tensile strength not saying which test
+    would (a tension test), or naming one for a parameter the catalogue does not know."""
+    unpinned = Finding("unidentified", "region", {"parameter": "ft_bj", "low": 0.05, "high": 0.13, "unit": "MPa",
+                                                  "share": 1.0})
+    for context in ("cli", "study"):
+        assert "couplet_tension" in word(unpinned, context).remedy
+    (flat,) = sensitivity_findings({"propose_fixing": ["GfI_bj"], "threshold": 0.01})
+    assert "tension test" in word(flat, "study").remedy and "couplet_tension" in word(flat, "study").remedy
+    other = Finding("unidentified", "region", {"parameter": "Km", "low": 0.75, "high": 0.95, "unit": "-", "share": 1.0})
+    assert "A test that informs" not in word(other, "study").remedy

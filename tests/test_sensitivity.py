@@ -267,3 +267,19 @@ def test_negligible_means_strictly_below_the_threshold_over_outputs_with_varianc
     for k in ("first", "total", "first_low", "first_high", "total_low", "total_high", "variance"):
         assert_allclose(getattr(back, k), getattr(res, k), rtol=0, equal_nan=True)
     assert back.negligible() == ("b", "d")
+
+
+def test_an_output_constant_up_to_round_off_is_constant_and_proposes_nothing():
+    """A reading no parameter moves (an elastic level of a strength test) whose surrogate varies only
+    by round-off (relative 1e-14, pseudo-random): variance 0 and NaN indices, so the other output
+    alone decides — ``b``, which only the round-off "explains", is proposed for fixing. A genuine
+    relative spread of 1e-6 still counts."""
+    def fun(U):
+        wiggle = 1e-14 * np.sin(1e3 * U[:, 1])  # rounding errors that happen to follow b
+        return np.column_stack([U[:, 0], 7.0 * (1 + wiggle), 7.0 * (1 + 1e-6 * U[:, 1])])
+
+    res = sobol_indices(fun, ("a", "b"), ("y", "flat", "tiny"), n=256, rng=0)
+    assert res.variance[1] == 0 and np.all(np.isnan(res.total[1]))
+    assert res.variance[2] > 0 and res.total[2, 1] == pytest.approx(1.0, abs=0.05)  # a real spread: b explains it
+    only = sobol_indices(lambda U: fun(U)[:, :2], ("a", "b"), ("y", "flat"), n=256, rng=0)
+    assert only.negligible() == ("b",)

@@ -38,6 +38,9 @@ from podkrig.online.settings import SENSITIVITY
 
 #: total index below which a parameter is proposed for fixing (1 % of an output's variance)
 NEGLIGIBLE_TOTAL_INDEX = 0.01
+#: relative standard deviation at or below which an output counts as constant over the box (its
+#: spread is the surrogate's round-off, ~1e-14 of its size)
+ROUND_OFF = 1e-10
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -55,8 +58,9 @@ class SensitivityResult(Displayed):
     first_low, first_high, total_low, total_high : ndarray of shape (s, d)
         Bootstrap percentile interval at ``confidence``.
     variance : ndarray of shape (s,)
-        Output variance over the box (output units², mm² for readings); zero-variance outputs get
-        NaN indices.
+        Output variance over the box (output units², mm² for readings); an output whose standard
+        deviation is at most :data:`ROUND_OFF` of its largest magnitude counts as constant:
+        variance 0 and NaN indices.
     confidence : float
     n_base : int
         Base samples ``n``; the model was evaluated ``n (d + 2)`` times.
@@ -156,7 +160,10 @@ def sobol_indices(fun_unit, parameters, outputs, *, n=SENSITIVITY.n, rng=SENSITI
     f_A, f_B = Y[:n].T, Y[n : 2 * n].T  # (s, n)
     f_AB = Y[2 * n :].reshape(d, n, s).transpose(0, 2, 1)  # (d, s, n)
     variance = np.var(np.concatenate([f_A, f_B], axis=1), axis=1)
-    live = variance > 1e-300 * np.maximum(1.0, np.abs(f_A).max(axis=1) ** 2)
+    # an output whose spread is round-off of its own size (a reading at an elastic level, which no
+    # strength parameter moves) is constant: its indices would be ratios of rounding errors
+    live = variance > (ROUND_OFF * np.abs(f_A).max(axis=1)) ** 2 + 1e-300
+    variance = np.where(live, variance, 0.0)
     first, total = _estimate(f_A, f_B, f_AB, live)
     boot_first, boot_total = _bootstrap(f_A, f_B, f_AB, live, n_resamples, np.random.default_rng(rng))
     q = 100 * np.array([(1 - confidence) / 2, (1 + confidence) / 2])

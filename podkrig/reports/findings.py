@@ -131,6 +131,30 @@ def _chi2_dof(v, context, diagnosis_enabled):
             + (" " if context == "cli" else ": ") + then)
 
 
+#: the test that informs a parameter of the masonry (scenario names of ``podkrig scenarios``), for the
+#: remedies of ``unidentified`` and ``insensitive``: what a study that cannot pin it down should add
+INFORMING_TEST = {
+    "ft_bj": "a tension test of the bed joint (couplet_tension: its peak is A f_t)",
+    "GfI_bj": "a tension test of the bed joint with its softening branch (couplet_tension)",
+    "c_bj": "shear tests at two or more pre-compressions (triplet_shear: the peaks give c and tanφ)",
+    "tanphi_bj": "shear tests at two or more pre-compressions (triplet_shear: the peaks give c and tanφ)",
+    "tanphir_bj": "a shear test followed to its residual plateau (triplet_shear to a slip of 1-2 mm)",
+    "GfII_bj": "a shear test with its softening branch (triplet_shear)",
+    "tanpsi_bj": "a shear test that measures the joint's opening (triplet_shear with the V_top gauge)",
+    "fc": "a compression test of a prism (prism_compression: its peak is A f_c)",
+    "E_b": "an elastic test with gauges on the units (diagonal_compression, flat_jack)",
+    "kN_bj": "an elastic test with gauges across the bed joints (diagonal_compression, flat_jack)",
+    "kV_bj": "an elastic test with gauges across the bed joints (diagonal_compression, flat_jack)",
+    "r_hj": "an elastic test with gauges across the head joints (diagonal_compression)",
+}
+
+
+def _informing(name):
+    """`` A test that informs NAME: ...`` when :data:`INFORMING_TEST` names one, else nothing."""
+    test = INFORMING_TEST.get(name)
+    return f" A test that informs {name}: {test}." if test else ""
+
+
 def _unidentified(v, context, diagnosis_enabled):
     name = v["parameter"]
     how = f"--fix {name}=VALUE" if context == "cli" else "[fixed]"
@@ -138,7 +162,7 @@ def _unidentified(v, context, diagnosis_enabled):
             f"{_unit(v['unit'])} ({100 * v['share']:.0f} % of its search range) fit equally well.",
             f"fix {name} from other tests ({how})"
             + ("" if context == "cli" else " or calibrate jointly with a test that informs it ([[test]] tables)")
-            + ", add sensors sensitive to it, or report it as unidentified.")
+            + ", add sensors sensitive to it, or report it as unidentified." + _informing(name))
 
 
 def _insensitive(v, context, diagnosis_enabled):
@@ -146,7 +170,7 @@ def _insensitive(v, context, diagnosis_enabled):
     return (f"no reading and not the misfit is sensitive to {name}: its total Sobol' index stays below "
             f"{v['threshold']:g} over the search box, so these data cannot inform it.",
             f"fix {name} from other tests or the literature ({'--fix' if context == 'cli' else '[fixed]'}) before "
-            "the inversion, or add a test or sensors that respond to it.")
+            "the inversion, or add a test or sensors that respond to it." + _informing(name))
 
 
 def _fe_failed(v, context, diagnosis_enabled):
@@ -415,4 +439,4 @@ def refusal(error, context="cli"):
     return " ".join(parts)
 
 
-__all__ = ["CONTEXTS", "WORDS", "FindingText", "identifiability_text", "refusal", "word", "words"]
+__all__ = ["CONTEXTS", "INFORMING_TEST", "WORDS", "FindingText", "identifiability_text", "refusal", "word", "words"]
