@@ -28,8 +28,8 @@
    and drops one that is no longer significant (it stood in for the later ones). Candidates
    rank by evidence: effects that survive refitting first, then by corrected p-value, then Δχ².
    *Inadequate* when the χ² test of the base model is significant at ``alpha / 10``, some
-   cause is named, or some candidate's corrected likelihood-ratio test is significant at ``alpha``
-   although its effect is too small to name (an omnibus χ² over hundreds of degrees of freedom
+   cause is named, or some candidate's corrected likelihood-ratio test is significant at the same
+   ``alpha / 10`` although its effect is too small to name (an omnibus χ² over hundreds of degrees of freedom
    dilutes an effect that one candidate's one-parameter test sees clearly; the verdict has the
    power of the candidates' own tests). Candidates whose fit as the first cause is within a likelihood ratio of 20 of
    the best are reported as alternatives the data cannot tell apart.
@@ -300,9 +300,9 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     inapplicable = []
     cause_found = bool(terms)
     # the gate has the power of the candidates' own tests: "adequate" only when the χ² test passes and
-    # no candidate's multiplicity-corrected likelihood-ratio test is significant (a significant one too
-    # small or diffuse to name still means the model misses something)
-    significant = any(s.applicable and s.p_corrected < alpha for s in (first_round or []))
+    # no candidate's multiplicity-corrected likelihood-ratio test is significant at the same level
+    # (alpha * CHI2_ALPHA_SHARE): one too small or diffuse to name still means the model misses something
+    significant = any(s.applicable and s.p_corrected < alpha * CHI2_ALPHA_SHARE for s in (first_round or []))
     verdict = "inadequate" if (p_chi2 < alpha * CHI2_ALPHA_SHARE or cause_found or significant) else "adequate"
     best = steps[0].score if steps else None
     alternatives = _alternatives(best, first_round, alpha) if steps else []
