@@ -183,3 +183,42 @@ def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, mod
     measurement = Measurement(data, scenario.sensor_names, scenario.load_levels, f"pseudo-data ({names})")
     return TwoCauseTrial(tuple((c.name, loc, v) for c, loc, _, v in drawn), dict(truth), measurement, noise, sigma,
                          tuple(identifiable))
+
+
+def bed_joint_locations(ctx, y):
+    """Every segment of the bed joint at height ``y`` (mm) as :data:`weak_joint` locations: the
+    whole joint, course to course across the wall."""
+    cand = CANDIDATES["weak_joint"]
+    segments = [loc for loc in cand.locations(ctx) if "segment" in loc.detail and loc.detail["kind"] == "bed"]
+    out = [loc for loc in segments if np.isclose(loc.detail["y"][0], y)]
+    if not out:
+        heights = sorted({loc.detail["y"][0] for loc in segments})
+        raise ValueError(f"no bed joint at y = {y:g} mm; bed joints at {heights}")
+    return out
+
+
+def make_whole_joint_trial(scenario, space, truth, y, factor, *, rng, model_tolerance=None, rigid_body="auto"):
+    """Pseudo-data from ``truth`` with a *whole* bed joint weakened: every segment of the bed joint
+    at height ``y`` (mm) with its normal and shear stiffness times ``factor``, plus noise
+    (:func:`noise_sigma`). No single candidate location is the truth: the structural cause is the
+    joint, and a one-sensor fault is a wrong answer. ``identifiable_effect`` is the largest
+    |residual| / σ left after refitting the base parameters to the noise-free data."""
+    values = scenario.resolve(truth)
+    ctx = FEContext(scenario, space.names, values)
+    clean = ctx.readings(values)
+    ctx.offset_scale = float(np.max(np.abs(clean)))
+    cand = CANDIDATES["weak_joint"]
+    effect = ctx.readings_with(values, [(cand, loc, float(factor)) for loc in bed_joint_locations(ctx, y)])
+    sigma = noise_sigma(effect)
+    noise = NoiseModel(sigma=sigma)
+    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
+    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
+    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
+                     model_error(scenario, values, exact, model_tolerance, rigid), rigid)
+    u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+    identifiable = float(np.max(np.abs(fitter.whiten(fitter.fit(u).readings))))
+    data = effect + sigma * rng.standard_normal(effect.shape)
+    measurement = Measurement(data, scenario.sensor_names, scenario.load_levels,
+                              f"pseudo-data (bed joint at y = {y:g} mm × {factor:g})")
+    return Trial("weak_joint", None, float(factor), dict(truth), measurement, noise, sigma,
+                 float(np.max(np.abs(effect - clean)) / sigma), identifiable)

@@ -62,11 +62,30 @@ def test_weak_joints_see_a_head_joint_ratio_found_before_or_after(wall):
     ctx = FEContext(wall, BOUNDS, values)
     weak = CANDIDATES["weak_joint"]
     f = 0.3
-    segments = [(weak, loc, f) for loc in weak.locations(ctx)]
+    segments = [(weak, loc, f) for loc in weak.locations(ctx) if "segment" in loc.detail]
     head = (CANDIDATES["head_joint_stiffness"], _location(ctx, "head_joint_stiffness"), 0.5)
     direct = wall.run({**values, "r_hj": 0.5, "kN_bj": f * values["kN_bj"], "kV_bj": f * values["kV_bj"]}).readings
     assert_allclose(ctx.readings_with(values, [head, *segments]), direct, rtol=1e-9, atol=1e-12)
     assert_allclose(ctx.readings_with(values, [*segments, head]), direct, rtol=1e-9, atol=1e-12)
+
+
+def test_a_whole_bed_joint_is_its_segments_together(wall):
+    """A whole-bed-joint location weakens every segment at its height (exactly the segments
+    combined); its segments overlap it (not tried beside it), other joints do not."""
+    values = wall.resolve()
+    ctx = FEContext(wall, BOUNDS, values)
+    weak = CANDIDATES["weak_joint"]
+    locations = weak.locations(ctx)
+    whole = next(loc for loc in locations if loc.key == "bed joint y 585")
+    inside = [loc for loc in locations if "segment" in loc.detail and loc.detail["kind"] == "bed"
+              and loc.detail["y"][0] == 585.0]
+    assert len(inside) == len(whole.detail["segments"]) > 1
+    # the same FE model both ways: agreement to round-off of one factorisation
+    assert_allclose(weak.readings(ctx, values, whole, 0.2), ctx.readings_with(values, [(weak, loc, 0.2) for loc in inside]),
+                    rtol=1e-9, atol=1e-12)
+    assert weak.overlaps(inside[0], whole) and weak.overlaps(whole, inside[-1])
+    other = next(loc for loc in locations if "segment" in loc.detail and loc.detail["y"][0] == 520.0)
+    assert not weak.overlaps(other, whole)
 
 
 def test_load_and_sensor_effects_superpose_exactly(wall):

@@ -9,7 +9,8 @@ candidate              extra parameter (neutral)               residual signatur
 =====================  =====================================  ===========================================
 head_joint_stiffness   r_hj, head/bed stiffness ratio (base)   gauges across head joints, diagonals; ∝ load
 weak_joint             f, stiffness factor of one joint        gauges crossing or near that joint, a
-                       segment's kN and kV (1)                 local pattern; ∝ load
+                       segment's or one whole bed joint's kN   local pattern; ∝ load
+                       and kV (1)
 support_compliance     c_s = 1/k_s, compliance of the          absolute displacements and gauges near the
                        supports, mm³/N (0: rigid)              supports; ∝ load
 gauge_fault            gain g (0) or offset o, mm (0)          one sensor only: ∝ its reading (gain) or
@@ -319,6 +320,11 @@ class Candidate(abc.ABC):
         """Why the candidate does not apply to this base model (str), or None."""
         return
 
+    def overlaps(self, location, other):
+        """Whether ``location`` acts on part of what ``other`` (a location of this candidate already
+        in the model) acts on: such a location is not tried beside it."""
+        return False
+
     @abc.abstractmethod
     def locations(self, ctx):
         """The candidate's locations for this scenario, list of :class:`Location`."""
@@ -385,27 +391,48 @@ class UnitStiffness(Candidate):
 
 class WeakJoint(Candidate):
     name = "weak_joint"
-    description = ("One bed- or head-joint segment (between two units) with its normal and shear "
-                   "stiffness reduced by a factor f (poor filling, debonding, a local defect).")
+    description = ("One joint segment (between two units) or one whole bed joint (every segment at one "
+                   "height, course to course across the wall) with its normal and shear stiffness "
+                   "reduced by a factor f (poor filling, debonding, a local defect, a weak course).")
     signature = ("A local pattern: gauges crossing or next to that joint move most, far sensors "
-                 "little; in proportion to the load.")
+                 "little; in proportion to the load. A whole bed joint: every sensor across that "
+                 "height.")
 
     def locations(self, ctx):
-        out = []
+        out, beds = [], {}
         for i, (kind, _, d) in enumerate(ctx.joint_segments()):
             label = f"{kind} joint between units {d['units'][0]} and {d['units'][1]}, {span('x', d['x'])}, {span('y', d['y'])}"
             out.append(Location(f"{kind} {d['units'][0]}|{d['units'][1]}", label, {**d, "segment": i}))
+            if kind == "bed":
+                beds.setdefault(round(float(d["y"][0]), 6), []).append((i, d))
+        if any(len(segments) > 1 for segments in beds.values()):  # whole bed joints, after the segments
+            for y, segments in sorted(beds.items()):
+                x = [min(d["x"][0] for _, d in segments), max(d["x"][1] for _, d in segments)]
+                out.append(Location(f"bed joint y {y:g}", f"the whole bed joint at y {y:g} mm, {span('x', x)}",
+                                    {"kind": "bed", "x": x, "y": [y, y], "segments": [i for i, _ in segments]}))
         return out
 
     def parameter(self, ctx, location):
         # the screening signature of a nearly open joint also measures the candidate's visibility
         return EffectParameter("f", "-", 1.0, 1e-3, 1.0, 0.01, scale="log", one_sided=True)
 
+    def overlaps(self, location, other):
+        # a segment of a whole bed joint already in the model, or the whole joint of one of its segments
+        return bool(set(_segments(location)) & set(_segments(other)))
+
     def effect(self, ctx, values, location, c):
-        i = location.detail["segment"]
-        r = values.get("r_hj", 1.0) if location.detail["kind"] == "head" else 1.0
-        return Effect(increments=(((c - 1.0) * r * values["kN_bj"], ("joint", i, "normal")),
-                                  ((c - 1.0) * r * values["kV_bj"], ("joint", i, "shear"))))
+        d = location.detail
+        r = values.get("r_hj", 1.0) if d["kind"] == "head" else 1.0
+        increments = []
+        for i in _segments(location):
+            increments += [((c - 1.0) * r * values["kN_bj"], ("joint", i, "normal")),
+                           ((c - 1.0) * r * values["kV_bj"], ("joint", i, "shear"))]
+        return Effect(increments=tuple(increments))
+
+
+def _segments(location):
+    """Joint segments (indices into :meth:`FEContext.joint_segments`) of a :class:`WeakJoint` location."""
+    return location.detail.get("segments", [location.detail.get("segment")])
 
 
 class SupportCompliance(Candidate):

@@ -27,8 +27,11 @@
    ``max_causes`` are in. After each addition a backward check refits without each earlier cause
    and drops one that is no longer significant (it stood in for the later ones). Candidates
    rank by evidence: effects that survive refitting first, then by corrected p-value, then Δχ².
-   *Inadequate* when the χ² test of the base model is significant at ``alpha / 10`` or some
-   cause is named. Candidates whose fit as the first cause is within a likelihood ratio of 20 of
+   *Inadequate* when the χ² test of the base model is significant at ``alpha / 10``, some
+   cause is named, or some candidate's corrected likelihood-ratio test is significant at the same
+   ``alpha / 10`` although its effect is too small to name (an omnibus χ² over hundreds of degrees of freedom
+   dilutes an effect that one candidate's one-parameter test sees clearly; the verdict has the
+   power of the candidates' own tests). Candidates whose fit as the first cause is within a likelihood ratio of 20 of
    the best are reported as alternatives the data cannot tell apart.
 5. **Gain**: χ²/dof and misfit before and after (per step and overall), AIC/BIC, and the error on
    the highest load level predicted by both models fitted without it.
@@ -296,7 +299,11 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     ranked = first_round or []
     inapplicable = []
     cause_found = bool(terms)
-    verdict = "inadequate" if (p_chi2 < alpha * CHI2_ALPHA_SHARE or cause_found) else "adequate"
+    # the gate has the power of the candidates' own tests: "adequate" only when the χ² test passes and
+    # no candidate's multiplicity-corrected likelihood-ratio test is significant at the same level
+    # (alpha * CHI2_ALPHA_SHARE): one too small or diffuse to name still means the model misses something
+    significant = any(s.applicable and s.p_corrected < alpha * CHI2_ALPHA_SHARE for s in (first_round or []))
+    verdict = "inadequate" if (p_chi2 < alpha * CHI2_ALPHA_SHARE or cause_found or significant) else "adequate"
     best = steps[0].score if steps else None
     alternatives = _alternatives(best, first_round, alpha) if steps else []
     extended = current if cause_found else None
@@ -366,7 +373,8 @@ def _score_round(names, ctx, fitter, current, terms, space, n_applicable, alpha,
         cand = CANDIDATES[name]
         reason = cand.not_applicable(ctx)
         every = [] if reason else cand.locations(ctx)
-        locations = [loc for loc in every if (name, loc.key) not in found_keys]
+        locations = [loc for loc in every if (name, loc.key) not in found_keys
+                     and not any(t.candidate is cand and cand.overlaps(loc, t.location) for t in terms)]
         if reason is None and not locations:
             reason = "already in the model"
         if reason is not None:

@@ -56,6 +56,15 @@ def _mark_causes(ax, diagnosis):
         _mark_cause(ax, diagnosis, cause)
 
 
+def unnamed_significant(d):
+    """Of a diagnosis's JSON ``d`` with no cause named: its candidates whose corrected
+    likelihood-ratio test is significant, as text ("gauge_fault at sensor D2, gain (corrected p =
+    0.003)"), "" when none is."""
+    level = d["adequacy"]["alpha"]  # the adequacy gate's level, that of its χ² test
+    found = [c for c in d["candidates"] if c["applicable"] and c["p_corrected"] < level]
+    return "; ".join(f"{c['name']} at {c['location']} (corrected p = {c['p_corrected']:.2g})" for c in found)
+
+
 def _mark_cause(ax, diagnosis, cause):
     d = cause.location.detail
     if cause.name == "weak_joint":
@@ -230,8 +239,17 @@ def write_diagnosis_report(diagnosis, out_dir, *, noise_text=""):
     if d["verdict"] == "adequate":
         page.success(
             f"The calibrated base model explains the data within the noise: χ²/dof = {d['adequacy']['chi2_dof']:.2f} "
-            f"(p = {d['adequacy']['p_value']:.3g}) and no candidate cause improves the fit significantly at α = {diagnosis.alpha:g} "
+            f"(p = {d['adequacy']['p_value']:.3g}) and no candidate cause improves the fit significantly at α = {d['adequacy']['alpha']:g} (the χ² test's level) "
             "after correcting for the number of candidates and locations tried.")
+    elif d["cause"] is None and unnamed_significant(d):
+        page.warning(
+            f"The base model misses something (χ²/dof = {d['adequacy']['chi2_dof']:.2f}, p = {d['adequacy']['p_value']:.2g}): "
+            f"a candidate cause improves the fit significantly ({unnamed_significant(d)}) "
+            f"at α = {d['adequacy']['alpha']:g} (the χ² test's level) after correcting for the number of candidates and locations tried, "
+            "but what is left of the effect after refitting the base parameters is too small or too diffuse to name "
+            "as a cause: no candidate explains the data.",
+            "look at the residual pattern below; a longer load range, more load levels or a sensor near the "
+            "candidate's location would tell whether the effect is real.")
     elif d["cause"] is None:
         page.warning(
             f"The base model does not explain the data (χ²/dof = {d['adequacy']['chi2_dof']:.2f}, p = {d['adequacy']['p_value']:.2g}), "

@@ -17,7 +17,7 @@ from pathlib import Path
 from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
-from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text
+from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text, unnamed_significant
 from podkrig.reports.html import Page, num, pct, unit_cell
 from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
@@ -360,7 +360,12 @@ def _diagnosis(page, r, folder=""):
     if not cands:
         page.paragraph("No candidate cause applies to this scenario and these sensors.")
     else:
-        if r["cause"] is None:
+        if r["cause"] is None and unnamed_significant(r):
+            page.paragraph(f"Significant but not named: a candidate cause improves the fit beyond chance ({unnamed_significant(r)}), "
+                           "but "
+                           "what is left of its effect after refitting is too small or too diffuse to name as a cause; "
+                           "no candidate explains the data.")
+        elif r["cause"] is None:
             page.paragraph(f"Nothing significant: no candidate cause improves the fit beyond chance (every corrected "
                            f"p ≥ α = {alpha:g}); the fitted values below only show where each fit went.")
         page.table(["candidate cause", "best location", "fitted parameter", "Δχ² (-)", "corrected p (-)"],
