@@ -26,12 +26,17 @@ TRUTH = {"kN_bj": 100.0, "kV_bj": 40.0}
 ONE_SENSOR = ("gauge_fault", "gauge_slip")
 
 
+def wall_model():
+    """The diagonal test with six gauges and the 5 × 6 grid, and its (kN_bj, kV_bj) space."""
+    sensors = {g.name: g.to_dict() for g in DEFAULT_SENSORS}
+    sensors["DIC"] = dict(DIC_5X6)
+    scenario = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "sensors": sensors})
+    return scenario, ParameterSpace.from_scenario(scenario, JOINT_BOUNDS)
+
+
 class Wall:
     def __init__(self):
-        sensors = {g.name: g.to_dict() for g in DEFAULT_SENSORS}
-        sensors["DIC"] = dict(DIC_5X6)
-        self.scenario = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1, "sensors": sensors})
-        self.space = ParameterSpace.from_scenario(self.scenario, JOINT_BOUNDS)
+        self.scenario, self.space = wall_model()
         self.surrogate = build_base_surrogate(self.scenario, self.space, self.scenario.resolve(), 64, 0)
 
     def diagnose(self, trial, seed):
@@ -41,6 +46,18 @@ class Wall:
     def location(self, cause, key):
         ctx = FEContext(self.scenario, self.space.names, self.scenario.resolve(TRUTH))
         return next(loc for loc in CANDIDATES[cause].locations(ctx) if loc.key == key)
+
+
+def test_a_weakened_whole_bed_joint_shows_on_many_sensors_beyond_any_one_sensors_fault():
+    """The premise of the gate tests below, cheaply (no surrogate): the whole-joint pseudo-data
+    move many sensors by several σ, so a one-sensor fault cannot be the answer, and the effect
+    survives refitting the base parameters."""
+    scenario, space = wall_model()
+    trial = make_whole_joint_trial(scenario, space, TRUTH, 585.0, 0.1, rng=np.random.default_rng(100))
+    assert trial.identifiable_effect > 5.0
+    clean = build_scenario(scenario.spec).run(scenario.resolve(TRUTH)).readings
+    moved = np.abs(trial.measurement.values - clean) > 5 * trial.sigma  # (levels, sensors), beyond the noise
+    assert moved.any(axis=0).sum() >= 5, moved.any(axis=0).sum()
 
 
 @pytest.fixture(scope="module")
