@@ -1,17 +1,27 @@
 """The J4D wall's strength study (``examples/j4d_wall.toml``): the file loads with its six free
 parameters and stated fixed values, the sampling box satisfies the scenario's constraints at every
 point (checked here from the formulas, independently of the checker), the curve is read as the
-model's with the stated noise, and the make script reproduces the shipped pseudo-data."""
+model's with the stated noise, and the make script reproduces the shipped pseudo-data; (slow) a
+reduced variant killed mid-way resumes without recomputing a finished FE run."""
 
 import importlib.util
+import json
+import subprocess
+import sys
+import time
 from pathlib import Path
 
+import h5py
 import numpy as np
-from numpy.testing import assert_allclose
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+from typer.testing import CliRunner
 
 from fe import SCENARIOS
 from fe.scenarios import build_scenario
+from podkrig.cli import app
 from podkrig.offline.sampling import sobol
+from podkrig.offline.store import SnapshotStore
 from podkrig.study.schema import load_study
 from podkrig.study.stages import read_study_measurement
 
@@ -101,3 +111,66 @@ def test_the_make_script_reproduces_the_shipped_curve(tmp_path):
     assert made.read_text().splitlines()[0] == make.DATA.read_text().splitlines()[0]
     a, b = (np.loadtxt(f, delimiter=",", skiprows=1) for f in (made, make.DATA))
     assert_allclose(a, b, rtol=1e-6, atol=1e-9)
+
+
+def _reduced_study(folder, n_train=8, n_held=4):
+    """The example with small designs and no sensitivity or diagnosis, next to a copy of its curve."""
+    text = STUDY.read_text()
+    for old, new in (("n = 256, seed = 0", f"n = {n_train}, seed = 0"), ("n = 32, seed = 1", f"n = {n_held}, seed = 1"),
+                     ("[sensitivity]                    # Sobol' indices on the surrogate: proposes parameters to fix\n"
+                      "enabled = true", "[sensitivity]\nenabled = false"),
+                     ("[diagnosis]                      # does the calibrated model explain the curve within the noise?\n"
+                      "enabled = true", "[diagnosis]\nenabled = false")):
+        assert old in text, old
+        text = text.replace(old, new)
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "j4d_wall.toml").write_text(text)
+    (folder / "j4d_wall_measured.csv").write_text(_make_script().DATA.read_text())
+    return folder / "j4d_wall.toml"
+
+
+def _done_rows(path):
+    """Finished rows of a store another process is writing (read without the HDF5 lock)."""
+    try:
+        with h5py.File(path, "r", locking=False) as f:
+            return int((f["status"][...] == 1).sum())
+    except (OSError, KeyError):
+        return 0
+
+
+@pytest.mark.slow
+def test_a_killed_study_resumes_without_recomputing_a_finished_run(tmp_path):
+    """The study with 8 training and 4 held-out runs (about 1 min CPU): ``podkrig run`` SIGKILLed
+    once 3 training rows are written, then run again — the second run does exactly the missing
+    FE runs (5 training + 4 held-out + the FE check; the probe is cached), the finished rows are
+    kept bitwise, and the study ends with an inversion of all six parameters."""
+    study = _reduced_study(tmp_path / "study")
+    out = tmp_path / "out"
+    args = ["run", str(study), "--out", str(out), "--yes"]
+    job = subprocess.Popen([sys.executable, "-c", "from podkrig.cli import app; app(prog_name='podkrig')", *args],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 600
+        while _done_rows(out / "train.h5") < 3:
+            assert job.poll() is None, "the study ended before it could be killed"
+            assert time.monotonic() < deadline, "no 3 training rows within 600 s"
+            time.sleep(0.05)
+        job.kill()  # SIGKILL: no cleanup
+    finally:
+        job.kill()
+        job.wait()
+    with SnapshotStore.open(out / "train.h5") as store:
+        done = store.done_mask()
+        before = store.readings(only_done=False)[done]
+    assert 3 <= done.sum() < 8
+
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output[-3000:]
+    stages = json.loads((out / "summary.json").read_text())["stages"]
+    assert stages["probe"]["cached"]
+    assert stages["offline"]["fe_runs"] == 8 - done.sum()  # nothing finished is run again
+    assert stages["held_out"]["fe_runs"] == 4
+    with SnapshotStore.open(out / "train.h5") as store:
+        assert store.counts()["done"] + store.counts()["failed"] == 8
+        assert_array_equal(store.readings(only_done=False)[done], before)
+    assert set(stages["calibration"]["region"]["intervals"]) == set(FREE)
