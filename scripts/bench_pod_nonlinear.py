@@ -39,7 +39,7 @@ from podkrig.offline.runner import run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.parameters import ParameterSpace
 from podkrig.study.schema import load_study
-from podkrig.surrogate.podkriging import training_data
+from podkrig.surrogate.podkriging import PODKriging, training_data
 from podkrig.surrogate.settings import SurrogateSettings, fit_surrogate
 from podkrig.surrogate.validation import held_out_errors
 
@@ -130,6 +130,30 @@ def study_stores(store_dir):
     return paths
 
 
+def learning_curve(train_path, held_path, sizes):
+    """The default surrogate fitted on the first ``n`` finished training rows (a Sobol' design's
+    prefix is a Sobol' design) for each ``n`` in ``sizes``, checked on the same held-out runs:
+    printed as n, modes, force and peak-force errors, fit CPU s."""
+    settings = SurrogateSettings()
+    with SnapshotStore.open(train_path) as train, SnapshotStore.open(held_path) as held:
+        X, Y = training_data(train)
+        X_held, Y_held = training_data(held)
+        units = [train.sensor_definitions.get(n, {}).get("unit", "mm")
+                 if train.sensor_definitions.get(n, {}).get("kind") == "force" else "mm" for n in train.sensor_names]
+        print("\n| training runs | modes | force: median / max error (% of peak) | peak force: median / max error (%) "
+              "| fit (CPU s) |")
+        print("|---:|---:|---:|---:|---:|")
+        for n in sorted(k for k in sizes if k <= len(X)):
+            pod, regressor = settings.templates()
+            t0 = time.process_time()
+            sur = PODKriging(pod=pod, kriging=regressor, space=train.space, layout=settings.pod,
+                             scaling=settings.scaling).fit(X[:n], Y[:n], units)
+            cpu = time.process_time() - t0
+            kn = held_out_errors(sur, X_held, Y_held, with_loo=False).by_unit()["kN"]
+            cells = [f"{100 * e['median']:.3f} / {100 * e['max']:.3f}" for e in (kn["peak_error"], kn["peak_value_error"])]
+            print(f"| {n} | {sur.n_modes_} | " + " | ".join(cells) + f" | {cpu:.2f} |", flush=True)
+
+
 def table(rows):
     print("\n| snapshots | surrogate | modes | force: median / max error (% of peak) | peak force: median / max "
           "error (%) | gauges: median / max error (% of peak) | gauges: max error (µm) | fit (CPU s) |")
@@ -170,6 +194,7 @@ def main(argv=None):
         if args.j4d_study:
             train, held = study_stores(store_dir)
             rows += compare(train, held, "J4D study (6 parameters)")
+            learning_curve(train, held, (32, 64, 128, 256, 512, 1024))
     table(rows)
 
 
