@@ -52,10 +52,12 @@ def test_the_study_loads_with_six_free_parameters_around_the_hidden_truth():
         assert p.lower < make.TRUTH[p.name] < p.upper, p.name
     defaults = {p.name: p.default for p in SCENARIOS["shear_compression_nl"].PARAMETERS}
     assert study.fixed == {n: defaults[n] for n in ("E_b", "kN_bj", "tanphir_bj")}
-    assert study.sensitivity.enabled and study.diagnosis.enabled
+    assert study.sensitivity.enabled
     assert study.workers == 1  # a shared machine: one FE process
-    assert [(v.name, v.spec.scenario, v.spec.options["precompression"]) for v in study.validation] == [
-        ("J6D", "shear_compression_nl", 1.21), ("wall_opening", "wall_opening_nl", 0.30)]
+    assert [(v.name, v.spec.scenario, v.spec.options["precompression"], v.spec.options["top"], v.outputs)
+            for v in study.validation] == [
+        ("J6D", "shear_compression_nl", 1.21, "fixed_vertical", ("F_peak", "d_peak")),
+        ("wall_opening", "wall_opening_nl", 0.30, "constant_force", ("F_peak", "d_peak"))]
 
 
 def test_every_point_of_the_box_satisfies_the_scenarios_constraints():
@@ -116,14 +118,12 @@ def test_the_make_script_reproduces_the_shipped_curve(tmp_path):
 
 
 def _reduced_study(folder, n_train=8, n_held=4):
-    """The example with small designs, no sensitivity, diagnosis or validation models, next to a copy
-    of its curve."""
-    text = STUDY.read_text().split("\n# RVC:")[0]
+    """The example with small designs, no sensitivity or validation models, next to a copy of its
+    curve."""
+    text = STUDY.read_text().split("\n# Capacity with its spread")[0]
     for old, new in (("n = 256, seed = 0", f"n = {n_train}, seed = 0"), ("n = 32, seed = 1", f"n = {n_held}, seed = 1"),
                      ("[sensitivity]                    # Sobol' indices on the surrogate: proposes parameters to fix\n"
-                      "enabled = true", "[sensitivity]\nenabled = false"),
-                     ("[diagnosis]                      # does the calibrated model explain the curve within the noise?\n"
-                      "enabled = true", "[diagnosis]\nenabled = false")):
+                      "enabled = true", "[sensitivity]\nenabled = false")):
         assert old in text, old
         text = text.replace(old, new)
     folder.mkdir(parents=True, exist_ok=True)
