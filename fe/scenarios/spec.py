@@ -14,6 +14,8 @@ the parameters it holds fixed (overriding the defaults)::
 """
 
 import json
+import os
+import stat
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,9 +108,6 @@ class ScenarioSpec:
 def _read_bounded(path):
     """The bytes of a spec file, at most :data:`MAX_SPEC_BYTES`: a larger file, a device
     (``/dev/zero``) or a FIFO is refused before it fills the memory."""
-    import os
-    import stat
-
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO without a writer would block a plain open
     too_large = f"{path}: larger than {_CAP}, the cap for a scenario spec: "
     try:
