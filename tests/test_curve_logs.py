@@ -187,10 +187,21 @@ def test_a_control_in_micrometres_under_a_millimetre_header_is_named_as_a_contro
     assert e.value.findings[0].values["quantity"] == "load" and "loads in N under a kN header" in refusal(e.value)
 
 
-def test_a_falling_force_passes_the_load_check():
-    """The force is a reading, not the control: the control is monotone, the force is not, and only
-    the control is checked against the levels."""
-    check_loads([0.01, 0.05, 0.2, 1.0, 2.0], [0.01, 0.1, 1.0, 2.0], "mm")
+def test_a_falling_force_passes_the_load_check(tmp_path, triplet):
+    """The force is a reading, not the control: a log whose force rises to 60 kN (30× the last
+    control level: refused as a control, the premise) and falls after its peak is read as it is;
+    only the control column is checked against the levels."""
+    sc, _ = triplet
+    control, F = [0.01, 0.05, 0.2, 1.0, 2.0], [10.0, 60.0, 45.0, 30.0, 20.0]
+    with pytest.raises(MeasurementCheckError):
+        check_loads(F, sc.load_levels, "mm")  # these numbers in the control column would be refused
+    path = tmp_path / "falling.csv"
+    path.write_text("slip [mm],F [kN]\n" + "\n".join(f"{c:g},{f:g}" for c, f in zip(control, F)) + "\n")
+    data = read_measurement(path, sc.sensor_names, sc.load_levels, sc.load_unit, sc.load_response,
+                            ImportSettings(load_column="slip"), sc.sensor_units)
+    assert data.sensor_names == ("F",)
+    assert_allclose(data.load_levels, control, rtol=0, atol=0)
+    assert_allclose(data.values[:, 0], F, rtol=0, atol=0)  # the post-peak branch kept, in order
 
 
 def test_a_load_cell_weighs_the_force_and_a_displacement_instrument_never_does():

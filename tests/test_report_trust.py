@@ -85,6 +85,7 @@ def _diagnosis_report(alpha):
 def test_diagnosis_section_states_one_alpha_the_settings_value():
     import re
 
+    from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
     from podkrig.diagnosis.settings import DiagnosisSettings
     from podkrig.reports.html import Page
     from podkrig.reports.study import _diagnosis
@@ -97,7 +98,7 @@ def test_diagnosis_section_states_one_alpha_the_settings_value():
     assert [float(c) for c in cells] == [alpha]
     stated = {float(v) for v in re.findall(r"α = ([0-9.eE+-]+[0-9])", text)}
     assert stated == {alpha}, stated  # the text's α (the candidates' level) is the table's
-    assert f"{alpha * 0.1:g}" not in text  # the χ² test's level appears only as a share of α
+    assert f"{alpha * CHI2_ALPHA_SHARE:g}" not in text  # the χ² test's level appears only as a share of α
 
 
 # --- negative Sobol' indices: noise or flagged -------------------------------------------------
