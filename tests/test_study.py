@@ -21,6 +21,7 @@ from podkrig.reports.figures import read_panels
 from podkrig.reports.jupyter import inverse_result_html, region_html
 from podkrig.reports.study import SECTIONS
 from podkrig.study import load_study, run_study
+from podkrig.study.cache import jsonable
 
 runner = CliRunner()
 
@@ -446,6 +447,8 @@ def test_results_show_in_jupyter(tiny):
     includes, and the figures inline."""
     study, out, _ = tiny
     result = run_study(load_study(study), out)  # every stage cached: seconds
+    # summary.json is the result's to_dict (written as write_json writes it)
+    assert json.loads((out / "summary.json").read_text()) == json.loads(json.dumps(result.to_dict(), default=jsonable))
     inv, region = result.calibration.inversion, result.calibration.region
     for obj, words, text in (
             (result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION],
