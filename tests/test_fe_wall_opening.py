@@ -2,6 +2,8 @@
 defaults and a full run."""
 
 import dataclasses
+import importlib.util
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -213,9 +215,6 @@ def test_default_run_reaches_the_end_of_the_control_range(top):
 def test_mesh_convergence_script_imports_without_side_effects_and_tables_a_run():
     """``scripts/bench_wall_opening.py`` (the BENCHMARKS.md mesh study) imports without running, runs
     one mesh to the end of the range and tables it against itself (the finest of a one-mesh ladder)."""
-    import importlib.util
-    from pathlib import Path
-
     path = Path(__file__).resolve().parents[1] / "scripts" / "bench_wall_opening.py"
     spec = importlib.util.spec_from_file_location("bench_wall_opening", path)
     bench = importlib.util.module_from_spec(spec)
