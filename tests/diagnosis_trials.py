@@ -209,9 +209,10 @@ def bed_joint_locations(ctx, y):
 def make_whole_joint_trial(scenario, space, truth, y, factor, *, rng, model_tolerance=None, rigid_body="auto"):
     """Pseudo-data from ``truth`` with a *whole* bed joint weakened: every segment of the bed joint
     at height ``y`` (mm) with its normal and shear stiffness times ``factor``, plus noise
-    (:func:`noise_sigma`). No single candidate location is the truth: the structural cause is the
-    joint, and a one-sensor fault is a wrong answer. ``identifiable_effect`` is the largest
-    |residual| / σ left after refitting the base parameters to the noise-free data."""
+    (:func:`noise_sigma`), built segment by segment (not through the candidate's whole-bed-joint
+    location, which the diagnosis should find): the structural cause is the joint, and a
+    one-sensor fault is a wrong answer. ``identifiable_effect`` is the largest |residual| / σ left
+    after refitting the base parameters to the noise-free data."""
     values, ctx, clean = _context(scenario, space, truth)
     cand = CANDIDATES["weak_joint"]
     effect = ctx.readings_with(values, [(cand, loc, float(factor)) for loc in bed_joint_locations(ctx, y)])
