@@ -294,7 +294,7 @@ def test_no_range_check_lets_the_readings_through_but_never_the_loads(lab):
 
 
 @pytest.mark.parametrize("command", ["rvc", "sensitivity", "overparam"])
-def test_rvc_and_sensitivity_refuse_the_same_logs(lab, command):
+def test_rvc_sensitivity_and_overparam_refuse_the_same_logs(lab, command):
     d, logs = lab
     extra = ["--noise-rel", "0.01"] + {"sensitivity": ["--n", "256", "--out", str(d / "sens")],
                                        "overparam": ["--set", "kN_bj,kV_bj", "--set", "kN_bj"]}.get(command, [])
