@@ -6,7 +6,6 @@ coarse default mesh gives the peak of a fine one.
 """
 
 import dataclasses
-import importlib.util
 import json
 from pathlib import Path
 
@@ -14,6 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from conftest import load_file
 from fe.exceptions import ConstraintError, SpecError
 from fe.interfaces import CompositeInterface
 from fe.scenarios import build_scenario
@@ -105,10 +105,7 @@ def test_a_runaway_newton_iterate_is_cut_back_before_the_law_is_evaluated_there(
 def test_snapshot_benchmark_box_is_the_widest_equal_spread_the_wall_admits():
     """``scripts/bench_nonlinear_snapshots.py`` samples the eight parameters over Set A ± 20 %: a box
     the scenario admits (f_t ≤ c / tanφ at every corner); ± 30 % is refused naming the inequality."""
-    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py"
-    spec = importlib.util.spec_from_file_location("bench_nonlinear_snapshots", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_file(Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py")
     sc = build_scenario("shear_compression_nl")
     space = bench.space_around_defaults(sc, 0.2)
     assert space.names == bench.PARAMETERS
