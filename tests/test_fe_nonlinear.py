@@ -2,6 +2,7 @@
 made 100× stiffer than default so that the joints see uniform tractions to < 0.1 %)."""
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -252,6 +253,24 @@ def test_budget_ends_the_run_with_its_converged_part():
     assert r.status == BUDGET and r.limit == "steps" and "step budget of 5" in r.message
     assert len(r.path.path) <= 5 and np.isnan(r.loads[-1]) and np.isfinite(r.loads[0])
     assert r.summary()["limit"] == "steps" and r.path.to_dict()["limit"] == "steps"
+
+
+def test_a_stopped_run_as_json_has_none_where_it_did_not_reach():
+    """``NonlinearResponse.to_dict`` (the JSON of ``podkrig simulate``) is strict JSON: each
+    sensor's readings by level, None exactly at the levels the run did not reach (NaN in the
+    response), the levels and their unit, then the status, loads and solver. Defects: NaN written
+    into JSON, the readings not those of the response, a key of the summary or the solver lost."""
+    sc = build_scenario({"scenario": "couplet_tension", "nx": 2, "ny": 1, "max_steps": 10})
+    r = sc.run()
+    d = json.loads(json.dumps(r.to_dict(), allow_nan=False))
+    reached = np.isfinite(r.readings)
+    assert r.status == BUDGET and reached.any() and not reached.all()
+    assert set(d["readings"]) == set(r.sensor_names) and d["load_levels"] == r.load_levels.tolist()
+    for j, name in enumerate(r.sensor_names):
+        assert [v is not None for v in d["readings"][name]] == reached[:, j].tolist()
+        assert [v for v in d["readings"][name] if v is not None] == r.readings[reached[:, j], j].tolist()
+    assert d["load_unit"] == "mm" and d["status"] == BUDGET and d["limit"] == "steps"
+    assert d["solver"] == json.loads(json.dumps(r.path.to_dict())) and set(r.summary()) <= set(d)
 
 
 def test_a_tiny_iteration_budget_names_the_iterations():
