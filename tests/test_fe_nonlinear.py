@@ -13,9 +13,9 @@ from conftest import load_file
 from fe.exceptions import SpecError
 from fe.interfaces import CompositeInterface
 from fe.mesh import INTERFACE_KINDS
-from fe.scenarios import build_scenario
+from fe.scenarios import SCENARIOS, build_scenario
 from fe.scenarios.catalogue import describe_scenario
-from fe.scenarios.nonlinear import interface_properties
+from fe.scenarios.nonlinear import NonlinearScenario, interface_properties
 from fe.solvers.nonlinear import BUDGET, CONVERGED, NOT_CONVERGED, PathFollower, PathSettings
 
 A = 210.0 * 100.0  # joint area of the specimens, mm²
@@ -281,6 +281,17 @@ def test_a_tiny_iteration_budget_names_the_iterations():
     assert r.status == BUDGET and r.limit == "iterations"
     assert r.path.total_iterations == 7 and "iteration budget of 7" in r.message
     assert np.isnan(r.loads[-1])
+
+
+@pytest.mark.parametrize("name", sorted(n for n, c in SCENARIOS.items() if issubclass(c, NonlinearScenario)))
+def test_a_scenario_and_the_solver_alone_have_one_default_budget(name):
+    """The solver settings of a nonlinear scenario with its default options (what ``podkrig
+    simulate`` and ``podkrig snapshots run`` use) are ``PathSettings``' defaults but for the
+    increment range the scenario sets: one budget whether a user runs the scenario or passes
+    ``PathSettings()`` to it. Defect: an iteration budget of 30 000 in the scenarios and 6 000 in
+    the solver."""
+    o = SCENARIOS[name].Options()
+    assert o.path_settings() == PathSettings(max_increment_fraction=o.max_increment / o.increment)
 
 
 def test_a_zero_cpu_budget_names_the_cpu_and_the_wall_clock_is_only_a_hang_guard():
