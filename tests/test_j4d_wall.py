@@ -4,7 +4,6 @@ point (checked here from the formulas, independently of the checker), the curve 
 model's with the stated noise, and the make script reproduces the shipped pseudo-data; (slow) a
 reduced variant killed mid-way resumes without recomputing a finished FE run."""
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -16,6 +15,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from typer.testing import CliRunner
+
+from conftest import load_file
 
 from fe import SCENARIOS
 from fe.scenarios import build_scenario
@@ -31,10 +32,7 @@ FREE = ["ft_bj", "c_bj", "tanphi_bj", "GfI_bj", "GfII_bj", "kV_bj"]
 
 
 def _make_script():
-    spec = importlib.util.spec_from_file_location("make_j4d_wall", EXAMPLES / "make_j4d_wall.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_file(EXAMPLES / "make_j4d_wall.py")
 
 
 def test_the_study_loads_with_six_free_parameters_around_the_hidden_truth():
