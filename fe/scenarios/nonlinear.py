@@ -303,7 +303,7 @@ class NonlinearScenario(Scenario):
         records the states."""
         model = self.model
         model.set_units(self.theta(values))
-        props = interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
+        props = self._property_rows(values)
         law = CompositeInterface(props)
         if self.options.law == "hyperbolic":
             law = self._hyperbolic_law(values, props)
@@ -311,6 +311,12 @@ class NonlinearScenario(Scenario):
         if field and not settings.record_states:
             settings = dataclasses.replace(settings, record_states=True)
         return PathFollower(model, law, settings)
+
+    def _property_rows(self, values):
+        """Per-point property rows of the composite law for the parameter values ``values``,
+        ``(n_points, N_PROPS)`` (a scenario that varies a joint's properties overrides this)."""
+        model = self.model
+        return interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
 
     def _hyperbolic_law(self, values, composite_props):
         """Joints with the hyperbolic law (and its cap when asked for), unit mid-planes with the
