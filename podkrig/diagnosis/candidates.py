@@ -925,19 +925,18 @@ class WeakJointStrength(Candidate):
     cohesion × s (the scenario option ``joint_strength_factors``, e.g. of ``triplet_shear``).
 
     The joints of a triplet shear side by side under one slip, so the force is the sum of the two
-    joints' shear resistances: the weaker joint peaks first, at a slip where the other still
-    carries about the same stress elastically, so the peak is about twice the weaker joint's
-    (``2 A (s c + σ tanφ)``); the stronger joint then carries on to its own strength while the
-    weaker one softens (a broader peak, a slower softening: ``GfII`` unchanged over a smaller c).
-    Most of this a lower cohesion c of both joints absorbs: the part it cannot is the shape of
-    the peak and of the softening (docs/diagnosis.md says when that is visible).
+    joints' shear resistances: the weaker joint peaks first and softens while the other still
+    rises, so the peak lies between ``2 A (s c + σ tanφ)`` and ``A ((1 + s) c + 2 σ tanφ)``, below
+    the sound triplet's, and the softening is slower (``GfII`` unchanged over a smaller c) towards
+    the same residual friction. A lower cohesion of both joints absorbs most of this: what it
+    cannot is the shape of the peak and of the softening (docs/diagnosis.md says when that shows).
     """
 
     name = "weak_joint_strength"
     description = ("One bed joint of the specimen weaker than the other: its bond (tensile strength f_t and "
                    "cohesion c) × s (poor filling or curing, a joint disturbed when the specimen was "
                    "handled); friction, fracture energies and stiffness as the other joint's.")
-    signature = ("The force curve only: a lower peak governed by the weaker joint, broader than one "
+    signature = ("The force curve only: a lower peak, governed by the weaker joint and broader than one "
                  "joint law gives, and a slower softening towards the same residual friction.")
 
     #: the weakest bond tried, as a share of the other joint's (a choice: a joint at a fifth of
