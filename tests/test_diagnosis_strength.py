@@ -82,7 +82,9 @@ def test_on_a_curve_scenario_only_the_candidates_that_can_act_apply():
     (loc,) = CANDIDATES["dilatancy"].locations(ctx)
     par = CANDIDATES["dilatancy"].parameter(ctx, loc)
     assert (par.neutral, par.upper) == (0.0, min(0.6, sc.resolve()["tanphir_bj"]))
-    assert [loc.key for loc in CANDIDATES["weak_joint_strength"].locations(ctx)] == ["lower bed joint", "upper bed joint"]
+    joints = CANDIDATES["weak_joint_strength"].locations(ctx)
+    assert [loc.key for loc in joints] == ["lower bed joint", "upper bed joint"]
+    assert [loc.detail["y"][0] for loc in joints] == [62.0, 124.0]  # mm, between the courses
     # a base model that frees tanpsi_bj or sets the factors has nothing left for the candidate
     assert "free parameter" in CANDIDATES["dilatancy"].not_applicable(FEContext(sc, ("tanpsi_bj",), ctx.values))
     weak = build_scenario({**SPEC, "joint_strength_factors": [0.8, 1.0]})
@@ -138,8 +140,12 @@ def test_one_joint_20_to_30_percent_weaker_is_named():
         d = diagnose_trial(trial, seed)
         assert d.verdict == "inadequate", d.to_dict()["candidates"][:3]
         named.append(d.cause)
-        if d.cause == "weak_joint_strength":  # the factor, whichever joint carries it
-            assert_allclose(d.causes[0].value, trial.value, atol=0.08)  # the scatter of s over 5 noise seeds
+        if d.cause == "weak_joint_strength":
+            # whichever joint carries it (the curve hardly tells which); 0.1: the scatter of the
+            # fitted s over noise seeds (0.03-0.07 in scripts/bench_diagnosis_strength.py)
+            assert_allclose(d.causes[0].value, trial.value, atol=0.1)
+            other = {"lower bed joint": "upper bed joint", "upper bed joint": "lower bed joint"}[d.causes[0].location.key]
+            assert ("weak_joint_strength", other) in [(a.name, a.location.key) for a in d.alternatives]
     assert named.count("weak_joint_strength") >= 4, named
 
 

@@ -952,9 +952,12 @@ class WeakJointStrength(Candidate):
         return None
 
     def locations(self, ctx):
-        n = len(ctx.scenario.options.joint_strength_factors)
+        sc = ctx.scenario
+        n = len(sc.options.joint_strength_factors)
         names = ("lower", "upper") if n == 2 else tuple(f"joint {k + 1}" for k in range(n))
-        return [Location(f"{name} bed joint", f"the {name} bed joint weaker than the other", {"joint": k, "of": n})
+        width, h = float(sc.mesh.width), float(sc.options.unit_height)  # joint k between courses k and k + 1
+        return [Location(f"{name} bed joint", f"the {name} bed joint weaker than the other",
+                         {"joint": k, "of": n, "x": [0.0, width], "y": [(k + 1) * h, (k + 1) * h]})
                 for k, name in enumerate(names)]
 
     def parameter(self, ctx, location):
