@@ -5,9 +5,9 @@ noise 1 % + 0.05 kN on the force and 1 % + 2 µm on the gauges; base model: c_bj
 the triplet series' identified values, GfII_bj free (tests/strength_trials.py). Per noise seed
 (hidden effect drawn from the seed): (1) one bed joint 20–30 % weaker (``joint_strength_factors``),
 (2) dilatancy tanψ 0.03–0.1, (3) clean data; the causes named and the CPU seconds per diagnosis
-(process time). ``--identifiable`` also prints what is left of a weak joint after refitting c_bj
-as well (the base model of the series itself). The same cases are asserted in
-tests/test_diagnosis_strength.py.
+(process time); at the end, per kind, how many were named (the weak joint: and at the right joint)
+or read adequate. The same cases are asserted in tests/test_diagnosis_strength.py, which also
+measures what is left of a weak joint when c_bj is free as well (under 1σ).
 
     python scripts/bench_diagnosis_strength.py --seeds 20 --clean 20
 """
@@ -37,7 +37,10 @@ def main():
         d = diagnose_trial(trial, seed)
         cpu = time.process_time() - t0
         named = ", ".join(f"{c.name} at {c.location.key} ({c.value:.3g})" for c in d.causes) or "—"
-        truth = "" if effect is None else f" [truth: {'lower upper'.split()[trial.joint] + ' joint, ' if trial.joint is not None else ''}{trial.value:.3g}]"
+        truth = ""
+        if effect is not None:
+            joint = "" if trial.joint is None else ("lower", "upper")[trial.joint] + " joint, "
+            truth = f" [truth: {joint}{trial.value:.3g}]"
         print(f"{effect or 'clean':>19} seed {seed:2d}: {d.verdict:10s} {named}{truth}  (χ² p = {d.chi2_p_value:.2g}, "
               f"{cpu:.1f} s CPU, {d.n_fe_runs} FE runs)", flush=True)
         hit = d.cause == effect if effect else d.verdict == "adequate"
