@@ -119,7 +119,9 @@ class CoupletTension(NonlinearScenario):
 @dataclass(frozen=True)
 class TripletOptions(SpecimenOptions):
     """Triplet geometry (three units) plus the pre-compression ``precompression`` (MPa) normal to
-    the bed joints, applied first by the top plate and held constant."""
+    the bed joints, applied first by the top plate and held constant, and
+    ``joint_strength_factors`` = (s_lower, s_upper), each in (0, 1]: the bond strengths (f_t, c)
+    of the lower and upper bed joint × s (default (1, 1): both joints as the parameters say)."""
 
     n_courses: int = 3
     nx: int = 4
