@@ -341,16 +341,16 @@ def test_mean_kernel_equals_the_direct_formula(case, box):
             assert_allclose(K[j], ref, rtol=1e-13, atol=1e-16 if kind == 0 else 1e-15 * np.abs(ref).max())
 
 
-@pytest.mark.parametrize("d", range(1, 9))
+@pytest.mark.parametrize("d", range(1, 12))
 @pytest.mark.parametrize("case", ["shared near 2", "generic", "per output, degree 1"])
 def test_mean_kernel_equals_the_direct_formula_in_every_dimension(case, d):
-    """The correlation rows of an output at its group's powers sum the last four dimensions, take
-    the exponential and the weights in one loop, the leading ones two at a time over rows of
-    powers padded with zeros: every padding (d = 1 … 8, even and odd) against the literal NumPy
-    formula, with the tolerances of the test above; the means with and without the covariance
-    rows are bitwise equal, and "per output, degree 1" mixes them with outputs of their own
-    polynomial in one group. Defects: a padded row or a skipped dimension (d = 5, 7), the sum of
-    the previous pass dropped, a row not stored for the variance."""
+    """The correlation rows of an output at its group's powers sum the last 4, 6 or 8
+    dimensions, take the exponential and the weights in one loop, the leading ones two at a time,
+    over rows of powers padded with zeros: every width and padding (d = 1 … 11, even and odd)
+    against the literal NumPy formula, with the tolerances of the test above; the means with and
+    without the covariance rows are bitwise equal, and "per output, degree 1" mixes them with
+    outputs of their own polynomial in one group. Defects: a padded row or a skipped dimension (d = 5, 7, 9, 11), the
+    sum of the leading passes dropped (d > 8), a row not stored for the variance."""
     from podkrig.surrogate.kriging import _kernels
 
     if _kernels.njit is None:
