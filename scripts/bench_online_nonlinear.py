@@ -11,8 +11,9 @@ Surrogates from snapshots this script makes (or finds already made in ``--out``)
   ``tanphi_bj``, ``GfII_bj`` at Set A ± 20 %, a study of ``--j4d-train`` Sobol' runs (seed 0; 2–5 s
   of CPU each: run under ``nice``) written to ``OUT/j4d`` with pseudo-data from one FE run at
   :data:`J4D_TRUTH` with the triplet series' noise (1 % + 0.05 kN on F, 1 % + 2 µm on the gauges,
-  seed 0); or, with ``--j4d-study DIR``, a finished study of the J4D wall (its ``stages/`` and the
-  study file it names) is used as it is.
+  seed 0); or, with ``--j4d-study DIR``, the J4D wall's study (``examples/j4d_wall.toml`` or the
+  file ``--j4d-study-file`` names) on the surrogate in ``DIR`` — fitted here with the study's
+  settings when ``DIR`` holds only its training store ``train.h5``.
 
 Timed per case, in CPU seconds of this process (``time.process_time``: every thread of it, so the
 figure does not depend on the machine's load or on how many cores the numba kernels used):
@@ -120,13 +121,19 @@ def prepare(case, args):
         study_file, folder, label = Path("examples/triplet_series.toml"), out / "triplet_series", "triplet series"
     elif args.j4d_study:
         folder = Path(args.j4d_study)
-        study_file = Path(args.j4d_study_file or json.loads((folder / "summary.json").read_text())["study"])
+        study_file = Path(args.j4d_study_file or "examples/j4d_wall.toml")
         label = "J4D study"
     else:
         folder, label = out / "j4d", f"J4D ({args.j4d_train} runs)"
         study_file = j4d_study(folder, args.j4d_train)
         folder = folder / "study"
     study = load_study(study_file)
+    if case == "j4d" and args.j4d_study and not (folder / "surrogate.h5").exists():
+        from podkrig.study.stages import _fit  # a folder with the study's training store only
+
+        t0 = time.process_time()
+        _fit(folder / "train.h5", study.surrogate, folder / "surrogate.h5")
+        print(f"  {label}: surrogate fitted on {folder / 'train.h5'} ({time.process_time() - t0:.1f} s CPU)", flush=True)
     if not (case == "j4d" and args.j4d_study):
         t0 = time.process_time()
         run_study(study, folder)
@@ -215,8 +222,8 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3, help="inversions timed per case (the median is shown)")
     ap.add_argument("--region-samples", type=int, default=2**20, help="points of the region (a power of two)")
     ap.add_argument("--j4d-train", type=int, default=64, help="training runs of the J4D surrogate")
-    ap.add_argument("--j4d-study", help="a finished J4D study folder to use instead (its summary.json names the study)")
-    ap.add_argument("--j4d-study-file", help="the study file of --j4d-study (default: the one its summary.json names)")
+    ap.add_argument("--j4d-study", help="a J4D study folder (its surrogate.h5, or train.h5 to fit one) to use instead")
+    ap.add_argument("--j4d-study-file", help="the study file of --j4d-study (default examples/j4d_wall.toml)")
     args = ap.parse_args(argv)
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}; "
           f"load {os.getloadavg()[0]:.1f}", flush=True)
