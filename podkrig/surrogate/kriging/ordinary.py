@@ -244,6 +244,8 @@ class OrdinaryKriging:
     criterion : {"ml", "loo"}, default "ml"
         Hyperparameters by maximum concentrated likelihood ([1]_; for the intrinsic power model,
         the likelihood of the n − 1 contrasts) or by the closed-form leave-one-out error [2]_.
+        Either is searched on each output divided by its standard deviation: the fitted ranges
+        and exponent do not depend on the output's unit.
     optimizer : "l-bfgs-b", callable or None, default "l-bfgs-b"
         Minimiser of the criterion over the log-ranges (and beta), run from every starting point
         (and for the polish of an exponent that ends near its upper bound).
