@@ -6,11 +6,11 @@ coefficient of variation std/|mean|, (max − min)/|mean| and quantiles of the d
 (default the 5 % and 95 % quantiles, a 90 % band). A small CV for a validation model means the
 calibration pins down what that other test would show.
 
-The distribution is that of the model's *surrogate* over the region's members (thesis §7.4: RVC
+The distribution is that of the model's *surrogate* over the region's members (thesis ch. 5 and 7: RVC
 of the validation models over the region; the kriging variance is not added). A validation model
 that can fail — a nonlinear FE run that stops early, or whose load has no maximum within the
-control range (still rising, or its peak in the last control interval), so no capacity — is also run on its FE model at a
-seeded subsample of the same members (``fe_runs``): :class:`ValidationRuns` counts the runs that
+control range (still rising, or its peak in the last control interval), so no capacity — is also
+run on its FE model at a seeded subsample of the same members (``fe_runs``): :class:`ValidationRuns` counts the runs that
 failed (the failed share of the validation runs over the region) and compares the FE outputs of
 the others with the surrogate's at the same members. The capacity of a specimen is the peak load
 ``F_peak`` (kN) and its control displacement ``d_peak`` (mm) of a scenario with the option
@@ -155,7 +155,8 @@ class ValidationRuns(Displayed):
         ``messages``, and the counts ``n_runs``, ``n_failed``, ``n_stopped``, ``n_no_peak`` and
         ``failed_share``."""
         return {"names": list(self.names), "parameters": self.parameters.tolist(), "status": list(self.status),
-                "no_peak": self.no_peak.tolist(), "fe": _nan_to_none(self.fe), "surrogate": _nan_to_none(self.surrogate),
+                "no_peak": self.no_peak.tolist(), "fe": _nan_to_none(self.fe),
+                "surrogate": _nan_to_none(self.surrogate),
                 "messages": list(self.messages), "n_runs": self.n_runs, "n_failed": int(self.failed.sum()),
                 "n_stopped": int(self.stopped.sum()), "n_no_peak": int(self.no_peak.sum()),
                 "failed_share": None if not self.n_runs else self.failed_share}

@@ -404,8 +404,9 @@ def render_rvc(page, rvc_results, intro="", figures=None):
                 page.paragraph(f"{model}: why runs failed: " + "; ".join(why[:5])
                                + (f" (and {len(why) - 5} more)" if len(why) > 5 else "") + ".", "meta")
     for model, filename in (figures or {}).items():
-        page.figure(filename, f"Validation model {model}: distribution of each output over the region of equivalence "
-                              "(histogram and kernel density; mean and quantiles as lines; FE runs at members as ticks).")
+        page.figure(filename, f"Validation model {model}: distribution of each output over the region of "
+                              "equivalence (histogram and kernel density; mean and quantiles as lines; FE runs "
+                              "at members as ticks).")
 
 
 def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="", rvc=True):
