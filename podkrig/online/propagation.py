@@ -6,8 +6,8 @@ coefficient of variation std/|mean|, (max − min)/|mean| and quantiles of the d
 (default the 5 % and 95 % quantiles, a 90 % band). A small CV for a validation model means the
 calibration pins down what that other test would show.
 
-The distribution is that of the model's *surrogate* over the region's members (thesis ch. 5 and 7: RVC
-of the validation models over the region; the kriging variance is not added). A validation model
+The distribution is that of the model's *surrogate* over the region's members (the RVC of
+validation models, thesis ch. 5 and 7; the kriging variance is not added). A validation model
 that can fail — a nonlinear FE run that stops early, or whose load has no maximum within the
 control range (still rising, or its peak in the last control interval), so no capacity — is also
 run on its FE model at a seeded subsample of the same members (``fe_runs``): :class:`ValidationRuns` counts the runs that
