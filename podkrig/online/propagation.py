@@ -39,6 +39,7 @@ quantiles of ``a``.
 (('y',), ('kN',), [10.1, 11.9])
 """
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -46,6 +47,8 @@ import numpy as np
 
 from podkrig.display import Displayed
 from podkrig.offline.failures import without_peak
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["QUANTILES", "RVCModel", "RVCResult", "ValidationRuns", "output_columns", "rvc", "run_validation"]
 
@@ -387,6 +390,7 @@ def run_validation(scenario, names, X, columns, predicted, region_names, members
             status.append("error")
             no_peak.append(False)
             messages.append(f"{type(e).__name__}: {e}")
+            logger.info("validation run %d of %d at a region member: %s", k + 1, len(X), messages[-1])
             continue
         fe[k] = response.readings.ravel()[list(columns)]
         state = getattr(response, "status", "converged")
@@ -401,5 +405,6 @@ def run_validation(scenario, names, X, columns, predicted, region_names, members
         else:
             messages.append(f"no load maximum: the peak at {peak:.4g} {scenario.load_unit} is in the last control "
                             "interval" if flat else "")
+        logger.info("validation run %d of %d at a region member: %s", k + 1, len(X), messages[-1] or "a load maximum")
     return ValidationRuns(tuple(region_names), np.asarray(members, dtype=float), tuple(status),
                           np.asarray(no_peak, dtype=bool), fe, np.asarray(predicted, dtype=float), tuple(messages))
