@@ -209,6 +209,9 @@ def test_a_capacity_validation_is_declared_in_the_study_file(tmp_path):
     path.write_text(text.replace("fe_runs = 16 ", "quantiles = [0.95, 1.5] "))
     with pytest.raises(StudyError, match=r"validation\[1\]\.quantiles: .*\[0.95, 1.5\].*allowed: .*\(0, 1\)"):
         load_study(path)
+    path.write_text(text.replace("fe_runs = 16 ", "fe_runs = 300 "))
+    with pytest.raises(StudyError, match=r"validation\[1\]\.fe_runs: 300 is out of range.*\[0, 256\]"):
+        load_study(path)
     # a capacity output of a scenario without peak readings: refused at load time, before any FE run
     path.write_text(text.replace("peak_readings = true, ", ""))
     with pytest.raises(StudyError, match=r"validation\[1\]\.outputs: .*'F_peak'.*peak_readings = true"):
