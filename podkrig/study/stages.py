@@ -77,7 +77,7 @@ from podkrig.study.cache import StageCache, file_sha256, read_arrays
 from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 from podkrig.surrogate.settings import fit_surrogate
-from podkrig.surrogate.validation import held_out_errors
+from podkrig.surrogate.validation import compare_layouts, held_out_errors
 
 logger = logging.getLogger(__name__)
 #: Estimated bytes per stored row of a study's stores (readings, parameters, status, 512 B of error
@@ -437,8 +437,15 @@ def surrogate(run, test):
 
 def held_out_validation(run, test):
     """A test's surrogate against its held-out FE runs: :meth:`HeldOutResult.to_dict`
-    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm)."""
+    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm). For a nonlinear test with more than
+    one control level, also both POD layouts on its training snapshots (``layout``, the surrogate's,
+    and ``layouts``, :func:`~podkrig.surrogate.validation.compare_layouts`: one fit more, of the other
+    layout); the study's surrogate stays the one of its ``[surrogate] pod``."""
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
+    sc = run.scenario(test)
+    compare = isinstance(sc, NonlinearScenario) and len(sc.load_levels) > 1
+    if compare:  # the other layout is fitted on the training store
+        inputs["layouts_train"] = run.outputs(test.stage("offline"))
 
     def compute():
         sur = run.surrogate(test.file("surrogate.h5")).surrogate
@@ -446,7 +453,13 @@ def held_out_validation(run, test):
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
         surrogate_figures.plot_predicted_vs_fe(rep, run.figure(test, "predicted_vs_fe.png"))
-        return HeldOutResult.from_report(rep).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"], 0
+        layouts = {}
+        if compare:
+            with SnapshotStore.open(run.out / test.file("train.h5")) as store:
+                X_train, Y_train = training_data(store)
+            layouts = {"layout": sur.layout, "layouts": compare_layouts(sur, X_train, Y_train, X, Y)}
+        return (HeldOutResult.from_report(rep, **layouts).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"],
+                0)
 
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 
