@@ -303,11 +303,14 @@ def register(app):
             typer.echo(json.dumps({k: v.to_dict() for k, v in results.items()}, indent=2))
             return
         table = Table(title=f"RVC over the region of equivalence ({len(out.region.samples)} members)")
-        for col in ("model", "output", "mean (mm)", "CV (%)", "(max−min)/mean (%)"):
+        levels = next(iter(results.values())).quantile_levels
+        for col in ("model", "output", "unit", "mean", "CV (%)", *(f"{100 * q:g} % quantile" for q in levels),
+                    "(max−min)/mean (%)"):
             table.add_column(col, justify="right")
         for name, res in results.items():
             for k, o in enumerate(res.outputs):
-                table.add_row(name, o, f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}", f"{100 * res.range_ratio[k]:.3f}")
+                table.add_row(name, o, res.units[k], f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}",
+                              *(f"{q:.5g}" for q in res.quantiles[:, k]), f"{100 * res.range_ratio[k]:.3f}")
         command_console().print(table)
 
     @app.command()
