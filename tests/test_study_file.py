@@ -75,6 +75,7 @@ def test_valid_study_and_defaults(tmp_path):
     assert study.measurement.file == (tmp_path / "measured.csv").resolve()
     assert [v.name for v in study.validation] == ["shear", "shear_fine"]
     assert study.validation[0].spec.parameters == {"r_hj": 0.6}  # the fixed material holds there too
+    assert study.validation[0].fe_runs == 0  # a linear FE run cannot fail: no runs at region members
     assert study.diagnosis.enabled is False
 
 
