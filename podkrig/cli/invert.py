@@ -35,7 +35,7 @@ from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
-from podkrig.reports.findings import words
+from podkrig.reports.findings import fe_difference, words
 from podkrig.reports.html import num
 from podkrig.reports.inverse import write_inversion_report
 
@@ -378,7 +378,8 @@ def _print_table(out, report):
                                         f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: "
                                         f"{r.chi2_basis}"))
     if r.fe_check is not None:
-        console.print(escape(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
+        console.print(escape(f"FE check at the optimum: max |FE − surrogate| = "
+                             f"{fe_difference(r.fe_check.max_abs_diff_by_unit, r.fe_check.max_abs_diff)} "
                              f"({r.fe_check.max_diff_over_noise:.2f}× the noise); χ²/dof of the FE model = "
                              f"{r.fe_check.chi2_dof_fe:.3g} ({chi2_basis('fe_check')})"))
     print_findings(console, words(out.findings, "cli"))

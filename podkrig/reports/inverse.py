@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
-from podkrig.reports.findings import words
+from podkrig.reports.findings import fe_difference, words
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.flat_jack import jack_pressures
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
@@ -299,9 +299,9 @@ def render_fit(page, inv, folder="", deformed=False):
                  num(inv.seconds, 3)]])
     fe = inv.fe_check
     if fe is not None:
-        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
+        page.table(["max |FE − surrogate|", "max |FE − surrogate| / σ (-)", "relative difference (-)",
                     "χ²/dof of the FE model (-)", "χ² includes"],
-                   [[num(fe.max_abs_diff, 3), num(fe.max_diff_over_noise, 3), num(fe.rel_diff, 3),
+                   [[fe_difference(fe.max_abs_diff_by_unit, fe.max_abs_diff), num(fe.max_diff_over_noise, 3), num(fe.rel_diff, 3),
                      num(fe.chi2_dof_fe, 3), chi2_basis("fe_check")]],
                    caption="FE check at the best fit")
         if fe.ok:
