@@ -32,7 +32,7 @@ second (NumPy, all outputs):
   one stored m × m factor (m² flops per point and output); ``rank(1e-8)``: the pivots after which
   every training point's residual variance is below 1e-8 of the sill, per output.
 
-"σ ≥ exact" allows 1e-4 relative: the exact σ itself carries rounding of ~1e-5 relative (the
+"σ ≥ exact" allows 1e-4 relative: the exact σ itself carries rounding of a few 1e-6 relative (the
 correlation matrices of these smooth responses are near their conditioning limit), which is also
 the error of both candidates at k = n and m = n.
 
