@@ -48,6 +48,7 @@ from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.io.measurement_log import read_measurement
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.limits import fe_job_estimate, quote
+from podkrig.offline.failures import no_peak_rows
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
@@ -55,6 +56,7 @@ from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.data_check import MeasurementCheckError, check_readings
 from podkrig.online.joint import JointProblem
+from podkrig.online.propagation import QUANTILES, RVCModel
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.rigid_body import rigid_body_modes
 from podkrig.online.sensitivity import (
@@ -72,7 +74,7 @@ from podkrig.study.cache import StageCache, file_sha256, read_arrays
 from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 from podkrig.surrogate.settings import fit_surrogate
-from podkrig.surrogate.validation import held_out_errors
+from podkrig.surrogate.validation import compare_layouts, held_out_errors
 
 logger = logging.getLogger(__name__)
 #: Estimated bytes per stored row of a study's stores (readings, parameters, status, 512 B of error
@@ -152,7 +154,9 @@ class StudyRun(StageCache):
 def fe_work(run):
     """The FE work this run of the study would do, in words, and whether it is large enough to ask
     first (:func:`podkrig.limits.fe_job_estimate`): the probe runs unless cached, and every design's
-    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size.
+    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size,
+    and the ``fe_runs`` of a validation model at region members (in the calibration) while its store
+    is not complete.
 
     Returns
     -------
@@ -163,7 +167,7 @@ def fe_work(run):
     # scenarios built only for the jobs with runs left; the tests' through the run's cache
     jobs = [(run.out / t.file(f), lambda t=t: run.scenario(t), d) for t in study.calibration_tests
             for f, d in (("train.h5", t.train), ("held_out.h5", t.held_out))]
-    jobs += [(run.out / f"validation_{m.name}.h5", lambda m=m: build_scenario(m.spec), m.design)
+    jobs += [(run.out / f"validation_{m.name}.h5", lambda m=m: build_scenario(m.spec), m.design, m.fe_runs)
              for m in study.validation]
     work, stored = [], 0
     for t in study.calibration_tests:
@@ -171,11 +175,11 @@ def fe_work(run):
             sc = run.scenario(t)
             nonlinear = isinstance(sc, NonlinearScenario)
             work.append((len(probe_points(t.space.n_params, nonlinear)), sc.n_dofs, nonlinear))
-    for path, scenario, design in jobs:
+    for path, scenario, design, *at_region in jobs:
         todo = rows_to_run(path, design.n)
         if todo:
             sc = scenario()
-            work.append((todo, sc.n_dofs, isinstance(sc, NonlinearScenario)))
+            work.append((todo + sum(at_region), sc.n_dofs, isinstance(sc, NonlinearScenario)))
             stored += STUDY_BYTES_PER_ROW * design.n
     return fe_job_estimate(work, stored)
 
@@ -377,10 +381,16 @@ def offline(run, test, name, title, filename, design):
     run.stage(test.stage(name), test.title(title), inputs, compute, total=design.n)
 
 
-def _fit(store_path, settings, out_path):
-    """Fit and save a surrogate of ``settings`` on a store; returns it."""
+#: why a validation surrogate of capacity leaves runs out (:func:`~podkrig.offline.failures.no_peak_rows`)
+NO_PEAK_WHY = "no load maximum within the control range (the peak in the last control interval): no capacity"
+
+
+def _fit(store_path, settings, out_path, capacity=False):
+    """Fit and save a surrogate of ``settings`` on a store; returns it. ``capacity``: a surrogate
+    of the peak readings, which leaves out the runs without a load maximum."""
     with SnapshotStore.open(store_path) as store:
-        sur = fit_surrogate(store, settings)
+        exclude = no_peak_rows(store) if capacity else ()
+        sur = fit_surrogate(store, settings, exclude=exclude, why=NO_PEAK_WHY if exclude else "")
     save_surrogate(sur, out_path)
     return sur
 
@@ -395,7 +405,8 @@ def validation_model(run, model):
 
     def compute():
         summary, notes = _run_store(run, run.out / store, model.spec, study.space, model.design)
-        sur = _fit(run.out / store, study.surrogate, run.out / surrogate)
+        sur = _fit(run.out / store, study.surrogate, run.out / surrogate,
+                   capacity=bool(model.spec.options.get("peak_readings", False)))
         result = ValidationModelResult(OfflineResult.from_store(run.out / store, summary, notes), model.spec.scenario,
                                        SurrogateFitResult.from_surrogate(sur))
         return result.to_dict(), [store, surrogate], summary.ran
@@ -423,8 +434,15 @@ def surrogate(run, test):
 
 def held_out_validation(run, test):
     """A test's surrogate against its held-out FE runs: :meth:`HeldOutResult.to_dict`
-    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm)."""
+    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm). For a nonlinear test with more than
+    one control level, also both POD layouts on its training snapshots (``layout``, the surrogate's,
+    and ``layouts``, :func:`~podkrig.surrogate.validation.compare_layouts`: one fit more, of the other
+    layout); the study's surrogate stays the one of its ``[surrogate] pod``."""
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
+    sc = run.scenario(test)
+    compare = isinstance(sc, NonlinearScenario) and len(sc.load_levels) > 1
+    if compare:  # the other layout is fitted on the training store
+        inputs["layouts_train"] = run.outputs(test.stage("offline"))
 
     def compute():
         sur = run.surrogate(test.file("surrogate.h5")).surrogate
@@ -432,7 +450,13 @@ def held_out_validation(run, test):
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
         surrogate_figures.plot_predicted_vs_fe(rep, run.figure(test, "predicted_vs_fe.png"))
-        return HeldOutResult.from_report(rep).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"], 0
+        layouts = {}
+        if compare:
+            with SnapshotStore.open(run.out / test.file("train.h5")) as store:
+                X_train, Y_train = training_data(store)
+            layouts = {"layout": sur.layout, "layouts": compare_layouts(sur, X_train, Y_train, X, Y)}
+        return (HeldOutResult.from_report(rep, **layouts).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"],
+                0)
 
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 
@@ -461,13 +485,16 @@ def calibration(run):
     study = run.study
     tests = {t.name: t for t in study.calibration_tests}
     settings = study.calibration_settings()
-    inputs = {**_online_inputs(run), "settings": dataclasses.asdict(settings),
+    inputs = {**_online_inputs(run), "settings": dataclasses.asdict(settings), "rvc": {"quantiles": list(QUANTILES)},
               "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
-                                      "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
+                                      "outputs": list(m.outputs) if m.outputs else None, "fe_runs": m.fe_runs,
+                                      "quantiles": list(m.quantiles)} for m in study.validation}}
 
     def compute():
         problem = run.calibration_problem()
-        validation = {m.name: (run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs)
+        validation = {m.name: RVCModel(run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs,
+                                       scenario=build_scenario(m.spec) if m.fe_runs else None, fe_runs=m.fe_runs,
+                                       quantiles=m.quantiles)
                       for m in study.validation}
         # the readings were compared with the probe and training runs by range_check already
         result = calibrate(problem, settings, scenarios=lambda name: run.scenario(tests[name]), validation=validation,
@@ -504,7 +531,9 @@ def _draw_calibration(run, result):
     inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
                                 space=inv.problem.free_space)
     inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
-    return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png"]
+    drawn = inverse_figures.plot_rvc_distributions(result.rvc, run.figures)
+    return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png",
+                    *(f"report/{f}" for f in drawn.values())]
 
 
 def save_region(path, region):
