@@ -3,22 +3,18 @@
 nuisance parameter) and its joint calibration with a diagonal compression test
 (``examples/joint_diagonal_flat_jack.toml``: a linear and two nonlinear tests, Km the flat jack's
 own). The study files load with the parameters each test shares, each log is read for its test
-with the stated noise, the make script reproduces the logs, the boxes keep the joints' constraints,
-and (slow) a reduced study finds the hidden truth."""
+with the stated noise, the make script reproduces the logs, and the boxes keep the joints'
+constraints."""
 
 import importlib.util
-import json
-import tomllib
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from typer.testing import CliRunner
 
 from fe.exceptions import ConstraintError
 from fe.scenarios import SCENARIOS, build_scenario
-from podkrig.cli import app
 from podkrig.study.schema import load_study
 from podkrig.study.stages import read_study_measurement
 
@@ -107,46 +103,3 @@ def test_the_box_keeps_the_joints_constraints_and_a_wider_cohesion_breaks_one(st
             with pytest.raises(ConstraintError, match="c_bj"):
                 cls.check_spec_box(test.spec, {**bounds, "c_bj": (0.15, 0.7, "linear")})
 
-
-@pytest.mark.slow
-def test_a_reduced_in_situ_study_finds_the_hidden_truth(tmp_path):
-    """The in-situ study reduced to its shear log with the stiffness fixed at the truth (c_bj,
-    tanphi_bj and Km free; 32 + 8 FE runs, about 2 min of CPU; the full study is about 10 min):
-    ``podkrig run`` puts the make script's truth inside the 95 % region of each of the three."""
-    make = _make_script()
-    shear = tomllib.loads(IN_SITU.read_text())["test"][1]
-    noise = ", ".join(f'"{k}" = {v}' for k, v in shear["measurement"]["noise_abs"].items())
-    truth = "\n".join(f"{n} = {make.TRUTH[n]}" for n in ("kN_bj", "kV_bj", "r_hj", "E_b"))
-    study = tmp_path / "reduced.toml"
-    study.write_text(f"""name = "reduced"
-scenario = {{ scenario = "flat_jack_shear_nl", further_p_H = [0.5] }}
-[parameters]
-c_bj      = {{ lower = 0.15, upper = 0.45 }}
-tanphi_bj = {{ lower = 0.5, upper = 0.9 }}
-Km        = {{ lower = 0.75, upper = 0.95 }}
-[fixed]
-{truth}
-nu_b = 0.15
-sigma0 = 0.30
-ft_bj = 0.15
-GfI_bj = 0.012
-GfII_bj = 0.10
-tanphir_bj = 0.70
-[sampling]
-train    = {{ n = 32, seed = 0 }}
-held_out = {{ n = 8, seed = 1, method = "random" }}
-[inversion]
-seed = 0
-[measurement]
-file = "{EXAMPLES / 'flat_jack_shear_sliding.csv'}"
-noise_rel = 0.01
-noise_abs = {{ {noise} }}
-""")
-    assert [p.name for p in load_study(study).free_parameters] == ["c_bj", "tanphi_bj", "Km"]
-    result = CliRunner().invoke(app, ["run", str(study), "--out", str(tmp_path / "out"), "--yes"])
-    assert result.exit_code == 0, result.output[-3000:]
-    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    intervals = summary["stages"]["calibration"]["region"]["intervals"]
-    for name in ("c_bj", "tanphi_bj", "Km"):
-        lo, hi = intervals[name]
-        assert lo <= make.TRUTH[name] <= hi, (name, lo, hi)
