@@ -188,9 +188,9 @@ class NonlinearScenario(Scenario):
     Attributes
     ----------
     force_sensor : str or None
-        The name of the load reading (the reaction of the control, ``force_unit``, the last column
-        of the readings), or None where the load is no force a load cell reads (the flat jack's
-        gauge pressure).
+        The name of the load reading (the reaction of the control, ``force_unit``, after the
+        gauges; the flat-jack shear test's ``p_V1``, V1's gauge pressure in MPa), or None where the
+        load is no reading (the steps of ``flat_jack_elastic_nl``).
     """
 
     load_unit = "mm"
