@@ -359,7 +359,10 @@ class FlatJackShearNonlinear(NonlinearScenario):
         """Readings at the steps of phases 0b–2 relative to the end of phase 0a (gauges zeroed
         before the cut, as ``flat_jack``'s), ``(n_steps, n_channels)`` mm; NaN rows for steps not
         reached."""
-        path = response.path
+        return self._step_readings(response.path)
+
+    def _step_readings(self, path):
+        """:meth:`step_readings` from the run's :class:`~fe.solvers.nonlinear.PathResult`."""
         names = np.asarray(path.phase)
         zero = path.readings[np.flatnonzero(names == "0a")[-1]] if (names == "0a").any() else np.nan
         out = np.full((len(self.steps), len(self.model.channel_names)), np.nan)
@@ -464,8 +467,7 @@ class FlatJackElasticNonlinear(FlatJackShearNonlinear):
         values = self.resolve(params)
         follower = self.path_follower(values, settings, field)
         path = follower.run(ph for ph in self.phases(values) if ph.name.split(":")[0] in ("0a", "0b", "1", "2"))
-        response = NonlinearResponse(np.zeros((0, 0)), (), (), "step", path=path)
-        readings = self.step_readings(response)
+        readings = self._step_readings(path)
         names = np.asarray(path.phase)
         done = [k for k, step in enumerate(self.steps, start=1) if (names == f"{step.phase}:{k}").any()]
         u = None
