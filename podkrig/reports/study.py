@@ -19,7 +19,8 @@ from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
 from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text, unnamed_significant
 from podkrig.reports.html import Page, num, pct, unit_cell
-from podkrig.reports.inverse import distribution_file, render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
+from podkrig.reports.inverse import (distribution_file, render_fit, render_ga, render_joint, render_parameters,
+                                     render_region, render_rvc)
 from podkrig.reports.offline import offline_table
 from podkrig.reports.sensitivity import index_notes
 from podkrig.reports.surrogate import fit_tables, held_out_tables, layout_table

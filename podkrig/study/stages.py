@@ -12,14 +12,17 @@ Stages, in order (the measurement check, FE work, then the online stages)::
     offline                  training snapshots (FE)                  train.h5
     held_out                 held-out snapshots (FE)                  held_out.h5
     validation_model.NAME    snapshots and surrogate of a validation  validation_NAME.h5, validation_NAME_surrogate.h5
-                             scenario (FE), one stage per model
+                             scenario (FE), one stage per model (a
+                             capacity model's: without the runs that
+                             have no load maximum)
     surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
     held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
     calibration              :func:`~podkrig.online.calibrate.calibrate`: region.npz, report/fit.png, residuals.png,
                              model-form error (when asked), GA +      ga_*.png, deformed.png (with the FE
-                             polish, region of equivalence, FE check, check), region.png, rvc.png
-                             posterior, RVC of the calibration and
-                             validation models
+                             polish, region of equivalence, FE check, check), region.png, rvc.png,
+                             posterior, RVC of the calibration and    rvc_NAME.png per validation model
+                             validation models (their FE runs at
+                             region members: the failed share)
     sensitivity              Sobol' indices of readings and misfit    report/sensitivity.png
                              ([sensitivity] enabled; with the
                              calibration's model-form error)
@@ -400,13 +403,13 @@ def validation_model(run, model):
     study = run.study
     name = f"validation_model.{model.name}"
     store, surrogate = f"validation_{model.name}.h5", f"validation_{model.name}_surrogate.h5"
+    capacity = bool(model.spec.options.get("peak_readings", False))
     inputs = {"spec": model.spec.to_dict(), "space": study.space.to_dict(), "design": dataclasses.asdict(model.design),
-              "surrogate": dataclasses.asdict(study.surrogate)}
+              "surrogate": dataclasses.asdict(study.surrogate), **({"exclude": "no load maximum"} if capacity else {})}
 
     def compute():
         summary, notes = _run_store(run, run.out / store, model.spec, study.space, model.design)
-        sur = _fit(run.out / store, study.surrogate, run.out / surrogate,
-                   capacity=bool(model.spec.options.get("peak_readings", False)))
+        sur = _fit(run.out / store, study.surrogate, run.out / surrogate, capacity=capacity)
         result = ValidationModelResult(OfflineResult.from_store(run.out / store, summary, notes), model.spec.scenario,
                                        SurrogateFitResult.from_surrogate(sur))
         return result.to_dict(), [store, surrogate], summary.ran
