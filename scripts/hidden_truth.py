@@ -33,6 +33,7 @@ recorded in BENCHMARKS.md ("Hidden-truth coverage of the strength studies").
 """
 
 import argparse
+import dataclasses
 import json
 import re
 import shutil
@@ -117,7 +118,10 @@ def prepare(case, folder, train=None):
             raise SystemExit(f"{case.study.name}: no single 'train = {{ n = ... }}' to change")
     path = folder / case.study.name
     path.write_text(text + case.validation)
-    return load_study(path)
+    study = load_study(path)
+    # the pseudo-experiments need the surrogates, not the study's own sensitivity and diagnosis
+    return dataclasses.replace(study, sensitivity=dataclasses.replace(study.sensitivity, enabled=False),
+                               diagnosis=dataclasses.replace(study.diagnosis, enabled=False))
 
 
 def truths(space, n, seed, margin=MARGIN):
@@ -246,11 +250,16 @@ def main(argv=None):
     parser.add_argument("--out", type=Path, default=None, help="Output folder (default out/hidden_truth_STUDY).")
     parser.add_argument("--train", type=int, default=None,
                         help="Training snapshots per test instead of the study's (a surrogate-accuracy experiment).")
+    parser.add_argument("--reuse", type=Path, default=None,
+                        help="A finished `podkrig run` folder of the same study: copied to OUT/study first, so its "
+                             "snapshots and surrogates are reused (its stages are cached by their inputs).")
     parser.add_argument("--data-from", choices=("fe", "surrogate"), default="fe",
                         help="Make the pseudo-data from the FE model (default) or from the surrogates (a control).")
     args = parser.parse_args(argv)
     case = CASES[args.study]
     out = args.out or ROOT / "out" / f"hidden_truth_{args.study}"
+    if args.reuse is not None:
+        shutil.copytree(args.reuse, out / "study", dirs_exist_ok=True)
     study = prepare(case, out / "study", args.train)
     cpu0 = time.process_time()
     run_study(study, out / "study")
