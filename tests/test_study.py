@@ -292,7 +292,8 @@ def test_report_structure(tiny):
     assert set(internal) <= set(page.ids) and len(internal) == len(SECTIONS)
     # every figure exists beside the page and is a valid PNG; each stage's figures are shown
     expected = {"energy.png", "modes.png", "predicted_vs_fe.png", "sensitivity.png", "fit.png", "residuals.png",
-                "ga_history.png", "ga_parameters.png", "region.png", "rvc.png", "deformed.png"}
+                "ga_history.png", "ga_parameters.png", "region.png", "rvc.png", "deformed.png",
+                "rvc_shear.png"}  # the distribution of the validation model's outputs
     assert set(page.images) == expected
     for src in page.images:
         _check_png(page_path.parent / src)

@@ -87,7 +87,7 @@ def _print_summary(result):
     from podkrig.cli._terminal import console as command_console
     from podkrig.cli.invert import parameters_table
     from podkrig.online.findings import RESIDUAL_CONVENTION
-    from podkrig.reports.study import chi2_rows
+    from podkrig.reports.study import capacity_rows, chi2_rows
 
     console = command_console()
     calibration = result.calibration
@@ -108,6 +108,8 @@ def _print_summary(result):
                                                                             f"({fe.max_diff_over_noise:.2f} σ)")
     for model, r in calibration.rvc.items():
         numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r.cv):.3g} %")
+        for text, value, note in capacity_rows(r):
+            numbers.add_row(escape(f"{model}: {text}"), escape(f"{value} ({note})"))
     if study.diagnosis.enabled:
         for t in study.calibration_tests:
             d = result.stage(t.stage("diagnosis")).result

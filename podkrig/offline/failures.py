@@ -41,7 +41,8 @@ import numpy as np
 from podkrig.display import Displayed
 from podkrig.offline.store import FAILED, PENDING
 
-__all__ = ["DRIVING_SHARE", "MIN_CLASS", "REGULARISATION", "FailureRegion", "FailureReport", "failure_report"]
+__all__ = ["DRIVING_SHARE", "MIN_CLASS", "REGULARISATION", "FailureRegion", "FailureReport", "failure_report",
+           "no_peak_rows", "without_peak"]
 
 #: inverse L2 regularisation strength C of the logistic regression on unit-cube coordinates: weak
 #: enough that a sharp boundary gets weights of tens (a transition ~0.1 of the range wide), strong
@@ -178,3 +179,42 @@ def failure_report(store):
         U = store.parameters(physical=False, only_done=False)
         region = FailureRegion.fit(U[ran], failed[ran], store.space.names)
     return FailureReport(int(ran.sum()), tuple(int(i) for i in np.flatnonzero(failed)), reasons, region)
+
+
+def without_peak(d_peak, load_levels):
+    """Whether a curve whose peak load lies at the control displacement ``d_peak`` (mm) has no
+    load maximum over the control levels ``load_levels`` (mm, ascending): its peak lies in the
+    last control interval, beyond the last level but one — the load does not fall over a whole
+    control interval after it (still rising at the end, or a plateau), so the run gives no
+    capacity; a longer control range would tell.
+
+    Parameters
+    ----------
+    d_peak : float or ndarray
+    load_levels : sequence of float
+
+    Returns
+    -------
+    bool or ndarray of bool
+    """
+    levels = np.asarray(load_levels, dtype=float)
+    before_last = levels[-2] if len(levels) > 1 else 0.0
+    return np.asarray(d_peak) > before_last * (1 + 1e-9)
+
+
+def no_peak_rows(store):
+    """Finished rows of an open store without a load maximum (:func:`without_peak`), so without
+    a capacity (their ``F_peak`` is a lower bound), read from their ``d_peak`` reading (the
+    control displacement at the peak, option ``peak_readings`` of a nonlinear scenario). A store
+    without that reading has no capacity outputs: none.
+
+    Returns
+    -------
+    tuple of int
+        Store rows, ascending.
+    """
+    if "d_peak" not in store.sensor_names:
+        return ()
+    done = np.flatnonzero(store.done_mask())
+    d_peak = store.readings(only_done=True)[:, -1, store.sensor_names.index("d_peak")]
+    return tuple(int(i) for i in done[without_peak(d_peak, store.load_levels)])

@@ -15,7 +15,8 @@
 4. the **FE check** at the optimum, one FE run per test (:func:`~podkrig.online.invert.fe_check`);
 5. the **posterior** by MCMC (``mcmc_steps`` > 0, :func:`~podkrig.online.posterior.sample_posterior`);
 6. the **RVC** of each test's calibration model and of the validation models over the region
-   (:func:`~podkrig.online.propagation.rvc`);
+   (:func:`~podkrig.online.propagation.rvc`): mean, CV and quantiles of each output, and for a
+   validation model with ``fe_runs`` its FE runs at region members with the share that failed;
 7. the **findings** of the measurement check, the inversion and the region
    (:mod:`podkrig.online.findings`).
 
@@ -39,7 +40,7 @@ from podkrig.online.invert import InverseResult, fe_check, invert
 from podkrig.online.joint import JointProblem
 from podkrig.online.model_error import DEFAULT_RATE, ModelError, discretisation_error, tolerance_error
 from podkrig.online.posterior import Posterior, sample_posterior
-from podkrig.online.propagation import RVCResult, rvc
+from podkrig.online.propagation import RVCModel, RVCResult, rvc
 from podkrig.online.region import Region, likelihood_ratio_region, noise_monte_carlo_region
 from podkrig.online.settings import CalibrationSettings
 
@@ -73,7 +74,7 @@ class CalibrationResult(Displayed):
     seconds : float
         Wall time of the whole calibration, s.
     n_fe_runs : int
-        FE runs made (model-form error, FE checks).
+        FE runs made (model-form error, FE checks, validation runs at region members).
     model_form_errors : dict
         Test name (None for one test) → the :class:`~podkrig.online.model_error.ModelError` in its
         C_D, for the tests that have one.
@@ -252,12 +253,14 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         The FE scenario of each test (for the FE check and an estimated model-form error): one
         scenario (one test), ``{test name: scenario}`` or ``scenario(test name)``; default: built
         from each surrogate's provenance.
-    validation : dict of str to (model, outputs) or (model, outputs, fixed), optional
-        Validation models for the RVC by name: a batched model (a
-        :class:`~podkrig.online.problem.SurrogateModel`), its reported outputs (``"SENSOR@LOAD"``,
-        or None for every sensor at the last load) and values of its own parameters. Parameters a
-        validation model has and the calibration does not identify take the calibration's values
-        (or, where it has none, those ``fixed``).
+    validation : dict of str to RVCModel, (model, outputs) or (model, outputs, fixed), optional
+        Validation models for the RVC by name: a
+        :class:`~podkrig.online.propagation.RVCModel` (a batched model such as a
+        :class:`~podkrig.online.problem.SurrogateModel`, its reported outputs, values of its own
+        parameters, its quantile levels, and its FE scenario with ``fe_runs`` FE runs at region
+        members for the failed share), or the tuple of its first two or three fields. Parameters
+        a validation model has and the calibration does not identify take the calibration's
+        values (or, where it has none, those ``fixed``).
     outputs : sequence of str, optional
         Outputs of the calibration model's RVC (one test; default every sensor at the last load).
     check_measurement : bool
@@ -337,14 +340,17 @@ def calibrate(problem, settings=None, *, scenarios=None, validation=None, output
         rvcs[key] = rvc(region, p.model, fixed=p.fixed, outputs=list(outputs) if outputs and name is None else None,
                         rng=seed)
     best = result.parameters
-    for name, (model, wanted, *own) in (validation or {}).items():
-        fixed = {**(own[0] if own else {}),
-                 **{n: best[n] for n in model.space.names if n not in region.names and n in best}}
-        missing = [n for n in model.space.names if n not in region.names and n not in fixed]
+    for name, entry in (validation or {}).items():
+        v = entry if isinstance(entry, RVCModel) else RVCModel(*entry)
+        fixed = {**(v.fixed or {}),
+                 **{n: best[n] for n in v.model.space.names if n not in region.names and n in best}}
+        missing = [n for n in v.model.space.names if n not in region.names and n not in fixed]
         if missing:
             raise ValueError(f"validation model {name!r} varies {missing}, which the calibration neither identifies "
                              "nor fixes")
-        rvcs[name] = rvc(region, model, fixed=fixed, outputs=list(wanted) if wanted else None, rng=seed)
+        rvcs[name] = rvc(region, v.model, fixed=fixed, outputs=list(v.outputs) if v.outputs else None, rng=seed,
+                         quantiles=v.quantiles, scenario=v.scenario, fe_runs=v.fe_runs)
+        n_fe += rvcs[name].runs.n_runs if rvcs[name].runs is not None else 0
     say("RVC", 5, 5)
     # 7. findings
     found = []

@@ -177,6 +177,70 @@ def plot_rvc(rvc_results, path):
     return path
 
 
+#: most outputs of one validation model drawn as distributions (the table lists them all)
+MAX_DISTRIBUTION_PANELS = 8
+
+
+def is_validation(model_name):
+    """Whether an RVC result of a calibration is a validation model's (not ``calibration``/``calibration.TEST``)."""
+    return model_name != "calibration" and not model_name.startswith("calibration.")
+
+
+def distribution_file(model_name):
+    """The file name of a validation model's distribution figure (:func:`plot_rvc_distributions`)."""
+    return f"rvc_{model_name}.png"
+
+
+def plot_rvc_distribution(res, path, title):
+    """The distribution of each output of one RVC (a validation model's capacity: ``F_peak`` in kN,
+    ``d_peak`` in mm) over the region of equivalence: one panel per output (the first
+    :data:`MAX_DISTRIBUTION_PANELS`), a density histogram of the values at the members with a
+    Gaussian kernel density estimate, the mean and the quantiles (:attr:`RVCResult.quantiles`) as
+    vertical lines, and the FE validation runs at region members that did not fail as ticks
+    along the axis."""
+    from scipy.stats import gaussian_kde
+
+    plt = pyplot()
+    n = min(len(res.outputs), MAX_DISTRIBUTION_PANELS)
+    fig, axes = plt.subplots(1, n, figsize=(4.4 * n, 4.6), squeeze=False)
+    runs = res.runs
+    for k, ax in enumerate(axes[0]):
+        v = res.values[:, k]
+        unit = res.units[k]
+        ax.hist(v, bins=min(40, max(10, len(v) // 50)), density=True, color="0.8", edgecolor="0.6", lw=0.5,
+                label=f"{res.n_samples} region members")
+        if np.ptp(v) > 1e-12 * max(abs(float(res.mean[k])), 1e-300):
+            grid = np.linspace(v.min(), v.max(), 200)
+            ax.plot(grid, gaussian_kde(v)(grid), color="C0", lw=1.2, label="kernel density")
+        ax.axvline(res.mean[k], color="k", lw=1.2, label=f"mean {res.mean[k]:.4g} {unit}, CV {100 * res.cv[k]:.2g} %")
+        for j, q in enumerate(res.quantile_levels):
+            ax.axvline(res.quantiles[j, k], color="C3", ls="--", lw=1,
+                       label=f"{100 * q:g} % quantile {res.quantiles[j, k]:.4g} {unit}")
+        if runs is not None and runs.n_runs:
+            ok = ~runs.failed
+            ax.plot(runs.fe[ok, k], np.zeros(int(ok.sum())), "|", color="C2", ms=14, mew=1.5,
+                    label=f"FE runs at members ({int(ok.sum())} of {runs.n_runs} did not fail)")
+        ax.set_xlabel(_label(res.outputs[k], unit))
+        ax.set_ylabel(f"density (1/{unit})" if unit and unit != "-" else "density (-)")
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, frameon=False)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    save(fig, path, dpi=110)
+    return path
+
+
+def plot_rvc_distributions(rvc_results, folder):
+    """:func:`plot_rvc_distribution` of each validation model of a calibration's RVC results into
+    ``folder``; returns ``{model name: file name}`` (:func:`distribution_file`)."""
+    drawn = {}
+    for name, res in rvc_results.items():
+        if is_validation(name) and res.values is not None:
+            plot_rvc_distribution(res, Path(folder) / distribution_file(name),
+                                  f"validation model {name}: distribution over the region of equivalence")
+            drawn[name] = distribution_file(name)
+    return drawn
+
+
 # --------------------------------------------------------------------------------------------
 # the renderers of a calibration (CalibrationResult), shared by the inversion report of the CLI
 # and the study report: each writes one part on a Page, from the result objects alone
@@ -292,21 +356,56 @@ def render_region(page, region, posterior=None):
                          "1.05).", "sample longer before reading the credible intervals.")
 
 
-def render_rvc(page, rvc_results, intro=""):
-    """The response variability of each model over the region: per output its mean, range, CV and
-    (max − min)/mean, and the figure (``rvc.png``)."""
+def render_rvc(page, rvc_results, intro="", figures=None):
+    """The response variability of each model over the region: per output its unit, mean, CV,
+    quantiles, range and (max − min)/mean, the figure (``rvc.png``), and for each validation model
+    its FE runs at region members (the share that failed, FE against the distribution) and its
+    distribution figure (``figures``: model name → file, :func:`plot_rvc_distributions`)."""
     page.paragraph(
         "How much the predictions of the calibration model and of the validation models vary over the region of "
-        "equivalence: a small coefficient of variation (CV) means the calibration pins down what these tests show."
-        + intro)
+        "equivalence: a small coefficient of variation (CV) means the calibration pins down what these tests show. "
+        "Each distribution is the surrogate of its model evaluated at the region's members; the quantiles bound "
+        "the band the calibration predicts." + intro)
+    levels = next(iter(rvc_results.values())).quantile_levels if rvc_results else ()
     rows = []
     for model, x in rvc_results.items():
         for k, out in enumerate(x.outputs):
-            rows.append([model, out, num(float(x.mean[k])), num(float(x.min[k])), num(float(x.max[k])),
-                         pct(x.cv[k]), pct(x.range_ratio[k])])
-    page.table(["model", "output (sensor@load)", "mean (mm)", "min (mm)", "max (mm)", "CV (%)", "(max − min)/mean (%)"],
-               rows)
+            rows.append([model, out, unit_cell(x.units[k]), num(float(x.mean[k])), pct(x.cv[k]),
+                         *(num(float(x.quantiles[j, k])) if x.quantile_levels == levels else "—"
+                           for j in range(len(levels))),
+                         num(float(x.min[k])), num(float(x.max[k])), pct(x.range_ratio[k])])
+    page.table(["model", "output (sensor@load)", "unit", "mean", "CV (%)", *(f"{100 * q:g} % quantile" for q in levels),
+                "min", "max", "(max − min)/mean (%)"], rows)
     page.figure("rvc.png", "Spread of each output over the region of equivalence, relative to its mean.")
+    runs = [(model, x) for model, x in rvc_results.items() if x.runs is not None]
+    if runs:
+        page.paragraph(
+            "FE runs of the validation models at a seeded subsample of the region's members. A run failed when it "
+            "stopped early (a step, iteration or CPU budget exhausted, no convergence, an FE error) or when its load "
+            "had no maximum within the control range (its peak in the last control interval: no capacity): the failed "
+            "share is the "
+            "share of the validation model's runs over the region that give no capacity. The runs that did not fail "
+            "check the surrogate's distribution: about the band's share of them should fall inside it.")
+        rows = []
+        for model, x in runs:
+            r = x.runs
+            ok = ~r.failed
+            inside = (r.fe[ok] >= x.quantiles[0]) & (r.fe[ok] <= x.quantiles[-1])  # (n_ok, n_outputs)
+            diff = r.relative_difference()
+            rows.append([model, r.n_runs, int(r.stopped.sum()), int(r.no_peak.sum()), pct(r.failed_share),
+                         ", ".join(f"{o}: {int(n)} of {int(ok.sum())}" for o, n in zip(x.outputs, inside.sum(axis=0))),
+                         pct(float(diff.max())) if diff.size else "—"])
+        page.table(["model", "FE runs", "stopped early", "no load maximum", "failed share (%)",
+                    "FE runs inside the band of the lowest and highest quantile",
+                    "max |FE − surrogate| / |FE| (%)"], rows, caption="Validation runs at region members")
+        for model, x in runs:
+            why = [m for m in x.runs.messages if m]
+            if why:
+                page.paragraph(f"{model}: why runs failed: " + "; ".join(why[:5])
+                               + (f" (and {len(why) - 5} more)" if len(why) > 5 else "") + ".", "meta")
+    for model, filename in (figures or {}).items():
+        page.figure(filename, f"Validation model {model}: distribution of each output over the region of equivalence "
+                              "(histogram and kernel density; mean and quantiles as lines; FE runs at members as ticks).")
 
 
 def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="", rvc=True):
@@ -350,7 +449,7 @@ def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="
     if rvc:
         page.heading("Response variability (RVC)")
         plot_rvc(calibration.rvc, out / "rvc.png")
-        render_rvc(page, calibration.rvc)
+        render_rvc(page, calibration.rvc, figures=plot_rvc_distributions(calibration.rvc, out))
     page.heading("Genetic algorithm")
     plot_ga_history(result, out / "ga_history.png")
     plot_ga_parameters(result, out / "ga_parameters.png")

@@ -19,7 +19,7 @@ from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
 from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text, unnamed_significant
 from podkrig.reports.html import Page, num, pct, unit_cell
-from podkrig.reports.inverse import render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
+from podkrig.reports.inverse import distribution_file, render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
 from podkrig.reports.offline import offline_table
 from podkrig.reports.sensitivity import index_notes
 from podkrig.reports.surrogate import fit_tables, held_out_tables
@@ -114,7 +114,16 @@ def write_study_report(path, study, records, calibration, warnings):
     render_region(page, calibration.region, calibration.posterior)
     section("rvc")
     render_rvc(page, calibration.rvc, "" if study.validation else " No validation model is configured: add a "
-               "[[validation]] table to propagate the calibration to another test.")
+               "[[validation]] table to propagate the calibration to another test.",
+               figures={m.name: distribution_file(m.name) for m in study.validation
+                        if f"report/{distribution_file(m.name)}" in outputs})
+    for m in study.validation:
+        fit = res[f"validation_model.{m.name}"]["surrogate"]
+        if fit.get("excluded_rows"):
+            page.paragraph(f"Validation model {m.name}: {len(fit['excluded_rows'])} of its {m.design.n} snapshots over "
+                           f"the search box ({fit['excluded_why']}) are left out of its surrogate, which learns the "
+                           "capacity of the runs that have one; the FE runs at region members above measure how many "
+                           "fail within the region.", "meta")
     section("diagnosis")
     _diagnosis_intro(page)
     for t in tests:
@@ -168,6 +177,7 @@ def _summary(page, study, res, calibration, warnings):
     for model, r in calibration.rvc.items():
         numbers.append([f"largest output CV over the region, {model} (%)", pct(float(max(r.cv))),
                         f"{len(r.outputs)} outputs, {r.n_samples} members of the region"])
+        numbers += [[f"{model}: {text}", value, note] for text, value, note in capacity_rows(r)]
     page.table(["quantity", "value", "note"], numbers, caption="Key numbers")
     page.paragraph("Each χ²/dof is about 1 when its model explains the data within what its C_D allows; they differ "
                    "because they compare different models (surrogate or FE, fitted by the inversion or refitted by "
@@ -180,6 +190,28 @@ def _summary(page, study, res, calibration, warnings):
     else:
         page.success("No warnings: the surrogate is accurate enough for the data, the calibrated model explains "
                      "the measurements within the noise, and every free parameter is identified.")
+
+
+#: the outputs of a validation model summarised among a study's key numbers: its capacity
+CAPACITY_OUTPUTS = ("F_peak", "d_peak")
+
+
+def capacity_rows(rvc_result):
+    """Key numbers of one RVC result: rows of (quantity, value, note) for each capacity output
+    (:data:`CAPACITY_OUTPUTS`: the peak load and its displacement) — mean with its band and CV —
+    and the share of its FE validation runs at region members that failed, when it has runs."""
+    r = rvc_result
+    lo, hi = r.quantile_levels[0], r.quantile_levels[-1]
+    rows = [(f"{out} ({r.units[k]})", f"{num(float(r.mean[k]))} [{num(float(r.quantiles[0, k]))}, "
+             f"{num(float(r.quantiles[-1, k]))}]",
+             f"mean [{100 * lo:g} %, {100 * hi:g} % quantiles] over the region; CV {pct(float(r.cv[k]))} %")
+            for k, out in enumerate(r.outputs) if out.split("@")[0] in CAPACITY_OUTPUTS]
+    if r.runs is not None:
+        runs = r.runs
+        rows.append(("failed validation runs (%)", pct(r.failed_share),
+                     f"{int(runs.failed.sum())} of {runs.n_runs} FE runs at region members: {int(runs.stopped.sum())} "
+                     f"stopped early, {int(runs.no_peak.sum())} without a load maximum"))
+    return rows
 
 
 def chi2_rows(calibration, diagnoses=None):

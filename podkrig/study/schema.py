@@ -53,6 +53,9 @@ File layout (units: N, mm, MPa; interface stiffness N/mm³; loads in the scenari
     scenario = "shear_compression"
     n = 64
     seed = 2
+    # outputs = ["top_ux@40"]               # SENSOR@LOAD, or SENSOR at the last level (default: all there)
+    # fe_runs = 16                          # FE runs at region members: the share that fails (nonlinear default 16)
+    # quantiles = [0.05, 0.95]              # levels of the distribution reported
 
     [diagnosis]
     enabled = false
@@ -77,10 +80,12 @@ from pydantic import TypeAdapter, ValidationError
 
 from fe.exceptions import ConstraintError, FEError, SpecError
 from fe.scenarios import SCENARIOS, ScenarioSpec
+from fe.scenarios.nonlinear import NonlinearScenario
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import MAX_STUDY_FILE_BYTES, quote, read_bounded
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
+    NONLINEAR_FE_RUNS,
     OUTSIDE,
     CalibrationTest,
     Study,
@@ -475,5 +480,9 @@ def _validation(r, entries, folder, fixed, space):
         spec = ScenarioSpec(spec.scenario, spec.options, {**spec.parameters, **{k: v for k, v in fixed.items() if k in known}})
         _constraints(r, spec, space, {}, (*path, "scenario"), f"validation model {item.name!r}: ")
         design = TrainingDesign(n=item.n, seed=item.seed, method=item.method)
-        models.append(ValidationModel(item.name, spec, design, item.outputs))
+        # a linear FE run cannot fail: FE runs at region members only measure a nonlinear model's failures
+        fe_runs = item.fe_runs
+        if fe_runs is None:
+            fe_runs = NONLINEAR_FE_RUNS if issubclass(SCENARIOS[spec.scenario], NonlinearScenario) else 0
+        models.append(ValidationModel(item.name, spec, design, item.outputs, fe_runs, item.quantiles))
     return tuple(models)

@@ -69,7 +69,7 @@ from podkrig.surrogate.settings import BACKENDS, BETA_MODES, CRITERIA, VARIOGRAM
 __all__ = [
     "BACKENDS", "BETA_MODES", "CRITERIA", "REGION_METHODS", "SAMPLING_METHODS", "VARIOGRAMS",
     "CalibrationTest", "Design", "DiagnosisSettings", "InversionTable", "MeasurementSettings",
-    "OUTSIDE", "SensitivityTable", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "path_in_folder",
+    "NONLINEAR_FE_RUNS", "OUTSIDE", "SensitivityTable", "Study", "SurrogateSettings", "TrainingDesign", "ValidationModel", "path_in_folder",
     "study_error", "type_name",
 ]
 
@@ -282,10 +282,20 @@ _NAME_ALLOWED = "letters, digits, '_' and '-' (it names files), other than 'cali
 
 def _outputs(value):
     if value is not None and (not isinstance(value, list) or not value
-                              or not all(isinstance(o, str) and "@" in o for o in value)):
-        raise study_error(f"must be a non-empty array of 'SENSOR@LOAD' strings; got {value!r}",
-                          allowed="e.g. [\"top_ux@40\", \"D1@40\"]")
+                              or not all(isinstance(o, str) and o for o in value)):
+        raise study_error(f"must be a non-empty array of 'SENSOR@LOAD' (or 'SENSOR': at the last level) strings; "
+                          f"got {value!r}", allowed="e.g. [\"top_ux@40\", \"D1@40\"] or [\"F_peak\", \"d_peak\"]")
     return None if value is None else tuple(value)
+
+
+_QUANTILES_ALLOWED = "an array of distinct levels in (0, 1), ascending, e.g. [0.05, 0.95]"
+
+
+def _quantiles(value):
+    if (not isinstance(value, list) or not value or not all(isinstance(q, float) and 0 < q < 1 for q in value)
+            or value != sorted(set(value))):
+        raise study_error(f"must be {_QUANTILES_ALLOWED}; got {value!r}", allowed=_QUANTILES_ALLOWED)
+    return tuple(value)
 
 
 @_settings
@@ -300,6 +310,10 @@ class ValidationEntry:
     seed: Seed
     method: _choice(SAMPLING_METHODS) = "sobol"
     outputs: Annotated[Any, AfterValidator(_outputs)] = None
+    fe_runs: Annotated[StrictInt | None, _allowed(
+        "an integer in [0, 256]: FE runs of the validation scenario at region members, for the share that fails "
+        "(default 16 for a nonlinear scenario, 0 for a linear one)", ge=0, le=256)] = None
+    quantiles: Annotated[Any, AfterValidator(_quantiles), _allowed(_QUANTILES_ALLOWED)] = (0.05, 0.95)
 
 
 @_settings
@@ -391,14 +405,22 @@ class StudyFile:
 # the study the pipeline consumes
 
 
+#: FE runs at region members of a nonlinear validation scenario unless its table says (``fe_runs``)
+NONLINEAR_FE_RUNS = 16
+
+
 @dataclasses.dataclass(frozen=True)
 class ValidationModel:
-    """A validation scenario for RVC: its spec, design and reported outputs (``SENSOR@LOAD``)."""
+    """A validation scenario for RVC: its spec, design, reported outputs (``SENSOR@LOAD``, or
+    ``SENSOR`` at the last level; None: every sensor at the last level), the FE runs at region
+    members that measure the share of failed runs, and the quantile levels reported."""
 
     name: str
     spec: object  # fe.ScenarioSpec
     design: Design
     outputs: tuple | None = None
+    fe_runs: int = 0
+    quantiles: tuple = (0.05, 0.95)
 
 
 @dataclasses.dataclass(frozen=True, repr=False)

@@ -48,6 +48,7 @@ from podkrig.exceptions import StoreError, StoreInUseError
 from podkrig.io.measurement_log import read_measurement
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.limits import fe_job_estimate, quote
+from podkrig.offline.failures import no_peak_rows
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
 from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
@@ -55,6 +56,7 @@ from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.data_check import MeasurementCheckError, check_readings
 from podkrig.online.joint import JointProblem
+from podkrig.online.propagation import QUANTILES, RVCModel
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.rigid_body import rigid_body_modes
 from podkrig.online.sensitivity import (
@@ -377,10 +379,16 @@ def offline(run, test, name, title, filename, design):
     run.stage(test.stage(name), test.title(title), inputs, compute, total=design.n)
 
 
-def _fit(store_path, settings, out_path):
-    """Fit and save a surrogate of ``settings`` on a store; returns it."""
+#: why a validation surrogate of capacity leaves runs out (:func:`~podkrig.offline.failures.no_peak_rows`)
+NO_PEAK_WHY = "no load maximum within the control range (the peak in the last control interval): no capacity"
+
+
+def _fit(store_path, settings, out_path, capacity=False):
+    """Fit and save a surrogate of ``settings`` on a store; returns it. ``capacity``: a surrogate
+    of the peak readings, which leaves out the runs without a load maximum."""
     with SnapshotStore.open(store_path) as store:
-        sur = fit_surrogate(store, settings)
+        exclude = no_peak_rows(store) if capacity else ()
+        sur = fit_surrogate(store, settings, exclude=exclude, why=NO_PEAK_WHY if exclude else "")
     save_surrogate(sur, out_path)
     return sur
 
@@ -395,7 +403,8 @@ def validation_model(run, model):
 
     def compute():
         summary, notes = _run_store(run, run.out / store, model.spec, study.space, model.design)
-        sur = _fit(run.out / store, study.surrogate, run.out / surrogate)
+        sur = _fit(run.out / store, study.surrogate, run.out / surrogate,
+                   capacity=bool(model.spec.options.get("peak_readings", False)))
         result = ValidationModelResult(OfflineResult.from_store(run.out / store, summary, notes), model.spec.scenario,
                                        SurrogateFitResult.from_surrogate(sur))
         return result.to_dict(), [store, surrogate], summary.ran
@@ -461,13 +470,16 @@ def calibration(run):
     study = run.study
     tests = {t.name: t for t in study.calibration_tests}
     settings = study.calibration_settings()
-    inputs = {**_online_inputs(run), "settings": dataclasses.asdict(settings),
+    inputs = {**_online_inputs(run), "settings": dataclasses.asdict(settings), "rvc": {"quantiles": list(QUANTILES)},
               "validation": {m.name: {"surrogate": run.outputs(f"validation_model.{m.name}"),
-                                      "outputs": list(m.outputs) if m.outputs else None} for m in study.validation}}
+                                      "outputs": list(m.outputs) if m.outputs else None, "fe_runs": m.fe_runs,
+                                      "quantiles": list(m.quantiles)} for m in study.validation}}
 
     def compute():
         problem = run.calibration_problem()
-        validation = {m.name: (run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs)
+        validation = {m.name: RVCModel(run.surrogate(f"validation_{m.name}_surrogate.h5"), m.outputs,
+                                       scenario=build_scenario(m.spec) if m.fe_runs else None, fe_runs=m.fe_runs,
+                                       quantiles=m.quantiles)
                       for m in study.validation}
         # the readings were compared with the probe and training runs by range_check already
         result = calibrate(problem, settings, scenarios=lambda name: run.scenario(tests[name]), validation=validation,
@@ -504,7 +516,9 @@ def _draw_calibration(run, result):
     inverse_figures.plot_region(result.region, run.figures / "region.png", best=inv.x, posterior=result.posterior,
                                 space=inv.problem.free_space)
     inverse_figures.plot_rvc(result.rvc, run.figures / "rvc.png")
-    return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png"]
+    drawn = inverse_figures.plot_rvc_distributions(result.rvc, run.figures)
+    return files + ["report/ga_history.png", "report/ga_parameters.png", "report/region.png", "report/rvc.png",
+                    *(f"report/{f}" for f in drawn.values())]
 
 
 def save_region(path, region):

@@ -504,7 +504,7 @@ def _now():
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
-def training_data(store, output="readings"):
+def training_data(store, output="readings", exclude=()):
     """Parameters and snapshots of the finished rows of a snapshot store.
 
     Parameters
@@ -514,6 +514,9 @@ def training_data(store, output="readings"):
     output : {"readings", "field"}
         Sensor readings ``(n, n_loads, n_sensors)`` or displacement fields
         ``(n, n_loads, n_nodes, 2)``, mm.
+    exclude : sequence of int
+        Finished store rows left out as well (e.g. runs without a load maximum for a surrogate
+        of capacity).
 
     Returns
     -------
@@ -526,13 +529,16 @@ def training_data(store, output="readings"):
         raise ValueError(f"output must be 'readings' or 'field'; got {output!r}")
     X = store.parameters(physical=True, only_done=True)
     Y = store.readings(only_done=True) if output == "readings" else store.fields(only_done=True)
+    if len(exclude):
+        keep = ~np.isin(np.flatnonzero(store.done_mask()), list(exclude))
+        X, Y = X[keep], Y[keep]
     if len(X) < 3:
         raise ValueError(f"{store.path} has {len(X)} finished snapshots; the surrogate needs at least 3 "
                          "(run 'podkrig snapshots run' first)")
     return X, Y
 
 
-def fit_from_store(store, pod=None, kriging=None, output="readings", layout="stacked", scaling="none"):
+def fit_from_store(store, pod=None, kriging=None, output="readings", layout="stacked", scaling="none", exclude=()):
     """Fit a :class:`PODKriging` on a snapshot store and record where it came from.
 
     Parameters
@@ -544,7 +550,10 @@ def fit_from_store(store, pod=None, kriging=None, output="readings", layout="sta
     output : {"readings", "field"}
     layout, scaling : str
         As in :class:`PODKriging`; the readings' units are the store's sensor units (a load
-        reading's own, else mm; a field is all mm).
+        reading's own — the force and the peak readings ``F_peak``, ``d_peak`` — else mm; a
+        field is all mm).
+    exclude : sequence of int
+        Finished store rows left out of the fit (:func:`training_data`).
 
     Returns
     -------
@@ -552,10 +561,10 @@ def fit_from_store(store, pod=None, kriging=None, output="readings", layout="sta
         With ``provenance_`` holding the store path and content hash, scenario spec, sensor names,
         load levels and unit, the output kind and the number of nodes.
     """
-    X, Y = training_data(store, output)
-    # the unit of each sensor: mm, a load reading's own (sensor_definitions kind "force")
+    X, Y = training_data(store, output, exclude)
+    # the unit of each sensor: mm, a load reading's own (sensor_definitions kind "force" or "peak")
     sensor_units = [store.sensor_definitions.get(n, {}).get("unit", "mm")
-                    if store.sensor_definitions.get(n, {}).get("kind") == "force" else "mm"
+                    if store.sensor_definitions.get(n, {}).get("kind") in ("force", "peak") else "mm"
                     for n in store.sensor_names]
     units = sensor_units if output == "readings" else None
     sur = PODKriging(pod=pod, kriging=kriging, space=store.space, layout=layout, scaling=scaling).fit(X, Y, units)

@@ -54,6 +54,10 @@ class SurrogateFitResult(Displayed):
     pod, scaling : str
         The POD layout (``"stacked"`` over the control levels or ``"per_level"``) and the scaling
         of the outputs (:class:`~podkrig.surrogate.PODKriging`).
+    excluded_rows : tuple of int
+        Finished rows left out of the fit, and ``excluded_why`` why (e.g. no load maximum, for a
+        surrogate of capacity; :func:`~podkrig.surrogate.settings.fit_surrogate`).
+    excluded_why : str
     """
 
     n_train: int
@@ -66,6 +70,8 @@ class SurrogateFitResult(Displayed):
     dropped_rows: tuple = ()
     pod: str = "stacked"
     scaling: str = "none"
+    excluded_rows: tuple = ()
+    excluded_why: str = ""
 
     @classmethod
     def from_surrogate(cls, sur):
@@ -78,7 +84,9 @@ class SurrogateFitResult(Displayed):
                    description=None if ours else sur.kriging_.describe(),
                    training_seconds=None if seconds is None else float(seconds),
                    dropped_rows=tuple(int(i) for i in sur.provenance_.get("dropped_rows", ())),
-                   pod=sur.layout, scaling=sur.scaling)
+                   pod=sur.layout, scaling=sur.scaling,
+                   excluded_rows=tuple(int(i) for i in sur.provenance_.get("excluded_rows", ())),
+                   excluded_why=sur.provenance_.get("excluded_why", ""))
 
     def to_dict(self):
         """JSON-able dict (the study's ``surrogate`` manifest): ``beta`` for our kriging,
@@ -92,6 +100,8 @@ class SurrogateFitResult(Displayed):
         out["training_seconds"] = self.training_seconds
         if self.dropped_rows:
             out["dropped_rows"] = list(self.dropped_rows)
+        if self.excluded_rows:
+            out.update(excluded_rows=list(self.excluded_rows), excluded_why=self.excluded_why)
         out.update(pod=self.pod, scaling=self.scaling)
         return out
 
@@ -103,7 +113,9 @@ class SurrogateFitResult(Displayed):
                    description=d.get("description"),
                    training_seconds=None if d.get("training_seconds") is None else float(d["training_seconds"]),
                    dropped_rows=tuple(int(i) for i in d.get("dropped_rows", ())),
-                   pod=d.get("pod", "stacked"), scaling=d.get("scaling", "none"))
+                   pod=d.get("pod", "stacked"), scaling=d.get("scaling", "none"),
+                   excluded_rows=tuple(int(i) for i in d.get("excluded_rows", ())),
+                   excluded_why=d.get("excluded_why", ""))
 
 
 @dataclass(frozen=True, repr=False)

@@ -128,7 +128,7 @@ class RefineSettings:
     sampling: choice(SAMPLING_METHODS) = "sobol"
 
 
-def fit_surrogate(store, settings, output="readings"):
+def fit_surrogate(store, settings, output="readings", exclude=(), why=""):
     """Fit a surrogate of these settings on a snapshot store, timed.
 
     Only finished rows train it. Failed rows — FE runs that raised, and nonlinear runs that
@@ -145,6 +145,11 @@ def fit_surrogate(store, settings, output="readings"):
         An open store.
     settings : SurrogateSettings
     output : {"readings", "field"}
+    exclude : sequence of int
+        Finished rows left out as well, recorded with ``why`` (words) in the provenance
+        (``excluded_rows``, ``excluded_why``): e.g. the runs without a load maximum
+        (:func:`~podkrig.offline.failures.no_peak_rows`) of a surrogate of capacity.
+    why : str
 
     Returns
     -------
@@ -171,8 +176,12 @@ def fit_surrogate(store, settings, output="readings"):
     pod, regressor = settings.templates()
     t0 = time.perf_counter()
     sur = fit_from_store(store, pod=pod, kriging=regressor, output=output, layout=settings.pod,
-                         scaling=settings.scaling)
+                         scaling=settings.scaling, exclude=exclude)
     sur.provenance_["training_seconds"] = time.perf_counter() - t0
+    if len(exclude):
+        logger.warning("%s: %d finished rows are left out of the surrogate (%s; rows %s)", store.path, len(exclude),
+                       why, _rows_text(list(exclude)))
+        sur.provenance_.update({"excluded_rows": [int(i) for i in exclude], "excluded_why": why})
     if failures is not None:
         sur.provenance_.update({
             "dropped_rows": list(failures.rows), "failed_share": failures.share, "failed_reasons": failures.reasons,
