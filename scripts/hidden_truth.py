@@ -11,7 +11,8 @@ For a study (the triplet series of ``examples/triplet_series.toml``, or the J4D 
    (δ d)², δ = 1 %, σ_abs = 0.05 kN on forces, 2 µm on gauges, drawn around the noise-free
    reading d), then calibrates on the study's surrogates exactly as the study's calibration stage
    does (:func:`podkrig.online.calibrate.calibrate`: GA + polish, 95 % region of equivalence, FE
-   check, RVC of the validation model);
+   check, RVC of the capacity model — its surrogate over the region's members; the FE runs at
+   members that count its failures are left out, they do not move the band);
 4. counts how often the truth lies inside the 95 % region (ω(truth) ≤ ω(m*) + ½ χ²_p(0.95), with
    the surrogate's variance in C_T frozen at m* as the region has it) and how often the 5–95 %
    band of the capacity RVC (the validation model's peak load over the region's members) contains
@@ -50,6 +51,7 @@ from podkrig.io.surrogate_file import load_surrogate
 from podkrig.online.calibrate import calibrate
 from podkrig.online.joint import JointProblem
 from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
+from podkrig.online.propagation import RVCModel
 from podkrig.study import load_study, run_study
 from podkrig.study.stages import read_study_measurement
 
@@ -57,36 +59,27 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 #: share of each range left out at either end when the truths are drawn
 MARGIN = 0.1
+#: the capacity: the peak load of a scenario with ``peak_readings`` (kN)
+CAPACITY = "F_peak"
 
 
 @dataclass(frozen=True)
 class Case:
     """A study under test: its file, the measurement files it reads, and the validation model whose
-    peak load is the capacity (a ``[[validation]]`` table appended to the study)."""
+    peak load is the capacity: the study's own (a ``[[validation]]`` whose scenario has
+    ``peak_readings``), or else the ``[[validation]]`` table ``validation`` appended to it."""
 
     study: Path
     data: tuple
-    validation: str
-    capacity: str = "F_peak"
+    validation: str | None = None
     truth_seed: int = 32
     noise_seed: int = 3200
 
 
-TRIPLET_LEVELS = "[0.01, 0.02, 0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0, 1.5, 2.0]"
-
 CASES = {
-    # capacity: a fourth triplet of the same joints at 1.4 MPa, outside the series' 0.2-1.0 MPa
-    "triplet": Case(
-        EXAMPLES / "triplet_series.toml",
-        tuple(f"triplet_series_{p}MPa.csv" for p in ("0.2", "0.6", "1.0")),
-        f"""
-[[validation]]                   # the capacity: a triplet at 1.4 MPa, its peak load
-name = "triplet_1_4MPa"
-scenario = {{ scenario = "triplet_shear", precompression = 1.4, load_levels = {TRIPLET_LEVELS}, peak_readings = true }}
-n = 128
-seed = 3
-outputs = ["F_peak@2"]
-"""),
+    # capacity: the study's fourth triplet at 1.4 MPa (its [[validation]] "p1_4MPa")
+    "triplet": Case(EXAMPLES / "triplet_series.toml",
+                    tuple(f"triplet_series_{p}MPa.csv" for p in ("0.2", "0.6", "1.0"))),
     # capacity: the same wall at 1.21 MPa (J6D), its peak load; the study is examples/j4d_wall.toml
     "j4d": Case(
         EXAMPLES / "j4d_wall.toml",
@@ -97,7 +90,7 @@ name = "j6d_1_21MPa"
 scenario = { scenario = "shear_compression_nl", precompression = 1.21, top = "fixed_vertical", load_levels = [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.75, 0.9, 1.0, 1.25, 1.5, 1.75], peak_readings = true }
 n = 64
 seed = 3
-outputs = ["F_peak@1.75"]
+outputs = ["F_peak"]
 """),
 }
 
@@ -117,11 +110,21 @@ def prepare(case, folder, train=None):
         if n != 1:
             raise SystemExit(f"{case.study.name}: no single 'train = {{ n = ... }}' to change")
     path = folder / case.study.name
-    path.write_text(text + case.validation)
+    path.write_text(text)
+    if capacity_model(load_study(path)) is None:
+        if case.validation is None:
+            raise SystemExit(f"{case.study.name} declares no capacity model (a [[validation]] with peak_readings)")
+        path.write_text(text + case.validation)
     study = load_study(path)
     # the pseudo-experiments need the surrogates, not the study's own sensitivity and diagnosis
     return dataclasses.replace(study, sensitivity=dataclasses.replace(study.sensitivity, enabled=False),
                                diagnosis=dataclasses.replace(study.diagnosis, enabled=False))
+
+
+def capacity_model(study):
+    """The study's capacity model: its last validation model with ``peak_readings`` (None if none)."""
+    found = [v for v in study.validation if v.spec.options.get("peak_readings")]
+    return found[-1] if found else None
 
 
 def truths(space, n, seed, margin=MARGIN):
@@ -152,9 +155,8 @@ class Experiments:
                                                  model.load_response, self.scenarios[t.name].sensor_units)
             self.models[t.name], self.base[t.name], self.noise[t.name] = model, data, noise
             self.fixed[t.name] = fix_from_scenario(model)
-        val = study.validation[-1]  # the capacity model the case appended
+        val = capacity_model(study)
         self.validation_name = val.name
-        self.validation_outputs = val.outputs
         self.validation_model = SurrogateModel(load_surrogate(self.out / f"validation_{val.name}_surrogate.h5"))
         self.validation_scenario = build_scenario(val.spec)
         self.settings = study.calibration_settings()
@@ -173,10 +175,9 @@ class Experiments:
         return JointProblem(problems)
 
     def capacity_of(self, values):
-        """The FE capacity (the validation model's peak reading) at ``values``."""
+        """The FE capacity (the validation model's peak load ``F_peak``) at ``values``."""
         response = self.validation_scenario.run(values)
-        sensor = self.validation_outputs[0].split("@")[0]
-        return float(response.readings[-1, list(response.sensor_names).index(sensor)])
+        return float(response.readings[-1, list(response.sensor_names).index(CAPACITY)])
 
     def run(self, x_true, seed, data_from="fe"):
         """One pseudo-experiment at the free values ``x_true``: its row of the table (dict).
@@ -200,14 +201,14 @@ class Experiments:
             measurements[t.name] = pseudo_data(data, self.noise[t.name], clean, rng)
         problem = self.problem(measurements)
         result = calibrate(problem, self.settings, scenarios=lambda name: self.scenarios[name],
-                           validation={self.validation_name: (self.validation_model, self.validation_outputs)},
+                           validation={self.validation_name: RVCModel(self.validation_model, (CAPACITY,))},
                            check_measurement=False, range_check=False, calibration_rvc=False)
         region, inv = result.region, result.inversion
         frozen = problem.freeze_model_error(inv.x)
         omega_truth = float(frozen.omega(np.atleast_2d(x_true))[0])
         omega_best = float(frozen.omega(np.atleast_2d(inv.x))[0])
-        capacity = result.rvc[self.validation_name].values[:, 0]
-        lo, hi = np.percentile(capacity, [5, 95])
+        band = result.rvc[self.validation_name]
+        lo, hi = band.quantiles[:, 0]  # the 5 % and 95 % quantiles over the region's members
         cap_true = self.capacity_of(truth)
         return {"seed": seed, "truth": truth, "estimate": dict(zip(names, map(float, inv.x))),
                 "chi2_dof": float(inv.chi2_dof), "omega_excess": omega_truth - omega_best,
@@ -275,7 +276,7 @@ def main(argv=None):
               f"capacity {'y' if r['capacity_inside'] else 'n'}", flush=True)
     cpu_exp = time.process_time() - cpu1
     inside, cap_inside, n = coverage(rows)
-    unit = exp.validation_scenario.sensor_units.get(case.capacity, "")
+    unit = exp.validation_scenario.sensor_units[CAPACITY]
     print("\n".join(table(rows, study.space.names, unit)))
     floor = binomial_floor(n)
     summary = {"study": args.study, "n": n, "train": args.train, "data_from": args.data_from, "inside": inside, "capacity_inside": cap_inside, "target": floor,
