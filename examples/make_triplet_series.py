@@ -22,6 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
+from fe.scenarios import build_scenario
+from podkrig.io.measurement_log import response_csv
+
 #: the hidden values: cohesion (MPa), initial friction coefficient (-), mode-II fracture energy
 #: (N/mm) of the joints; the tensile strength ft_bj (MPa) the study also leaves free
 TRUTH = {"c_bj": 0.30, "tanphi_bj": 0.85, "GfII_bj": 0.10, "ft_bj": 0.10}
@@ -42,9 +45,6 @@ def data_file(precompression, folder=HERE):
 
 def simulate_csv(precompression, truth=None):
     """The noise-free curve at ``precompression`` (MPa): what ``podkrig simulate --format csv`` prints."""
-    from fe.scenarios import build_scenario
-    from podkrig.io.measurement_log import response_csv
-
     sc = build_scenario({"scenario": "triplet_shear", "precompression": precompression, "load_levels": LEVELS})
     return response_csv(sc, sc.run(truth or TRUTH))
 

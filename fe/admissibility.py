@@ -108,6 +108,7 @@ class Inequality:
 
     @property
     def operator(self):
+        """``"<"`` for a strict inequality, else ``"≤"``."""
         return "<" if self.strict else "≤"
 
     def formula(self, names=None):
@@ -224,6 +225,8 @@ class Violation:
     grid_points: int = 0
 
     def message(self, units):
+        """The violation in words: the formula, its families and reason, where in the box it fails
+        (parameter values with their ``units``, name → unit, ``"-"`` for none) and the two sides."""
         c = self.constraint
 
         def value(n):

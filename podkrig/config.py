@@ -35,7 +35,7 @@ import math
 import typing
 from typing import Annotated
 
-from pydantic import AfterValidator, ConfigDict, Field, StrictInt, StrictStr
+from pydantic import AfterValidator, ConfigDict, Field, StrictInt, StrictStr, ValidationError
 from pydantic.dataclasses import dataclass as pydantic_dataclass
 from pydantic_core import PydanticCustomError
 
@@ -162,13 +162,11 @@ def make_settings(cls, values, names=None):
     ValueError
         With the name, the value and the allowed values (the field's :func:`allowed` text).
     """
-    import pydantic  # the settings machinery's own dependency, imported by every settings class already
-
     names = names or {}
     given = {k: v for k, v in values.items() if v is not None}
     try:
         return cls(**given)
-    except pydantic.ValidationError as e:
+    except ValidationError as e:
         error = e.errors(include_url=False)[0]
         ctx = error.get("ctx") or {}
         if error["type"] == "settings":

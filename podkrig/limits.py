@@ -5,15 +5,14 @@ Every limit is a module constant with the reason for its value; every ``check_*`
 what is allowed — with a memory or disk estimate where size is the reason.
 """
 
-import errno
 import math
 import numbers
-import os
 import re
-import stat
 from pathlib import Path
 
 import numpy as np
+
+from fe.files import human_bytes, read_bounded  # noqa: F401 - podkrig's file readers call them from here
 
 #: Region-of-equivalence samples per round: below 1024 the sampled region is far too narrow (a
 #: 16-sample "region" called an unidentifiable parameter identified); above 2^24 one
@@ -87,14 +86,6 @@ def human_duration(seconds):
     return f"{seconds:.2g} s"
 
 
-def human_bytes(nbytes):
-    """``1536`` → ``"1.5 KiB"``."""
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
-        if abs(nbytes) < 1024 or unit == "PiB":
-            return f"{nbytes:.0f} {unit}" if unit == "B" else f"{nbytes:.1f} {unit}"
-        nbytes /= 1024
-
-
 def quote(text, limit=QUOTE_CHARS):
     r"""A piece of a file's content for a message (a string, else any value's ``repr``): its first
     line as Python writes a string (so a
@@ -143,61 +134,6 @@ def quote_cells(cells, limit=QUOTE_CHARS):
         shown.append(q)
         used += len(q) + 2
     return "[" + ", ".join(shown) + "]"
-
-
-def read_bounded(path, cap, what, remedy=None):
-    """The bytes of the file at ``path``, refusing more than ``cap`` of them.
-
-    A regular file larger than the cap is refused from its size; otherwise at most ``cap + 1``
-    bytes are read, so a device (``/dev/zero``) or a file that grows is refused after reading just
-    past the cap, not at "out of memory". A FIFO, socket or folder is refused before reading (it is
-    opened without waiting for a writer).
-
-    Parameters
-    ----------
-    path : str or Path
-    cap : int
-        Largest size accepted, bytes (e.g. :data:`MAX_STUDY_FILE_BYTES`).
-    what : str
-        The file's role in the message (``"study file"``).
-    remedy : str, optional
-        What to do, appended to a refusal.
-
-    Raises
-    ------
-    ValueError
-        Naming the file, its size (or "more than CAP bytes") and the cap.
-    OSError
-        The file cannot be opened or read, or is a folder.
-    """
-    path = Path(path)
-    tail = f"; {remedy}" if remedy else ""
-    cap_text = f"{cap // 2**20} MiB" if cap % 2**20 == 0 else human_bytes(cap)
-    too_large = f"{path}: larger than {cap_text} ({cap} bytes), the cap for a {what}: "
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO without a writer would block a plain open
-    try:
-        st = os.fstat(fd)
-        if stat.S_ISDIR(st.st_mode):  # as open() would say
-            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
-        if not (stat.S_ISREG(st.st_mode) or stat.S_ISCHR(st.st_mode)):
-            kind = "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode) else "special"
-            raise ValueError(f"{path}: not a regular file ({kind}); a {what} is read from a file of at most "
-                             f"{cap_text} ({cap} bytes)")
-        if stat.S_ISREG(st.st_mode) and st.st_size > cap:
-            raise ValueError(f"{too_large}it is {human_bytes(st.st_size)}{tail}")
-        os.set_blocking(fd, True)
-        chunks, n = [], 0
-        while n <= cap:
-            block = os.read(fd, min(cap + 1 - n, 1 << 20))
-            if not block:
-                break
-            chunks.append(block)
-            n += len(block)
-    finally:
-        os.close(fd)
-    if n > cap:
-        raise ValueError(f"{too_large}more than {cap} bytes read{tail}")
-    return b"".join(chunks)
 
 
 def _int(value, what):

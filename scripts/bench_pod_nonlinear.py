@@ -27,8 +27,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 from fe.scenarios import build_scenario
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.store import SnapshotStore
@@ -68,12 +66,6 @@ def stores(spec, names, n_train, n_held, store_dir, label):
               flush=True)
         paths.append(path)
     return paths
-
-
-def peak_errors(Y_pred, Y_true, columns):
-    """Per held-out run: max |ŷ − y| / max |y| over ``columns`` (the outputs of one unit)."""
-    d = np.abs(Y_pred[:, columns] - Y_true[:, columns]).max(axis=1)
-    return d / np.abs(Y_true[:, columns]).max(axis=1)
 
 
 def compare(train_path, held_path, label):

@@ -1,7 +1,9 @@
-"""Shared pytest fixtures."""
+"""Shared pytest fixtures and helpers."""
 
 import contextlib
+import importlib.util
 import logging
+from pathlib import Path
 
 import pytest
 
@@ -14,6 +16,16 @@ from podkrig.parameters import ParameterSpace
 DIC_9X9 = {"kind": "dic", "x0": 65.0, "y0": 32.5, "x1": 1105.0, "y1": 1072.5, "nx": 9, "ny": 9}
 #: the joint stiffnesses the diagnosis tests leave free (N/mm³, log-uniform)
 JOINT_BOUNDS = {"kN_bj": (10.0, 1000.0, "log"), "kV_bj": (4.0, 400.0, "log")}
+
+
+def load_file(path):
+    """Import the Python file ``path`` (a script of ``scripts/`` or ``examples/``, which are not
+    packages) as a module named by its stem, without running its ``main``."""
+    path = Path(path)
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 @pytest.fixture(scope="session")

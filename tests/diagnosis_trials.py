@@ -98,6 +98,28 @@ def model_error(scenario, values, measurement, model_tolerance=None, rigid=None)
     return tolerance_error(measurement, model_tolerance).std
 
 
+def _context(scenario, space, truth):
+    """``(values, ctx, clean)``: the resolved ``truth``, the candidates' FE context at it (its
+    offset scale set from the clean readings, as :func:`~podkrig.diagnosis.diagnose` sets it from
+    the data) and the clean readings."""
+    values = scenario.resolve(truth)
+    ctx = FEContext(scenario, space.names, values)
+    clean = ctx.readings(values)
+    ctx.offset_scale = float(np.max(np.abs(clean)))
+    return values, ctx, clean
+
+
+def _exact_fitter(ctx, scenario, space, values, effect, noise, model_tolerance, rigid_body, with_model_error=True):
+    """The diagnosis's fitter on the noise-free ``effect`` readings (with the model-form error the
+    diagnosis will use, unless ``with_model_error`` is False) and the truth's unit-cube point: what
+    the identifiable size of an effect is measured with."""
+    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
+    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
+    error = model_error(scenario, values, exact, model_tolerance, rigid) if with_model_error else None
+    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs), error, rigid)
+    return fitter, space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+
+
 def _draw(ctx, cause, location, value, rng):
     """``(candidate, location, parameter, value)`` of ``cause``, the location drawn at random when
     None and the value by :func:`draw_strength` when None."""
@@ -120,10 +142,7 @@ def make_trial(scenario, space, truth, cause=None, location=None, value=None, *,
     as the diagnosis will be given them (None: estimated; "auto": the rigid-body motion of a DIC
     grid removed), for the identifiable size.
     """
-    values = scenario.resolve(truth)
-    ctx = FEContext(scenario, space.names, values)
-    clean = ctx.readings(values)
-    ctx.offset_scale = float(np.max(np.abs(clean)))  # as diagnose() sets it from the data
+    values, ctx, clean = _context(scenario, space, truth)
     if cause is not None:
         cand, location, _, value = _draw(ctx, cause, location, value, rng)
         effect = cand.readings(ctx, values, location, value)
@@ -131,11 +150,8 @@ def make_trial(scenario, space, truth, cause=None, location=None, value=None, *,
         effect = clean
     sigma = noise_sigma(effect)
     noise = NoiseModel(sigma=sigma)
-    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
-    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
-    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
-                     model_error(scenario, values, exact, model_tolerance, rigid) if cause else None, rigid)
-    u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+    fitter, u = _exact_fitter(ctx, scenario, space, values, effect, noise, model_tolerance, rigid_body,
+                              with_model_error=cause is not None)
     identifiable = float(np.max(np.abs(fitter.whiten(fitter.fit(u).readings)))) if cause else 0.0
     data = effect + sigma * rng.standard_normal(effect.shape)
     measurement = Measurement(data, scenario.sensor_names, scenario.load_levels, f"pseudo-data ({cause or 'no effect'})")
@@ -160,19 +176,12 @@ def make_two_cause_trial(scenario, space, truth, causes, *, rng, sigma=None, mod
     """Pseudo-data from ``truth`` with two effects ``causes`` = ``(name, location or None, value or
     None)`` each (drawn as in :func:`make_trial` when None), plus noise σ (default
     :func:`noise_sigma`); ``rigid_body`` as the diagnosis will be given it."""
-    values = scenario.resolve(truth)
-    ctx = FEContext(scenario, space.names, values)
-    clean = ctx.readings(values)
-    ctx.offset_scale = float(np.max(np.abs(clean)))
+    values, ctx, _ = _context(scenario, space, truth)
     drawn = [_draw(ctx, name, location, value, rng) for name, location, value in causes]
     effect = ctx.readings_with(values, [(c, loc, v) for c, loc, _, v in drawn])
     sigma = noise_sigma(effect) if sigma is None else float(sigma)
     noise = NoiseModel(sigma=sigma)
-    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
-    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
-    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
-                     model_error(scenario, values, exact, model_tolerance, rigid), rigid)
-    u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+    fitter, u = _exact_fitter(ctx, scenario, space, values, effect, noise, model_tolerance, rigid_body)
     identifiable = []
     for k in range(2):  # refit the base parameters and the other effect, from the truth
         cand, loc, par, v = drawn[1 - k]
@@ -200,22 +209,16 @@ def bed_joint_locations(ctx, y):
 def make_whole_joint_trial(scenario, space, truth, y, factor, *, rng, model_tolerance=None, rigid_body="auto"):
     """Pseudo-data from ``truth`` with a *whole* bed joint weakened: every segment of the bed joint
     at height ``y`` (mm) with its normal and shear stiffness times ``factor``, plus noise
-    (:func:`noise_sigma`). No single candidate location is the truth: the structural cause is the
-    joint, and a one-sensor fault is a wrong answer. ``identifiable_effect`` is the largest
-    |residual| / σ left after refitting the base parameters to the noise-free data."""
-    values = scenario.resolve(truth)
-    ctx = FEContext(scenario, space.names, values)
-    clean = ctx.readings(values)
-    ctx.offset_scale = float(np.max(np.abs(clean)))
+    (:func:`noise_sigma`), built segment by segment (not through the candidate's whole-bed-joint
+    location, which the diagnosis should find): the structural cause is the joint, and a
+    one-sensor fault is a wrong answer. ``identifiable_effect`` is the largest |residual| / σ left
+    after refitting the base parameters to the noise-free data."""
+    values, ctx, clean = _context(scenario, space, truth)
     cand = CANDIDATES["weak_joint"]
     effect = ctx.readings_with(values, [(cand, loc, float(factor)) for loc in bed_joint_locations(ctx, y)])
     sigma = noise_sigma(effect)
     noise = NoiseModel(sigma=sigma)
-    exact = Measurement(effect, scenario.sensor_names, scenario.load_levels, "noise-free")
-    rigid = rigid_body_modes(exact, absolute_displacements(scenario.sensors), rigid_body)
-    fitter = _Fitter(ctx, space, exact, noise, np.arange(exact.n_obs),
-                     model_error(scenario, values, exact, model_tolerance, rigid), rigid)
-    u = space.to_unit(np.array([[values[n] for n in space.names]]))[0]
+    fitter, u = _exact_fitter(ctx, scenario, space, values, effect, noise, model_tolerance, rigid_body)
     identifiable = float(np.max(np.abs(fitter.whiten(fitter.fit(u).readings))))
     data = effect + sigma * rng.standard_normal(effect.shape)
     measurement = Measurement(data, scenario.sensor_names, scenario.load_levels,

@@ -1,20 +1,18 @@
 """The API reference builds from the docstrings (``python scripts/build_api_docs.py``)."""
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
+from conftest import load_file
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _builder():
-    spec = importlib.util.spec_from_file_location("build_api_docs", ROOT / "scripts" / "build_api_docs.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_file(ROOT / "scripts" / "build_api_docs.py")
 
 
 def test_the_reference_covers_every_public_module_and_no_private_one():

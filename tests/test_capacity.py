@@ -190,8 +190,9 @@ def test_store_rows_without_a_load_maximum(tmp_path):
 
 def test_a_capacity_validation_is_declared_in_the_study_file(tmp_path):
     """Fails if the triplet series' validation triplet loses its capacity outputs or FE runs, if a
-    nonlinear validation model does not default to FE runs at region members (a linear one to
-    none), or if a bad quantile level is accepted without naming the key and the allowed values."""
+    nonlinear validation model does not default to FE runs at region members, if a bad quantile
+    level is accepted without naming the key and the allowed values, or if a capacity output of a
+    scenario without peak readings waits for the calibration to fail (after all FE work)."""
     study = load_study(EXAMPLES / "triplet_series.toml")
     (v,) = study.validation
     assert v.spec.options["precompression"] == 1.4 and v.spec.options["peak_readings"]
@@ -207,4 +208,8 @@ def test_a_capacity_validation_is_declared_in_the_study_file(tmp_path):
     assert load_study(path).validation[0].fe_runs == 0
     path.write_text(text.replace("fe_runs = 16 ", "quantiles = [0.95, 1.5] "))
     with pytest.raises(StudyError, match=r"validation\[1\]\.quantiles: .*\[0.95, 1.5\].*allowed: .*\(0, 1\)"):
+        load_study(path)
+    # a capacity output of a scenario without peak readings: refused at load time, before any FE run
+    path.write_text(text.replace("peak_readings = true, ", ""))
+    with pytest.raises(StudyError, match=r"validation\[1\]\.outputs: .*'F_peak'.*peak_readings = true"):
         load_study(path)

@@ -15,8 +15,15 @@ import pytest
 import typer.main
 from typer.testing import CliRunner
 
+import podkrig.cli._terminal as terminal
+import podkrig.io.surrogate_file as surrogate_file
+import podkrig.online.problem as problem
+import podkrig.online.sensitivity as sensitivity
+from podkrig import parallel
 from podkrig.cli import app
 from podkrig.cli._terminal import HEARTBEAT_S, LINE_INTERVAL_S, Progress, console
+from podkrig.parallel import quiet_loggers
+from podkrig.reports.sensitivity import NEGATIVE_INDEX
 
 runner = CliRunner()
 
@@ -159,8 +166,6 @@ def test_progress_heartbeat_thread_runs_inside_the_block_only():
 def test_piped_long_command_reports_progress_on_stderr(tmp_path, monkeypatch):
     """``podkrig snapshots run`` not on a terminal: plain progress lines on stderr (the interval set
     to 0 so that every report writes one), the result on stdout."""
-    import podkrig.cli._terminal as terminal
-
     monkeypatch.setattr(terminal, "LINE_INTERVAL_S", 0.0)
     spec = tmp_path / "coarse.toml"
     spec.write_text('scenario = "diagonal_compression"\nnx = 2\nny = 1\n')
@@ -193,8 +198,6 @@ def _listen(name, level=None):
 
 
 def test_quiet_loggers_silences_dask_loggers_only_inside_the_block():
-    from podkrig.parallel import quiet_loggers
-
     nanny, heard = _listen("distributed.podkrig_test_nanny")
     own_level, heard_own = _listen("tornado.podkrig_test_application", logging.ERROR)  # a level of its own
     ours, heard_ours = _listen("podkrig.podkrig_test")
@@ -217,8 +220,6 @@ def test_quiet_loggers_silences_dask_loggers_only_inside_the_block():
 
 
 def test_close_local_cluster_silences_workers_then_closes_client_then_cluster():
-    from podkrig import parallel
-
     calls = []
     nanny, heard = _listen("distributed.podkrig_test_close")
 
@@ -289,11 +290,6 @@ def test_sensitivity_table_explains_a_negative_first_order_index(tmp_path, monke
     """The command's table for indices where r_hj's first-order estimate is −0.0009 inside its
     interval: a note column, the noise words on r_hj's row only (the indices are injected: the
     table is what is tested, not the estimator)."""
-    import podkrig.io.surrogate_file as surrogate_file
-    import podkrig.online.problem as problem
-    import podkrig.online.sensitivity as sensitivity
-    from podkrig.reports.sensitivity import NEGATIVE_INDEX
-
     indices = sensitivity.SensitivityResult(
         ("E_b", "r_hj"), ("D1@100",), first=np.array([[0.9, -0.0009]]), total=np.array([[0.95, 0.02]]),
         first_low=np.array([[0.85, -0.004]]), first_high=np.array([[0.95, 0.003]]),
@@ -315,8 +311,6 @@ def test_every_command_reports_that_it_is_alive_when_piped(monkeypatch):
     """A command without progress reports of its own (``simulate``) still writes progress lines
     on stderr outside a terminal: the heartbeat every command runs in (interval and heartbeat
     shortened so that the short run writes some)."""
-    import podkrig.cli._terminal as terminal
-
     monkeypatch.setattr(terminal, "LINE_INTERVAL_S", 0.0)
     monkeypatch.setattr(terminal, "HEARTBEAT_S", 0.001)
     result = runner.invoke(app, ["simulate", "diagonal_compression", "--option", "nx=2", "--option", "ny=1",

@@ -15,10 +15,19 @@ from typer.testing import CliRunner
 from fe.exceptions import SpecError
 from fe.scenarios import build_scenario
 from podkrig.cli import app
+from podkrig.diagnosis.engine import build_base_surrogate
 from podkrig.io.measurement_log import ImportSettings, read_measurement
-from podkrig.online.data_check import MeasurementCheckError, check_loads
+from podkrig.io.surrogate_file import save_surrogate
+from podkrig.offline.runner import run_snapshots
+from podkrig.offline.store import SnapshotStore
+from podkrig.online.calibrate import calibrate
+from podkrig.online.data_check import MeasurementCheckError, check_loads, check_readings
 from podkrig.online.measurement import Measurement, instrument_noise
+from podkrig.online.problem import InverseProblem, SurrogateModel
+from podkrig.online.settings import CalibrationSettings, InversionSettings, RegionSettings
+from podkrig.parameters import ParameterSpace
 from podkrig.reports.findings import refusal
+from podkrig.surrogate.podkriging import fit_from_store
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
@@ -187,10 +196,21 @@ def test_a_control_in_micrometres_under_a_millimetre_header_is_named_as_a_contro
     assert e.value.findings[0].values["quantity"] == "load" and "loads in N under a kN header" in refusal(e.value)
 
 
-def test_a_falling_force_passes_the_load_check():
-    """The force is a reading, not the control: the control is monotone, the force is not, and only
-    the control is checked against the levels."""
-    check_loads([0.01, 0.05, 0.2, 1.0, 2.0], [0.01, 0.1, 1.0, 2.0], "mm")
+def test_a_falling_force_passes_the_load_check(tmp_path, triplet):
+    """The force is a reading, not the control: a log whose force rises to 60 kN (30× the last
+    control level: refused as a control, the premise) and falls after its peak is read as it is;
+    only the control column is checked against the levels."""
+    sc, _ = triplet
+    control, F = [0.01, 0.05, 0.2, 1.0, 2.0], [10.0, 60.0, 45.0, 30.0, 20.0]
+    with pytest.raises(MeasurementCheckError):
+        check_loads(F, sc.load_levels, "mm")  # these numbers in the control column would be refused
+    path = tmp_path / "falling.csv"
+    path.write_text("slip [mm],F [kN]\n" + "\n".join(f"{c:g},{f:g}" for c, f in zip(control, F)) + "\n")
+    data = read_measurement(path, sc.sensor_names, sc.load_levels, sc.load_unit, sc.load_response,
+                            ImportSettings(load_column="slip"), sc.sensor_units)
+    assert data.sensor_names == ("F",)
+    assert_allclose(data.load_levels, control, rtol=0, atol=0)
+    assert_allclose(data.values[:, 0], F, rtol=0, atol=0)  # the post-peak branch kept, in order
 
 
 def test_a_load_cell_weighs_the_force_and_a_displacement_instrument_never_does():
@@ -233,12 +253,6 @@ def test_hidden_truth_cohesion_and_mode_II_energy_from_a_noisy_force_curve(tripl
     c_bj ∈ [0.2, 0.5], GfII_bj ∈ [0.05, 0.3]: the truth lies in the region's intervals and the
     optimum within 2 % (c_bj, from the peak) and 5 % (GfII_bj, from the softening branch), each
     interval narrower than a tenth of its bounds."""
-    from podkrig.diagnosis.engine import build_base_surrogate
-    from podkrig.online.calibrate import calibrate
-    from podkrig.online.problem import InverseProblem, SurrogateModel
-    from podkrig.online.settings import CalibrationSettings, InversionSettings, RegionSettings
-    from podkrig.parameters import ParameterSpace
-
     sc, _ = triplet
     truth = {"c_bj": 0.3, "GfII_bj": 0.1}
     bounds = {"c_bj": (0.2, 0.5), "GfII_bj": (0.05, 0.3)}
@@ -265,8 +279,6 @@ def test_hidden_truth_cohesion_and_mode_II_energy_from_a_noisy_force_curve(tripl
 
 def test_a_force_in_newtons_under_a_kilonewton_header_is_named_as_such():
     """The readings check on the load reading speaks of N and kN (not µm and mm)."""
-    from podkrig.online.data_check import check_readings
-
     levels = np.array([0.01, 0.05, 0.2])
     runs = np.array([[[0.01, 6.0], [0.05, 20.0], [0.2, 15.0]], [[0.01, 7.0], [0.05, 24.0], [0.2, 17.0]]])
     data = Measurement([[0.01, 6500.0], [0.05, 22000.0], [0.2, 16000.0]], ("middle_ux", "F"), levels,
@@ -308,12 +320,6 @@ def test_a_surrogate_from_a_store_knows_the_force_is_in_kN_and_reads_a_curve_log
     """Snapshots of the triplet carry ``F`` like any sensor (its definition in the store); the
     surrogate built from them records each sensor's unit, so its inversion model reads ``F [N]``
     as kN: the log written from an FE run is read back within the 9 digits written."""
-    from podkrig.offline.runner import run_snapshots
-    from podkrig.offline.store import SnapshotStore
-    from podkrig.online.problem import SurrogateModel
-    from podkrig.parameters import ParameterSpace
-    from podkrig.surrogate.podkriging import fit_from_store
-
     sc, r = triplet
     space = ParameterSpace.from_scenario(sc, {"c_bj": (0.3, 0.4, "linear")})
     run_snapshots(tmp_path / "s.h5", sc, space, n=4, seed=0, workers=1)
@@ -328,8 +334,6 @@ def test_a_surrogate_from_a_store_knows_the_force_is_in_kN_and_reads_a_curve_log
                             ImportSettings(load_column="slip"), model.sensor_units)
     assert_allclose(data.values[:, 0], np.interp([0.01, 0.03, 0.2, 1.7], sc.load_levels, r.reading("F")), rtol=1e-8)
     # podkrig invert on that log: one instrument named for all (the force takes the load cell)
-    from podkrig.io.surrogate_file import save_surrogate
-
     save_surrogate(surrogate, tmp_path / "sur.h5")
     result = runner.invoke(app, ["invert", str(tmp_path / "sur.h5"), "--data", str(path), "--load-column", "slip",
                                  "--instrument", "lvdt", "--format", "json", "--generations", "8",

@@ -1,8 +1,8 @@
 """The diagnosis's verdict against its candidates, on hidden truths made with our own FE: the
 diagonal test (coarse mesh, 2 × 1 Q8 per unit) with its six gauges and a 5 × 6 displacement grid.
 
-- a *whole* bed joint weakened is a structural cause, never one sensor's fault (no single
-  candidate location is the truth: the trial weakens every segment of the joint);
+- a *whole* bed joint weakened is a structural cause, never one sensor's fault (the trial weakens
+  every segment of the joint, one by one; the diagnosis should name the whole-bed-joint location);
 - a real one-sensor gain fault is still named as that sensor's fault;
 - an effect too diffuse to name (a few σ over hundreds of readings, an omnibus χ² that passes)
   but clear in its candidate's own likelihood-ratio test is not declared "adequate";

@@ -12,14 +12,17 @@ scenarios NAME``. The project's tests and code comments are not user text.
 import ast
 import re
 import shlex
+import tomllib
 from pathlib import Path
 
 import pytest
 import typer
 from typer.testing import CliRunner
 
-from fe.scenarios import SCENARIOS
+from fe.scenarios import SCENARIOS, build_scenario
 from podkrig.cli import app
+from podkrig.online.settings import NoiseSettings
+from podkrig.study import load_study
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", ROOT / "BENCHMARKS.md", *sorted((ROOT / "docs").rglob("*.md")),
@@ -112,8 +115,6 @@ def test_every_inferred_in_user_text_says_where_it_is_explained():
 @pytest.mark.parametrize("instrument", ["lvdt", "dic"])
 def test_the_noise_model_a_report_prints_says_where_inferred_is_explained(instrument):
     """The demo's report and summary show the instrument noise in words (``describe``)."""
-    from podkrig.online.settings import NoiseSettings
-
     text = NoiseSettings(instrument=instrument).describe()
     assert "INFERRED" in text and "docs/references.md" in text
 
@@ -221,8 +222,6 @@ def _toml_blocks(page):
 
 
 def test_every_toml_example_is_valid_toml():
-    import tomllib
-
     blocks = [block for page in PAGES for block in _toml_blocks(page)]
     assert len(blocks) >= 5
     for block in blocks:
@@ -232,8 +231,6 @@ def test_every_toml_example_is_valid_toml():
 def test_the_readmes_study_file_is_the_demos_study(tmp_path):
     """The README shows the demo's study file "as it is": beside its measurement log, it loads to
     the very settings of ``examples/diagonal_compression.toml``."""
-    from podkrig.study import load_study
-
     (tmp_path / "study.toml").write_text(_toml_blocks(ROOT / "README.md")[0], encoding="utf-8")
     (tmp_path / "diagonal_compression_measured.csv").symlink_to(EXAMPLES / "diagonal_compression_measured.csv")
     shown, demo = load_study(tmp_path / "study.toml"), load_study(EXAMPLES / "diagonal_compression.toml")
@@ -243,10 +240,6 @@ def test_the_readmes_study_file_is_the_demos_study(tmp_path):
 
 
 def test_the_scenario_pages_spec_builds_its_scenario():
-    import tomllib
-
-    from fe.scenarios import build_scenario
-
     spec = tomllib.loads(_toml_blocks(ROOT / "docs" / "scenarios.md")[0])
     scenario = build_scenario(spec)
     assert scenario.sensor_names == ("D1",) and list(scenario.load_levels) == spec["load_levels"]

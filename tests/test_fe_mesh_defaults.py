@@ -5,13 +5,17 @@ default control range ends where its curve is mesh-objective and a response past
 coarse default mesh gives the peak of a fine one.
 """
 
+import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from fe.exceptions import SpecError
+from conftest import load_file
+from fe.exceptions import ConstraintError, SpecError
+from fe.interfaces import CompositeInterface
 from fe.scenarios import build_scenario
 from fe.scenarios.walls_nonlinear import MESH_OBJECTIVE_LIMITS
 from podkrig.cli import app
@@ -77,10 +81,6 @@ def test_a_runaway_newton_iterate_is_cut_back_before_the_law_is_evaluated_there(
     law sees such an iterate: the largest jump increment the law is asked for stays below 20 mm, on
     the same path (same peak to 1e-9, same failed increments). Without it (0) the law is evaluated
     at a jump above 100 mm."""
-    import dataclasses
-
-    from fe.interfaces import CompositeInterface
-
     seen = []
 
     class Recording(CompositeInterface):
@@ -105,15 +105,7 @@ def test_a_runaway_newton_iterate_is_cut_back_before_the_law_is_evaluated_there(
 def test_snapshot_benchmark_box_is_the_widest_equal_spread_the_wall_admits():
     """``scripts/bench_nonlinear_snapshots.py`` samples the eight parameters over Set A ± 20 %: a box
     the scenario admits (f_t ≤ c / tanφ at every corner); ± 30 % is refused naming the inequality."""
-    import importlib.util
-    from pathlib import Path
-
-    from fe.exceptions import ConstraintError
-
-    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py"
-    spec = importlib.util.spec_from_file_location("bench_nonlinear_snapshots", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_file(Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py")
     sc = build_scenario("shear_compression_nl")
     space = bench.space_around_defaults(sc, 0.2)
     assert space.names == bench.PARAMETERS

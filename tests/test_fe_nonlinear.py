@@ -2,11 +2,13 @@
 made 100× stiffer than default so that the joints see uniform tractions to < 0.1 %)."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from conftest import load_file
 from fe.exceptions import SpecError
 from fe.interfaces import CompositeInterface
 from fe.mesh import INTERFACE_KINDS
@@ -466,13 +468,7 @@ def test_step_control_settings_are_validated():
 def test_peak_benchmark_script_imports_without_side_effects_and_runs_a_specimen():
     """``scripts/bench_nonlinear_peaks.py`` (the before/after counts of docs/nonlinear.md) imports
     without running and compares the two step controls on the couplet."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_peaks.py"
-    spec = importlib.util.spec_from_file_location("bench_nonlinear_peaks", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_file(Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_peaks.py")
     before, now = (bench.run({"scenario": "couplet_tension"}, v) for v in ("before", "now"))
     assert before["status"] == now["status"] == CONVERGED
     assert before["resolved"] == "-" and now["resolved"] == "yes"
@@ -482,13 +478,7 @@ def test_peak_benchmark_script_imports_without_side_effects_and_runs_a_specimen(
 def test_snapshot_benchmark_per_run_counts_apply_the_settings_overrides():
     """``bench_nonlinear_snapshots.py --per-run`` runs a Sobol' point in-process with PathSettings
     overrides: a 5-increment step budget ends the run on that budget after exactly 5 attempts."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py"
-    spec = importlib.util.spec_from_file_location("bench_nonlinear_snapshots", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_file(Path(__file__).resolve().parents[1] / "scripts" / "bench_nonlinear_snapshots.py")
     overrides = bench.settings_overrides(["max_steps=5", "line_search=true"])
     assert overrides == {"max_steps": 5, "line_search": True}
     (run,) = bench.per_run("fixed_vertical", 2, 0.2, rows=[1], overrides=overrides)

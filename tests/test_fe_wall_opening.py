@@ -2,11 +2,13 @@
 defaults and a full run."""
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from conftest import load_file
 from fe.constraints import constraint_transform
 from fe.exceptions import MeshError, SpecError
 from fe.interfaces import CompositeInterface
@@ -213,13 +215,7 @@ def test_default_run_reaches_the_end_of_the_control_range(top):
 def test_mesh_convergence_script_imports_without_side_effects_and_tables_a_run():
     """``scripts/bench_wall_opening.py`` (the BENCHMARKS.md mesh study) imports without running, runs
     one mesh to the end of the range and tables it against itself (the finest of a one-mesh ladder)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "scripts" / "bench_wall_opening.py"
-    spec = importlib.util.spec_from_file_location("bench_wall_opening", path)
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = load_file(Path(__file__).resolve().parents[1] / "scripts" / "bench_wall_opening.py")
     row = bench.run("2x1", "constant_force")
     assert row["status"] == CONVERGED and row["reached"] == 3.0 and row["cpu"] > 0
     text = bench.table([row])

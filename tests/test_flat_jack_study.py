@@ -1,10 +1,10 @@
 """The flat-jack example study: the file is valid and its pseudo-measured data are reproducible."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 
+from conftest import load_file
 from podkrig.study.schema import load_study
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -22,9 +22,7 @@ def test_flat_jack_study_is_valid():
 def test_flat_jack_data_is_reproducible(tmp_path):
     """examples/make_flat_jack_data.py regenerates the shipped pseudo-measured data (the flat-jack
     study's, and the joint calibration's at the demo's hidden values)."""
-    spec = importlib.util.spec_from_file_location("make_flat_jack_data", EXAMPLES / "make_flat_jack_data.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_file(EXAMPLES / "make_flat_jack_data.py")
     for shipped_path, seed, truth in ((module.OUT, module.SEED, module.TRUTH),
                                       (module.JOINT_OUT, module.JOINT_SEED, module.JOINT_TRUTH)):
         made = module.make(tmp_path / "made.csv", seed, truth=truth).read_text().splitlines()

@@ -1,7 +1,6 @@
 """Tests of the genetic algorithm (podkrig.ga): operators, solver contract, known optima."""
 
 import dataclasses
-import importlib.util
 import pathlib
 import subprocess
 import sys
@@ -11,6 +10,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
+from conftest import load_file
 from podkrig.ga import (
     GABudgetWarning,
     GAOptions,
@@ -26,10 +26,7 @@ SCRIPTS = pathlib.Path(__file__).resolve().parents[1] / "scripts"
 
 def load_script(name):
     """Import ``scripts/<name>.py`` as a module (scripts/ is not a package)."""
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_file(SCRIPTS / f"{name}.py")
 
 
 def sphere(X):

@@ -1,10 +1,11 @@
 """The GA example and benchmark scripts: importable without side effects, --help, small runs."""
 
-import importlib.util
 import pathlib
 
 import numpy as np
 import pytest
+
+from conftest import load_file
 
 SCRIPTS = pathlib.Path(__file__).resolve().parents[1] / "scripts"
 NAMES = ["example_ga_rastrigin", "example_ga_tmd", "example_ga_constrained", "bench_ga"]
@@ -14,10 +15,7 @@ pytest.importorskip("matplotlib")
 
 def load_script(name):
     """Import ``scripts/<name>.py`` as a module (scripts/ is not a package)."""
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_file(SCRIPTS / f"{name}.py")
 
 
 @pytest.mark.parametrize("name", NAMES)

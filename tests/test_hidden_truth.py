@@ -5,13 +5,13 @@ fourth triplet (1.4 MPa) inside the 5–95 % band of its RVC in ≥ 36 of 40 eac
 make the data and to judge the result; the calibration sees only the readings and the noise model.
 """
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from conftest import load_file
 from podkrig.online.measurement import Measurement, NoiseModel
 from podkrig.parameters import Parameter, ParameterSpace
 
@@ -19,10 +19,7 @@ SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "hidden_truth.py"
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("hidden_truth", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_file(SCRIPT)
 
 
 def test_truths_stay_away_from_the_faces_and_the_noise_is_the_study_s():

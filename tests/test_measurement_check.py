@@ -293,10 +293,11 @@ def test_no_range_check_lets_the_readings_through_but_never_the_loads(lab):
     assert result.exit_code == 2 and "N under a kN header" in _out(result)
 
 
-@pytest.mark.parametrize("command", ["rvc", "sensitivity"])
-def test_rvc_and_sensitivity_refuse_the_same_logs(lab, command):
+@pytest.mark.parametrize("command", ["rvc", "sensitivity", "overparam"])
+def test_rvc_sensitivity_and_overparam_refuse_the_same_logs(lab, command):
     d, logs = lab
-    extra = ["--noise-rel", "0.01"] + (["--n", "256", "--out", str(d / "sens")] if command == "sensitivity" else [])
+    extra = ["--noise-rel", "0.01"] + {"sensitivity": ["--n", "256", "--out", str(d / "sens")],
+                                       "overparam": ["--set", "kN_bj,kV_bj", "--set", "kN_bj"]}.get(command, [])
     for log in ("um_as_mm", "N_as_kN"):
         result = runner.invoke(app, [command, str(d / "sur.h5"), "--data", str(logs[log]), *extra])
         assert result.exit_code == 2, result.output

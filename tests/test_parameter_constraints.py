@@ -22,8 +22,6 @@ from podkrig.study import StudyError, load_study
 #: the coarse triplet (2 × 1 elements per unit, two levels): a nonlinear run of ~0.01 s CPU
 TRIPLET = {"scenario": "triplet_shear", "nx": 2, "ny": 1, "load_levels": [0.01, 0.05],
            "parameters": {"ft_bj": 0.25}}
-#: the failing study: ft_bj = 0.25 MPa fixed, c_bj sampled from 0.1 MPa (tanφ = tanφr = 0.75)
-BAD_BOUNDS = {"c_bj": (0.1, 0.6, "linear")}
 RST = re.compile(r"``|:[a-z]+:`|\*\*|(?<![\w`])`[^`\s][^`]*`")
 
 

@@ -15,6 +15,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from fe.exceptions import SolverError
 from fe.scenarios import Scenario
 from podkrig.cli import app
+from podkrig.config import field_info
 from podkrig.io.surrogate_file import load_surrogate, save_surrogate
 from podkrig.offline.runner import run_snapshots
 from podkrig.offline.sampling import sample
@@ -25,6 +26,7 @@ from podkrig.surrogate.kriging import OrdinaryKriging
 from podkrig.surrogate.pod import POD
 from podkrig.surrogate.podkriging import fit_from_store
 from podkrig.surrogate.refine import refine_surrogate, select_batch
+from podkrig.surrogate.settings import RefineSettings
 
 BOUNDS = {"kN_bj": (10, 1000, "log"), "E_b": (5000, 20000)}
 U_TRAIN = np.array([[0.0], [0.5], [1.0]])  # nearest-neighbour distances 0.5: radius 0.25
@@ -197,11 +199,16 @@ def test_failed_new_runs_are_kept_as_failed_rows_and_left_out_of_the_fit(stores,
 
 
 def test_library_defaults_are_the_commands_defaults():
-    """``refine_surrogate``'s keyword defaults are those of ``podkrig surrogate refine``: a Python user
-    and a command-line user get the same refinement."""
+    """One definition of the defaults, :class:`RefineSettings`: ``refine_surrogate``'s keywords
+    default to None (its settings' defaults) and ``podkrig surrogate refine``'s options show the
+    same values, so a Python user and a command-line user get the same refinement."""
     command = typer.main.get_command(app).commands["surrogate"].commands["refine"]
-    cli = {p.name: p.default for p in command.params}
+    cli = {p.name: getattr(p.default, "value", p.default) for p in command.params}
     library = {k: p.default for k, p in inspect.signature(refine_surrogate).parameters.items()
                if p.default is not inspect.Parameter.empty}
     option = {"n_candidates": "candidates", "rng": "seed"}
-    assert library == {k: cli[option.get(k, k)] for k in library}
+    field = {"rng": "seed"}
+    assert set(library) == {"target_error", "budget", "batch", "n_candidates", "rng", "workers", "sampling"}
+    assert all(v is None for v in library.values()), library
+    defaults = {k: f["default"] for k, f in field_info(RefineSettings).items()}
+    assert {k: cli[option.get(k, k)] for k in library} == {k: defaults[field.get(k, k)] for k in library}

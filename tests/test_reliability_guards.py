@@ -4,18 +4,26 @@ disk-full message whose numbers add up."""
 
 import os
 import re
+import shutil
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
+import h5py
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from podkrig.cli import app
-from podkrig.exceptions import InUseError
+from podkrig.exceptions import InUseError, StoreError
+from podkrig.io import surrogate_file
+from podkrig.io.measurement_log import read_measurement
+from podkrig.limits import MAX_STUDY_FILE_BYTES
 from podkrig.locks import FOLDER_LOCK_NAME, folder_lock
-from podkrig.study import load_study, run_study
+from podkrig.offline import files
+from podkrig.study import cache, load_study, run_study
+from podkrig.study.schema import StudyError
 
 runner = CliRunner()
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -116,9 +124,6 @@ def test_refused_lock_in_a_new_folder_leaves_no_folder(tmp_path):
 
 # ----------------------------------------------------------------------------- disk full
 def test_disk_full_message_states_the_margin_so_the_numbers_add_up(tmp_path, monkeypatch):
-    from podkrig.exceptions import StoreError
-    from podkrig.offline import files
-
     monkeypatch.setattr(files, "free_bytes", lambda folder: 136 * 1024)
     with pytest.raises(StoreError, match=r"needs about 77\.0 KiB plus a safety margin of 256\.0 KiB.* 333\.0 KiB "
                                          r"in all.* 136\.0 KiB free"):
@@ -154,9 +159,6 @@ def test_a_fifo_is_refused_at_once_without_waiting_for_a_writer(tmp_path, args):
 
 
 def test_study_file_over_the_cap_is_refused_by_its_size(tmp_path):
-    from podkrig.limits import MAX_STUDY_FILE_BYTES
-    from podkrig.study.schema import StudyError
-
     big = tmp_path / "big.toml"
     big.write_bytes(b"# " + b"x" * MAX_STUDY_FILE_BYTES + b"\n")
     with pytest.raises(StudyError, match=r"big\.toml: larger than 1 MiB \(1048576 bytes\), the cap .*it is 1\.0 MiB"):
@@ -166,10 +168,6 @@ def test_study_file_over_the_cap_is_refused_by_its_size(tmp_path):
 def test_damaged_artefacts_are_refused_naming_the_cap(tmp_path, monkeypatch, caplog):
     """The files podkrig reads back from its output folder: an array file over the cap (also once
     unpacked: a zip bomb) and a manifest over the cap (the stage reruns, the log says why)."""
-    import numpy as np
-
-    from podkrig.study import cache
-
     np.savez_compressed(tmp_path / "region.npz", samples=np.zeros((1000, 4)))  # 32 kB unpacked, ~100 B packed
     assert cache.read_arrays(tmp_path / "region.npz")["samples"].shape == (1000, 4)
     monkeypatch.setattr(cache, "MAX_ARRAY_FILE_BYTES", 10_000)
@@ -192,14 +190,6 @@ def test_a_surrogate_file_over_the_cap_is_refused_naming_it(tmp_path, monkeypatc
     """A surrogate file (HDF5) is held to the array-file cap on disk and in what its arrays unpack
     to (as their headers declare it, before anything is read): a small file of compressed zeros is
     refused as surely as a large one."""
-    import shutil
-
-    import h5py
-    import numpy as np
-
-    from podkrig.exceptions import StoreError
-    from podkrig.io import surrogate_file
-
     path = tmp_path / "surrogate.h5"
     shutil.copy(Path(__file__).parent / "data" / "surrogate_v1.h5", path)
     assert surrogate_file.load_surrogate(path) is not None
@@ -240,15 +230,11 @@ def test_a_relative_measurement_path_leaving_the_study_folder_is_refused_unread(
                      "an absolute path if the file is elsewhere on purpose"):
         assert fragment in result.output
     assert "TOP-SECRET" not in result.output and not (tmp_path / "out").exists()
-    from podkrig.study.schema import StudyError
-
     with pytest.raises(StudyError, match=r"line 30: measurement\.file: '\.\./\.\./\.\./\.\./etc/passwd' leads outside"):
         load_study(_study_with_measurement(tmp_path / "c", "../../../../etc/passwd"))
 
 
 def test_a_relative_scenario_spec_path_leaving_the_study_folder_is_refused(tmp_path):
-    from podkrig.study.schema import StudyError
-
     (tmp_path / "spec.toml").write_text('scenario = "diagonal_compression"\n')
     study = _study_with_measurement(tmp_path / "s", "diagonal_compression_measured.csv")
     text = study.read_text(encoding="utf-8").replace('[scenario]                       # the scenario spec (options as '
@@ -274,8 +260,6 @@ def test_an_absolute_measurement_path_is_followed_on_purpose(tmp_path):
 
 
 def test_a_utf16_log_without_its_byte_order_mark_is_refused_without_echoing_nul_bytes(tmp_path):
-    from podkrig.io.measurement_log import read_measurement
-
     body = "load [kN],D1 [mm],D2 [mm]\n" + "".join(f"{10 * i},{0.001 * i},{0.002 * i}\n" for i in range(1, 200))
     for name, raw in (("le.csv", body.encode("utf-16-le")), ("be.csv", body.encode("utf-16-be")),
                       ("twice.csv", b"\xff\xfe" + body.encode("utf-16-le").decode("latin-1").encode("utf-16-le"))):
@@ -295,8 +279,6 @@ def test_a_utf16_log_without_its_byte_order_mark_is_refused_without_echoing_nul_
 def test_file_content_in_a_message_is_one_line_of_at_most_80_characters(tmp_path):
     """A header without the load column is quoted to identify it, cut at 80 characters; a long cell,
     a binary cell and a unit likewise."""
-    from podkrig.io.measurement_log import read_measurement
-
     cases = {  # content, a fragment, the quoted content (group 1)
         "header.csv": ("force," + ",".join(f"channel_{k:03d}_" + "x" * 40 for k in range(100)) + "\n10,1\n",
                        "no load column 'load' in the header ['force', 'channel_000_", r"header (\[.*\]) \(set"),

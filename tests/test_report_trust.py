@@ -4,16 +4,31 @@ the phase, units on the nonlinear report's tables, negative Sobol' indices expla
 nonlinear run that stopped early saying so in the first line of its report. Each test reads the
 drawn coordinates or the table structure, not the sentences."""
 
+import dataclasses
+import re
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from fe.scenarios import build_scenario
+from fe.solvers.nonlinear import PathSettings
+from podkrig.cli import app
+from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
+from podkrig.diagnosis.settings import DiagnosisSettings
 from podkrig.ga.options import GAOptions
 from podkrig.online.invert import invert
 from podkrig.online.measurement import NoiseModel
 from podkrig.online.problem import InverseProblem
 from podkrig.reports import inverse as inverse_report
-from podkrig.reports.figures import pyplot
+from podkrig.reports.figures import load_label, pyplot
+from podkrig.reports.flat_jack import jack_pressures
 from podkrig.reports.ga import plot_parameters
+from podkrig.reports.html import Page
+from podkrig.reports.nonlinear import SETTING_UNITS, write_nonlinear_report
+from podkrig.reports.sensitivity import NEGATIVE_INDEX, index_notes, negative_index
+from podkrig.reports.study import _diagnosis, _sensitivity
 from tests.test_online_results import SIGMA
 from tests.test_problem import TwoBasinModel, _zero_data
 
@@ -73,8 +88,6 @@ def test_ga_parameters_without_an_optimum_marks_the_ga_best_only(polished):
 def _diagnosis_report(alpha):
     """A diagnosis's report numbers (``DiagnosisResult.to_dict`` keys the section reads) with the
     settings' ``alpha``; the χ² test ran at α × CHI2_ALPHA_SHARE, as the diagnosis records it."""
-    from podkrig.diagnosis.results import CHI2_ALPHA_SHARE
-
     candidate = {"name": "weak_joint", "applicable": True, "location": "bed joint 3", "delta_chi2": 0.4,
                  "p_corrected": 0.7, "parameter": {"name": "f", "value": 0.5, "unit": "-"}}
     return {"verdict": "adequate", "alpha": alpha, "cause": None, "detail": None, "gain": None,
@@ -83,12 +96,6 @@ def _diagnosis_report(alpha):
 
 
 def test_diagnosis_section_states_one_alpha_the_settings_value():
-    import re
-
-    from podkrig.diagnosis.settings import DiagnosisSettings
-    from podkrig.reports.html import Page
-    from podkrig.reports.study import _diagnosis
-
     alpha = DiagnosisSettings().alpha
     page = Page("t")
     _diagnosis(page, _diagnosis_report(alpha))
@@ -97,14 +104,12 @@ def test_diagnosis_section_states_one_alpha_the_settings_value():
     assert [float(c) for c in cells] == [alpha]
     stated = {float(v) for v in re.findall(r"α = ([0-9.eE+-]+[0-9])", text)}
     assert stated == {alpha}, stated  # the text's α (the candidates' level) is the table's
-    assert f"{alpha * 0.1:g}" not in text  # the χ² test's level appears only as a share of α
+    assert f"{alpha * CHI2_ALPHA_SHARE:g}" not in text  # the χ² test's level appears only as a share of α
 
 
 # --- negative Sobol' indices: noise or flagged -------------------------------------------------
 
 def test_a_negative_index_is_noise_inside_its_interval_and_flagged_beyond_it():
-    from podkrig.reports.sensitivity import NEGATIVE_INDEX, index_notes, negative_index
-
     assert negative_index(-0.0009, -0.004, 0.003) == "noise"
     assert negative_index(-0.05, -0.08, -0.02) == "suspect"  # the whole interval below 0
     assert negative_index(0.2, 0.1, 0.3) is None and negative_index(float("nan"), None, None) is None
@@ -125,20 +130,12 @@ def _sensitivity_report(first, first_low, first_high):
 
 
 def _table(markup):
-    import re
-
     head = re.findall(r"<th>([^<]*)</th>", markup)
     rows = [re.findall(r"<td[^>]*>([^<]*)</td>", row) for row in re.findall(r"<tr>(<td.*?)</tr>", markup)]
     return head, rows
 
 
 def test_study_sensitivity_table_explains_a_negative_first_order_index():
-    from types import SimpleNamespace
-
-    from podkrig.reports.html import Page
-    from podkrig.reports.sensitivity import NEGATIVE_INDEX
-    from podkrig.reports.study import _sensitivity
-
     study = SimpleNamespace(calibration_tests=[], tests=[])
     page = Page("t")
     _sensitivity(page, study, _sensitivity_report(-0.0009, -0.004, 0.003))
@@ -164,15 +161,11 @@ def test_study_sensitivity_table_explains_a_negative_first_order_index():
 @pytest.fixture(scope="module")
 def flat_jack_steps():
     """The steps of the example flat-jack study's test (chisari preset, phases 0b, 1 and 2)."""
-    from fe.scenarios import build_scenario
-
     sc = build_scenario({"scenario": "flat_jack", "phases": ["0b", "1", "2"], "layout": "L6"})
     return sc.steps
 
 
 def test_jack_pressures_follow_the_jack_each_phase_raises(flat_jack_steps):
-    from podkrig.reports.flat_jack import jack_pressures
-
     levels = np.arange(1.0, 21.0)
     pressure, phases, labels = jack_pressures(flat_jack_steps, levels)
     assert list(labels) == ["0b", "1", "2"]
@@ -191,8 +184,6 @@ class _FlatJackFit:
     """What ``plot_fit`` reads of an inversion: measurement, noise and prediction, two gauges."""
 
     def __init__(self, n_levels):
-        from types import SimpleNamespace
-
         levels = np.arange(1.0, n_levels + 1)
         self.values = np.column_stack([levels, -levels]) * 1e-3
         sd = np.full_like(self.values, 1e-4)
@@ -205,8 +196,6 @@ class _FlatJackFit:
 
 
 def test_flat_jack_fit_is_drawn_against_the_jack_pressure_with_each_phase(flat_jack_steps, tmp_path, monkeypatch):
-    from podkrig.reports.flat_jack import jack_pressures
-
     drawn = {}
     monkeypatch.setattr(inverse_report, "save", lambda fig, path, dpi=110: drawn.setdefault("fig", fig))
     fit = _FlatJackFit(20)
@@ -241,11 +230,6 @@ def test_fit_of_a_load_test_keeps_the_load_axis(tmp_path, monkeypatch):
 
 def test_every_solver_setting_has_a_unit():
     """Fails when the solver gains a setting the report's table would show without a unit."""
-    import dataclasses
-
-    from fe.solvers.nonlinear import PathSettings
-    from podkrig.reports.nonlinear import SETTING_UNITS
-
     assert set(SETTING_UNITS) == {f.name for f in dataclasses.fields(PathSettings)}
     assert all(SETTING_UNITS.values())
 
@@ -253,8 +237,6 @@ def test_every_solver_setting_has_a_unit():
 @pytest.fixture(scope="module")
 def stopped_run():
     """couplet_tension ended by its step limit (5 increments) before its last control level."""
-    from fe.scenarios import build_scenario
-
     sc = build_scenario({"scenario": "couplet_tension", "max_steps": 5})
     r = sc.run(field=True)
     assert r.status == "budget_exhausted" and r.limit == "steps" and r.reached < r.load_levels[-1]
@@ -263,8 +245,6 @@ def stopped_run():
 
 def _tables(page):
     """Every table of an HTML page: (caption, header, rows)."""
-    import re
-
     out = []
     for body in re.findall(r"<table>(.*?)</table>", page, re.DOTALL):
         caption = re.search(r"<caption>(.*?)</caption>", body)
@@ -275,10 +255,6 @@ def _tables(page):
 
 
 def test_nonlinear_page_says_first_how_far_a_stopped_run_got(stopped_run, tmp_path):
-    import re
-
-    from podkrig.reports.nonlinear import write_nonlinear_report
-
     sc, r = stopped_run
     page = write_nonlinear_report(sc, r, sc.resolve(None), tmp_path).read_text(encoding="utf-8")
     first = re.search(r"</h1>\s*(<[^>]+>.*?)</div>", page, re.DOTALL).group(1)
@@ -288,9 +264,6 @@ def test_nonlinear_page_says_first_how_far_a_stopped_run_got(stopped_run, tmp_pa
 
 
 def test_nonlinear_page_tables_carry_units_and_no_raw_dicts(stopped_run, tmp_path):
-    from fe.solvers.nonlinear import PathSettings
-    from podkrig.reports.nonlinear import SETTING_UNITS, write_nonlinear_report
-
     sc, r = stopped_run
     values = sc.resolve(None)
     tables = {cap: (head, rows) for cap, head, rows in
@@ -314,10 +287,6 @@ def test_nonlinear_page_tables_carry_units_and_no_raw_dicts(stopped_run, tmp_pat
 
 
 def test_simulate_table_output_says_first_that_the_run_stopped(stopped_run):
-    from typer.testing import CliRunner
-
-    from podkrig.cli import app
-
     _, r = stopped_run
     result = CliRunner().invoke(app, ["simulate", "couplet_tension", "--option", "max_steps=5"])
     assert result.exit_code == 1
@@ -327,6 +296,4 @@ def test_simulate_table_output_says_first_that_the_run_stopped(stopped_run):
 
 
 def test_a_step_axis_is_not_labelled_as_a_load():
-    from podkrig.reports.figures import load_label
-
     assert load_label("step") == "step" and load_label("kN") == "load (kN)"

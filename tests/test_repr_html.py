@@ -18,8 +18,14 @@ import fe
 import fe.display
 import podkrig
 from podkrig.display import MAX_REPR, summary
+from podkrig.online.calibrate import CalibrationResult
+from podkrig.online.invert import InverseResult
+from podkrig.online.region import Region
+from podkrig.online.settings import CalibrationSettings
 from podkrig.reports import jupyter
+from podkrig.reports.findings import FindingText
 from podkrig.reports.jupyter import html_table, number
+from podkrig.study import StageRecord, StudyResult, load_study
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -149,9 +155,6 @@ def _well_formed(markup):
 
 
 def _inverse_and_region(n_params, n_members, name=lambda j: f"p{j}"):
-    from podkrig.online.invert import InverseResult
-    from podkrig.online.region import Region
-
     names = tuple(name(j) for j in range(n_params))
     units = ("MPa",) * n_params
     x = np.linspace(1.0, 2.0, n_params)
@@ -176,9 +179,6 @@ def test_the_inversion_and_the_region_print_their_numbers_in_a_few_lines():
     for obj in (big_inv, big_region):
         text = repr(obj)
         assert len(text) <= MAX_REPR and "more lines" in text, text
-    from podkrig.online.calibrate import CalibrationResult
-    from podkrig.online.settings import CalibrationSettings
-
     calibration = CalibrationResult(big_inv, big_region, None, {}, [], CalibrationSettings(), 9.0, 2)
     text = repr(calibration)
     assert len(text) <= MAX_REPR and "p0 = 1 MPa in [0.5, 2.5]" in text and "2 FE runs" in text
@@ -187,9 +187,6 @@ def test_the_inversion_and_the_region_print_their_numbers_in_a_few_lines():
 def test_names_with_markup_are_escaped_in_the_html():
     """A parameter named with markup shows as text in every table of the inversion, the region and
     the calibration (escaped), and the pages are well-formed."""
-    from podkrig.online.calibrate import CalibrationResult
-    from podkrig.online.settings import CalibrationSettings
-
     inv, region = _inverse_and_region(2, 10, name=lambda j: f"<b>p{j}</b>")
     calibration = CalibrationResult(inv, region, None, {}, [], CalibrationSettings(), 9.0)
     for obj in (inv, region, calibration):
@@ -201,8 +198,6 @@ def test_names_with_markup_are_escaped_in_the_html():
 def test_a_study_shows_its_scenario_designs_and_parameters():
     """A loaded study (the diagonal-compression example) prints its scenario, designs and search
     ranges in a few lines and shows them as HTML tables in a notebook."""
-    from podkrig.study import load_study
-
     study = load_study(EXAMPLES / "diagonal_compression.toml")
     text = repr(study)
     assert len(text) <= MAX_REPR and text.startswith(f"Study {study.name!r}: 1 test, 4 free parameters")
@@ -224,9 +219,6 @@ def test_a_study_shows_its_scenario_designs_and_parameters():
 def test_a_study_result_prints_its_stages_and_warnings_in_a_few_lines(tmp_path):
     """A study result: stages run and cached, FE runs, warnings (each cut to a line) and where
     the report is; bounded however many warnings."""
-    from podkrig.reports.findings import FindingText
-    from podkrig.study import StageRecord, StudyResult, load_study
-
     study = load_study(EXAMPLES / "diagonal_compression.toml")
     stages = (StageRecord("offline", "Offline", False, 10.0, 64, {}), StageRecord("surrogate", "Surrogate", True, 0.0, 0, {}))
     warnings = [FindingText("code", "fit", "<i>w</i>" * 100, "do this")] * 50

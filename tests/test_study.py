@@ -14,13 +14,16 @@ from typer.testing import CliRunner
 
 from fe.scenarios import build_scenario
 from podkrig.cli import app
+from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.measurement import Measurement
-from podkrig.io.measurement_log import write_measurement_csv
+from podkrig.online.region import Region
 from podkrig.reports.figures import read_panels
 from podkrig.reports.jupyter import inverse_result_html, region_html
 from podkrig.reports.study import SECTIONS
 from podkrig.study import load_study, run_study
+from podkrig.study.cache import jsonable
+from podkrig.study.stages import region_members, save_region
 
 runner = CliRunner()
 
@@ -133,9 +136,6 @@ def test_region_files_name_their_columns_and_old_files_still_read(tmp_path):
     """``region.npz`` names its columns; a file written before it did (no ``names``) reads as it
     is; a file naming other parameters (another study's) is refused, naming both lists and the
     remedy."""
-    from podkrig.online.region import Region
-    from podkrig.study.stages import region_members, save_region
-
     samples, omega = np.arange(6.0).reshape(3, 2), np.array([1.0, 2.0, 3.0])
     region = Region("likelihood-ratio", 0.95, samples, omega, 4.0, {}, ("E_b", "c"), ("MPa", "MPa"), 10, 1.0, {})
     save_region(tmp_path / "region.npz", region)
@@ -447,6 +447,8 @@ def test_results_show_in_jupyter(tiny):
     includes, and the figures inline."""
     study, out, _ = tiny
     result = run_study(load_study(study), out)  # every stage cached: seconds
+    # summary.json is the result's to_dict (written as write_json writes it)
+    assert json.loads((out / "summary.json").read_text()) == json.loads(json.dumps(result.to_dict(), default=jsonable))
     inv, region = result.calibration.inversion, result.calibration.region
     for obj, words, text in (
             (result, ["kN_bj", CHI2_BASIS["surrogate"], "data:image/png;base64,", RESIDUAL_CONVENTION],

@@ -3,7 +3,6 @@ study file loads, its three curves are read as the model's, the make script repr
 (slow) ``podkrig run`` finds the hidden truth inside the 95 % region and proposes to fix the
 tensile strength no shear test informs."""
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -12,6 +11,7 @@ import pytest
 from numpy.testing import assert_allclose
 from typer.testing import CliRunner
 
+from conftest import load_file
 from fe.scenarios import build_scenario
 from podkrig.cli import app
 from podkrig.study.schema import load_study
@@ -22,10 +22,7 @@ STUDY = EXAMPLES / "triplet_series.toml"
 
 
 def _make_script():
-    spec = importlib.util.spec_from_file_location("make_triplet_series", EXAMPLES / "make_triplet_series.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_file(EXAMPLES / "make_triplet_series.py")
 
 
 def test_the_study_loads_and_each_curve_is_read_for_its_triplet():

@@ -23,7 +23,7 @@ from .mesh import INTERFACE_KINDS, Mesh
 _ROUND = 6  # decimals used to match coincident coordinates (mm): 1 nm
 
 
-def _on_grid(value, step):
+def on_grid(value, step):
     """True when ``value`` is a whole multiple of ``step`` (to 1e-9 of a step)."""
     return abs(value / step - round(value / step)) < 1e-9
 
@@ -145,11 +145,11 @@ class BrickWallLayout:
             raise MeshError(f"openings: each opening is (x0, x1, y0, y1) in mm; got {o}")
         x0, x1, y0, y1 = o
         half, H = self.unit_length / 2, self.unit_height
-        if not (0 < x0 < x1 < self.width and _on_grid(x0, half) and _on_grid(x1, half)):
+        if not (0 < x0 < x1 < self.width and on_grid(x0, half) and on_grid(x1, half)):
             raise MeshError(
                 f"openings: x0 = {x0:g}, x1 = {x1:g} mm must satisfy 0 < x0 < x1 < {self.width:g} (the wall) and lie on "
                 f"the half-unit grid (multiples of {half:g} mm) so that the units beside the opening are whole or half")
-        if not (0 < y0 < y1 < self.height and _on_grid(y0, H) and _on_grid(y1, H)):
+        if not (0 < y0 < y1 < self.height and on_grid(y0, H) and on_grid(y1, H)):
             raise MeshError(
                 f"openings: y0 = {y0:g}, y1 = {y1:g} mm must satisfy 0 < y0 < y1 < {self.height:g} (the wall) and lie "
                 f"on course boundaries (multiples of the unit height {H:g} mm)")

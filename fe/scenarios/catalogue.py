@@ -175,8 +175,3 @@ def describe_scenario(spec):
         sensors=scenario.sensor_definitions(), n_dofs=int(scenario.n_dofs), derived=scenario.derived(),
         constraints=tuple(c.to_dict() for c in scenario.constraints),
     )
-
-
-def scenario_names():
-    """Registered scenario names, sorted."""
-    return sorted(SCENARIOS)

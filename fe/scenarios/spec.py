@@ -19,11 +19,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..exceptions import SpecError
+from ..files import read_bounded
 
 #: Largest scenario spec file read, bytes: a spec is a few KiB written by hand (the same cap as a
 #: podkrig study file).
 MAX_SPEC_BYTES = 2**20
-_CAP = f"{MAX_SPEC_BYTES // 2**20} MiB ({MAX_SPEC_BYTES} bytes)"
 
 
 def _freeze(value):
@@ -87,7 +87,7 @@ class ScenarioSpec:
         """Read a spec from a ``.toml`` or ``.json`` file."""
         path = Path(path)
         try:
-            text = _read_bounded(path).decode("utf-8")
+            text = read_bounded(path, MAX_SPEC_BYTES, "scenario spec", error=SpecError).decode("utf-8")
         except OSError as e:
             raise SpecError(f"cannot read scenario spec {path}: {e.strerror}") from e
         except UnicodeDecodeError as e:
@@ -102,32 +102,6 @@ class ScenarioSpec:
     def to_json(self):
         return json.dumps(self.to_dict(), sort_keys=True)
 
-
-def _read_bounded(path):
-    """The bytes of a spec file, at most :data:`MAX_SPEC_BYTES`: a larger file, a device
-    (``/dev/zero``) or a FIFO is refused before it fills the memory."""
-    import os
-    import stat
-
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO without a writer would block a plain open
-    too_large = f"{path}: larger than {_CAP}, the cap for a scenario spec: "
-    try:
-        st = os.fstat(fd)
-        if not (stat.S_ISREG(st.st_mode) or stat.S_ISCHR(st.st_mode)):
-            raise SpecError(f"{path}: not a regular file (a FIFO, socket or folder); a scenario spec is read from a "
-                            f"file of at most {_CAP}")
-        if stat.S_ISREG(st.st_mode) and st.st_size > MAX_SPEC_BYTES:
-            raise SpecError(f"{too_large}it is {st.st_size} bytes")
-        os.set_blocking(fd, True)
-        data = b""
-        while len(data) <= MAX_SPEC_BYTES:
-            block = os.read(fd, MAX_SPEC_BYTES + 1 - len(data))
-            if not block:
-                return data
-            data += block
-    finally:
-        os.close(fd)
-    raise SpecError(f"{too_large}more than {MAX_SPEC_BYTES} bytes read")
 
 def _plain(v):
     if isinstance(v, tuple):

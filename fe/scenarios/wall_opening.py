@@ -35,6 +35,7 @@ peaks are reported in ``BENCHMARKS.md``, not compared with a target.
 
 from dataclasses import dataclass
 
+from ..mesh.brick_wall import on_grid
 from .nonlinear import nonlinear_parameters
 from .walls_nonlinear import ShearCompressionNonlinear, ShearWallOptions
 
@@ -47,10 +48,6 @@ SET_B = {
     "GfII_bj": 0.05, "tanpsi_bj": 0.0, "fc": 11.5, "Cs": 9.0, "Gfc": 5.0, "kappa_p": 0.09,
     "ft_bb": 2.0, "GfI_bb": 0.08,
 }
-
-
-def _on_grid(value, step):
-    return abs(value / step - round(value / step)) < 1e-9
 
 
 @dataclass(frozen=True)
@@ -84,13 +81,13 @@ class WallOpeningOptions(ShearWallOptions):
         if not (0 < x0 and self.opening_width > 0 and x1 < W):
             raise ValueError(f"opening_left = {x0:g} and opening_width = {self.opening_width:g} mm put the opening "
                              f"outside the wall: need 0 < opening_left and opening_left + opening_width < {W:g} mm")
-        if not (_on_grid(x0, half) and _on_grid(self.opening_width, half)):
+        if not (on_grid(x0, half) and on_grid(self.opening_width, half)):
             raise ValueError(f"opening_left = {x0:g} and opening_width = {self.opening_width:g} mm must be multiples "
                              f"of half a unit ({half:g} mm) so that the units beside the opening are whole or half")
         if not (0 < y0 and self.opening_height > 0 and y1 < top):
             raise ValueError(f"opening_sill = {y0:g} and opening_height = {self.opening_height:g} mm put the opening "
                              f"outside the wall: need 0 < opening_sill and opening_sill + opening_height < {top:g} mm")
-        if not (_on_grid(y0, H) and _on_grid(self.opening_height, H)):
+        if not (on_grid(y0, H) and on_grid(self.opening_height, H)):
             raise ValueError(f"opening_sill = {y0:g} and opening_height = {self.opening_height:g} mm must be "
                              f"multiples of the unit height ({H:g} mm): the opening spans whole courses")
 

@@ -116,6 +116,7 @@ class FailureRegion:
 
     @classmethod
     def from_dict(cls, d):
+        """The classifier of :meth:`to_dict`'s dict ``d``."""
         return cls(tuple(d["names"]), tuple(float(w) for w in d["weights"]), float(d["intercept"]),
                    float(d["accuracy"]))
 
@@ -145,6 +146,7 @@ class FailureReport(Displayed):
 
     @property
     def n_failed(self):
+        """Number of failed rows (int)."""
         return len(self.rows)
 
     @property
@@ -153,11 +155,13 @@ class FailureReport(Displayed):
         return self.n_failed / self.n_run if self.n_run else 0.0
 
     def to_dict(self):
+        """JSON-able dict with ``n_failed`` and ``share``; :meth:`from_dict` reads it back."""
         return {"n_run": self.n_run, "n_failed": self.n_failed, "share": self.share, "rows": list(self.rows),
                 "reasons": dict(self.reasons), "region": None if self.region is None else self.region.to_dict()}
 
     @classmethod
     def from_dict(cls, d):
+        """The report of :meth:`to_dict`'s dict ``d``."""
         return cls(int(d["n_run"]), tuple(int(i) for i in d["rows"]), dict(d["reasons"]),
                    None if d["region"] is None else FailureRegion.from_dict(d["region"]))
 

@@ -13,6 +13,7 @@ import os
 from pathlib import Path
 
 from podkrig.exceptions import StoreError
+from podkrig.limits import human_bytes
 from podkrig.locks import acquire_lock, holds_lock, lock_holder, lock_path, release_lock
 
 logger = logging.getLogger(__name__)
@@ -91,13 +92,6 @@ def check_disk_space(folder, need, what):
             f"(HDF5 metadata, other writers), {human_bytes(need + DISK_MARGIN)} in all, but {folder} has "
             f"{human_bytes(free)} free; free some space and rerun"
         )
-
-
-def human_bytes(nbytes):
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if abs(nbytes) < 1024 or unit == "TiB":
-            return f"{nbytes:.0f} {unit}" if unit == "B" else f"{nbytes:.1f} {unit}"
-        nbytes /= 1024
 
 
 def io_reason(e):

@@ -249,7 +249,9 @@ def reading_problems(data, noise, sensor_names, levels, response, Y, *, runs="tr
 
 def check_readings(data, noise, sensor_names, levels, response, Y, *, runs="training", factor=RANGE_FACTOR,
                    signs=True):
-    """:func:`reading_problems`, raised.
+    """:func:`reading_problems`, raised: the same parameters (``Y`` of shape ``(n_runs, n_loads *
+    n_sensors)`` or ``(n_runs, n_loads, n_sensors)``, the model's readings: mm, kN for a load
+    reading); nothing is checked when ``Y`` holds no run.
 
     Raises
     ------

@@ -47,7 +47,7 @@ import numpy as np
 from podkrig.display import Displayed
 from podkrig.offline.failures import without_peak
 
-__all__ = ["QUANTILES", "RVCModel", "RVCResult", "ValidationRuns", "rvc", "run_validation"]
+__all__ = ["QUANTILES", "RVCModel", "RVCResult", "ValidationRuns", "output_columns", "rvc", "run_validation"]
 
 #: default quantile levels of an RVC: the 5 % and 95 % quantiles (a 90 % band)
 QUANTILES = (0.05, 0.95)
@@ -253,9 +253,17 @@ def _check_quantiles(quantiles):
     return levels
 
 
-def _output_columns(model, outputs):
+def output_columns(model, outputs):
     """``(names, columns)``: the outputs asked for (default every sensor at the last level) and their
-    columns in the model's flattened readings (level-major, C order)."""
+    columns in the flattened readings (level-major, C order) of ``model`` (anything with
+    ``sensor_names`` and ``load_levels``: a surrogate model or an FE scenario).
+
+    Raises
+    ------
+    ValueError
+        An output the model does not have (``F_peak``, ``d_peak``: a scenario without the option
+        ``peak_readings``).
+    """
     levels = np.asarray(model.load_levels, dtype=float)
     all_names = [f"{s}@{level:g}" for level in levels for s in model.sensor_names]
     if outputs is None:
@@ -264,8 +272,10 @@ def _output_columns(model, outputs):
     full = [o if "@" in o else f"{o}@{levels[-1]:g}" for o in outputs]
     unknown = [o for o, f in zip(outputs, full) if f not in all_names]
     if unknown:
+        hint = ("; F_peak and d_peak need the scenario option peak_readings = true"
+                if any(o.split("@")[0] in ("F_peak", "d_peak") for o in unknown) else "")
         raise ValueError(f"unknown RVC output(s) {unknown}; outputs are SENSOR@LOAD (or SENSOR at the last level), "
-                         f"e.g. {all_names[:3]}")
+                         f"e.g. {all_names[:3]}{hint}")
     return list(outputs), [all_names.index(f) for f in full]
 
 
@@ -328,7 +338,7 @@ def rvc(region, model, *, fixed=None, outputs=None, max_samples=20000, rng=0, qu
     if fe_runs and scenario is None:
         raise ValueError(f"fe_runs = {fe_runs} needs the validation model's FE scenario (scenario=...)")
     full, rows = _members(region, model, fixed, max_samples, rng)
-    outputs, idx = _output_columns(model, outputs)
+    outputs, idx = output_columns(model, outputs)
     Y, _ = model.predict(full, return_std=True)
     Y = Y[:, idx]
     mean = Y.mean(axis=0)

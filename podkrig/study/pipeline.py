@@ -54,6 +54,8 @@ class StudyResult(Displayed):
         ``out/report/index.html``.
     seconds : float
         Wall time of the run, s.
+    finished : str
+        When the run finished (ISO 8601, UTC).
     """
 
     study: object
@@ -62,6 +64,19 @@ class StudyResult(Displayed):
     warnings: list
     report: Path
     seconds: float
+    finished: str = ""
+
+    def to_dict(self):
+        """JSON-able: what ``summary.json`` holds — the study file and name, the package version,
+        when it finished, the conventions of the residuals and χ², each stage's record and result
+        by name, and the warnings."""
+        return {
+            "study": str(self.study.path), "name": self.study.name, "podkrig": __version__, "finished": self.finished,
+            "conventions": {"residuals": RESIDUAL_CONVENTION, "chi2": CHI2_BASIS},
+            "stages": {r.name: {"cached": r.cached, "seconds": r.seconds, "fe_runs": r.fe_runs, **r.result}
+                       for r in self.stages},
+            "warnings": [f.to_dict() for f in self.warnings],
+        }
 
     def stage(self, name):
         """The :class:`StageRecord` called ``name``."""
@@ -172,14 +187,9 @@ def _run_locked(study, out, progress, confirm, t0):
             stages.diagnosis(run, test)
     found = words(study_findings(run, calibration), "study", diagnosis_enabled=study.diagnosis.enabled)
     report = write_study_report(run.figures / "index.html", study, run.records, calibration, found)
-    write_json(run.out / "summary.json", {
-        "study": str(study.path), "name": study.name, "podkrig": __version__, "finished": now(),
-        "conventions": {"residuals": RESIDUAL_CONVENTION, "chi2": CHI2_BASIS},
-        "stages": {r.name: {"cached": r.cached, "seconds": r.seconds, "fe_runs": r.fe_runs, **r.result}
-                   for r in run.records},
-        "warnings": [f.to_dict() for f in found],
-    })
-    return StudyResult(study, run.out, tuple(run.records), found, report, time.perf_counter() - t0)
+    result = StudyResult(study, run.out, tuple(run.records), found, report, time.perf_counter() - t0, now())
+    write_json(run.out / "summary.json", result.to_dict())
+    return result
 
 
 def study_findings(run, calibration):

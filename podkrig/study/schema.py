@@ -79,10 +79,11 @@ from pathlib import Path
 from pydantic import TypeAdapter, ValidationError
 
 from fe.exceptions import ConstraintError, FEError, SpecError
-from fe.scenarios import SCENARIOS, ScenarioSpec
+from fe.scenarios import SCENARIOS, ScenarioSpec, build_scenario
 from fe.scenarios.nonlinear import NonlinearScenario
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import MAX_STUDY_FILE_BYTES, quote, read_bounded
+from podkrig.online.propagation import output_columns
 from podkrig.parameters import Parameter, ParameterSpace
 from podkrig.study.settings import (
     NONLINEAR_FE_RUNS,
@@ -479,6 +480,11 @@ def _validation(r, entries, folder, fixed, space):
         # the validation model is made of the calibrated material: the fixed values hold there too
         spec = ScenarioSpec(spec.scenario, spec.options, {**spec.parameters, **{k: v for k, v in fixed.items() if k in known}})
         _constraints(r, spec, space, {}, (*path, "scenario"), f"validation model {item.name!r}: ")
+        if item.outputs is not None:  # before any FE run: the outputs are the scenario's
+            try:
+                output_columns(build_scenario(spec), item.outputs)
+            except (ValueError, FEError) as e:
+                r.fail((*path, "outputs"), str(e))
         design = TrainingDesign(n=item.n, seed=item.seed, method=item.method)
         # a linear FE run cannot fail: FE runs at region members only measure a nonlinear model's failures
         fe_runs = item.fe_runs

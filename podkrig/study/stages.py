@@ -154,7 +154,9 @@ class StudyRun(StageCache):
 def fe_work(run):
     """The FE work this run of the study would do, in words, and whether it is large enough to ask
     first (:func:`podkrig.limits.fe_job_estimate`): the probe runs unless cached, and every design's
-    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size.
+    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size,
+    and the ``fe_runs`` of a validation model at region members (in the calibration) while its store
+    is not complete.
 
     Returns
     -------
@@ -165,7 +167,7 @@ def fe_work(run):
     # scenarios built only for the jobs with runs left; the tests' through the run's cache
     jobs = [(run.out / t.file(f), lambda t=t: run.scenario(t), d) for t in study.calibration_tests
             for f, d in (("train.h5", t.train), ("held_out.h5", t.held_out))]
-    jobs += [(run.out / f"validation_{m.name}.h5", lambda m=m: build_scenario(m.spec), m.design)
+    jobs += [(run.out / f"validation_{m.name}.h5", lambda m=m: build_scenario(m.spec), m.design, m.fe_runs)
              for m in study.validation]
     work, stored = [], 0
     for t in study.calibration_tests:
@@ -173,11 +175,11 @@ def fe_work(run):
             sc = run.scenario(t)
             nonlinear = isinstance(sc, NonlinearScenario)
             work.append((len(probe_points(t.space.n_params, nonlinear)), sc.n_dofs, nonlinear))
-    for path, scenario, design in jobs:
+    for path, scenario, design, *at_region in jobs:
         todo = rows_to_run(path, design.n)
         if todo:
             sc = scenario()
-            work.append((todo, sc.n_dofs, isinstance(sc, NonlinearScenario)))
+            work.append((todo + sum(at_region), sc.n_dofs, isinstance(sc, NonlinearScenario)))
             stored += STUDY_BYTES_PER_ROW * design.n
     return fe_job_estimate(work, stored)
 

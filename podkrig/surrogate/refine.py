@@ -59,8 +59,8 @@ def select_batch(U_candidates, score, U_train, k):
     return np.array(chosen, dtype=int)
 
 
-def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=64, batch=8, n_candidates=4096,
-                     rng=1, workers=1, sampling="sobol"):
+def refine_surrogate(surrogate, store, held_out, *, target_error=None, budget=None, batch=None, n_candidates=None,
+                     rng=None, workers=None, sampling=None):
     """Enrich the training store until the held-out median error or the FE budget is reached.
 
     Parameters
@@ -74,7 +74,8 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
         Held-out snapshot store (read only).
     target_error : float
         Held-out median relative error to reach (-). Every setting is checked against the ranges
-        of :class:`~podkrig.surrogate.settings.RefineSettings`.
+        of :class:`~podkrig.surrogate.settings.RefineSettings`, and one left None takes its default
+        there (the one definition of the defaults).
     budget : int
         Maximum number of new FE runs.
     batch : int
@@ -96,11 +97,14 @@ def refine_surrogate(surrogate, store, held_out, *, target_error=0.005, budget=6
         Fitted on the final store, with ``provenance_["refinement"]``: ``added`` (FE runs),
         ``history`` (per round: ``n_train``, ``median``, ``p95``), ``stop_reason``.
     """
-    make_settings(RefineSettings, {  # the ranges of RefineSettings, each refused value named
+    r = make_settings(RefineSettings, {  # the ranges and defaults of RefineSettings, each refused value named
         "target_error": target_error, "budget": budget, "batch": batch, "n_candidates": n_candidates,
         "seed": None if isinstance(rng, np.random.Generator) else rng, "workers": workers, "sampling": sampling},
         {"seed": "rng"})
-    store, held_out, seed = Path(store), Path(held_out), rng_seed(rng)
+    target_error, budget, batch, n_candidates = r.target_error, r.budget, r.batch, r.n_candidates
+    workers, sampling = r.workers, r.sampling
+    store, held_out = Path(store), Path(held_out)
+    seed = rng_seed(rng) if isinstance(rng, np.random.Generator) else r.seed
     template = surrogate
     output = template.provenance_.get("output", "readings")
     with SnapshotStore.open(held_out) as h:

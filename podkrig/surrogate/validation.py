@@ -30,7 +30,7 @@ import numpy as np
 
 from podkrig.display import Displayed
 from podkrig.surrogate.kriging import DEFAULT_BETA, OrdinaryKriging
-from podkrig.surrogate.podkriging import PODKriging
+from podkrig.surrogate.podkriging import LAYOUTS, PODKriging
 
 logger = logging.getLogger(__name__)
 
@@ -326,7 +326,7 @@ def compare_layouts(surrogate, X, Y, X_held, Y_held):
         :meth:`HeldOutReport.by_unit` ``}``.
     """
     out = {}
-    for layout in ("stacked", "per_level"):
+    for layout in LAYOUTS:
         sur = PODKriging(pod=surrogate.pod, kriging=surrogate.kriging, space=surrogate.space, layout=layout,
                          scaling=surrogate.scaling).fit(X, Y, surrogate.units_)
         sur.provenance_.update({k: surrogate.provenance_[k] for k in ("sensor_names", "output", "reading_unit")
