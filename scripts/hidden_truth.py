@@ -254,6 +254,8 @@ def main(argv=None):
     parser.add_argument("--reuse", type=Path, default=None,
                         help="A finished `podkrig run` folder of the same study: copied to OUT/study first, so its "
                              "snapshots and surrogates are reused (its stages are cached by their inputs).")
+    parser.add_argument("--noise-seed", type=int, default=None,
+                        help="Seed of the first experiment's noise (experiment k uses SEED + k; default the study's).")
     parser.add_argument("--data-from", choices=("fe", "surrogate"), default="fe",
                         help="Make the pseudo-data from the FE model (default) or from the surrogates (a control).")
     args = parser.parse_args(argv)
@@ -267,10 +269,11 @@ def main(argv=None):
     cpu_study = time.process_time() - cpu0
     exp = Experiments(study, out / "study")
     X = truths(study.space, args.n, case.truth_seed)
+    noise_seed = case.noise_seed if args.noise_seed is None else args.noise_seed
     rows = []
     cpu1 = time.process_time()
     for k, x in enumerate(X):
-        rows.append(exp.run(x, case.noise_seed + k, args.data_from))
+        rows.append(exp.run(x, noise_seed + k, args.data_from))
         r = rows[-1]
         print(f"{k:3d}: inside {'y' if r['inside'] else 'n'} (ω−ω* {r['omega_excess']:.2f} of {r['height']:.2f}), "
               f"capacity {'y' if r['capacity_inside'] else 'n'}", flush=True)
