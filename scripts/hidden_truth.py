@@ -65,33 +65,21 @@ CAPACITY = "F_peak"
 
 @dataclass(frozen=True)
 class Case:
-    """A study under test: its file, the measurement files it reads, and the validation model whose
-    peak load is the capacity: the study's own (a ``[[validation]]`` whose scenario has
-    ``peak_readings``), or else the ``[[validation]]`` table ``validation`` appended to it."""
+    """A study under test: its file and the measurement files it reads. The study declares its
+    capacity: a ``[[validation]]`` whose scenario has ``peak_readings`` (the first such)."""
 
     study: Path
     data: tuple
-    validation: str | None = None
     truth_seed: int = 32
     noise_seed: int = 3200
 
 
 CASES = {
-    # capacity: the study's fourth triplet at 1.4 MPa (its [[validation]] "p1_4MPa")
+    # capacity: the fourth triplet at 1.4 MPa (the study's [[validation]] "p1_4MPa")
     "triplet": Case(EXAMPLES / "triplet_series.toml",
                     tuple(f"triplet_series_{p}MPa.csv" for p in ("0.2", "0.6", "1.0"))),
-    # capacity: the same wall at 1.21 MPa (J6D), its peak load; the study is examples/j4d_wall.toml
-    "j4d": Case(
-        EXAMPLES / "j4d_wall.toml",
-        ("j4d_wall_measured.csv",),
-        """
-[[validation]]                   # the capacity: the wall at 1.21 MPa (J6D), its peak load
-name = "j6d_1_21MPa"
-scenario = { scenario = "shear_compression_nl", precompression = 1.21, top = "fixed_vertical", load_levels = [0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.75, 0.9, 1.0, 1.25, 1.5, 1.75], peak_readings = true }
-n = 64
-seed = 3
-outputs = ["F_peak"]
-"""),
+    # capacity: the wall at 1.21 MPa (the study's [[validation]] "J6D")
+    "j4d": Case(EXAMPLES / "j4d_wall.toml", ("j4d_wall_measured.csv",)),
 }
 
 
@@ -111,20 +99,20 @@ def prepare(case, folder, train=None):
             raise SystemExit(f"{case.study.name}: no single 'train = {{ n = ... }}' to change")
     path = folder / case.study.name
     path.write_text(text)
-    if capacity_model(load_study(path)) is None:
-        if case.validation is None:
-            raise SystemExit(f"{case.study.name} declares no capacity model (a [[validation]] with peak_readings)")
-        path.write_text(text + case.validation)
     study = load_study(path)
-    # the pseudo-experiments need the surrogates, not the study's own sensitivity and diagnosis
-    return dataclasses.replace(study, sensitivity=dataclasses.replace(study.sensitivity, enabled=False),
+    capacity = capacity_model(study)
+    if capacity is None:
+        raise SystemExit(f"{case.study.name} declares no capacity model (a [[validation]] with peak_readings)")
+    # the pseudo-experiments need the surrogates and the capacity model, not the study's other
+    # validation models, its sensitivity or its diagnosis
+    return dataclasses.replace(study, validation=(capacity,),
+                               sensitivity=dataclasses.replace(study.sensitivity, enabled=False),
                                diagnosis=dataclasses.replace(study.diagnosis, enabled=False))
 
 
 def capacity_model(study):
-    """The study's capacity model: its last validation model with ``peak_readings`` (None if none)."""
-    found = [v for v in study.validation if v.spec.options.get("peak_readings")]
-    return found[-1] if found else None
+    """The study's capacity model: its first validation model with ``peak_readings`` (None if none)."""
+    return next((v for v in study.validation if v.spec.options.get("peak_readings")), None)
 
 
 def truths(space, n, seed, margin=MARGIN):
@@ -254,8 +242,6 @@ def main(argv=None):
     parser.add_argument("--reuse", type=Path, default=None,
                         help="A finished `podkrig run` folder of the same study: copied to OUT/study first, so its "
                              "snapshots and surrogates are reused (its stages are cached by their inputs).")
-    parser.add_argument("--noise-seed", type=int, default=None,
-                        help="Seed of the first experiment's noise (experiment k uses SEED + k; default the study's).")
     parser.add_argument("--data-from", choices=("fe", "surrogate"), default="fe",
                         help="Make the pseudo-data from the FE model (default) or from the surrogates (a control).")
     args = parser.parse_args(argv)
@@ -269,11 +255,10 @@ def main(argv=None):
     cpu_study = time.process_time() - cpu0
     exp = Experiments(study, out / "study")
     X = truths(study.space, args.n, case.truth_seed)
-    noise_seed = case.noise_seed if args.noise_seed is None else args.noise_seed
     rows = []
     cpu1 = time.process_time()
     for k, x in enumerate(X):
-        rows.append(exp.run(x, noise_seed + k, args.data_from))
+        rows.append(exp.run(x, case.noise_seed + k, args.data_from))
         r = rows[-1]
         print(f"{k:3d}: inside {'y' if r['inside'] else 'n'} (ω−ω* {r['omega_excess']:.2f} of {r['height']:.2f}), "
               f"capacity {'y' if r['capacity_inside'] else 'n'}", flush=True)
