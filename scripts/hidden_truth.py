@@ -48,6 +48,7 @@ from scipy import stats
 from fe.scenarios import build_scenario
 from podkrig._qmc import scrambled_sobol
 from podkrig.io.surrogate_file import load_surrogate
+from podkrig.offline.failures import without_peak
 from podkrig.online.calibrate import calibrate
 from podkrig.online.joint import JointProblem
 from podkrig.online.problem import InverseProblem, SurrogateModel, fix_from_scenario
@@ -163,9 +164,15 @@ class Experiments:
         return JointProblem(problems)
 
     def capacity_of(self, values):
-        """The FE capacity (the validation model's peak load ``F_peak``) at ``values``."""
+        """The FE capacity (the validation model's peak load ``F_peak``) at ``values``, or None when
+        the run gives none: it stopped early, or its load has no maximum within the control range
+        (:func:`~podkrig.offline.failures.without_peak`; ``F_peak`` is then a lower bound)."""
         response = self.validation_scenario.run(values)
-        return float(response.readings[-1, list(response.sensor_names).index(CAPACITY)])
+        last = dict(zip(response.sensor_names, response.readings[-1]))
+        if getattr(response, "status", "converged") != "converged" or without_peak(last["d_peak"],
+                                                                                  response.load_levels):
+            return None
+        return float(last[CAPACITY])
 
     def run(self, x_true, seed, data_from="fe"):
         """One pseudo-experiment at the free values ``x_true``: its row of the table (dict).
@@ -204,12 +211,16 @@ class Experiments:
                 "intervals": {n: list(region.intervals[n]) for n in names},
                 "surrogate_error_sigma": float(np.sqrt(np.mean(np.concatenate(surrogate_error) ** 2))),
                 "capacity_band": [float(lo), float(hi)], "capacity_truth": cap_true,
-                "capacity_inside": bool(lo <= cap_true <= hi), "seconds": result.seconds}
+                "capacity_inside": None if cap_true is None else bool(lo <= cap_true <= hi),
+                "seconds": result.seconds}
 
 
 def coverage(rows):
-    """Counts of the truth inside the region and the capacity band, ``(inside, capacity_inside, n)``."""
-    return sum(r["inside"] for r in rows), sum(r["capacity_inside"] for r in rows), len(rows)
+    """Counts ``(inside, capacity_inside, n, n_capacity)``: the truth inside the region, its
+    capacity inside the band, of ``n`` experiments, ``n_capacity`` of them with an FE capacity at
+    the truth (a run without a load maximum has none)."""
+    capacities = [r["capacity_inside"] for r in rows if r["capacity_inside"] is not None]
+    return sum(r["inside"] for r in rows), sum(capacities), len(rows), len(capacities)
 
 
 def binomial_floor(n, p=0.95, alpha=0.05):
@@ -227,7 +238,8 @@ def table(rows, names, unit_of):
                  f"{r['omega_excess']:.2f}/{r['height']:.2f}", "y" if r["inside"] else "n",
                  f"{r['surrogate_error_sigma']:.2f}",
                  f"[{r['capacity_band'][0]:.4g}, {r['capacity_band'][1]:.4g}] {unit_of}",
-                 f"{r['capacity_truth']:.4g}", "y" if r["capacity_inside"] else "n"]
+                 "no peak" if r["capacity_truth"] is None else f"{r['capacity_truth']:.4g}",
+                 {True: "y", False: "n", None: "-"}[r["capacity_inside"]]]
         lines.append(" | ".join(cells))
     return lines
 
@@ -261,17 +273,19 @@ def main(argv=None):
         rows.append(exp.run(x, case.noise_seed + k, args.data_from))
         r = rows[-1]
         print(f"{k:3d}: inside {'y' if r['inside'] else 'n'} (ω−ω* {r['omega_excess']:.2f} of {r['height']:.2f}), "
-              f"capacity {'y' if r['capacity_inside'] else 'n'}", flush=True)
+              f"capacity {({True: 'y', False: 'n', None: '-'})[r['capacity_inside']]}", flush=True)
     cpu_exp = time.process_time() - cpu1
-    inside, cap_inside, n = coverage(rows)
+    inside, cap_inside, n, n_cap = coverage(rows)
     unit = exp.validation_scenario.sensor_units[CAPACITY]
     print("\n".join(table(rows, study.space.names, unit)))
     floor = binomial_floor(n)
-    summary = {"study": args.study, "n": n, "train": args.train, "data_from": args.data_from, "inside": inside, "capacity_inside": cap_inside, "target": floor,
+    summary = {"study": args.study, "n": n, "train": args.train, "data_from": args.data_from, "inside": inside,
+               "capacity_inside": cap_inside, "n_capacity": n_cap, "target": floor,
+               "capacity_target": binomial_floor(n_cap),
                "cpu_seconds_study": cpu_study, "cpu_seconds_experiments": cpu_exp,
                "median_surrogate_error_sigma": float(np.median([r["surrogate_error_sigma"] for r in rows]))}
-    print(f"\ntruth inside the 95 % region: {inside} of {n}; capacity inside its 5-95 % band: {cap_inside} of {n} "
-          f"(target ≥ {floor} each)")
+    print(f"\ntruth inside the 95 % region: {inside} of {n} (target ≥ {floor}); capacity inside its 5-95 % band: "
+          f"{cap_inside} of the {n_cap} truths with a load maximum (target ≥ {summary['capacity_target']})")
     print(f"CPU: study {cpu_study:.0f} s, {n} pseudo-experiments {cpu_exp:.0f} s")
     (out / "hidden_truth.json").write_text(json.dumps({"summary": summary, "rows": rows}, indent=1))
     return summary
