@@ -42,9 +42,12 @@ class Response(Displayed):
         except ValueError:
             raise KeyError(f"no sensor {sensor!r}; sensors are {list(self.sensor_names)}") from None
 
-    def as_dict(self):
-        """Sensor name → list of readings (one per load level), mm."""
-        return {name: self.readings[:, j].tolist() for j, name in enumerate(self.sensor_names)}
+    def to_dict(self):
+        """JSON-able (strict JSON: a reading at a level the run did not reach, NaN here, is None):
+        ``load_levels`` and ``load_unit``, and ``readings``, sensor name → one reading per load
+        level (mm; a load reading in its own unit)."""
+        return {"load_levels": _json_floats(self.load_levels), "load_unit": self.load_unit,
+                "readings": {name: _json_floats(self.readings[:, j]) for j, name in enumerate(self.sensor_names)}}
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -113,6 +116,16 @@ class NonlinearResponse(Response):
             "peak_load": float(self.peak_load), "peak_displacement": float(self.peak_displacement),
             "force_unit": self.force_unit,
             "mesh_objective": self.mesh_objective, "mesh_objective_limit": self.mesh_objective_limit,
-            "loads": [None if not np.isfinite(v) else float(v) for v in self.loads],
-            **{k: [None if not np.isfinite(x) else float(x) for x in v] for k, v in (self.extra or {}).items()},
+            "loads": _json_floats(self.loads),
+            **{k: _json_floats(v) for k, v in (self.extra or {}).items()},
         }
+
+    def to_dict(self):
+        """:meth:`Response.to_dict`, then :meth:`summary` and ``solver``, the path's
+        :meth:`~fe.solvers.nonlinear.PathResult.to_dict` (None without a path)."""
+        return {**super().to_dict(), **self.summary(), "solver": None if self.path is None else self.path.to_dict()}
+
+
+def _json_floats(values):
+    """A list of floats, a non-finite value as None (strict JSON)."""
+    return [float(v) if np.isfinite(v) else None for v in np.asarray(values, dtype=float)]

@@ -235,6 +235,25 @@ def test_ddm_double_slot_apparent_modulus():
     assert float(c.syy) == pytest.approx(-0.94, abs=0.01) and float(c.sxx) == pytest.approx(0.13, abs=0.01)
 
 
+def test_ddm_solution_as_json_keeps_each_element_with_its_slot():
+    """``DDMSolution.to_dict`` is strict JSON with units in its keys: per slot its elements tile
+    the slot (their lengths add up to it, centres on its line) and carry the discontinuities
+    (opening = −dn, > 0 under the jack's pressure). Defects: arrays or NumPy integers left in the
+    dict, elements of one slot listed under another."""
+    import json
+
+    sol = solve_slots([Slot((0.0, -200.0), 350.0, 0.0, 1.0), Slot((50.0, 200.0), 200.0, np.pi / 2, 0.5)], 4000.0, 0.2,
+                      n_elements=20)
+    d = json.loads(json.dumps(sol.to_dict(), allow_nan=False))
+    slot = np.array(d["slot"])
+    assert d["slot"] == [0] * 20 + [1] * 20 and (d["shear_modulus_MPa"], d["nu_kernel"]) == (sol.shear_modulus, sol.nu_kernel)
+    half, centres = np.array(d["half_lengths_mm"]), np.array(d["centres_mm"])
+    np.testing.assert_allclose([2 * half[slot == k].sum() for k in (0, 1)], [350.0, 200.0], rtol=1e-12)
+    np.testing.assert_allclose(centres[slot == 0, 1], -200.0, atol=1e-9)  # the horizontal slot at y = -200 mm
+    np.testing.assert_allclose(centres[slot == 1, 0], 50.0, atol=1e-9)  # the vertical one at x = 50 mm
+    assert np.all(-np.array(d["dn_mm"]) > 0) and np.array_equal(d["angles_rad"], sol.angles)
+
+
 # --- classical evaluations -----------------------------------------------------------------------
 
 

@@ -209,7 +209,39 @@ def test_a_capacity_validation_is_declared_in_the_study_file(tmp_path):
     path.write_text(text.replace("fe_runs = 16 ", "quantiles = [0.95, 1.5] "))
     with pytest.raises(StudyError, match=r"validation\[1\]\.quantiles: .*\[0.95, 1.5\].*allowed: .*\(0, 1\)"):
         load_study(path)
+    path.write_text(text.replace("fe_runs = 16 ", "fe_runs = 300 "))
+    with pytest.raises(StudyError, match=r"validation\[1\]\.fe_runs: 300 is out of range.*\[0, 256\]"):
+        load_study(path)
     # a capacity output of a scenario without peak readings: refused at load time, before any FE run
     path.write_text(text.replace("peak_readings = true, ", ""))
     with pytest.raises(StudyError, match=r"validation\[1\]\.outputs: .*'F_peak'.*peak_readings = true"):
         load_study(path)
+
+
+def test_the_report_shows_the_band_the_failed_share_and_why_runs_failed(tmp_path):
+    """Fails if the report's RVC section loses an output's unit or quantiles, the failed share with
+    its counts, the reason a run failed, or the distribution figure (one panel per output, a PNG
+    written). The stub runs of the test above: 24 FE runs, some stopped early or without a peak."""
+    from podkrig.reports.html import Page
+    from podkrig.reports.inverse import plot_rvc_distributions, render_rvc
+
+    rng = np.random.default_rng(5)
+    members = np.column_stack([rng.random(40), 2 * rng.random(40)])
+    out = rvc(_region(members, ("c", "tanphi")), Capacity(), outputs=["F_peak", "d_peak"], scenario=Triplet(),
+              fe_runs=24, rng=3)
+    figures = plot_rvc_distributions({"calibration": out, "wall": out}, tmp_path)
+    assert figures == {"wall": "rvc_wall.png"}  # validation models only
+    assert (tmp_path / "rvc_wall.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = Page("t")
+    render_rvc(page, {"wall": out}, figures=figures)
+    html = page.markup()
+    runs = out.runs
+    assert "5 % quantile" in html and "95 % quantile" in html and ">kN<" in html
+    cells = [f'<td class="num">{n}</td>' for n in (runs.n_runs, int(runs.stopped.sum()), int(runs.no_peak.sum()),
+                                                    f"{100 * out.failed_share:.3g}")]
+    assert "".join(cells) in html
+    raised = int(sum(s == "error" for s in runs.status))
+    budget = int(runs.stopped.sum()) - raised
+    assert f"{budget} × budget_exhausted: max_steps" in html and f"{raised} × FE error RuntimeError" in html
+    assert f"{int(runs.no_peak.sum())} × no load maximum" in html
+    assert 'src="rvc_wall.png"' in html

@@ -159,6 +159,9 @@ def test_rvc_with_a_validation_model(surrogates):
     assert set(out) == {"calibration", "shear_compression_surrogate"}
     shear = out["shear_compression_surrogate"]
     assert shear["outputs"][0] == "top_ux@40" and all(cv >= 0 for cv in shear["cv"])
+    table = _ok(["rvc", sur["diagonal_compression"], "--data", data, "--noise-rel", 0.01,
+                 "--validation", sur["shear_compression"]])
+    assert "95 % quantile" in table and "unit" in table  # the band and the unit of each output
 
 
 def test_overparam_flags_what_the_data_cannot_pin_down(surrogates):

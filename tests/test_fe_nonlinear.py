@@ -2,6 +2,7 @@
 made 100× stiffer than default so that the joints see uniform tractions to < 0.1 %)."""
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -12,9 +13,9 @@ from conftest import load_file
 from fe.exceptions import SpecError
 from fe.interfaces import CompositeInterface
 from fe.mesh import INTERFACE_KINDS
-from fe.scenarios import build_scenario
+from fe.scenarios import SCENARIOS, build_scenario
 from fe.scenarios.catalogue import describe_scenario
-from fe.scenarios.nonlinear import interface_properties
+from fe.scenarios.nonlinear import NonlinearScenario, interface_properties
 from fe.solvers.nonlinear import BUDGET, CONVERGED, NOT_CONVERGED, PathFollower, PathSettings
 
 A = 210.0 * 100.0  # joint area of the specimens, mm²
@@ -254,6 +255,24 @@ def test_budget_ends_the_run_with_its_converged_part():
     assert r.summary()["limit"] == "steps" and r.path.to_dict()["limit"] == "steps"
 
 
+def test_a_stopped_run_as_json_has_none_where_it_did_not_reach():
+    """``NonlinearResponse.to_dict`` (the JSON of ``podkrig simulate``) is strict JSON: each
+    sensor's readings by level, None exactly at the levels the run did not reach (NaN in the
+    response), the levels and their unit, then the status, loads and solver. Defects: NaN written
+    into JSON, the readings not those of the response, a key of the summary or the solver lost."""
+    sc = build_scenario({"scenario": "couplet_tension", "nx": 2, "ny": 1, "max_steps": 10})
+    r = sc.run()
+    d = json.loads(json.dumps(r.to_dict(), allow_nan=False))
+    reached = np.isfinite(r.readings)
+    assert r.status == BUDGET and reached.any() and not reached.all()
+    assert set(d["readings"]) == set(r.sensor_names) and d["load_levels"] == r.load_levels.tolist()
+    for j, name in enumerate(r.sensor_names):
+        assert [v is not None for v in d["readings"][name]] == reached[:, j].tolist()
+        assert [v for v in d["readings"][name] if v is not None] == r.readings[reached[:, j], j].tolist()
+    assert d["load_unit"] == "mm" and d["status"] == BUDGET and d["limit"] == "steps"
+    assert d["solver"] == json.loads(json.dumps(r.path.to_dict())) and set(r.summary()) <= set(d)
+
+
 def test_a_tiny_iteration_budget_names_the_iterations():
     """Counts, not clocks: the run stops after exactly its iteration budget, whatever the load of
     the machine."""
@@ -262,6 +281,17 @@ def test_a_tiny_iteration_budget_names_the_iterations():
     assert r.status == BUDGET and r.limit == "iterations"
     assert r.path.total_iterations == 7 and "iteration budget of 7" in r.message
     assert np.isnan(r.loads[-1])
+
+
+@pytest.mark.parametrize("name", sorted(n for n, c in SCENARIOS.items() if issubclass(c, NonlinearScenario)))
+def test_a_scenario_and_the_solver_alone_have_one_default_budget(name):
+    """The solver settings of a nonlinear scenario with its default options (what ``podkrig
+    simulate`` and ``podkrig snapshots run`` use) are ``PathSettings``' defaults but for the
+    increment range the scenario sets: one budget whether a user runs the scenario or passes
+    ``PathSettings()`` to it. Defect: an iteration budget of 30 000 in the scenarios and 6 000 in
+    the solver."""
+    o = SCENARIOS[name].Options()
+    assert o.path_settings() == PathSettings(max_increment_fraction=o.max_increment / o.increment)
 
 
 def test_a_zero_cpu_budget_names_the_cpu_and_the_wall_clock_is_only_a_hang_guard():

@@ -81,13 +81,26 @@ def test_identifiability_words_both_ends_alike_and_drop_a_dimensionless_unit():
 # --- inversion findings ----------------------------------------------------------------------------
 
 
+def test_fe_check_finding_words_each_unit_apart():
+    """Defects: the largest difference of a test with a load cell and gauges printed as mm although
+    it is the force's (kN), or one unit's largest difference dropped; a result read back without
+    the units given a unit it may not have."""
+    mixed = FECheck(0.12, 3.0, 0.05, 4.0, False, max_abs_diff_by_unit={"mm": 0.0031, "kN": 0.12})
+    (f,) = inversion_findings(_result([1200.0, 0.2], fe_check=mixed))
+    message = word(f, "study").message
+    assert "(0.0031 mm, 0.12 kN)" in message and "0.12 mm" not in message
+    (old,) = inversion_findings(_result([1200.0, 0.2], fe_check=FECheck(0.12, 3.0, 0.05, 4.0, False)))
+    assert "noise (0.12)" in word(old, "cli").message
+
+
 def test_fe_check_finding_values_and_remedy_per_context():
     """Defects: a failed FE check not reported, a passed one reported, its numbers lost, the factor
     or the mm difference mis-formatted, the CLI remedy not naming 'podkrig surrogate refine', or a
     study user told to run a command instead of changing the study."""
-    off = FECheck(0.025, 2.5, 0.1, 3.0, False)
+    off = FECheck(0.025, 2.5, 0.1, 3.0, False, max_abs_diff_by_unit={"mm": 0.025})
     (f,) = inversion_findings(_result([1200.0, 0.2], fe_check=off))
-    assert f == Finding("fe-check", "inversion", {"max_diff_over_noise": 2.5, "max_abs_diff_mm": 0.025})
+    assert f == Finding("fe-check", "inversion", {"max_diff_over_noise": 2.5, "max_abs_diff": 0.025,
+                                                  "max_abs_diff_by_unit": {"mm": 0.025}})
     cli, study = word(f, "cli"), word(f, "study")
     assert "2.50× the noise (0.025 mm)" in cli.message and cli.message == study.message
     assert "podkrig surrogate refine" in cli.remedy

@@ -484,6 +484,27 @@ def test_deb_rules_return_a_feasible_point_over_a_better_infeasible_one():
     assert_allclose(res.x, [1.0], rtol=0.0, atol=1e-6)  # SLSQP on an active bound
 
 
+def test_the_result_as_json_names_its_parameters_and_has_no_nan():
+    """``GAResult.to_dict`` is strict JSON: a run where no individual is feasible has no best
+    feasible objective per generation (NaN in the result), None in the dict; the best individual by
+    name with its units; the per-evaluation history only when asked, one row per evaluation.
+    Defects: NaN written into a JSON file, the history (nfev × n_params) in every dict."""
+    import json
+
+    with pytest.warns(GABudgetWarning):
+        res = minimize(lambda X: np.sum(X, axis=1), LogSpace([1.0, 10.0], [5.0, 50.0]), rng=3, max_generations=3,
+                       constraints=lambda X: 100.0 - X[:, 1:])  # k1 <= 50 < 100: never feasible
+    assert np.isnan(res.generation_best).all() and res.violation > 0
+    d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    assert d["generation_best"] == [None] * (res.ngen + 1) and d["generation_nfev"] == res.generation_nfev.tolist()
+    assert d["parameters"] == {"k0": res.x[0], "k1": res.x[1]} and d["units"] == {"k0": "N/mm3", "k1": "N/mm3"}
+    assert (d["fun"], d["nfev"], d["stop_reason"], d["seed"]) == (res.fun, res.nfev, "max_generations", 3)
+    assert "X_history" not in d and "population" not in d
+    full = json.loads(json.dumps(res.to_dict(history=True), allow_nan=False))
+    assert np.array_equal(full["X_history"], res.X_history) and len(full["polish_mask"]) == res.nfev
+    assert np.array_equal(full["population_fun"], res.population_fun)
+
+
 # --------------------------------------------------------------------------- errors
 @pytest.mark.parametrize(
     "options, error, match",

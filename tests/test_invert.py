@@ -132,6 +132,33 @@ class _Raising:
         raise AssertionError("the scenario must not run when its response is given")
 
 
+def test_fe_check_largest_difference_per_unit(solved_linear):
+    """Defects: the largest |FE − surrogate| of a test whose readings have two units (a load cell
+    in kN beside gauges in mm) reported as one number in mm, or a unit's entries mixed up with
+    another's (the load-major order of the observed entries), or lost in to_dict/from_dict."""
+    problem, result = solved_linear
+    n_loads, n_sensors = problem.measurement.values.shape
+    units = ("kN",) + ("mm",) * (n_sensors - 1)
+    mixed = dataclasses.replace(problem, measurement=dataclasses.replace(problem.measurement, sensor_units=units))
+    mixed_result = dataclasses.replace(result, problem=mixed)
+    offset = np.array([0.5, -0.01, 0.03, -0.7, 0.01, -0.02])  # FE − surrogate per reading, load-major
+
+    class Scenario:
+        def run(self, params):
+            x = np.array([[params["m1"], params["m2"]]])
+
+            class Response:
+                readings = (LinearModel().predict(x)[0] + offset).reshape(n_loads, n_sensors)
+
+            return Response()
+
+    check = fe_check(mixed_result, Scenario())
+    assert (n_loads, n_sensors) == (2, 3)  # the premise of the offsets: sensor 0 is column 0 of each load
+    assert check.max_abs_diff_by_unit == pytest.approx({"kN": 0.7, "mm": 0.03}, rel=1e-9)
+    assert FECheck.from_dict(check.to_dict()).max_abs_diff_by_unit == check.max_abs_diff_by_unit
+    assert fe_check(result, Scenario()).max_abs_diff_by_unit == pytest.approx({"mm": 0.7}, rel=1e-9)
+
+
 def test_fe_check_numbers_are_their_closed_forms(solved_linear):
     """Defects: rel_diff not ‖FE − surrogate‖/‖FE‖, χ²/dof of the FE readings with the data added
     instead of subtracted or not divided by max(dof, 1), the FE readings not kept, a given response

@@ -518,3 +518,65 @@ def test_a_surrogate_fitted_with_an_injected_optimiser_is_written_with_its_name(
     assert_array_equal(loaded.predict(Xp), fitted.predict(Xp))  # same process, same arrays
     with pytest.raises(ValueError, match="optimizer .*'l-bfgs-b', a callable or None"):
         OrdinaryKriging(**loaded.kriging.get_params()).fit(X, _f(X))
+
+
+def _kinked(X, rough=False):
+    """Two outputs with kinks; the second is nearly smooth (its likelihood's optimum a long ridge
+    towards the exponent 2) unless ``rough``."""
+    second = np.abs(X[:, 1] - 0.55) + np.abs(X[:, 2] - 0.3) * X[:, 0] if rough else \
+        np.abs(X[:, 1] - 0.6) ** 1.2 + X[:, 2] * X[:, 0]
+    return np.column_stack([np.abs(X[:, 0] - 0.4) + np.sin(5 * X[:, 1]) * X[:, 2], second])
+
+
+@pytest.mark.parametrize("beta", ["fit", "fit-shared"])
+@pytest.mark.parametrize("factor", [8.0, 2.0**-10])
+def test_the_maximum_likelihood_fit_does_not_depend_on_the_unit_of_the_data(beta, factor):
+    """The concentrated likelihood of c y is that of y plus m log c², a constant: the fit searches
+    the output divided by its standard deviation, so a factor that is a power of two (exact in
+    floating point) gives bitwise the same ranges and exponents, and σ², the mean, the weights and
+    the predictions scaled by it exactly. Defect: the search run on the data as given, whose
+    constant moved L-BFGS-B's relative stopping test (ftol × |f|) along the ridge of the second
+    output: its ranges and exponent then depended on the unit (×8: σ 3.7 → 9.3)."""
+    X = sobol(64, 3, seed=0)
+    a = OrdinaryKriging(beta=beta).fit(X, _kinked(X))
+    b = OrdinaryKriging(beta=beta).fit(X, factor * _kinked(X))
+    ha, hb = a.hyperparameters_, b.hyperparameters_
+    assert_array_equal(hb.ranges, ha.ranges)
+    assert_array_equal(hb.beta, ha.beta)
+    # products with a power of two are exact: rtol 1e-15 only spells out the comparison
+    assert_allclose(hb.sigma2, factor**2 * ha.sigma2, rtol=1e-15)
+    assert_allclose(hb.mu, factor * ha.mu, rtol=1e-15)
+    assert_allclose(b.alpha_, factor * a.alpha_, rtol=1e-15)
+    assert_allclose(b.criterion_, a.criterion_ + 64 * np.log(factor**2), rtol=1e-12)  # -2 log L of the data given
+    U = uniform(20, 3, seed=2)
+    mean_a, std_a = a.predict(U, return_std=True)
+    mean_b, std_b = b.predict(U, return_std=True)
+    assert_allclose(mean_b, factor * mean_a, rtol=1e-15)
+    assert_allclose(std_b, factor * std_a, rtol=1e-15)
+
+
+@pytest.mark.parametrize("beta", ["fit", "fit-shared"])
+def test_the_fit_of_data_in_another_unit_agrees_to_the_search_tolerance(beta):
+    """Data ×7.3 (not a power of two: the scaled outputs differ from the originals by rounding):
+    ranges, exponents and σ/7.3 agree within 1e-5 relative, the stopping tolerance of L-BFGS-B
+    on these well-posed likelihoods (both exponents below 2, every range inside its bounds)."""
+    X = sobol(64, 3, seed=0)
+    Y = _kinked(X, rough=True)
+    a = OrdinaryKriging(beta=beta).fit(X, Y)
+    b = OrdinaryKriging(beta=beta).fit(X, 7.3 * Y)
+    ha, hb = a.hyperparameters_, b.hyperparameters_
+    assert np.all(ha.beta < 1.995) and np.all(ha.ranges < 10)  # the premise: an interior optimum
+    assert_allclose(hb.ranges, ha.ranges, rtol=1e-5)
+    assert_allclose(hb.beta, ha.beta, rtol=1e-5)
+    assert_allclose(np.sqrt(hb.sigma2) / 7.3, np.sqrt(ha.sigma2), rtol=1e-5)
+
+
+def test_a_constant_output_is_constant_at_any_scale():
+    """An output constant to rounding is recognised relative to its own size, whatever its unit.
+    Defect: an absolute floor (spread ≤ 1e-14 × max(1, |y|)) that took a varying output of size
+    1e-15 for a constant one, and would not for the same data in another unit."""
+    X = sobol(16, 3, seed=0)
+    small = 1e-15 * _f(X)[:, 0]
+    fitted = OrdinaryKriging(beta=1.8, n_restarts=0).fit(X, np.column_stack([small, 1e-15 + 0 * small]))
+    assert fitted.sigma2_[0] > 0 and fitted.n_evaluations_[0] > 0  # varying: searched
+    assert fitted.sigma2_[1] == 0.0 and fitted.n_evaluations_[1] == 0  # constant: not

@@ -205,4 +205,5 @@ def test_the_layout_comparison_refits_both_ways_with_the_surrogates_settings():
     direct = held_out_errors(_fit("per_level", "unit"), X_HELD, curves(X_HELD), with_loo=False).by_unit()
     assert got["per_level"]["by_unit"] == direct and set(direct) == {"mm", "kN"}
     assert got["stacked"]["n_modes"] == sur.n_modes_
+    assert got["stacked"]["by_unit"] == held_out_errors(sur, X_HELD, curves(X_HELD), with_loo=False).by_unit()
     assert_array_equal(sur.predict(X_HELD), before)

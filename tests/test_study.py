@@ -1,5 +1,6 @@
 """``podkrig run``: a tiny study end to end, its stage cache, and the structure of its HTML report."""
 
+import dataclasses
 import html
 import html.parser
 import json
@@ -14,16 +15,23 @@ from typer.testing import CliRunner
 
 from fe.scenarios import build_scenario
 from podkrig.cli import app
-from podkrig.io.measurement_log import write_measurement_csv
+from podkrig.io.measurement_log import response_csv, write_measurement_csv
+from podkrig.io.surrogate_file import load_surrogate
+from podkrig.offline.store import SnapshotStore
 from podkrig.online.findings import CHI2_BASIS, RESIDUAL_CONVENTION
 from podkrig.online.measurement import Measurement
 from podkrig.online.region import Region
+from podkrig.reports import study as study_report
 from podkrig.reports.figures import read_panels
+from podkrig.reports.html import Page
 from podkrig.reports.jupyter import inverse_result_html, region_html
 from podkrig.reports.study import SECTIONS
-from podkrig.study import load_study, run_study
-from podkrig.study.cache import jsonable
+from podkrig.study import StudyResult, load_study, run_study, stages
+from podkrig.study.cache import Progress, jsonable
 from podkrig.study.stages import region_members, save_region
+from podkrig.surrogate.podkriging import training_data
+from podkrig.surrogate.settings import fit_surrogate
+from podkrig.surrogate.validation import held_out_errors
 
 runner = CliRunner()
 
@@ -463,3 +471,75 @@ def test_results_show_in_jupyter(tiny):
             assert rows and len(set(rows)) == 1, (type(obj).__name__, rows)
         for w in words:
             assert w in html.unescape(text), (type(obj).__name__, w)
+
+
+#: a nonlinear test (a triplet's force–slip curve at six control levels), its stores and surrogate only
+TRIPLET = """\
+name = "triplet_layouts"
+
+[scenario]
+scenario = "triplet_shear"
+load_levels = [0.02, 0.05, 0.1, 0.2, 0.5, 1.0]
+
+[parameters]
+c_bj      = { lower = 0.15, upper = 0.6 }
+tanphi_bj = { lower = 0.6, upper = 1.1 }
+
+[fixed]
+ft_bj = 0.1
+
+[sampling]
+train    = { n = 16, seed = 0 }
+held_out = { n = 4, seed = 1, method = "random" }
+workers  = 1
+
+[measurement]
+file = "measured.csv"
+noise_rel = 0.01
+"""
+
+
+def _held_out_stages(study, out):
+    """The stages up to the held-out check of a one-test study; returns the run."""
+    run = stages.StudyRun(study, out, Progress())
+    run.figures.mkdir(parents=True, exist_ok=True)
+    (test,) = study.calibration_tests
+    stages.offline(run, test, "offline", "Training snapshots (FE)", "train.h5", test.train)
+    stages.offline(run, test, "held_out", "Held-out snapshots (FE)", "held_out.h5", test.held_out)
+    stages.surrogate(run, test)
+    stages.held_out_validation(run, test)
+    return run
+
+
+def test_a_nonlinear_tests_held_out_check_compares_both_pod_layouts(tmp_path):
+    """The held-out check of a nonlinear test with several control levels also scores the other
+    POD layout on the same training snapshots: the study's own layout (the default, stacked) with
+    exactly the errors of its surrogate, the per-level one with those of a per-level surrogate
+    fitted directly; both in the report's held-out section (naming the study's) and in
+    ``summary.json``; the study's surrogate stays stacked, and a rerun reuses the stage. Defects: no
+    comparison, one that refits the study's own layout to other numbers, the comparison's
+    surrogate saved in place of the study's."""
+    sc = build_scenario({"scenario": "triplet_shear", "load_levels": [0.02, 0.05, 0.1, 0.2, 0.5, 1.0]})
+    (tmp_path / "measured.csv").write_text(response_csv(sc, sc.run()))
+    (tmp_path / "study.toml").write_text(TRIPLET)
+    study = load_study(tmp_path / "study.toml")
+    (test,) = study.calibration_tests
+    run = _held_out_stages(study, tmp_path / "out")
+    r = run.manifest(test.stage("held_out_validation"))["result"]
+    assert r["layout"] == study.surrogate.pod == "stacked" and set(r["layouts"]) == {"stacked", "per_level"}
+    assert r["layouts"]["stacked"]["by_unit"] == r["by_unit"] and set(r["by_unit"]) == {"mm", "kN"}
+    with SnapshotStore.open(tmp_path / "out" / test.file("train.h5")) as store:
+        per_level = fit_surrogate(store, dataclasses.replace(study.surrogate, pod="per_level"))
+    with SnapshotStore.open(tmp_path / "out" / test.file("held_out.h5")) as store:
+        direct = held_out_errors(per_level, *training_data(store), with_loo=False).by_unit()
+    assert r["layouts"]["per_level"] == json.loads(json.dumps({"n_modes": per_level.n_modes_, "by_unit": direct},
+                                                              default=jsonable))
+    assert load_surrogate(tmp_path / "out" / test.file("surrogate.h5")).layout == "stacked"
+    page = Page("held-out")
+    study_report._held_out(page, r)
+    text = html.unescape(page.markup())
+    assert all(f in text for f in ("stacked (this surrogate)", "per level", "[surrogate] pod = \"stacked\"", "in kN: "))
+    summary = StudyResult(study, run.out, tuple(run.records), [], run.figures / "index.html", 0.0).to_dict()
+    assert summary["stages"][test.stage("held_out_validation")]["layouts"] == r["layouts"]
+    again = _held_out_stages(study, tmp_path / "out")
+    assert all(record.cached for record in again.records)

@@ -81,16 +81,17 @@ class NonlinearOptions(WallOptions):
     Vignollet, May & de Borst 2015; ``"gauss"``: Gauss–Legendre points, a consistent interface stiffness).
     ``peak_readings`` adds the peak as two readings, ``F_peak`` (kN) and ``d_peak`` (the control
     displacement there, mm), the same at every level (a measurement gives each once, at any control
-    value of its log)."""
+    value of its log). The budget, ``max_iterations`` and ``tolerance`` default to
+    :class:`~fe.solvers.nonlinear.PathSettings`' (defined there only)."""
 
     increment: float = 0.01
     max_increment: float = 0.05
-    max_steps: int = 600
-    max_iterations: int = 12
-    max_total_iterations: int = 30000
-    max_cpu_seconds: float = 300.0
-    max_seconds: float = 3600.0
-    tolerance: float = 1e-3
+    max_steps: int = PathSettings.max_steps
+    max_iterations: int = PathSettings.max_iterations
+    max_total_iterations: int = PathSettings.max_total_iterations
+    max_cpu_seconds: float = PathSettings.max_cpu_seconds
+    max_seconds: float = PathSettings.max_seconds
+    tolerance: float = PathSettings.tolerance
     law: str = "composite"
     hyperbolic_cap: str = "none"
     integration: str = "lobatto"

@@ -184,7 +184,7 @@ class PathSettings:
 
     max_steps: int = 600
     max_iterations: int = 12
-    max_total_iterations: int = 6000
+    max_total_iterations: int = 30000
     max_cpu_seconds: float = 300.0
     max_seconds: float = 3600.0
     tolerance: float = 1e-3

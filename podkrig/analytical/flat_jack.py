@@ -384,6 +384,15 @@ class DDMSolution(Displayed):
         """Opening of each element (mm, > 0 when the faces move apart), ``(n,)``."""
         return -self.dn
 
+    def to_dict(self):
+        """JSON-able, units in the keys as :meth:`PlaneField.to_dict`: per element (``n`` each)
+        ``centres_mm`` (``[x, y]`` pairs), ``half_lengths_mm``, ``angles_rad``, ``slot``, ``ds_mm``,
+        ``dn_mm``; ``shear_modulus_MPa`` and ``nu_kernel``."""
+        return {"centres_mm": self.centres.tolist(), "half_lengths_mm": self.half_lengths.tolist(),
+                "angles_rad": self.angles.tolist(), "slot": [int(i) for i in self.slot],
+                "ds_mm": self.ds.tolist(), "dn_mm": self.dn.tolist(),
+                "shear_modulus_MPa": float(self.shear_modulus), "nu_kernel": float(self.nu_kernel)}
+
     def field(self, x, y, chunk=4096):
         """Stresses (MPa) and displacements (mm) at points ``(x, y)`` (mm) as a :class:`PlaneField`.
 

@@ -35,7 +35,7 @@ from podkrig.online.model_error import parse_model_form_error
 from podkrig.online.nested import nested_analyses
 from podkrig.online.problem import InverseProblem, SurrogateModel, check_dof, fix_from_scenario
 from podkrig.online.settings import CalibrationSettings, InversionSettings, NoiseSettings, RegionSettings
-from podkrig.reports.findings import words
+from podkrig.reports.findings import fe_difference, words
 from podkrig.reports.html import num
 from podkrig.reports.inverse import write_inversion_report
 
@@ -303,11 +303,14 @@ def register(app):
             typer.echo(json.dumps({k: v.to_dict() for k, v in results.items()}, indent=2))
             return
         table = Table(title=f"RVC over the region of equivalence ({len(out.region.samples)} members)")
-        for col in ("model", "output", "mean (mm)", "CV (%)", "(max−min)/mean (%)"):
+        levels = next(iter(results.values())).quantile_levels
+        for col in ("model", "output", "unit", "mean", "CV (%)", *(f"{100 * q:g} % quantile" for q in levels),
+                    "(max−min)/mean (%)"):
             table.add_column(col, justify="right")
         for name, res in results.items():
             for k, o in enumerate(res.outputs):
-                table.add_row(name, o, f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}", f"{100 * res.range_ratio[k]:.3f}")
+                table.add_row(name, o, res.units[k], f"{res.mean[k]:.5g}", f"{100 * res.cv[k]:.3f}",
+                              *(f"{q:.5g}" for q in res.quantiles[:, k]), f"{100 * res.range_ratio[k]:.3f}")
         command_console().print(table)
 
     @app.command()
@@ -375,7 +378,8 @@ def _print_table(out, report):
                                         f"{r.n_evaluations} evaluations, {r.seconds:.2f} s); χ² includes: "
                                         f"{r.chi2_basis}"))
     if r.fe_check is not None:
-        console.print(escape(f"FE check at the optimum: max |FE − surrogate| = {r.fe_check.max_abs_diff:.3g} mm "
+        console.print(escape(f"FE check at the optimum: max |FE − surrogate| = "
+                             f"{fe_difference(r.fe_check.max_abs_diff_by_unit, r.fe_check.max_abs_diff)} "
                              f"({r.fe_check.max_diff_over_noise:.2f}× the noise); χ²/dof of the FE model = "
                              f"{r.fe_check.chi2_dof_fe:.3g} ({chi2_basis('fe_check')})"))
     print_findings(console, words(out.findings, "cli"))

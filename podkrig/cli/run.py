@@ -87,6 +87,7 @@ def _print_summary(result):
     from podkrig.cli._terminal import console as command_console
     from podkrig.cli.invert import parameters_table
     from podkrig.online.findings import RESIDUAL_CONVENTION
+    from podkrig.reports.findings import fe_difference
     from podkrig.reports.study import capacity_rows, chi2_rows
 
     console = command_console()
@@ -104,8 +105,8 @@ def _print_summary(result):
         numbers.add_row(f"{label}surrogate median error on held-out FE runs", f"{100 * held['rel_error']['median']:.3g} %")
         fe = calibration.tests[t.name].fe_check
         if fe is not None:
-            numbers.add_row(f"{label}max |FE − surrogate| at the best fit", f"{fe.max_abs_diff:.3g} mm "
-                                                                            f"({fe.max_diff_over_noise:.2f} σ)")
+            numbers.add_row(f"{label}max |FE − surrogate| at the best fit",
+                            f"{fe_difference(fe.max_abs_diff_by_unit, fe.max_abs_diff)} ({fe.max_diff_over_noise:.2f} σ)")
     for model, r in calibration.rvc.items():
         numbers.add_row(f"largest output CV over the region, {model}", f"{100 * max(r.cv):.3g} %")
         for text, value, note in capacity_rows(r):

@@ -120,20 +120,11 @@ def register(app):
 
 def _print(sc, response, values, seconds, format):
     if format == "json":
-        out = {
-            "scenario": sc.name,
-            "parameters": values,
-            "load_levels": response.load_levels.tolist(),
-            "load_unit": response.load_unit,
-            "sensors": sc.sensor_definitions(),
-            "readings": response.as_dict(),
-            "n_dofs": int(sc.n_dofs),
-            "seconds": seconds,
-        }
-        if hasattr(response, "summary"):  # a nonlinear run: loads, peak, status, how far it got
-            out.update(response.summary())
+        # a nonlinear run's dict also has its loads, peak, status, how far it got and its solver
+        out = {"scenario": sc.name, "parameters": values, "sensors": sc.sensor_definitions(), **response.to_dict(),
+               "n_dofs": int(sc.n_dofs), "seconds": seconds}
+        if hasattr(response, "summary"):
             out["options"] = sc.spec.to_dict()
-            out["solver"] = response.path.to_dict()
         typer.echo(json.dumps(out, indent=2))
         return
     if format == "csv":

@@ -151,6 +151,37 @@ class GAResult(Displayed):
             if isinstance(value, np.ndarray):
                 value.flags.writeable = False
 
+    def to_dict(self, *, history=False):
+        """JSON-able (strict JSON: a NaN or ±inf is None): the best individual ``x`` and by name
+        ``parameters`` (with ``units`` when the space has them), ``fun``, ``violation``, ``nfev``,
+        ``ngen``, ``success``, ``stop_reason``, ``message``, ``seed``, ``n_restarts`` and the
+        convergence per generation (``generation_best``, ``generation_mean``, ``generation_std``,
+        ``generation_nfev``: ``ngen + 1`` numbers each). With ``history``, also every evaluation
+        (``X_history`` ``(nfev, n_params)``, ``f_history``, ``violation_history``,
+        ``generation_history``, ``polish_mask``) and the final population (``population``,
+        ``population_fun``, ``population_violation``): ``nfev × (n_params + 4)`` numbers."""
+        out = {
+            "x": _json_floats(self.x),
+            "parameters": dict(zip(self.parameter_names, _json_floats(self.x))),
+            **({"units": dict(zip(self.parameter_names, self.parameter_units))} if self.parameter_units else {}),
+            "fun": _json_floats(self.fun), "violation": _json_floats(self.violation), "nfev": int(self.nfev),
+            "ngen": int(self.ngen), "success": bool(self.success), "stop_reason": self.stop_reason,
+            "message": self.message, "seed": self.seed, "n_restarts": int(self.n_restarts),
+            "generation_best": _json_floats(self.generation_best), "generation_mean": _json_floats(self.generation_mean),
+            "generation_std": _json_floats(self.generation_std), "generation_nfev": self.generation_nfev.tolist(),
+        }
+        if history:
+            out.update({name: _json_floats(getattr(self, name)) for name in (
+                "X_history", "f_history", "violation_history", "population", "population_fun", "population_violation")})
+            out.update(generation_history=self.generation_history.tolist(), polish_mask=self.polish_mask.tolist())
+        return out
+
+
+def _json_floats(a):
+    """A float or an array of floats as JSON numbers (nested lists), a non-finite value as None."""
+    a = np.asarray(a, dtype=float)
+    return np.where(np.isfinite(a), a, None).tolist()
+
 
 class _BoxSpace:
     """Linear map between the unit cube and ``(low, high)`` bounds."""

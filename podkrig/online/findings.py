@@ -30,7 +30,9 @@ The functions take result objects (:class:`~podkrig.online.invert.InverseResult`
 
 Codes and their ``values``
 --------------------------
-- ``fe-check``: ``max_diff_over_noise`` (-), ``max_abs_diff_mm``, and ``stopped`` when the FE run
+- ``fe-check``: ``max_diff_over_noise`` (-), ``max_abs_diff`` (the largest difference, in its
+  entry's unit), ``max_abs_diff_by_unit`` (unit of the readings → the largest difference of that
+  unit, mm or kN; None for a result read back without it), and ``stopped`` when the FE run
   at the optimum stopped early (:attr:`~podkrig.online.invert.FECheck.stopped`);
 - ``at-bound``: ``parameter``, ``value``, ``unit``;
 - ``chi2-dof``: ``chi2_dof`` (-);
@@ -180,7 +182,9 @@ def inversion_findings(result, region=None, *, per_test=False):
     found = []
     fe = result.fe_check
     if fe is not None and not fe.ok:
-        values = {"max_diff_over_noise": float(fe.max_diff_over_noise), "max_abs_diff_mm": float(fe.max_abs_diff)}
+        by_unit = None if fe.max_abs_diff_by_unit is None else dict(fe.max_abs_diff_by_unit)
+        values = {"max_diff_over_noise": float(fe.max_diff_over_noise), "max_abs_diff": float(fe.max_abs_diff),
+                  "max_abs_diff_by_unit": by_unit}
         found.append(Finding("fe-check", "inversion", values | ({"stopped": fe.stopped} if fe.stopped else {})))
     units = dict(zip(result.free, result.units))
     for name in () if per_test else result.at_bound:

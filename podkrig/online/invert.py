@@ -33,7 +33,9 @@ class FECheck(Displayed):
     Attributes
     ----------
     max_abs_diff : float
-        max |FE − surrogate|, mm.
+        max |FE − surrogate| over the compared entries, in the unit of the entry where it occurs
+        (mm; kN for a load reading): in a test with readings of several units read
+        :attr:`max_abs_diff_by_unit` instead.
     max_diff_over_noise : float
         Largest |FE − surrogate| / σ_noise (-).
     rel_diff : float
@@ -49,6 +51,9 @@ class FECheck(Displayed):
         ended it and the control value reached, e.g. ``"budget_exhausted: iterations, reached
         0.04 mm"`` — or None when it reached every level. The differences are then over the
         entries it reached, χ²/dof is NaN, and the check fails.
+    max_abs_diff_by_unit : dict of str to float or None
+        Unit of the readings (mm, kN) → max |FE − surrogate| over the compared entries of that
+        unit; None for a result read back from a dict written without it.
     """
 
     max_abs_diff: float
@@ -58,17 +63,21 @@ class FECheck(Displayed):
     ok: bool
     fe_readings: np.ndarray | None = None
     stopped: str | None = None
+    max_abs_diff_by_unit: dict | None = None
 
     def to_dict(self):
         """The numbers, without the FE readings (JSON-able)."""
         return {"max_abs_diff": self.max_abs_diff, "max_diff_over_noise": self.max_diff_over_noise,
                 "rel_diff": self.rel_diff, "chi2_dof_fe": self.chi2_dof_fe,
-                "chi2_dof_fe_basis": chi2_basis("fe_check"), "ok": self.ok, "stopped": self.stopped}
+                "chi2_dof_fe_basis": chi2_basis("fe_check"), "ok": self.ok, "stopped": self.stopped,
+                "max_abs_diff_by_unit": self.max_abs_diff_by_unit}
 
     @classmethod
     def from_dict(cls, d):
+        by_unit = d.get("max_abs_diff_by_unit")
         return cls(float(d["max_abs_diff"]), float(d["max_diff_over_noise"]), float(d["rel_diff"]),
-                   float(d["chi2_dof_fe"]), bool(d["ok"]), stopped=d.get("stopped"))
+                   float(d["chi2_dof_fe"]), bool(d["ok"]), stopped=d.get("stopped"),
+                   max_abs_diff_by_unit=None if by_unit is None else {u: float(v) for u, v in by_unit.items()})
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -339,6 +348,9 @@ def fe_check(result, scenario, response=None):
                                                                                               form_error=None)
     resid = noise_only.whiten(fe_obs - problem.measurement.data)[0]  # noise only, rigid motion removed
     over_noise = float(np.max(np.abs(diff) / sd)) if len(diff) else float("nan")
+    meas = problem.measurement
+    units = np.broadcast_to(np.array(meas.sensor_units, dtype=object), meas.values.shape)[meas.mask][reached]
+    by_unit = {str(u): float(np.max(np.abs(diff[units == u]))) for u in dict.fromkeys(units)}
     return FECheck(
         max_abs_diff=float(np.max(np.abs(diff))) if len(diff) else float("nan"),
         max_diff_over_noise=over_noise,
@@ -347,6 +359,7 @@ def fe_check(result, scenario, response=None):
         ok=stopped is None and fe_check_ok(over_noise),
         fe_readings=fe_obs,
         stopped=stopped,
+        max_abs_diff_by_unit=by_unit,
     )
 
 

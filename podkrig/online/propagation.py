@@ -6,11 +6,11 @@ coefficient of variation std/|mean|, (max − min)/|mean| and quantiles of the d
 (default the 5 % and 95 % quantiles, a 90 % band). A small CV for a validation model means the
 calibration pins down what that other test would show.
 
-The distribution is that of the model's *surrogate* over the region's members (thesis §7.4: RVC
-of the validation models over the region; the kriging variance is not added). A validation model
+The distribution is that of the model's *surrogate* over the region's members (the RVC of
+validation models, thesis ch. 5 and 7; the kriging variance is not added). A validation model
 that can fail — a nonlinear FE run that stops early, or whose load has no maximum within the
-control range (still rising, or its peak in the last control interval), so no capacity — is also run on its FE model at a
-seeded subsample of the same members (``fe_runs``): :class:`ValidationRuns` counts the runs that
+control range (still rising, or its peak in the last control interval), so no capacity — is also
+run on its FE model at a seeded subsample of the same members (``fe_runs``): :class:`ValidationRuns` counts the runs that
 failed (the failed share of the validation runs over the region) and compares the FE outputs of
 the others with the surrogate's at the same members. The capacity of a specimen is the peak load
 ``F_peak`` (kN) and its control displacement ``d_peak`` (mm) of a scenario with the option
@@ -39,6 +39,7 @@ quantiles of ``a``.
 (('y',), ('kN',), [10.1, 11.9])
 """
 
+import logging
 import math
 from dataclasses import dataclass
 
@@ -46,6 +47,8 @@ import numpy as np
 
 from podkrig.display import Displayed
 from podkrig.offline.failures import without_peak
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["QUANTILES", "RVCModel", "RVCResult", "ValidationRuns", "output_columns", "rvc", "run_validation"]
 
@@ -155,7 +158,8 @@ class ValidationRuns(Displayed):
         ``messages``, and the counts ``n_runs``, ``n_failed``, ``n_stopped``, ``n_no_peak`` and
         ``failed_share``."""
         return {"names": list(self.names), "parameters": self.parameters.tolist(), "status": list(self.status),
-                "no_peak": self.no_peak.tolist(), "fe": _nan_to_none(self.fe), "surrogate": _nan_to_none(self.surrogate),
+                "no_peak": self.no_peak.tolist(), "fe": _nan_to_none(self.fe),
+                "surrogate": _nan_to_none(self.surrogate),
                 "messages": list(self.messages), "n_runs": self.n_runs, "n_failed": int(self.failed.sum()),
                 "n_stopped": int(self.stopped.sum()), "n_no_peak": int(self.no_peak.sum()),
                 "failed_share": None if not self.n_runs else self.failed_share}
@@ -386,6 +390,7 @@ def run_validation(scenario, names, X, columns, predicted, region_names, members
             status.append("error")
             no_peak.append(False)
             messages.append(f"{type(e).__name__}: {e}")
+            logger.info("validation run %d of %d at a region member: %s", k + 1, len(X), messages[-1])
             continue
         fe[k] = response.readings.ravel()[list(columns)]
         state = getattr(response, "status", "converged")
@@ -400,5 +405,6 @@ def run_validation(scenario, names, X, columns, predicted, region_names, members
         else:
             messages.append(f"no load maximum: the peak at {peak:.4g} {scenario.load_unit} is in the last control "
                             "interval" if flat else "")
+        logger.info("validation run %d of %d at a region member: %s", k + 1, len(X), messages[-1] or "a load maximum")
     return ValidationRuns(tuple(region_names), np.asarray(members, dtype=float), tuple(status),
                           np.asarray(no_peak, dtype=bool), fe, np.asarray(predicted, dtype=float), tuple(messages))

@@ -95,6 +95,17 @@ def identifiability_text(name, interval, unit, verdict):
 # each takes (values, context, diagnosis_enabled) and returns (message, remedy)
 
 
+def fe_difference(by_unit, largest=None):
+    """The FE check's largest |FE − surrogate| in words, per unit of the readings: ``"0.0031 mm"``,
+    ``"0.0031 mm, 0.12 kN"`` for a test with gauges and a load cell (a kN and a mm difference are
+    never one number). ``by_unit``: unit → difference
+    (:attr:`~podkrig.online.invert.FECheck.max_abs_diff_by_unit`); a result written without it has
+    only ``largest``, its unit unknown (shown bare)."""
+    if not by_unit:
+        return f"{largest:.3g}"
+    return ", ".join(f"{v:.3g} {u}" for u, v in by_unit.items())
+
+
 def _fe_check(v, context, diagnosis_enabled):
     if v.get("stopped"):
         return (f"the FE run at the optimum stopped early ({v['stopped']}): the surrogate's best fit cannot be "
@@ -104,7 +115,7 @@ def _fe_check(v, context, diagnosis_enabled):
                 "raise the scenario's solver budgets (max_total_iterations, max_cpu_seconds) so that the FE run at "
                 "the optimum finishes, then build the snapshots and the surrogate again.")
     return (f"at the optimum the surrogate differs from the FE model by up to {v['max_diff_over_noise']:.2f}× the "
-            f"noise ({v['max_abs_diff_mm']:.3g} mm): the identification is limited by the surrogate, not by the data.",
+            f"noise ({fe_difference(v.get('max_abs_diff_by_unit'), v['max_abs_diff'])}): the identification is limited by the surrogate, not by the data.",
             "refine the surrogate near the optimum ('podkrig surrogate refine', or more snapshots in a narrower box) "
             "and invert again." if context == "cli" else
             "add training snapshots or narrow the bounds around the identified values, and run again.")
@@ -439,4 +450,4 @@ def refusal(error, context="cli"):
     return " ".join(parts)
 
 
-__all__ = ["CONTEXTS", "INFORMING_TEST", "WORDS", "FindingText", "identifiability_text", "refusal", "word", "words"]
+__all__ = ["CONTEXTS", "INFORMING_TEST", "WORDS", "FindingText", "fe_difference", "identifiability_text", "refusal", "word", "words"]

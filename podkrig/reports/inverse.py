@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
-from podkrig.reports.findings import words
+from podkrig.reports.findings import fe_difference, words
 from podkrig.reports.figures import pyplot, save
 from podkrig.reports.flat_jack import jack_pressures
 from podkrig.reports.ga import plot_history, plot_parameters, plot_statistics
@@ -299,9 +299,9 @@ def render_fit(page, inv, folder="", deformed=False):
                  num(inv.seconds, 3)]])
     fe = inv.fe_check
     if fe is not None:
-        page.table(["max |FE − surrogate| (mm)", "max |FE − surrogate| / σ (-)", "relative difference (-)",
+        page.table(["max |FE − surrogate|", "max |FE − surrogate| / σ (-)", "relative difference (-)",
                     "χ²/dof of the FE model (-)", "χ² includes"],
-                   [[num(fe.max_abs_diff, 3), num(fe.max_diff_over_noise, 3), num(fe.rel_diff, 3),
+                   [[fe_difference(fe.max_abs_diff_by_unit, fe.max_abs_diff), num(fe.max_diff_over_noise, 3), num(fe.rel_diff, 3),
                      num(fe.chi2_dof_fe, 3), chi2_basis("fe_check")]],
                    caption="FE check at the best fit")
         if fe.ok:
@@ -356,6 +356,25 @@ def render_region(page, region, posterior=None):
                          "1.05).", "sample longer before reading the credible intervals.")
 
 
+def _failure_reasons(runs):
+    """The failed runs of a :class:`~podkrig.online.propagation.ValidationRuns` by reason — the
+    solver status with its budget limit, the FE error's type, or no load maximum — as
+    ``{reason: (count, one message)}``, in order of first occurrence."""
+    out = {}
+    for status, no_peak, message in zip(runs.status, runs.no_peak, runs.messages):
+        if no_peak:
+            reason = "no load maximum"
+        elif status == "error":
+            reason = f"FE error {message.split(':')[0]}"
+        elif status != "converged":
+            reason = message.split(",")[0]  # "budget_exhausted: steps"
+        else:
+            continue
+        n, example = out.get(reason, (0, message))
+        out[reason] = (n + 1, example)
+    return out
+
+
 def render_rvc(page, rvc_results, intro="", figures=None):
     """The response variability of each model over the region: per output its unit, mean, CV,
     quantiles, range and (max − min)/mean, the figure (``rvc.png``), and for each validation model
@@ -399,13 +418,14 @@ def render_rvc(page, rvc_results, intro="", figures=None):
                     "FE runs inside the band of the lowest and highest quantile",
                     "max |FE − surrogate| / |FE| (%)"], rows, caption="Validation runs at region members")
         for model, x in runs:
-            why = [m for m in x.runs.messages if m]
+            why = _failure_reasons(x.runs)
             if why:
-                page.paragraph(f"{model}: why runs failed: " + "; ".join(why[:5])
-                               + (f" (and {len(why) - 5} more)" if len(why) > 5 else "") + ".", "meta")
+                page.paragraph(f"{model}: why runs failed: " + "; ".join(
+                    f"{n} × {reason} (e.g. {example})" for reason, (n, example) in why.items()) + ".", "meta")
     for model, filename in (figures or {}).items():
-        page.figure(filename, f"Validation model {model}: distribution of each output over the region of equivalence "
-                              "(histogram and kernel density; mean and quantiles as lines; FE runs at members as ticks).")
+        page.figure(filename, f"Validation model {model}: distribution of each output over the region of "
+                              "equivalence (histogram and kernel density; mean and quantiles as lines; FE runs "
+                              "at members as ticks).")
 
 
 def write_inversion_report(out_dir, calibration, *, load_unit="kN", noise_text="", rvc=True):

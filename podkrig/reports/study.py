@@ -19,10 +19,11 @@ from podkrig.online.findings import RESIDUAL_CONVENTION, chi2_basis
 from podkrig.offline.results import OfflineResult
 from podkrig.reports.diagnosis import chi2_level_text, fitted_parameter_text, unnamed_significant
 from podkrig.reports.html import Page, num, pct, unit_cell
-from podkrig.reports.inverse import distribution_file, render_fit, render_ga, render_joint, render_parameters, render_region, render_rvc
+from podkrig.reports.inverse import (distribution_file, render_fit, render_ga, render_joint, render_parameters,
+                                     render_region, render_rvc)
 from podkrig.reports.offline import offline_table
 from podkrig.reports.sensitivity import index_notes
-from podkrig.reports.surrogate import fit_tables, held_out_tables
+from podkrig.reports.surrogate import fit_tables, held_out_tables, layout_table
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 
 #: report sections: (anchor, heading), in page order
@@ -311,7 +312,16 @@ def _surrogate(page, study, r, folder=""):
 
 
 def _held_out(page, r, folder=""):
-    held_out_tables(page, HeldOutResult.from_dict(r))
+    held = HeldOutResult.from_dict(r)
+    held_out_tables(page, held)
+    if held.layouts:  # a nonlinear test: both POD layouts on the same snapshots
+        layout_table(page, held.layouts, held.layout)
+        units = held.layouts[held.layout]["by_unit"]
+        better = {unit: min(held.layouts, key=lambda k: held.layouts[k]["by_unit"][unit]["peak_error"]["median"])
+                  for unit in units}
+        page.paragraph(f"The study's surrogate is the {held.layout.replace('_', ' ')} one ([surrogate] pod = "
+                       f"\"{held.layout}\"); the smaller median error "
+                       + ", ".join(f"in {unit}: {k.replace('_', ' ')}" for unit, k in better.items()) + ".")
     page.figure(f"{folder}predicted_vs_fe.png", "Surrogate prediction (±2σ) against the FE value for every held-out reading (mm).")
 
 

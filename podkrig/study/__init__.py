@@ -13,7 +13,7 @@ Example
 >>> study = load_study("examples/diagonal_compression.toml")
 >>> result = run_study(study, "out/demo")       # the demo, about a minute  # doctest: +SKIP
 >>> result.calibration.region.intervals["kN_bj"]                           # doctest: +SKIP
-(52.08..., 189.33...)
+(52.40..., 159.27...)
 """
 
 from podkrig.study.pipeline import Progress, StageRecord, StudyResult, run_study

@@ -12,14 +12,17 @@ Stages, in order (the measurement check, FE work, then the online stages)::
     offline                  training snapshots (FE)                  train.h5
     held_out                 held-out snapshots (FE)                  held_out.h5
     validation_model.NAME    snapshots and surrogate of a validation  validation_NAME.h5, validation_NAME_surrogate.h5
-                             scenario (FE), one stage per model
+                             scenario (FE), one stage per model (a
+                             capacity model's: without the runs that
+                             have no load maximum)
     surrogate                POD + kriging fit                        surrogate.h5, report/energy.png, report/modes.png
     held_out_validation      surrogate errors on the held-out runs    report/predicted_vs_fe.png
     calibration              :func:`~podkrig.online.calibrate.calibrate`: region.npz, report/fit.png, residuals.png,
                              model-form error (when asked), GA +      ga_*.png, deformed.png (with the FE
-                             polish, region of equivalence, FE check, check), region.png, rvc.png
-                             posterior, RVC of the calibration and
-                             validation models
+                             polish, region of equivalence, FE check, check), region.png, rvc.png,
+                             posterior, RVC of the calibration and    rvc_NAME.png per validation model
+                             validation models (their FE runs at
+                             region members: the failed share)
     sensitivity              Sobol' indices of readings and misfit    report/sensitivity.png
                              ([sensitivity] enabled; with the
                              calibration's model-form error)
@@ -74,7 +77,7 @@ from podkrig.study.cache import StageCache, file_sha256, read_arrays
 from podkrig.surrogate.podkriging import training_data
 from podkrig.surrogate.results import HeldOutResult, SurrogateFitResult, ValidationModelResult
 from podkrig.surrogate.settings import fit_surrogate
-from podkrig.surrogate.validation import held_out_errors
+from podkrig.surrogate.validation import compare_layouts, held_out_errors
 
 logger = logging.getLogger(__name__)
 #: Estimated bytes per stored row of a study's stores (readings, parameters, status, 512 B of error
@@ -400,13 +403,13 @@ def validation_model(run, model):
     study = run.study
     name = f"validation_model.{model.name}"
     store, surrogate = f"validation_{model.name}.h5", f"validation_{model.name}_surrogate.h5"
+    capacity = bool(model.spec.options.get("peak_readings", False))
     inputs = {"spec": model.spec.to_dict(), "space": study.space.to_dict(), "design": dataclasses.asdict(model.design),
-              "surrogate": dataclasses.asdict(study.surrogate)}
+              "surrogate": dataclasses.asdict(study.surrogate), **({"exclude": "no load maximum"} if capacity else {})}
 
     def compute():
         summary, notes = _run_store(run, run.out / store, model.spec, study.space, model.design)
-        sur = _fit(run.out / store, study.surrogate, run.out / surrogate,
-                   capacity=bool(model.spec.options.get("peak_readings", False)))
+        sur = _fit(run.out / store, study.surrogate, run.out / surrogate, capacity=capacity)
         result = ValidationModelResult(OfflineResult.from_store(run.out / store, summary, notes), model.spec.scenario,
                                        SurrogateFitResult.from_surrogate(sur))
         return result.to_dict(), [store, surrogate], summary.ran
@@ -434,8 +437,15 @@ def surrogate(run, test):
 
 def held_out_validation(run, test):
     """A test's surrogate against its held-out FE runs: :meth:`HeldOutResult.to_dict`
-    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm)."""
+    (:meth:`HeldOutReport.summary` plus RMS and max errors, mm). For a nonlinear test with more than
+    one control level, also both POD layouts on its training snapshots (``layout``, the surrogate's,
+    and ``layouts``, :func:`~podkrig.surrogate.validation.compare_layouts`: one fit more, of the other
+    layout); the study's surrogate stays the one of its ``[surrogate] pod``."""
     inputs = {"surrogate": run.outputs(test.stage("surrogate")), "held_out": run.outputs(test.stage("held_out"))}
+    sc = run.scenario(test)
+    compare = isinstance(sc, NonlinearScenario) and len(sc.load_levels) > 1
+    if compare:  # the other layout is fitted on the training store
+        inputs["layouts_train"] = run.outputs(test.stage("offline"))
 
     def compute():
         sur = run.surrogate(test.file("surrogate.h5")).surrogate
@@ -443,7 +453,13 @@ def held_out_validation(run, test):
             X, Y = training_data(store)
         rep = held_out_errors(sur, X, Y)
         surrogate_figures.plot_predicted_vs_fe(rep, run.figure(test, "predicted_vs_fe.png"))
-        return HeldOutResult.from_report(rep).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"], 0
+        layouts = {}
+        if compare:
+            with SnapshotStore.open(run.out / test.file("train.h5")) as store:
+                X_train, Y_train = training_data(store)
+            layouts = {"layout": sur.layout, "layouts": compare_layouts(sur, X_train, Y_train, X, Y)}
+        return (HeldOutResult.from_report(rep, **layouts).to_dict(), [f"report/{test.file('predicted_vs_fe.png')}"],
+                0)
 
     run.stage(test.stage("held_out_validation"), test.title("Surrogate check on held-out runs"), inputs, compute)
 

@@ -155,8 +155,8 @@ class PODKriging:
             rms = float(np.sqrt(np.mean(sd[:, cols] ** 2)))
             scale[cols] = rms if rms > 0 else 1.0
         # relative to the first group's: its outputs keep their numbers, and a surrogate of one
-        # unit is not scaled at all (the kriging's fitted hyperparameters are not exactly
-        # invariant to a common factor of its data)
+        # unit is not scaled at all (the kriging fit does not depend on a common factor of its
+        # data, but a factor other than a power of two changes the numbers by rounding)
         return np.tile(scale / scale[0], n_levels)
 
     def _levels(self):

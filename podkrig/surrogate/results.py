@@ -146,6 +146,12 @@ class HeldOutResult(Displayed):
         The surrogate's backend (as ``podkrig surrogate validate`` reports it).
     held_out_store, held_out_content_hash : str or None
         The held-out store and its content hash (as ``podkrig surrogate validate`` reports them).
+    layout : str or None
+        The surrogate's POD layout (``"stacked"`` or ``"per_level"``), with ``layouts``.
+    layouts : dict or None
+        The held-out errors per unit of both POD layouts on the same training snapshots
+        (:func:`~podkrig.surrogate.validation.compare_layouts`: layout → ``{n_modes, by_unit}``), when
+        they were compared (a study's nonlinear test with more than one control level).
     """
 
     n_train: int
@@ -164,14 +170,16 @@ class HeldOutResult(Displayed):
     held_out_store: str | None = None
     held_out_content_hash: str | None = None
     by_unit: dict | None = None
+    layout: str | None = None
+    layouts: dict | None = None
 
     _OPTIONAL = ("loo_error", "fit", "fit_description", "held_out_store", "held_out_content_hash", "backend",
-                 "by_unit")
+                 "by_unit", "layout", "layouts")
 
     @classmethod
     def from_report(cls, report, **provenance):
         """The result of a :class:`~podkrig.surrogate.validation.HeldOutReport` (``provenance``:
-        ``backend``, ``held_out_store``, ``held_out_content_hash``)."""
+        ``backend``, ``held_out_store``, ``held_out_content_hash``, ``layout`` and ``layouts``)."""
         s = report.summary()
         units = np.asarray(report.units) if len(report.units) else None
         mm = units == "mm" if units is not None and np.any(units == "mm") else slice(None)
@@ -185,7 +193,7 @@ class HeldOutResult(Displayed):
     def to_dict(self):
         """JSON-able dict (the study's ``held_out_validation`` manifest, the JSON of ``podkrig
         surrogate validate``): the fields in :meth:`HeldOutReport.summary`'s order, then the absolute
-        errors and the provenance; a field that is None is left out."""
+        errors, the provenance and the comparison of the POD layouts; a field that is None is left out."""
         out = {"n_train": self.n_train, "n_held_out": self.n_held_out, "n_modes": self.n_modes,
                "rel_error": dict(self.rel_error), "pod_error": dict(self.pod_error),
                "interp_error": dict(self.interp_error), "coverage_2sigma": self.coverage_2sigma}
@@ -193,7 +201,7 @@ class HeldOutResult(Displayed):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         out.update(rms_abs_error_mm=self.rms_abs_error_mm, max_abs_error_mm=self.max_abs_error_mm)
-        for key in ("held_out_store", "held_out_content_hash", "backend"):
+        for key in ("held_out_store", "held_out_content_hash", "backend", "layout", "layouts"):
             if getattr(self, key) is not None:
                 out[key] = getattr(self, key)
         return out

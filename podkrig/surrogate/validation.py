@@ -308,9 +308,12 @@ def compare_settings(X, Y, X_held, Y_held, settings, space=None, pod=None):
 
 
 def compare_layouts(surrogate, X, Y, X_held, Y_held):
-    """Held-out errors per unit of a surrogate refitted in each POD layout (one POD stacked over
-    the control levels, a POD + kriging per level; thesis §4.3.3) on the same training snapshots,
-    with the surrogate's own templates, scaling, units and space.
+    """Held-out errors per unit of a surrogate in each POD layout (one POD stacked over the control
+    levels, a POD + kriging per level; thesis §4.3.3) on the same training snapshots, with the
+    surrogate's own templates, scaling, units and space.
+
+    The surrogate stands for its own layout when it was trained on ``X`` (one fit more, of the
+    other layout); otherwise both layouts are fitted on ``X, Y``.
 
     Parameters
     ----------
@@ -326,11 +329,15 @@ def compare_layouts(surrogate, X, Y, X_held, Y_held):
         :meth:`HeldOutReport.by_unit` ``}``.
     """
     out = {}
+    trained_on_X = np.array_equal(surrogate.X_, np.asarray(X, dtype=float))
     for layout in LAYOUTS:
-        sur = PODKriging(pod=surrogate.pod, kriging=surrogate.kriging, space=surrogate.space, layout=layout,
-                         scaling=surrogate.scaling).fit(X, Y, surrogate.units_)
-        sur.provenance_.update({k: surrogate.provenance_[k] for k in ("sensor_names", "output", "reading_unit")
-                                if k in surrogate.provenance_})
+        if layout == surrogate.layout and trained_on_X:
+            sur = surrogate
+        else:
+            sur = PODKriging(pod=surrogate.pod, kriging=surrogate.kriging, space=surrogate.space, layout=layout,
+                             scaling=surrogate.scaling).fit(X, Y, surrogate.units_)
+            sur.provenance_.update({k: surrogate.provenance_[k] for k in ("sensor_names", "output", "reading_unit")
+                                    if k in surrogate.provenance_})
         rep = held_out_errors(sur, X_held, Y_held, with_loo=False)
         out[layout] = {"n_modes": int(sur.n_modes_), "by_unit": rep.by_unit()}
     return out
