@@ -186,6 +186,9 @@ class Experiments:
         for t in self.tests:
             data, model = self.base[t.name], self.models[t.name]
             response = self.scenarios[t.name].run({n: truth[n] for n in t.space.names})
+            if getattr(response, "status", "converged") != "converged":  # no whole curve to measure
+                return {"seed": seed, "truth": truth, "skipped": f"the FE run of test {t.name} at the truth "
+                                                                 f"stopped early ({response.status})"}
             flat = lambda Y: data.observation(model.sensor_names, model.load_levels, model.load_response,  # noqa: E731
                                               model.load_unit).apply(np.atleast_2d(Y).reshape(1, -1))[0]
             fe = flat(response.readings)
@@ -217,8 +220,10 @@ class Experiments:
 
 def coverage(rows):
     """Counts ``(inside, capacity_inside, n, n_capacity)``: the truth inside the region, its
-    capacity inside the band, of ``n`` experiments, ``n_capacity`` of them with an FE capacity at
-    the truth (a run without a load maximum has none)."""
+    capacity inside the band, of ``n`` experiments (those whose FE runs at the truth reached the
+    end of the curve), ``n_capacity`` of them with an FE capacity at the truth (a run without a
+    load maximum has none)."""
+    rows = [r for r in rows if "skipped" not in r]
     capacities = [r["capacity_inside"] for r in rows if r["capacity_inside"] is not None]
     return sum(r["inside"] for r in rows), sum(capacities), len(rows), len(capacities)
 
@@ -234,6 +239,9 @@ def table(rows, names, unit_of):
     head = (["#", *(f"{n} truth/est" for n in names), "ω−ω*", "in", "sur.err/σ", "capacity 5-95 %", "FE truth", "in"])
     lines = [" | ".join(head)]
     for k, r in enumerate(rows):
+        if "skipped" in r:
+            lines.append(f"{k} | skipped: {r['skipped']}")
+            continue
         cells = [str(k), *(f"{r['truth'][n]:.4g}/{r['estimate'][n]:.4g}" for n in names),
                  f"{r['omega_excess']:.2f}/{r['height']:.2f}", "y" if r["inside"] else "n",
                  f"{r['surrogate_error_sigma']:.2f}",
@@ -272,6 +280,10 @@ def main(argv=None):
     for k, x in enumerate(X):
         rows.append(exp.run(x, case.noise_seed + k, args.data_from))
         r = rows[-1]
+        (out / "hidden_truth.json").write_text(json.dumps({"rows": rows}, indent=1))  # kept as they come
+        if "skipped" in r:
+            print(f"{k:3d}: skipped: {r['skipped']}", flush=True)
+            continue
         print(f"{k:3d}: inside {'y' if r['inside'] else 'n'} (ω−ω* {r['omega_excess']:.2f} of {r['height']:.2f}), "
               f"capacity {({True: 'y', False: 'n', None: '-'})[r['capacity_inside']]}", flush=True)
     cpu_exp = time.process_time() - cpu1
@@ -283,7 +295,9 @@ def main(argv=None):
                "capacity_inside": cap_inside, "n_capacity": n_cap, "target": floor,
                "capacity_target": binomial_floor(n_cap),
                "cpu_seconds_study": cpu_study, "cpu_seconds_experiments": cpu_exp,
-               "median_surrogate_error_sigma": float(np.median([r["surrogate_error_sigma"] for r in rows]))}
+               "skipped": len(rows) - n,
+               "median_surrogate_error_sigma": float(np.median([r["surrogate_error_sigma"] for r in rows
+                                                                if "skipped" not in r]))}
     print(f"\ntruth inside the 95 % region: {inside} of {n} (target ≥ {floor}); capacity inside its 5-95 % band: "
           f"{cap_inside} of the {n_cap} truths with a load maximum (target ≥ {summary['capacity_target']})")
     print(f"CPU: study {cpu_study:.0f} s, {n} pseudo-experiments {cpu_exp:.0f} s")
