@@ -185,3 +185,25 @@ def test_podkrig_simulate_runs_the_shear_phase_end_to_end():
     assert 0.5 + 0.75 * 2 * (0.25 + 0.85 * 0.5 * 0.7) / 0.85 < peak  # the statics check of the test above
     assert len(out["delta_p_V"]) == len(out["load_levels"])
     assert out["solver"]["peaks"]["3"]["resolved"]
+
+
+def test_the_two_logs_of_the_test_read_the_elastic_steps_and_the_jack_pressures():
+    """The elastic record ``flat_jack_elastic_nl`` is the shear scenario's phases 0b–2, gauge by
+    gauge at steps 1–20 (the same path: equal to round-off); the shear record reads V1's gauge
+    pressure ``p_V1`` at each slip level (its load) and the repeat's as ``p_V1_repeat1`` (the extra
+    output of the repeat), in MPa; the elastic record refuses the repeats it does not run."""
+    shear = _scenario(further_p_H=[0.5], load_levels=[0.05, 0.2])
+    r = shear.run()
+    elastic = build_scenario({"scenario": "flat_jack_elastic_nl"})
+    e = elastic.run()
+    assert e.converged and e.readings.shape == (20, 18) and elastic.load_unit == "step"
+    np.testing.assert_array_equal(e.load_levels, np.arange(1, 21))
+    np.testing.assert_allclose(e.readings, shear.step_readings(r), rtol=0, atol=1e-12)
+    assert shear.sensor_names[-2:] == ("p_V1", "p_V1_repeat1")
+    assert shear.sensor_units["p_V1"] == shear.sensor_units["p_V1_repeat1"] == "MPa"
+    np.testing.assert_array_equal(r.readings[:, -2], r.loads)
+    np.testing.assert_array_equal(r.readings[:, -1], r.extra["p_V1(p_H=0.5)"])
+    assert sorted(r.extra) == ["delta_p_V", "p_V1(p_H=0.5)"]
+    assert 0.5 < r.readings[-1, -1] < r.readings[-1, -2]  # the repeat at the lower p_H slides at a lower p_V1
+    with pytest.raises(SpecError, match="further_p_H"):
+        build_scenario({"scenario": "flat_jack_elastic_nl", "further_p_H": [0.5]})

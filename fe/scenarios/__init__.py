@@ -4,7 +4,7 @@ from ..exceptions import SpecError
 from .base import ParameterInfo, Scenario
 from .diagonal_compression import DiagonalCompression
 from .flat_jack import FlatJack
-from .flat_jack_nl import FlatJackShearNonlinear
+from .flat_jack_nl import FlatJackElasticNonlinear, FlatJackShearNonlinear
 from .shear_compression import ShearCompression
 from .spec import ScenarioSpec
 from .specimens import CoupletTension, PrismCompression, TripletShear
@@ -14,7 +14,7 @@ from .walls_nonlinear import DiagonalCompressionNonlinear, ShearCompressionNonli
 SCENARIOS = {
     cls.name: cls
     for cls in (DiagonalCompression, ShearCompression, FlatJack, CoupletTension, TripletShear, PrismCompression,
-                ShearCompressionNonlinear, DiagonalCompressionNonlinear, FlatJackShearNonlinear,
+                ShearCompressionNonlinear, DiagonalCompressionNonlinear, FlatJackShearNonlinear, FlatJackElasticNonlinear,
                 WallOpeningNonlinear)
 }
 

@@ -53,6 +53,7 @@ import numpy as np
 
 from ..exceptions import SpecError
 from ..nonlinear_model import NonlinearModel
+from ..response import NonlinearResponse
 from ..sensors import Gauge, sensor_operator
 from .flat_jack import CHISARI_SLOTS, FLAT_JACK_PARAMETERS, LAYOUTS, FlatJack
 from .masonry import masonry_parts
@@ -171,7 +172,7 @@ class FlatJackShearNonlinear(NonlinearScenario):
     Options = FlatJackShearOptions
     PARAMETERS = nonlinear_parameters(FLAT_JACK_NL_DEFAULTS) + FLAT_JACK_PARAMETERS[-2:]  # + Km, sigma0
     force_unit = "MPa"
-    force_sensor = None  # the load is V1's gauge pressure, not a load cell's force: no reading of it
+    force_sensor = "p_V1"  # the load is V1's gauge pressure: a reading (the pump's pressure transducer)
 
     def _build(self):
         o = self.options
@@ -198,6 +199,19 @@ class FlatJackShearNonlinear(NonlinearScenario):
         y = 0.5 * (V1.start + V1.end)  # the opening of V1's slot at mid-height, over the units beside it
         opening = Gauge("V1_opening", (V1.at - 0.375 * o.unit_length, y), (V1.at + 0.375 * o.unit_length, y))
         self._v1_opening = (sensor_operator(self.mesh, [opening])[0] @ T).toarray().ravel()
+
+    def _load_readings(self):
+        """``p_V1`` (MPa, V1's gauge pressure at each slip level of phase 3), then ``p_V1_repeat1``, … for
+        the repeats 3' (their p_V1 at the same slips counted from the repeat's start), then ``F_peak``
+        (the critical p_V1 of phase 3, MPa) and ``d_peak`` with the option ``peak_readings``."""
+        out = {self.force_sensor: ("MPa", {"kind": "force", "unit": "MPa",
+                                           "at": "jack V1: its gauge pressure, the load of phase 3"})}
+        for k, p_H in enumerate(self.options.further_p_H, start=1):
+            out[repeat_reading(k)] = ("MPa", {"kind": "force", "unit": "MPa",
+                                                "at": f"jack V1 in the repeat 3' at p_H = {p_H:g} MPa: its gauge "
+                                                      "pressure, slip counted from the repeat's start"})
+        out.update({k: v for k, v in super()._load_readings().items() if k != self.force_sensor})
+        return out
 
     # --- geometry of the block ----------------------------------------------------------------------
 
@@ -328,12 +342,15 @@ class FlatJackShearNonlinear(NonlinearScenario):
         follower = self.path_follower(values, settings, field)
         issued = []
         path = follower.run(self.phases(values, follower, issued))
-        response = self._response(path, "3", field)
+        repeats = {}  # the p_V1 of each repeat 3' at its slip levels (not the unloading before it)
+        for ph, p_H in zip([ph for ph in issued if ph.name.startswith("3'") and ph.name.endswith(")")],
+                           o.further_p_H):
+            repeats[p_H] = _at_levels(path, ph.name, ph.levels[0] - o.load_levels[0], o.load_levels)
+        nan = np.full(len(o.load_levels), np.nan)
+        columns = {repeat_reading(k): repeats.get(p_H, nan) for k, p_H in enumerate(o.further_p_H, start=1)}
+        response = self._response(path, "3", field, columns)
         extra = {"delta_p_V": response.loads - o.p_V2}
-        for ph in issued:
-            if ph.control == "indirect" and ph.name != "3":
-                origin = ph.levels[0] - o.load_levels[0]
-                extra[f"p_V1{ph.name[2:]}"] = _at_levels(path, ph.name, origin, o.load_levels)
+        extra.update({f"p_V1(p_H={p_H:g})": repeats.get(p_H, nan) for p_H in o.further_p_H})
         return dataclasses.replace(response, extra=extra)
 
     # --- results ----------------------------------------------------------------------------------------
@@ -342,10 +359,13 @@ class FlatJackShearNonlinear(NonlinearScenario):
         """Readings at the steps of phases 0b–2 relative to the end of phase 0a (gauges zeroed
         before the cut, as ``flat_jack``'s), ``(n_steps, n_channels)`` mm; NaN rows for steps not
         reached."""
-        path = response.path
+        return self._step_readings(response.path)
+
+    def _step_readings(self, path):
+        """:meth:`step_readings` from the run's :class:`~fe.solvers.nonlinear.PathResult`."""
         names = np.asarray(path.phase)
         zero = path.readings[np.flatnonzero(names == "0a")[-1]] if (names == "0a").any() else np.nan
-        out = np.full((len(self.steps), len(self.sensor_names)), np.nan)
+        out = np.full((len(self.steps), len(self.model.channel_names)), np.nan)
         for k, step in enumerate(self.steps, start=1):
             idx = np.flatnonzero(names == f"{step.phase}:{k}")
             if len(idx):
@@ -371,6 +391,12 @@ class FlatJackShearNonlinear(NonlinearScenario):
         return out
 
 
+def repeat_reading(k):
+    """The name of the reading of V1's gauge pressure in the ``k``-th repeat 3' (k = 1, 2, …; its
+    p_H is the k-th of ``further_p_H``)."""
+    return f"p_V1_repeat{k}"
+
+
 def _at_levels(path, phase, origin, levels):
     """The load of ``phase`` where its path value (minus ``origin``) first reaches each level
     (linear interpolation between steps), ``(n_levels,)``; NaN where not reached."""
@@ -388,3 +414,68 @@ def _at_levels(path, phase, origin, levels):
             a = (level - value[i - 1]) / (value[i] - value[i - 1])
             out[k] = (1 - a) * load[i - 1] + a * load[i]
     return out
+
+
+@dataclass(frozen=True)
+class FlatJackElasticOptions(FlatJackShearOptions):
+    """Options of ``flat_jack_elastic_nl``: those of ``flat_jack_shear_nl`` (panel, mesh, ``layout``,
+    ``p_H``, ``p_V2``, the law and the budget); its record ends with phase 2, so the shear phase's
+    ``further_p_H`` is refused and its ``load_levels`` are replaced by the step numbers (as in
+    ``flat_jack``)."""
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.further_p_H:
+            raise ValueError(f"further_p_H (repeats of the shear phase) is an option of flat_jack_shear_nl; the "
+                             f"elastic record ends with phase 2; got {self.further_p_H}")
+
+
+class FlatJackElasticNonlinear(FlatJackShearNonlinear):
+    """The elastic phases 0b–2 of the flat-jack shear test as their own record.
+
+    The same panel, jacks, gauges and nonlinear joints as :class:`FlatJackShearNonlinear`, run
+    through phases 0a–2 only; the response holds the gauges (mm, zeroed at the end of phase 0a) at
+    each step of phases 0b, 1 and 2 — load levels are step numbers 1, 2, … as in ``flat_jack`` (20
+    at the defaults): :meth:`FlatJackShearNonlinear.step_readings` of the run. It is the log of the
+    test's elastic phases, read with the stiffness and the jack efficiency in view; the shear
+    phase's log is ``flat_jack_shear_nl``'s, and a study reads the two as two tests of the same wall
+    sharing their parameters. Its joints are nonlinear because they are not quite elastic: the head
+    joints beside the cut crack when it is made, and the bed joint beyond H's ends opens from p_H ≈
+    0.8 MPa (16–18 µm from the linear scenario at p_H = 1.0 MPa; docs/nonlinear.md).
+    """
+
+    name = "flat_jack_elastic_nl"
+    summary = ("In-situ flat-jack test, its elastic phases (the cut, the horizontal jack, the vertical jacks) "
+               "with nonlinear joints: the gauges at each step, the shear phase's partner record.")
+    Options = FlatJackElasticOptions
+    load_unit = "step"
+    load_response = "discrete"  # the steps of a test sequence
+    force_sensor = None  # the jack pressures are the steps' own (FlatJack.steps), no reading
+
+    def _load_readings(self):
+        return {}
+
+    @property
+    def load_levels(self):
+        """Step numbers 1, 2, … of phases 0b–2."""
+        return np.arange(1.0, len(self.steps) + 1.0)
+
+    def run(self, params=None, *, field=False, settings=None):
+        """Follow phases 0a–2; returns a :class:`~fe.response.NonlinearResponse` at the step numbers
+        (``loads``: the step numbers; NaN rows for steps not reached; ``reached``: the last step
+        reached; ``field``: the nodal displacements at each step's end)."""
+        values = self.resolve(params)
+        follower = self.path_follower(values, settings, field)
+        path = follower.run(ph for ph in self.phases(values) if ph.name.split(":")[0] in ("0a", "0b", "1", "2"))
+        readings = self._step_readings(path)
+        names = np.asarray(path.phase)
+        done = [k for k, step in enumerate(self.steps, start=1) if (names == f"{step.phase}:{k}").any()]
+        u = None
+        if field and path.displacements is not None:
+            u = np.full((len(self.steps), self.mesh.n_nodes, 2), np.nan)
+            for k in done:
+                u[k - 1] = path.displacements[np.flatnonzero(names == f"{self.steps[k - 1].phase}:{k}")[-1]]
+        levels = self.load_levels
+        return NonlinearResponse(readings, self.sensor_names, levels, self.load_unit, u, loads=levels.copy(),
+                                 force_unit="step", status=path.status, limit=path.limit, message=path.message,
+                                 reached=float(done[-1]) if done else 0.0, extra={}, path=path)

@@ -188,9 +188,9 @@ class NonlinearScenario(Scenario):
     Attributes
     ----------
     force_sensor : str or None
-        The name of the load reading (the reaction of the control, ``force_unit``, the last column
-        of the readings), or None where the load is no force a load cell reads (the flat jack's
-        gauge pressure).
+        The name of the load reading (the reaction of the control, ``force_unit``, after the
+        gauges; the flat-jack shear test's ``p_V1``, V1's gauge pressure in MPa), or None where the
+        load is no reading (the steps of ``flat_jack_elastic_nl``).
     """
 
     load_unit = "mm"
@@ -304,7 +304,7 @@ class NonlinearScenario(Scenario):
         records the states."""
         model = self.model
         model.set_units(self.theta(values))
-        props = interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
+        props = self._property_rows(values)
         law = CompositeInterface(props)
         if self.options.law == "hyperbolic":
             law = self._hyperbolic_law(values, props)
@@ -312,6 +312,12 @@ class NonlinearScenario(Scenario):
         if field and not settings.record_states:
             settings = dataclasses.replace(settings, record_states=True)
         return PathFollower(model, law, settings)
+
+    def _property_rows(self, values):
+        """Per-point property rows of the composite law for the parameter values ``values``,
+        ``(n_points, N_PROPS)`` (a scenario that varies a joint's properties overrides this)."""
+        model = self.model
+        return interface_properties(self.mesh, model.interface_elements, values, model.n_points_per_element)
 
     def _hyperbolic_law(self, values, composite_props):
         """Joints with the hyperbolic law (and its cap when asked for), unit mid-planes with the
@@ -331,7 +337,9 @@ class NonlinearScenario(Scenario):
         return MixedInterface([HyperbolicInterface(rows), CompositeInterface(composite_props[cracks])],
                               [joints, cracks])
 
-    def _response(self, path, control_phase, field):
+    def _response(self, path, control_phase, field, columns=None):
+        """The response at the load levels of ``control_phase``; ``columns`` (name → ``(n_levels,)``)
+        holds the values of load readings other than the force and the peak (a scenario's own)."""
         levels = self.load_levels
         mask = path.of_phase(control_phase)
         disp = self.control_sign * path.path[mask] if mask.any() else np.zeros(0)
@@ -367,11 +375,11 @@ class NonlinearScenario(Scenario):
             for k in range(len(levels)):
                 if at[k] >= 0:
                     u[k] = path.displacements[at[k]]
-        extra_columns = {"F_peak": peak_load, "d_peak": peak_displacement}
-        columns = [loads if n == self.force_sensor else np.full(len(levels), extra_columns[n])
-                   for n in self._load_readings()]
-        if columns:
-            readings = np.column_stack([readings, *columns])
+        extra_columns = {"F_peak": np.full(len(levels), peak_load), "d_peak": np.full(len(levels), peak_displacement),
+                         **(columns or {})}
+        load_columns = [loads if n == self.force_sensor else extra_columns[n] for n in self._load_readings()]
+        if load_columns:
+            readings = np.column_stack([readings, *load_columns])
         return NonlinearResponse(
             readings, self.sensor_names, levels, self.load_unit, u, loads=loads, force_unit=self.force_unit,
             peak_load=peak_load, peak_displacement=peak_displacement,

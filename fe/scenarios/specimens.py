@@ -119,7 +119,9 @@ class CoupletTension(NonlinearScenario):
 @dataclass(frozen=True)
 class TripletOptions(SpecimenOptions):
     """Triplet geometry (three units) plus the pre-compression ``precompression`` (MPa) normal to
-    the bed joints, applied first by the top plate and held constant."""
+    the bed joints, applied first by the top plate and held constant, and
+    ``joint_strength_factors`` = (s_lower, s_upper), each in (0, 1]: the bond strengths (f_t, c)
+    of the lower and upper bed joint × s (default (1, 1): both joints as the parameters say)."""
 
     n_courses: int = 3
     nx: int = 4
@@ -128,11 +130,19 @@ class TripletOptions(SpecimenOptions):
     load_levels: tuple = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
     increment: float = 0.002
     max_increment: float = 0.05
+    joint_strength_factors: tuple = (1.0, 1.0)
 
     def __post_init__(self):
         super().__post_init__()
         if not self.precompression >= 0:
             raise ValueError(f"precompression must be >= 0 MPa; got {self.precompression}")
+        factors = tuple(self.joint_strength_factors)
+        if len(factors) != 2 or not all(0.0 < f <= 1.0 for f in factors):
+            raise ValueError("joint_strength_factors (lower, upper bed joint) must be two factors in (0, 1]; "
+                             f"got {self.joint_strength_factors!r} (1: the joint as the parameters say)")
+        if factors != (1.0, 1.0) and self.law != "composite":
+            raise ValueError(f"joint_strength_factors {factors} need law='composite'; got law={self.law!r}")
+        object.__setattr__(self, "joint_strength_factors", tuple(float(f) for f in factors))
 
 
 class TripletShear(NonlinearScenario):
@@ -140,7 +150,16 @@ class TripletShear(NonlinearScenario):
     and pressed with ``precompression`` (vertical force constant), the middle unit pushed through a
     rigid plate on its left face (control: its horizontal displacement, mm). Both bed joints shear.
     Sensors: ``middle_ux`` (centre of the middle unit), ``V_top`` (44 mm vertical gauge across the
-    upper joint: dilatancy/compaction)."""
+    upper joint: dilatancy/compaction).
+
+    The option ``joint_strength_factors`` = (s_lower, s_upper) makes one joint weaker than the
+    other: the bond strengths :data:`WEAK_STRENGTHS` (``ft_bj``, ``c_bj``) of that joint are
+    multiplied by its factor s ∈ (0, 1] (friction, fracture energies and stiffness unchanged; the
+    default (1, 1) leaves the specimen as the parameters say). Scaling f_t and c together keeps
+    every inequality of the composite law that holds for the sound joint (``ft ≤ c / max(tanφ0,
+    tanφr)`` scales on both sides, the snap-back limits ``ft²/GfI < kn`` and ``c²/GfII < ks`` only
+    ease), so the option adds no admissibility constraint.
+    """
 
     name = "triplet_shear"
     summary = ("Triplet shear test (EN 1052-3): two bed joints sheared under constant "
@@ -166,6 +185,21 @@ class TripletShear(NonlinearScenario):
         self.model = self._nonlinear_model(T)
         self._control = reduced_dof(T, 2 * plate[0])
         self._vertical = reduced_dof(T, 2 * top[0] + 1)
+
+    #: the parameters a joint strength factor multiplies (the bond: tensile strength and cohesion)
+    WEAK_STRENGTHS = ("ft_bj", "c_bj")
+
+    def _property_rows(self, values):
+        rows = super()._property_rows(values)
+        model = self.model
+        # the bed joint of each interface element: lower (y = h) or upper (y = 2h)
+        y = self.mesh.nodes[self.mesh.interfaces[model.interface_elements], 1].mean(axis=1)
+        upper = np.repeat(y > 1.5 * self.options.unit_height, model.n_points_per_element)
+        for is_upper, factor in zip((False, True), self.options.joint_strength_factors):
+            if factor != 1.0:
+                weak = super()._property_rows({**values, **{n: factor * values[n] for n in self.WEAK_STRENGTHS}})
+                rows[upper == is_upper] = weak[upper == is_upper]
+        return rows
 
     def phases(self, values):
         o = self.options

@@ -147,7 +147,7 @@ def _print(sc, response, values, seconds, format):
     for level in response.load_levels:
         table.add_column(f"{level:g} {response.load_unit}", justify="right")
     units = sc.sensor_units
-    if nonlinear and getattr(sc, "force_sensor", None) is None:  # a load that is no reading (a pressure)
+    if nonlinear and getattr(sc, "force_sensor", None) is None:  # a load that is no reading (the steps)
         table.add_row(f"load ({response.force_unit})", *[f"{v:.4g}" for v in response.loads])
     for j, name in enumerate(response.sensor_names):
         if units.get(name, "mm") == "mm":
@@ -155,7 +155,10 @@ def _print(sc, response, values, seconds, format):
         else:  # the load reading: a force, kN
             table.add_row(f"{name} ({units[name]})", *[f"{v:.4g}" for v in response.readings[:, j]])
     console.print(table)
-    if nonlinear:
+    if nonlinear and response.load_unit == "step":  # a sequence of load steps (flat_jack_elastic_nl): no curve
+        console.print(f"status {response.status}; reached step {response.reached:g}"
+                      + (f" ({response.message})" if response.message else ""))
+    elif nonlinear:
         console.print(f"peak load {response.peak_load:.4g} {response.force_unit} at {response.peak_displacement:.4g} mm; "
                       f"status {response.status}; reached {response.reached:.4g} {response.load_unit}"
                       + (f" ({response.message})" if response.message else ""))

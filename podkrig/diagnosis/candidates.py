@@ -26,6 +26,10 @@ slot_contact           length ℓ without jack contact at a      near that slot 
 nonlinearity_onset     joint tensile strength ft_bj, MPa,      nothing below the onset level k, then a
                        per onset level k (just above k's       departure growing faster than the load
                        range: no departure)                    (cracking/sliding joints)
+weak_joint_strength    s, bond-strength factor (ft, c) of      the force curve of a specimen test: a
+                       one bed joint of a specimen (1)         lower, broader peak, a slower softening
+dilatancy              tanψ of the joints (the fixed value,    the joints open as they slide: gauges
+                       0 by default)                           across a joint grow with the slip
 =====================  =====================================  ===========================================
 
 Candidates say *what they change* (:meth:`Candidate.effect` returns an :class:`Effect`: parameter
@@ -40,6 +44,14 @@ with supports / a load line (:class:`fe.Scenario`'s ``supported_nodes``,
 (``jack_efficiency`` when ``Km`` is fixed); ``nonlinearity_onset`` only for scenarios with a
 nonlinear twin (:mod:`podkrig.diagnosis.nonlinear_runs`), and only when named (it is
 ``expensive``: not in :data:`DEFAULT_CANDIDATES`).
+
+On a nonlinear scenario (curve data: force–displacement curves of a strength test) every FE
+evaluation is a path-following run (:meth:`FEContext.readings`), and only the candidates that act
+through parameter values, scenario options and reading corrections apply: ``weak_joint``,
+``support_compliance`` and ``load_eccentricity`` act on the linear model's stiffness parts, springs
+and load patterns and say so. ``weak_joint_strength`` applies to scenarios with the option
+``joint_strength_factors`` (``triplet_shear``), ``dilatancy`` to those with ``tanpsi_bj`` when the
+base model keeps it fixed.
 """
 
 import abc
@@ -48,6 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fe.mesh.mesh import INTERFACE_KINDS
+from fe.scenarios import build_scenario
 from fe.supports import spring_supported_model, support_areas
 from podkrig.diagnosis.nonlinear_runs import (
     ELASTIC_SCALE,
@@ -131,6 +144,9 @@ class Effect:
         (:func:`fe.supports.spring_supported_model`); None keeps them rigid.
     load_scale : float
         Factor on the readings of the scenario's own load patterns (a rotated load line: cos φ).
+    options : dict of str to object
+        Scenario options that replace the base scenario's (a nonlinear scenario only: the scenario
+        is rebuilt with them, :meth:`FEContext.scenario_with`), e.g. a joint's strength factor.
     extra_loads : tuple of (hashable, callable, float)
         ``(key, patterns, weight)``: readings of extra nodal load patterns ``patterns()``
         ``(n_dofs, n_patterns)`` (as many as the scenario's own) added with ``weight``, under the
@@ -143,6 +159,7 @@ class Effect:
     increments: tuple = ()
     compliance: float | None = None
     load_scale: float = 1.0
+    options: dict = field(default_factory=dict)
     extra_loads: tuple = ()
     corrections: tuple = ()
 
@@ -159,13 +176,21 @@ class FEContext:
         Every parameter's value in the base model (the fixed ones stay at these).
     offset_scale : float
         Range of a sensor offset, mm (the largest measured |reading|).
+    bounds : dict of str to (float, float), optional
+        The free parameters' ranges (candidates whose admissible range depends on them read it).
     """
 
-    def __init__(self, scenario, free, values, offset_scale=1.0):
+    #: nonlinear scenarios rebuilt with other options, kept per context (most recent last)
+    _MAX_VARIANTS = 16
+
+    def __init__(self, scenario, free, values, offset_scale=1.0, bounds=None):
         self.scenario = scenario
         self.free = tuple(free)
         self.values = dict(values)
         self.offset_scale = float(offset_scale)
+        self.bounds = dict(bounds or {})
+        #: a nonlinear scenario (curve data): every evaluation is a path-following run
+        self.nonlinear = getattr(scenario, "load_response", "affine") == "path"
         self.n_runs = 0
         #: the calibrated base model's values once known (the diagnosis sets them after its base
         #: fit): candidates too expensive to recompute at every trial value precompute there
@@ -181,19 +206,44 @@ class FEContext:
     def sensor_names(self):
         return tuple(self.scenario.sensor_names)
 
-    def readings(self, values, increments=()):
+    def readings(self, values, increments=(), options=None):
         """FE readings ``(n_loads, n_sensors)`` mm with optional stiffness increments (the last
-        plain run is remembered: candidates that post-process readings reuse it)."""
+        plain run is remembered: candidates that post-process readings reuse it).
+
+        A nonlinear scenario runs its load path (with the scenario ``options`` replaced, when
+        given; no stiffness increments): a level the run does not reach (the specimen failed
+        before it) reads 0, a large misfit rather than a gap in the fit.
+        """
         sc = self.scenario
-        key = tuple(sorted(values.items()))
+        key = (tuple(sorted(values.items())), tuple(sorted((options or {}).items())))
         if not increments and self._cache.get("last_key") == key:
             return self._cache["last_readings"].copy()
         self.n_runs += 1
-        q = sc.model.solve(sc.theta(values), increments)
-        R = sc.load_coefficients_at(values) @ sc.model.readings(q)
+        if self.nonlinear:
+            if increments:
+                raise ValueError(f"{sc.name} is nonlinear: stiffness increments act on a linear model only")
+            R = np.nan_to_num(self.scenario_with(options).run(values).readings, nan=0.0)
+        else:
+            if options:
+                raise ValueError(f"{sc.name} is linear: options {sorted(options)} act on nonlinear scenarios only")
+            q = sc.model.solve(sc.theta(values), increments)
+            R = sc.load_coefficients_at(values) @ sc.model.readings(q)
         if not increments:
             self._cache["last_key"], self._cache["last_readings"] = key, R.copy()
         return R
+
+    def scenario_with(self, options=None):
+        """The scenario with ``options`` replaced (the scenario itself when None or empty), built
+        once per distinct options and kept (the most recent :attr:`_MAX_VARIANTS`)."""
+        if not options:
+            return self.scenario
+        key = ("variant", tuple(sorted((k, tuple(v) if isinstance(v, list) else v) for k, v in options.items())))
+        variants = self._cache.setdefault("variants", {})
+        if key not in variants:
+            if len(variants) >= self._MAX_VARIANTS:
+                variants.pop(next(iter(variants)))
+            variants[key] = build_scenario({**self.scenario.spec.to_dict(), **options})
+        return variants[key]
 
     def readings_with(self, values, terms):
         """FE readings ``(n_loads, n_sensors)`` mm of the model with several causes switched on.
@@ -209,13 +259,17 @@ class FEContext:
         for cand, loc, c in terms:  # parameter values first: later effects see them
             values.update(cand.effect(self, values, loc, c).values)
         effects = [cand.effect(self, values, loc, c) for cand, loc, c in terms]
+        options = {k: v for e in effects for k, v in e.options.items()}
         sc = self.scenario
         if not any(e.increments or e.compliance is not None or e.extra_loads for e in effects):
-            R = np.prod([e.load_scale for e in effects]) * self.readings(values)  # the cached plain run
+            R = np.prod([e.load_scale for e in effects]) * self.readings(values, options=options)  # cached plain run
             for e in effects:
                 for correct in e.corrections:
                     R = correct(R)
             return R
+        if options or self.nonlinear:
+            raise ValueError(f"{sc.name}: stiffness increments, springs and load patterns act on a linear model, "
+                             "scenario options on a nonlinear one; they cannot be combined")
         compliances = [e.compliance for e in effects if e.compliance is not None]
         if len(compliances) > 1:
             raise ValueError("two support-compliance effects cannot be combined")
@@ -270,6 +324,15 @@ class FEContext:
     def joint_increments(self, index):
         """Normal and shear stiffness increments of joint segment ``index`` (unit coefficients)."""
         return tuple(self._increment(self.scenario.model, ("joint", index, which)) for which in ("normal", "shear"))
+
+
+def linear_model_reason(ctx):
+    """Why a candidate acting on the linear model's stiffness parts, springs or load patterns does
+    not apply to ``ctx`` (str), or None."""
+    if ctx.nonlinear:
+        return (f"it acts on the linear FE model's stiffness, supports or load patterns; {ctx.scenario.name} "
+                "is a nonlinear (curve) scenario")
+    return None
 
 
 def span(axis, bounds, unit="mm"):
@@ -355,6 +418,8 @@ class HeadJointStiffness(Candidate):
             return "r_hj is a free parameter of the base model"
         if "r_hj" not in ctx.values:
             return "the scenario has no head-joint stiffness ratio"
+        if not np.any(ctx.scenario.mesh.interface_kind == INTERFACE_KINDS.index("head")):
+            return f"the {ctx.scenario.name} scenario has no head joints"
         return None
 
     def locations(self, ctx):
@@ -397,6 +462,9 @@ class WeakJoint(Candidate):
     signature = ("A local pattern: gauges crossing or next to that joint move most, far sensors "
                  "little; in proportion to the load. A whole bed joint: every sensor across that "
                  "height.")
+
+    def not_applicable(self, ctx):
+        return linear_model_reason(ctx)
 
     def locations(self, ctx):
         out, beds = [], {}
@@ -444,6 +512,8 @@ class SupportCompliance(Candidate):
 
     def not_applicable(self, ctx):
         sc = ctx.scenario
+        if ctx.nonlinear:
+            return linear_model_reason(ctx)
         if getattr(sc.options, "support", None) == "springs":
             return "the scenario's supports are springs already (support = 'springs'): their stiffness is an option"
         nodes = getattr(sc, "supported_nodes", ())
@@ -508,6 +578,8 @@ class LoadEccentricity(Candidate):
     max_rotation = 15.0
 
     def not_applicable(self, ctx):
+        if ctx.nonlinear:
+            return linear_model_reason(ctx)
         if not ctx.scenario.load_perturbations():
             return f"the {ctx.scenario.name} scenario defines no load line that could be off"
         return None
@@ -848,9 +920,106 @@ class NonlinearityOnset(Candidate):
         return Effect(corrections=(lambda R: R + departure,))
 
 
+class WeakJointStrength(Candidate):
+    """One bed joint of a specimen with a weaker bond than the other(s): its tensile strength and
+    cohesion × s (the scenario option ``joint_strength_factors``, e.g. of ``triplet_shear``).
+
+    The joints of a triplet shear side by side under one slip, so the force is the sum of the two
+    joints' shear resistances: the weaker joint peaks first and softens while the other still
+    rises, so the peak lies between ``2 A (s c + σ tanφ)`` and ``A ((1 + s) c + 2 σ tanφ)``, below
+    the sound triplet's, and the softening is slower (``GfII`` unchanged over a smaller c) towards
+    the same residual friction. A lower cohesion of both joints absorbs most of this: what it
+    cannot is the shape of the peak and of the softening (docs/diagnosis.md says when that shows).
+    """
+
+    name = "weak_joint_strength"
+    description = ("One bed joint of the specimen weaker than the other: its bond (tensile strength f_t and "
+                   "cohesion c) × s (poor filling or curing, a joint disturbed when the specimen was "
+                   "handled); friction, fracture energies and stiffness as the other joint's.")
+    signature = ("The force curve only: a lower peak, governed by the weaker joint and broader than one "
+                 "joint law gives, and a slower softening towards the same residual friction.")
+
+    #: the weakest bond tried, as a share of the other joint's (a choice: a joint at a fifth of
+    #: the other's strength is a broken specimen, not a weaker joint)
+    min_factor = 0.2
+
+    def not_applicable(self, ctx):
+        factors = getattr(ctx.scenario.options, "joint_strength_factors", None)
+        if factors is None:
+            return f"the {ctx.scenario.name} scenario has no per-joint strength factors (joint_strength_factors)"
+        if tuple(factors) != (1.0,) * len(factors):
+            return f"the base model sets joint_strength_factors = {list(factors)} already"
+        return None
+
+    def locations(self, ctx):
+        sc = ctx.scenario
+        n = len(sc.options.joint_strength_factors)
+        names = ("lower", "upper") if n == 2 else tuple(f"joint {k + 1}" for k in range(n))
+        width, h = float(sc.mesh.width), float(sc.options.unit_height)  # joint k between courses k and k + 1
+        return [Location(f"{name} bed joint", f"the {name} bed joint weaker than the other",
+                         {"joint": k, "of": n, "x": [0.0, width], "y": [(k + 1) * h, (k + 1) * h]})
+                for k, name in enumerate(names)]
+
+    def parameter(self, ctx, location):
+        return EffectParameter("s", "-", 1.0, self.min_factor, 1.0, 0.7, one_sided=True)
+
+    def overlaps(self, location, other):
+        # both joints weaker is a lower strength of the joints (the base parameters), not this cause
+        return True
+
+    def effect(self, ctx, values, location, c):
+        if c >= 1.0:
+            return Effect()
+        factors = [1.0] * location.detail["of"]
+        factors[location.detail["joint"]] = float(c)
+        return Effect(options={"joint_strength_factors": tuple(factors)})
+
+
+class Dilatancy(Candidate):
+    """Joints that open as they slide (dilatancy tanψ), where the base model keeps ``tanpsi_bj``
+    at a fixed value (0 by default: no dilatancy).
+
+    The range is ``[tanψ₀, min(tanφ0, tanφr)]``, both friction coefficients at the lowest value
+    the base model gives them (their lower bounds when free): the interface laws admit no more
+    dilatancy than friction (the composite law's ``tanψ ≤ tanφ0``; the hyperbolic law's
+    ``tanψ ≤ min(tanφ0, tanφr)``, the stricter of the two, here for both).
+    """
+
+    name = "dilatancy"
+    description = ("Joints that dilate as they slide (tanψ > 0): the rough, interlocked mortar–unit "
+                   "interface lifts over itself, where the base model keeps tanψ fixed (0: no dilatancy).")
+    signature = ("Gauges across a sliding joint open in proportion to the slip after the peak; under a "
+                 "held normal stress the force barely changes.")
+
+    def not_applicable(self, ctx):
+        if "tanpsi_bj" not in ctx.values:
+            return f"the {ctx.scenario.name} scenario has no dilatancy parameter (tanpsi_bj)"
+        if "tanpsi_bj" in ctx.free:
+            return "tanpsi_bj is a free parameter of the base model"
+        if self._upper(ctx) <= ctx.values["tanpsi_bj"]:
+            return "the friction coefficients admit no more dilatancy than the base model's tanpsi_bj"
+        return None
+
+    def _upper(self, ctx):
+        def lowest(name):
+            return ctx.bounds[name][0] if name in ctx.bounds else ctx.values[name]
+
+        return min(lowest("tanphi_bj"), lowest("tanphir_bj"))
+
+    def locations(self, ctx):
+        return [Location("all joints", "all joints", {"parameter": "tanpsi_bj"})]
+
+    def parameter(self, ctx, location):
+        t0, upper = ctx.values["tanpsi_bj"], self._upper(ctx)
+        return EffectParameter("tanpsi_bj", "-", t0, t0, upper, t0 + 0.2 * (upper - t0), one_sided=True)
+
+    def effect(self, ctx, values, location, c):
+        return Effect(values={"tanpsi_bj": c})
+
+
 #: every candidate cause, by name
 CANDIDATES = {c.name: c for c in (HeadJointStiffness(), WeakJoint(), SupportCompliance(), GaugeFault(),
                                   LoadEccentricity(), UnitStiffness(), GaugeSlip(), JackEfficiency(),
-                                  SlotContact(), NonlinearityOnset())}
+                                  SlotContact(), NonlinearityOnset(), WeakJointStrength(), Dilatancy())}
 #: the candidates a diagnosis tries unless told otherwise: all but the expensive ones
 DEFAULT_CANDIDATES = tuple(name for name, c in CANDIDATES.items() if not c.expensive)

@@ -248,7 +248,8 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     settings = DiagnosisSettings() if settings is None else settings
     alpha, max_causes, rng = settings.alpha, settings.max_causes, settings.seed
     values0 = scenario.resolve(fixed)
-    ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)))
+    ctx = FEContext(scenario, space.names, values0, offset_scale=np.max(np.abs(measurement.values)),
+                    bounds={n: (float(lo), float(hi)) for n, lo, hi in zip(space.names, space.lower, space.upper)})
     rigid = rigid_body_modes(measurement, absolute_displacements(scenario.sensors), rigid_body, rigid_groups)
 
     # 1. base calibration: surrogate first, FE last (with the model-form error at the surrogate's optimum)

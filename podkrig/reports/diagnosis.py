@@ -69,6 +69,8 @@ def _mark_cause(ax, diagnosis, cause):
     d = cause.location.detail
     if cause.name == "weak_joint":
         ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weak joint (f = {cause.value:.3g})")
+    elif cause.name == "weak_joint_strength":
+        ax.plot(d["x"], d["y"], color="red", lw=4, alpha=0.8, zorder=5, label=f"weaker joint (s = {cause.value:.3g})")
     elif cause.name in ("gauge_fault", "gauge_slip"):
         geom = _channel_geometry(diagnosis.scenario).get(d["sensor"])
         if geom is not None:
