@@ -12,8 +12,11 @@ import pytest
 from numpy.testing import assert_allclose
 
 from conftest import load_file
+from podkrig.online.invert import invert
 from podkrig.online.measurement import Measurement, NoiseModel
+from podkrig.online.problem import InverseProblem
 from podkrig.parameters import Parameter, ParameterSpace
+from tests.test_online_results import SIGMA, TRUTH, LinearModel
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "hidden_truth.py"
 
@@ -41,6 +44,40 @@ def test_truths_stay_away_from_the_faces_and_the_noise_is_the_study_s():
     z = (noisy.data - clean) / np.hypot(0.05, 0.01 * clean)
     assert abs(z.var() - 1) < 0.1 and abs(z.mean()) < 0.1
     assert ht.binomial_floor(40) == 36
+
+
+class CornerVarianceModel(LinearModel):
+    """The linear model with a predictive std growing to 5 mm (500 σ) at the corner (2, 2) of the
+    box: a kriging surrogate's variance far from its training runs, as on the J4D wall's corners."""
+
+    def predict(self, X, return_std=False):
+        Y = super().predict(X)
+        std = 5.0 * (np.prod(np.atleast_2d(X), axis=1) / 4.0) ** 4
+        return (Y, np.repeat(std[:, None], Y.shape[1], axis=1)) if return_std else Y
+
+
+def test_a_corner_optimum_lies_below_the_truth_only_with_c_t_frozen_there():
+    """The J4D finding in closed form. With C_T growing to the corner, ω = ½ Σ r²/(σ² + s(m)²)
+    is lowest at the corner: the inversion stops there (every parameter on a bound), below ω(truth).
+    With C_T frozen at that corner, ω(truth) ≈ 0 lies below ω(m*) — a negative
+    ``omega_excess`` that is no optimiser stop — while ``omega_gap`` (C_T at each point) is
+    positive. Defects: either gap computed with the other C_T, or against another point."""
+    ht = _script()
+    model = CornerVarianceModel()
+    clean = LinearModel().predict(TRUTH[None])[0].reshape(2, 3)
+    noisy = clean + SIGMA * np.random.default_rng(5).standard_normal(clean.shape)
+    problem = InverseProblem(model, Measurement(noisy, model.sensor_names, model.load_levels),
+                             NoiseModel(sigma=SIGMA))
+    best = invert(problem, rng=0, population_size=20, generations=10, n_starts=2)
+    assert set(best.at_bound) == {"m1", "m2"}
+    excess, gap = ht.omega_gaps(problem, TRUTH, best.x)
+    r_true, r_best = (model.predict(x[None])[0] - noisy.ravel() for x in (TRUTH, best.x))
+    s_true, s_best = (model.predict(x[None], return_std=True)[1][0] for x in (TRUTH, best.x))
+    omega = lambda r, s: 0.5 * np.sum(r**2 / (SIGMA**2 + s**2))  # noqa: E731
+    # closed forms to rounding (sums of 6 squares)
+    assert_allclose(excess, omega(r_true, s_best) - omega(r_best, s_best), rtol=1e-9)
+    assert_allclose(gap, omega(r_true, s_true) - omega(r_best, s_best), rtol=1e-9)
+    assert excess < 0 < gap
 
 
 @pytest.mark.slow
