@@ -64,6 +64,20 @@ def test_readings_match_direct_runs(reference, scenario):
             assert_array_equal(store.readings()[i], scenario.run(store.space.as_params(X[i])).readings)
 
 
+@pytest.mark.parametrize("seconds, written", [(0.0, list(range(1, 17))), (1e9, [1, 5, 9, 13, 16])])
+def test_serial_chunks_hold_the_rows_that_take_the_write_interval(tmp_path, scenario, space, monkeypatch, seconds,
+                                                                 written):
+    """A serial run writes its first row alone, then chunks of the rows that take
+    ``SERIAL_WRITE_SECONDS``: at 0 s (every FE run slower than the interval, a nonlinear wall) each
+    row is written as it finishes, so an interruption loses at most the run in progress; at a huge
+    interval (FE runs of milliseconds) the chunks grow to the cap, ceil(16 / 4) = 4 rows."""
+    monkeypatch.setattr(runner, "SERIAL_WRITE_SECONDS", seconds)
+    calls = []
+    run_snapshots(tmp_path / "s.h5", scenario, space, n=16, seed=7, workers=1,
+                  progress=lambda completed, total: calls.append(completed))
+    assert calls == written
+
+
 def test_interrupted_run_resumes_to_the_same_store(tmp_path, reference, scenario, space):
     path = tmp_path / "s.h5"
     calls = []

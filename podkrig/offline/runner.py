@@ -97,6 +97,10 @@ LOCAL_CLUSTER_STARTUP_S = 6.0
 #: says why (:attr:`RunSummary.executor` ``"serial: ..."``, a note of the study's stage): below
 #: it the job is over before the reason could matter, and the executor is plain ``"serial"``.
 SERIAL_REASON_MIN_SAVING_S = 2.0
+#: Wall time of FE work between two writes of a serial run, s: its chunks start at one row and
+#: then hold as many rows as take about this long, so that an interruption loses at most that much
+#: finished work (one row of a nonlinear wall, 2-10 s; 32 rows of a linear test of milliseconds).
+SERIAL_WRITE_SECONDS = 2.0
 
 _SCENARIO_CACHE = {}  # (spec JSON, thread id) -> Scenario: each worker thread builds a scenario once
 _SCENARIO_CACHE_SIZE = 8
@@ -442,7 +446,8 @@ def run_snapshots(path, spec, space, *, n, seed, sampling="sobol", fields=False,
     retry_failed : bool
         Also rerun rows whose FE run failed before.
     chunk_size : int, optional
-        Rows per task; default ``ceil(rows / (4 * workers))`` clipped to [1, 32].
+        Rows per task; default ``ceil(rows / (4 * workers))`` clipped to [1, 32] (serially:
+        as many rows as take about :data:`SERIAL_WRITE_SECONDS`, within the same limits).
     progress : callable, optional
         ``progress(completed, total)`` after each written batch (rows of this call).
 
@@ -582,8 +587,23 @@ def _chunks(todo, X, chunk_size, n_workers):
 
 
 def _serial(spec_json, store, todo, X, chunk_size):
-    for rows, Xc in _chunks(todo, X, chunk_size, 1):
-        yield run_chunk(spec_json, store.space.names, rows, Xc, store.has_fields)
+    """Chunks run in this process: ``chunk_size`` rows each, or by default chunks sized by the
+    previous chunk's time per row to take :data:`SERIAL_WRITE_SECONDS` (starting at one row, at most
+    the Dask default's size), so that each is written before much finished work could be lost."""
+    if chunk_size is not None:
+        for rows, Xc in _chunks(todo, X, chunk_size, 1):
+            yield run_chunk(spec_json, store.space.names, rows, Xc, store.has_fields)
+        return
+    cap = max(1, min(MAX_CHUNK, math.ceil(len(todo) / 4)))
+    start, size = 0, 1
+    while start < len(todo):
+        t0 = time.perf_counter()
+        res = run_chunk(spec_json, store.space.names, todo[start:start + size], X[start:start + size],
+                        store.has_fields)
+        per_row = (time.perf_counter() - t0) / len(res.rows)
+        start += len(res.rows)
+        yield res
+        size = int(np.clip(SERIAL_WRITE_SECONDS // max(per_row, 1e-9), 1, cap))
 
 
 #: top-level loggers of this project (:func:`import_distributed` re-enables them)
