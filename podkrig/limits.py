@@ -32,9 +32,11 @@ CONFIRM_STORE_BYTES = 4 * 2**30
 #: Seconds of FE work per degree of freedom and linear run on one core: 66 runs/s of the default
 #: diagonal-compression mesh (9 360 dofs) in BENCHMARKS.md "offline" → 1.6 µs per dof.
 FE_SECONDS_PER_DOF = 1.6e-6
-#: A nonlinear (path-following) run costs this many linear runs: J4D 0–3 mm, 8 102 dofs, 38.6 s
-#: against 13 ms (BENCHMARKS.md "Nonlinear wall J4D").
-NONLINEAR_RUN_FACTOR = 3000
+#: Seconds of CPU per degree of freedom of one nonlinear (path-following) run, before any run of
+#: the job is measured: the flat-jack shear test with its repeat 3' (8 006 dofs, 3.3 s CPU, the
+#: longest path of the catalogue's strength tests) → 4e-4 s per dof; J4D 0–3 mm (8 102 dofs) takes
+#: 1.75 s (docs/nonlinear.md). Once a store holds runs, their own mean CPU time is used instead.
+NONLINEAR_SECONDS_PER_DOF = 4e-4
 #: GA individuals per generation: a generation's surrogate predictions hold about
 #: :data:`BYTES_PER_INDIVIDUAL` each (kriging cross-covariances with ~10³ training points, the
 #: predicted outputs), so 2^18 individuals need ~2 GiB.
@@ -291,28 +293,33 @@ def fe_job_estimate(jobs, store_bytes):
 
     Parameters
     ----------
-    jobs : sequence of (rows, n_dofs, nonlinear)
-        FE runs to do of each scenario, its mesh's degrees of freedom, and whether its runs are
-        path-following (:data:`NONLINEAR_RUN_FACTOR` linear runs each).
+    jobs : sequence of (rows, n_dofs, nonlinear) or (rows, n_dofs, nonlinear, seconds_per_run)
+        FE runs to do of each scenario, its mesh's degrees of freedom, whether its runs are
+        path-following, and optionally the measured CPU seconds per run (the mean of the runs its
+        store already holds; None or absent: :data:`FE_SECONDS_PER_DOF` per dof for a linear run,
+        :data:`NONLINEAR_SECONDS_PER_DOF` for a nonlinear one).
     store_bytes : int
         Estimated size of the store(s) on disk, bytes.
 
     Returns
     -------
     text : str
-        E.g. ``"100000 FE runs of 9360 dofs (about 25 min on one core) and 76.3 MiB on disk"``.
+        E.g. ``"100000 FE runs of 9360 dofs (about 25 min on one core) and 76.3 MiB on disk"``;
+        ``"…, from the runs stored)"`` when any job's time is measured.
     large : bool
         More than :data:`CONFIRM_ROWS` runs, :data:`CONFIRM_FE_HOURS` of FE work or
         :data:`CONFIRM_STORE_BYTES` on disk: ask before starting.
     """
-    jobs = [(int(r), int(d), bool(nl)) for r, d, nl in jobs if r > 0]
-    rows = sum(r for r, _, _ in jobs)
-    seconds = sum(r * d * FE_SECONDS_PER_DOF * (NONLINEAR_RUN_FACTOR if nl else 1) for r, d, nl in jobs)
-    dofs = sorted({d for _, d, _ in jobs})
-    nonlinear = sum(r for r, _, nl in jobs if nl)
+    jobs = [(int(j[0]), int(j[1]), bool(j[2]), j[3] if len(j) > 3 else None) for j in jobs if j[0] > 0]
+    rows = sum(r for r, *_ in jobs)
+    seconds = sum(r * (d * (NONLINEAR_SECONDS_PER_DOF if nl else FE_SECONDS_PER_DOF) if per is None else float(per))
+                  for r, d, nl, per in jobs)
+    measured = ", from the runs stored" if any(per is not None for *_, per in jobs) else ""
+    dofs = sorted({d for _, d, _, _ in jobs})
+    nonlinear = sum(r for r, _, nl, _ in jobs if nl)
     kind = ("nonlinear " if nonlinear == rows else f"({nonlinear} nonlinear) ") if nonlinear else ""
     size = f"{dofs[0]}" if len(dofs) == 1 else f"{dofs[0]}–{dofs[-1]}" if dofs else "0"
-    text = (f"{rows} {kind}FE runs of {size} dofs (about {human_duration(seconds)} on one core) and "
+    text = (f"{rows} {kind}FE runs of {size} dofs (about {human_duration(seconds)} on one core{measured}) and "
             f"{human_bytes(store_bytes)} on disk")
     large = rows > CONFIRM_ROWS or seconds > 3600 * CONFIRM_FE_HOURS or store_bytes > CONFIRM_STORE_BYTES
     return text, large

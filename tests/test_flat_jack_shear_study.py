@@ -140,7 +140,7 @@ scenario = {{ scenario = "diagonal_compression", nx = 6, ny = 2 }}
 measurement = {{ file = "{EXAMPLES / 'joint_diagonal_flat_jack_diagonal.csv'}", instrument = "lvdt" }}
 [[test]]
 name = "flat_jack_elastic"
-scenario = {{ scenario = "flat_jack_elastic_nl" }}
+scenario = {{ scenario = "flat_jack_elastic_nl", p_H = 0.6 }}
 measurement = {{ file = "{EXAMPLES / 'flat_jack_shear_elastic.csv'}", noise_abs = 0.002, noise_rel = 0.01 }}
 fixed = {{ sigma0 = 0.30, ft_bj = 0.15, GfI_bj = 0.012, GfII_bj = 0.10, tanphir_bj = 0.70, c_bj = {truth['c_bj']}, tanphi_bj = {truth['tanphi_bj']} }}
 """)

@@ -159,11 +159,23 @@ def test_grids_of_too_many_points_are_refused_with_an_estimate():
 def test_job_estimate_states_runs_time_and_disk():
     text, large = limits.fe_job_estimate([(256, 9360, False)], 10**6)
     assert all(f in text for f in ("256 FE runs", "9360 dofs", "3.8 s", "976.6 KiB")) and not large
+    # 512 nonlinear runs of 9360 dofs at 4e-4 s per dof: 1917 s, half an hour, asked without
     text, large = limits.fe_job_estimate([(512, 9360, True), (64, 8000, False)], 10**6)
-    assert all(f in text for f in ("576 (512 nonlinear) FE runs", "8000–9360 dofs", "6.39 h"))
-    assert large
+    assert all(f in text for f in ("576 (512 nonlinear) FE runs", "8000–9360 dofs", "32 min")) and not large
+    assert limits.fe_job_estimate([(5000, 9360, True)], 0)[1]  # 5.2 h of nonlinear runs
     assert limits.fe_job_estimate([(2**16 + 1, 10, False)], 0)[1]  # runs alone
     assert limits.fe_job_estimate([(10, 10, False)], 5 * 2**30)[1]  # disk alone
+
+
+def test_job_estimate_uses_the_measured_seconds_per_run():
+    """Before: every nonlinear run of 8006 dofs was counted at ~40 s, so 208 flat-jack runs (3.3 s
+    each) asked for --yes; a measured time per run replaces the model for its job."""
+    text, large = limits.fe_job_estimate([(208, 8006, True, 3.3)], 0)
+    assert "about 11.4 min on one core, from the runs stored" in text and not large
+    text, large = limits.fe_job_estimate([(208, 8006, True, 60.0)], 0)  # runs that keep failing: 3.5 h
+    assert "3.47 h" in text and large
+    text, _ = limits.fe_job_estimate([(10, 100, True, None)], 0)  # none stored yet: the per-dof model
+    assert "from the runs stored" not in text and "0.4 s" in text
 
 
 def test_snapshots_run_refuses_a_huge_job_without_yes(tmp_path):

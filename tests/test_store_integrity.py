@@ -21,9 +21,9 @@ from podkrig.cli import app
 from podkrig.exceptions import IntegrityError, StoreError, StoreInUseError
 from podkrig.offline import store as store_module
 from podkrig.offline.files import acquire_lock, lock_path, release_lock
-from podkrig.offline.runner import run_snapshots
+from podkrig.offline.runner import measured_run_seconds, run_snapshots
 from podkrig.offline.sampling import sobol
-from podkrig.offline.store import DONE, SnapshotStore
+from podkrig.offline.store import DONE, FAILED, SnapshotStore
 from podkrig.parameters import ParameterSpace
 
 COARSE = {"scenario": "diagonal_compression", "nx": 2, "ny": 1}
@@ -303,3 +303,18 @@ def test_lock_is_reentrant_and_released(tmp_path):
     assert lock_path(path).exists()
     release_lock(path)
     assert not lock_path(path).exists()
+
+
+def test_measured_run_seconds_is_the_mean_cpu_time_of_the_runs_stored(tmp_path, scenario, space):
+    """The job estimate's measured cost: failed runs count (they cost most), pending rows do not."""
+    path = tmp_path / "s.h5"
+    assert measured_run_seconds(path) is None  # no store yet
+    with _make(path, scenario, space, n=4) as store:
+        n_loads, n_sensors = store.n_loads, store.n_sensors
+    assert measured_run_seconds(path) is None  # rows pending, none timed
+    with SnapshotStore.open(path, mode="r+") as store:
+        store.write_results(np.arange(3), np.array([DONE, DONE, FAILED]), np.zeros((3, n_loads, n_sensors)),
+                            ["", "", "NotConverged: x"], np.full(3, 9.0), cpu_times=[2.0, 4.0, 30.0])
+    assert measured_run_seconds(path) == pytest.approx(12.0, rel=1e-12)  # (2 + 4 + 30) / 3, float sums
+    (tmp_path / "junk.h5").write_bytes(b"not a store")
+    assert measured_run_seconds(tmp_path / "junk.h5") is None  # the run itself says what is wrong

@@ -37,6 +37,13 @@ normal force Km p_H Ka L_H t and the shear Km (p_V1 − p_V2) Ka h_V t, so slidi
 shear concentrated at the block's corners and the progressive slip move by 15–25 % (INFERRED);
 the simulation is the reference, the estimate a check (:meth:`critical_pressures` gives both).
 
+Range of the set-up: the jack H pushes the wall above it up with Km p_H. Once Km p_H passes about
+0.85 MPa at σ0 = 0.30 MPa it lifts the wall beside the block off the
+bed joint that continues H's line (open by 1.6 mm over 450 mm at Km p_H = 0.90 MPa at the end of
+phase 2, 0.1 mm at 0.80 MPa), and in phase 3 the wall above that crack slides with the block: the
+slip snaps back and the run stops ``not_converged``. The readings would no longer be those of the
+block's joint; keep Km p_H below about 2 σ0 (``docs/nonlinear.md``, the flat-jack limits).
+
 Defaults: stiffness, Km and σ0 as ``flat_jack`` (E_b = 10 000 MPa, ν_b = 0.15,
 kN = 80, kV = 35 N/mm³, r_hj = 0.6), joint strengths typical of old brick masonry (f_t = 0.15, c = 0.25 MPa,
 tanφ = 0.70, G_f^I = 0.012, G_f^II = 0.10 N/mm; INFERRED), the residual

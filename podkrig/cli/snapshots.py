@@ -67,7 +67,7 @@ def run(
     from fe.scenarios.nonlinear import NonlinearScenario
 
     from podkrig.offline.results import OfflineResult
-    from podkrig.offline.runner import rows_to_run, run_snapshots
+    from podkrig.offline.runner import measured_run_seconds, rows_to_run, run_snapshots
     from podkrig.parameters import ParameterSpace, parse_params
     from podkrig.reports.offline import failure_lines, rows_text
     from podkrig.offline.store import store_bytes_per_row
@@ -87,7 +87,7 @@ def run(
         design = settings_from_options(Design, {"n": ("--n", n), "seed": ("--seed", seed),
                                                 "method": ("--sampling", sampling.value)})
         todo = rows_to_run(store, n, retry_failed)
-        job = [(todo, sc.n_dofs, isinstance(sc, NonlinearScenario))]
+        job = [(todo, sc.n_dofs, isinstance(sc, NonlinearScenario), measured_run_seconds(store))]
         confirm_large_job(*fe_job_estimate(job, size if todo else 0), yes)
         try:
             with Progress("snapshots", rate="snapshots/s") as progress:

@@ -405,6 +405,22 @@ def rows_to_run(path, n, retry_failed=False):
     return c["pending"] + (c["failed"] if retry_failed else 0) + max(n - c["total"], 0)
 
 
+def measured_run_seconds(path):
+    """Mean CPU time (s) of the FE runs a store already holds, converged, partial or failed alike
+    (what the next runs of the same scenario will cost on average); None for a missing or unusable
+    store or one with no run timed yet."""
+    path = Path(path)
+    if not path.exists():
+        return None
+    try:
+        with SnapshotStore.open(path) as store:
+            cpu = store.cpu_times()
+    except PodkrigError:
+        return None
+    cpu = cpu[np.isfinite(cpu)]
+    return float(cpu.mean()) if len(cpu) else None
+
+
 def run_snapshots(path, spec, space, *, n, seed, sampling="sobol", fields=False, workers=None,
                   scheduler=None, retry_failed=False, chunk_size=None, progress=None):
     """Create or resume a snapshot store and run the scenario on its pending rows.

@@ -54,7 +54,7 @@ from podkrig.limits import fe_job_estimate, quote
 from podkrig.offline.failures import no_peak_rows
 from podkrig.offline.files import move_aside
 from podkrig.offline.results import OfflineResult
-from podkrig.offline.runner import prepare_store, rows_to_run, run_snapshots
+from podkrig.offline.runner import measured_run_seconds, prepare_store, rows_to_run, run_snapshots
 from podkrig.offline.store import SnapshotStore
 from podkrig.online.calibrate import CalibrationResult, calibrate, problems_by_test, with_model_form_errors
 from podkrig.online.data_check import MeasurementCheckError, check_readings
@@ -157,8 +157,8 @@ class StudyRun(StageCache):
 def fe_work(run):
     """The FE work this run of the study would do, in words, and whether it is large enough to ask
     first (:func:`podkrig.limits.fe_job_estimate`): the probe runs unless cached, and every design's
-    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size,
-    and the ``fe_runs`` of a validation model at region members (in the calibration) while its store
+    runs not in its store yet (training, held-out, validation models), each at its scenario's mesh size
+    or, once the store holds runs, at their mean CPU time, and the ``fe_runs`` of a validation model at region members (in the calibration) while its store
     is not complete.
 
     Returns
@@ -182,7 +182,8 @@ def fe_work(run):
         todo = rows_to_run(path, design.n)
         if todo:
             sc = scenario()
-            work.append((todo + sum(at_region), sc.n_dofs, isinstance(sc, NonlinearScenario)))
+            work.append((todo + sum(at_region), sc.n_dofs, isinstance(sc, NonlinearScenario),
+                         measured_run_seconds(path)))
             stored += STUDY_BYTES_PER_ROW * design.n
     return fe_job_estimate(work, stored)
 
