@@ -5,6 +5,7 @@ import importlib.util
 import logging
 from pathlib import Path
 
+import h5py
 import pytest
 
 from fe.scenarios import Scenario, build_scenario
@@ -26,6 +27,16 @@ def load_file(path):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def done_rows(path):
+    """Finished rows of a snapshot store another process is writing (read without the HDF5 lock;
+    0 while the file is absent or not yet a store)."""
+    try:
+        with h5py.File(path, "r", locking=False) as f:
+            return int((f["status"][...] == 1).sum())
+    except (OSError, KeyError):
+        return 0
 
 
 @pytest.fixture(scope="session")

@@ -6,12 +6,12 @@ import subprocess
 import sys
 import time
 
-import h5py
 import numpy as np
 import pytest
 from numpy.testing import assert_array_equal
 from typer.testing import CliRunner
 
+from conftest import done_rows
 from podkrig.cli import app
 from podkrig.offline.store import SnapshotStore
 
@@ -121,15 +121,6 @@ def test_corrupt_store_is_refused_by_every_command(tmp_path, spec_file):
     assert not (tmp_path / "x.csv").exists()
 
 
-def _done_rows(path):
-    """Done-row count of a store being written by another process (read without the HDF5 lock)."""
-    try:
-        with h5py.File(path, "r", locking=False) as f:
-            return int((f["status"][...] == 1).sum())
-    except (OSError, KeyError):
-        return 0
-
-
 @pytest.mark.slow
 def test_sigkilled_job_resumes_to_the_uninterrupted_store(tmp_path, spec_file):
     n = 1024
@@ -138,7 +129,7 @@ def test_sigkilled_job_resumes_to_the_uninterrupted_store(tmp_path, spec_file):
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 60
-        while _done_rows(tmp_path / "killed.h5") < 40:
+        while done_rows(tmp_path / "killed.h5") < 40:
             assert job.poll() is None, "the job ended before it could be killed"
             assert time.monotonic() < deadline, "the job wrote no rows within 60 s"
             time.sleep(0.01)

@@ -10,13 +10,12 @@ import sys
 import time
 from pathlib import Path
 
-import h5py
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 from typer.testing import CliRunner
 
-from conftest import load_file
+from conftest import done_rows, load_file
 
 from fe import SCENARIOS
 from fe.scenarios import build_scenario
@@ -130,15 +129,6 @@ def _reduced_study(folder, n_train=8, n_held=4):
     return folder / "j4d_wall.toml"
 
 
-def _done_rows(path):
-    """Finished rows of a store another process is writing (read without the HDF5 lock)."""
-    try:
-        with h5py.File(path, "r", locking=False) as f:
-            return int((f["status"][...] == 1).sum())
-    except (OSError, KeyError):
-        return 0
-
-
 @pytest.mark.slow
 def test_a_killed_study_resumes_without_recomputing_a_finished_run(tmp_path):
     """The study with 8 training and 4 held-out runs (about 1 min CPU): ``podkrig run`` SIGKILLed
@@ -152,7 +142,7 @@ def test_a_killed_study_resumes_without_recomputing_a_finished_run(tmp_path):
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 600
-        while _done_rows(out / "train.h5") < 3:
+        while done_rows(out / "train.h5") < 3:
             assert job.poll() is None, "the study ended before it could be killed"
             assert time.monotonic() < deadline, "no 3 training rows within 600 s"
             time.sleep(0.05)
