@@ -24,10 +24,15 @@ What is measured, in headless Chromium (selenium + chromedriver):
   to the last paint of the plot (a canvas drawing call, or a change inside an SVG) before the
   page stays still for the quiet time (``--quiet``). Median and 90th percentile over ``--moves``
   moves after ``--warmup`` moves, the four sliders in turn;
+- after a burst: ten steps 1/60 s apart (input events at a display's rate, as a drag sends them);
+  the time from the burst's last key to the plot's last paint, median over ``--bursts`` bursts
+  (a stack that queues one update per step falls behind here);
 - serving: from the server process's start to its answering HTTP (a static file or a health path,
   which starts no session: Panel and Streamlit load the surrogate in the first session, Starlette
   and Dash before they serve);
-- first plot: from the page's navigation start to the first paint of the plot;
+- first plot: from the page's navigation start to the first paint of the plot, on the first visit
+  (right after the server serves) and on a reload; and from the server process's start to the
+  first visit's first plot (what a user waits for after starting the app);
 - the server process's CPU seconds (user + system, with its children) during the timed moves;
 - the packages each stack adds to a fresh virtual environment: ``pip list`` of the environment
   after ``pip install STACK`` minus that of the bare environment (recorded by ``--install``
@@ -50,7 +55,6 @@ Then measure::
     python scripts/bench_serve_peers.py --stacks starlette dash --moves 60
 """
 
-from __future__ import annotations
 
 import argparse
 import json
@@ -78,6 +82,8 @@ CHROMIUM = "/usr/bin/chromium"
 CHROMEDRIVER = "/usr/bin/chromedriver"
 #: positions of every slider: 0 … STEPS over the parameter's unit coordinate
 STEPS = 100
+#: key presses of one burst, 1/60 s apart (a drag's input events at a display's rate)
+BURST = 10
 
 
 @dataclass(frozen=True)
@@ -566,6 +572,7 @@ def key_for(i, n_sliders):
 def measure(stack, args, log=print):
     """Start one stack's app, load its page in Chromium, move its sliders; a dict of figures."""
     from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.keys import Keys
 
     record = peer_record(stack.name)
     folder = Path(tempfile.mkdtemp(prefix=f"peers-{stack.name}-"))
@@ -578,21 +585,24 @@ def measure(stack, args, log=print):
     env = {**os.environ, "PYTHONPATH": str(folder), "PEERS_STUDY": str(args.study), "PEERS_FOLDER": str(args.folder)}
     env.pop("VIRTUAL_ENV", None)
     out = {"stack": stack.name, "version": record["version"], "added": record["added"]}
-    server_log = (folder / "server.log").open("w")
-    proc = subprocess.Popen(["nice", "-n", "5", *argv], cwd=folder, env=env, stdout=server_log,
-                            stderr=subprocess.STDOUT, start_new_session=True)
-    driver = None
+    driver = browser()  # before the server: its start-up is no part of the server's figures
+    server_log, proc = (folder / "server.log").open("w"), None
     try:
+        started = time.perf_counter()
+        proc = subprocess.Popen(["nice", "-n", "5", *argv], cwd=folder, env=env, stdout=server_log,
+                                stderr=subprocess.STDOUT, start_new_session=True)
         url = f"http://127.0.0.1:{port}{stack.path}"
         out["serving"] = wait_serving(f"http://127.0.0.1:{port}{stack.probe}", proc, args.timeout)
         log(f"[{stack.name}] serving {url} after {out['serving']:.1f} s")
-        driver = browser()
         for visit in ("first", "reload"):
+            navigated = time.perf_counter()
             driver.get(url)
             paint = driver.execute_async_script(WAIT_FIRST_PAINT, args.timeout * 1000)
             if paint is None:
                 raise RuntimeError(f"no plot painted within {args.timeout} s of loading {url}")
             out[f"first_plot_{visit}"] = paint / 1000
+            if visit == "first":
+                out["start_to_plot"] = navigated - started + paint / 1000
             log(f"[{stack.name}] first plot ({visit} visit) {paint / 1000:.2f} s after navigation")
         sliders, start = [], time.perf_counter()
         while len(sliders) != args.n_params and time.perf_counter() - start < args.timeout:
@@ -621,11 +631,25 @@ def measure(stack, args, log=print):
                 firsts.append(r["first"] - r["key"])
                 paints.append(r["paints"])
         out["cpu"] = cpu_seconds(proc.pid) - cpu0
-        out["moves"], out["failed"] = len(latencies), failed
+        out["moves"], out["failed"], out["latencies"] = len(latencies), failed, latencies
+        nan = float("nan")
+        out["median"], out["p90"], out["first_paint_median"], out["paints_median"] = nan, nan, nan, 0
         if latencies:
             q = statistics.quantiles(latencies, n=10, method="inclusive")
             out["median"], out["p90"] = statistics.median(latencies), q[8]
             out["first_paint_median"], out["paints_median"] = statistics.median(firsts), statistics.median(paints)
+        bursts = []
+        for i in range(args.bursts):  # BURST steps at the display's rate, as a drag sends them
+            k, key = i % len(sliders), (Keys.ARROW_RIGHT if (i // len(sliders)) % 2 == 0 else Keys.ARROW_LEFT)
+            driver.execute_script("arguments[0].focus(); window.__peers.reset();", sliders[k])
+            chain = ActionChains(driver)
+            for _ in range(BURST):
+                chain.send_keys(key).pause(1 / 60)
+            chain.perform()
+            r = driver.execute_async_script(WAIT_QUIET, args.quiet, args.move_timeout * 1000)
+            if r["last"] is not None:
+                bursts.append(r["last"] - r["key"])
+        out["burst"] = statistics.median(bursts) if bursts else nan
         out["foreign"] = driver.execute_script(FOREIGN)
         log(f"[{stack.name}] {len(latencies)} moves: median {out.get('median', float('nan')):.0f} ms, "
             f"p90 {out.get('p90', float('nan')):.0f} ms (first paint {out.get('first_paint_median', float('nan')):.0f} ms, "
@@ -634,9 +658,9 @@ def measure(stack, args, log=print):
     except Exception as error:
         raise RuntimeError(f"{stack.name}: {error} (the server's output: {folder / 'server.log'})") from error
     finally:
-        if driver is not None:
-            driver.quit()
-        stop(proc)
+        driver.quit()
+        if proc is not None:
+            stop(proc)
         server_log.close()
     if not args.keep:
         shutil.rmtree(folder, ignore_errors=True)
@@ -650,9 +674,10 @@ def uptime():
 
 def table(rows):
     """The Markdown table of the measured stacks."""
-    head = ("| stack | version | packages added to a fresh venv | serving after start, s | first plot, first "
-            "visit / reload, s | slider → plot median, ms | p90, ms | server CPU during the moves, s "
-            "| moves (no paint) | requests to other hosts |")
+    head = ("| stack | version | packages added to a fresh venv | serving after start, s | first plot after "
+            "navigation, first visit / reload, s | start → first plot, s | slider → plot median, ms | p90, ms "
+            "| after a burst of 10 steps, ms | server CPU during the moves, s | moves (no paint) "
+            "| requests to other hosts |")
     n_columns = head.count("|") - 1
     lines = [head, "|" + "---|" * n_columns]
     for r in rows:
@@ -660,8 +685,9 @@ def table(rows):
             lines.append(f"| {r['stack']} | " + r["error"].replace("|", "/") + " |" + " |" * (n_columns - 2))
             continue
         lines.append(f"| {r['stack']} | {r['version']} | {r['added']} | {r['serving']:.1f} | "
-                     f"{r['first_plot_first']:.2f} / {r['first_plot_reload']:.2f} | {r['median']:.0f} | "
-                     f"{r['p90']:.0f} | {r['cpu']:.2f} | {r['moves']} ({r['failed']}) | {len(r['foreign'])} |")
+                     f"{r['first_plot_first']:.2f} / {r['first_plot_reload']:.2f} | {r['start_to_plot']:.1f} | "
+                     f"{r['median']:.0f} | {r['p90']:.0f} | {r['burst']:.0f} | {r['cpu']:.2f} | "
+                     f"{r['moves']} ({r['failed']}) | {len(r['foreign'])} |")
     return "\n".join(lines)
 
 
@@ -680,6 +706,8 @@ def parse_args(argv=None):
     parser.add_argument("--study", type=Path, default=DEMO_STUDY, help="its study file (default: the demo's)")
     parser.add_argument("--moves", type=int, default=60, help="timed slider moves per stack (default: %(default)s)")
     parser.add_argument("--warmup", type=int, default=8, help="untimed moves first (default: %(default)s)")
+    parser.add_argument("--bursts", type=int, default=12,
+                        help=f"bursts of {BURST} steps at 60 per second after the moves (default: %(default)s)")
     parser.add_argument("--quiet", type=float, default=400.0,
                         help="ms without a paint that end a move (default: %(default)s)")
     parser.add_argument("--timeout", type=float, default=180.0,
