@@ -33,7 +33,8 @@ What is measured, in headless Chromium (selenium + chromedriver):
 - first plot: from the page's navigation start to the first paint of the plot, on the first visit
   (right after the server serves) and on a reload; and from the server process's start to the
   first visit's first plot (what a user waits for after starting the app);
-- the server process's CPU seconds (user + system, with its children) during the timed moves;
+- the server process's CPU seconds (user + system, with its children) during the timed moves, and
+  the browser's (chromedriver and every Chromium process);
 - the packages each stack adds to a fresh virtual environment: ``pip list`` of the environment
   after ``pip install STACK`` minus that of the bare environment (recorded by ``--install``
   before podkrig itself is installed into it).
@@ -614,10 +615,10 @@ def measure(stack, args, log=print):
         driver.execute_script("window.__peers.reset()")
         time.sleep(1.0)
         out["idle_paints"] = driver.execute_script("return window.__peers.paints")
-        latencies, firsts, paints, failed, cpu0 = [], [], [], 0, None
+        latencies, firsts, paints, failed, cpu0, browser0 = [], [], [], 0, None, None
         for i in range(args.warmup + args.moves):
             if i == args.warmup:
-                cpu0 = cpu_seconds(proc.pid)
+                cpu0, browser0 = cpu_seconds(proc.pid), cpu_seconds(driver.service.process.pid)
             k, key = key_for(i, len(sliders))
             driver.execute_script("arguments[0].focus(); window.__peers.reset();", sliders[k])
             ActionChains(driver).send_keys(key).perform()
@@ -631,6 +632,7 @@ def measure(stack, args, log=print):
                 firsts.append(r["first"] - r["key"])
                 paints.append(r["paints"])
         out["cpu"] = cpu_seconds(proc.pid) - cpu0
+        out["browser_cpu"] = cpu_seconds(driver.service.process.pid) - browser0
         out["moves"], out["failed"], out["latencies"] = len(latencies), failed, latencies
         nan = float("nan")
         out["median"], out["p90"], out["first_paint_median"], out["paints_median"] = nan, nan, nan, 0
@@ -654,7 +656,7 @@ def measure(stack, args, log=print):
         log(f"[{stack.name}] {len(latencies)} moves: median {out.get('median', float('nan')):.0f} ms, "
             f"p90 {out.get('p90', float('nan')):.0f} ms (first paint {out.get('first_paint_median', float('nan')):.0f} ms, "
             f"{out.get('paints_median', 0):.0f} paint calls), {failed} without a paint, {out['idle_paints']} "
-            f"paint calls in 1 s idle; server CPU {out['cpu']:.2f} s")
+            f"paint calls in 1 s idle; CPU: server {out['cpu']:.2f} s, browser {out['browser_cpu']:.2f} s")
     except Exception as error:
         raise RuntimeError(f"{stack.name}: {error} (the server's output: {folder / 'server.log'})") from error
     finally:
@@ -676,7 +678,7 @@ def table(rows):
     """The Markdown table of the measured stacks."""
     head = ("| stack | version | packages added to a fresh venv | serving after start, s | first plot after "
             "navigation, first visit / reload, s | start → first plot, s | slider → plot median, ms | p90, ms "
-            "| after a burst of 10 steps, ms | server CPU during the moves, s | moves (no paint) "
+            "| after a burst of 10 steps, ms | CPU during the moves, server / browser, s | moves (no paint) "
             "| requests to other hosts |")
     n_columns = head.count("|") - 1
     lines = [head, "|" + "---|" * n_columns]
@@ -686,7 +688,7 @@ def table(rows):
             continue
         lines.append(f"| {r['stack']} | {r['version']} | {r['added']} | {r['serving']:.1f} | "
                      f"{r['first_plot_first']:.2f} / {r['first_plot_reload']:.2f} | {r['start_to_plot']:.1f} | "
-                     f"{r['median']:.0f} | {r['p90']:.0f} | {r['burst']:.0f} | {r['cpu']:.2f} | "
+                     f"{r['median']:.0f} | {r['p90']:.0f} | {r['burst']:.0f} | {r['cpu']:.2f} / {r['browser_cpu']:.1f} | "
                      f"{r['moves']} ({r['failed']}) | {len(r['foreign'])} |")
     return "\n".join(lines)
 
