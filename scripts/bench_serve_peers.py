@@ -7,8 +7,8 @@ measured ones, per sensor, over the load levels. The stacks:
 
 - ``starlette``: Starlette + uvicorn serving a static HTML page that draws with the vendored uPlot
   (``podkrig/serve/static/vendor/uplot-1.6.32``) and asks a JSON route for each prediction;
-- ``dash``: a Dash app (``dcc.Slider`` → callback → ``dcc.Graph``, Plotly);
-- ``panel``: a Panel app (``pn.widgets.FloatSlider`` → ``pn.bind`` → a Bokeh figure);
+- ``dash``: a Dash app (``dcc.Slider(updatemode="drag")`` → callback → ``dcc.Graph``, Plotly);
+- ``panel``: a Panel app (``pn.widgets.IntSlider`` → ``param.watch`` → the data of a Bokeh figure);
 - ``streamlit``: a Streamlit script (``st.slider`` → ``st.line_chart``, Vega-Lite).
 
 Each app is written into a temporary folder and started as a subprocess (``nice -n 5``) on a free
@@ -41,7 +41,7 @@ What is measured, in headless Chromium (selenium + chromedriver):
 
 The machine's load (``uptime``) is printed before and after.
 
-Install the peers (each in its own environment, never in the project's; about 2-4 min each)::
+Install the peers (each in its own environment, never in the project's; a minute or two each)::
 
     python scripts/bench_serve_peers.py --install            # all four: /work/venv-peers-NAME
     python scripts/bench_serve_peers.py --install dash       # one
@@ -56,7 +56,6 @@ Then measure::
     python scripts/bench_serve_peers.py --stacks starlette dash --moves 60
 """
 
-
 import argparse
 import json
 import os
@@ -67,7 +66,6 @@ import statistics
 import subprocess
 import sys
 import tempfile
-import textwrap
 import time
 import urllib.error
 import urllib.request
@@ -653,10 +651,10 @@ def measure(stack, args, log=print):
                 bursts.append(r["last"] - r["key"])
         out["burst"] = statistics.median(bursts) if bursts else nan
         out["foreign"] = driver.execute_script(FOREIGN)
-        log(f"[{stack.name}] {len(latencies)} moves: median {out.get('median', float('nan')):.0f} ms, "
-            f"p90 {out.get('p90', float('nan')):.0f} ms (first paint {out.get('first_paint_median', float('nan')):.0f} ms, "
-            f"{out.get('paints_median', 0):.0f} paint calls), {failed} without a paint, {out['idle_paints']} "
-            f"paint calls in 1 s idle; CPU: server {out['cpu']:.2f} s, browser {out['browser_cpu']:.2f} s")
+        log(f"[{stack.name}] {len(latencies)} moves: median {out['median']:.0f} ms, p90 {out['p90']:.0f} ms "
+            f"(first paint {out['first_paint_median']:.0f} ms, {out['paints_median']:.0f} paint calls), "
+            f"{failed} without a paint, {out['idle_paints']} paint calls in 1 s idle; burst {out['burst']:.0f} ms; "
+            f"CPU: server {out['cpu']:.2f} s, browser {out['browser_cpu']:.2f} s")
     except Exception as error:
         raise RuntimeError(f"{stack.name}: {error} (the server's output: {folder / 'server.log'})") from error
     finally:
@@ -688,8 +686,8 @@ def table(rows):
             continue
         lines.append(f"| {r['stack']} | {r['version']} | {r['added']} | {r['serving']:.1f} | "
                      f"{r['first_plot_first']:.2f} / {r['first_plot_reload']:.2f} | {r['start_to_plot']:.1f} | "
-                     f"{r['median']:.0f} | {r['p90']:.0f} | {r['burst']:.0f} | {r['cpu']:.2f} / {r['browser_cpu']:.1f} | "
-                     f"{r['moves']} ({r['failed']}) | {len(r['foreign'])} |")
+                     f"{r['median']:.0f} | {r['p90']:.0f} | {r['burst']:.0f} | "
+                     f"{r['cpu']:.2f} / {r['browser_cpu']:.1f} | {r['moves']} ({r['failed']}) | {len(r['foreign'])} |")
     return "\n".join(lines)
 
 

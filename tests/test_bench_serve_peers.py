@@ -57,8 +57,8 @@ def test_moves_take_the_sliders_in_turn_and_stay_within_five_steps(bench):
 
 def test_table_gives_a_failed_stack_a_full_row(bench):
     row = {"stack": "dash", "version": "4.4.1", "added": 28, "serving": 3.4, "first_plot_first": 1.7,
-           "first_plot_reload": 0.8, "start_to_plot": 5.9, "median": 113.0, "p90": 133.0, "burst": 150.0, "cpu": 0.08, "browser_cpu": 2.0, "moves": 60, "failed": 0,
-           "foreign": []}
+           "first_plot_reload": 0.8, "start_to_plot": 5.9, "median": 113.0, "p90": 133.0, "burst": 150.0,
+           "cpu": 0.08, "browser_cpu": 2.0, "moves": 60, "failed": 0, "foreign": []}
     text = bench.table([row, {"stack": "panel", "error": "panel: found 0 sliders | see log"}])
     lines = text.splitlines()
     assert len({line.count("|") for line in lines}) == 1  # every row has the header's columns
