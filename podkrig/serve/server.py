@@ -81,9 +81,7 @@ def serve(session, *, host="127.0.0.1", port=0, token=None, open_browser=True, s
     try:
         server.run(sockets=[sock])
     finally:
-        services = getattr(app.app.state, "services", None)
-        if services is not None:
-            services.close()
+        app.app.state.services.close()
         session.close()
         sock.close()
 

@@ -157,11 +157,19 @@ class Session:
     def state(self):
         return "ready" if self.ready else "needs_offline"
 
+    @property
+    def uploaded(self):
+        """The tests whose measurement was replaced by an upload in this session."""
+        return tuple(self._uploads)
+
     def reload(self):
-        """Forget the problem built so far (after a study job wrote new surrogates)."""
+        """Forget the problem built so far (after a study job wrote new surrogates or a new
+        calibration): it is built again from the folder, with the study's measurements (an upload
+        of this session is dropped)."""
         with self._lock:
             self._run = None
             self._problem = None
+            self._uploads = {}
 
     def study_run(self):
         """The :class:`~podkrig.study.stages.StudyRun` over the folder (built once; it caches
