@@ -36,8 +36,9 @@ import numpy as np
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import MAX_JSON_BYTES, check_name, read_bounded
 from podkrig.online.calibrate import problems_by_test
-from podkrig.online.data_check import MeasurementCheckError
+from podkrig.online.data_check import MeasurementCheckError, check_readings, surrogate_training_outputs
 from podkrig.online.joint import JointProblem
+from podkrig.online.problem import check_dof
 from podkrig.parameters import ParameterSpace
 from podkrig.reports.findings import refusal
 from podkrig.study import load_study
@@ -444,9 +445,12 @@ class Session:
         try:
             meas, noise = read_study_measurement(upload, model.sensor_names, model.load_levels, model.load_unit,
                                                  model.load_response, model.sensor_units)
-            new = dataclasses.replace(one, measurement=meas, noise=noise)
-            new.observation  # a measurement the model cannot be evaluated at is refused here
-            new.misfit
+            # the readings against the surrogate's training runs (a unit or sign error), as the study
+            # compares its log with its probe and training runs
+            check_readings(meas, noise, model.sensor_names, model.load_levels, model.load_response,
+                           surrogate_training_outputs(model.surrogate), runs="surrogate")
+            new = dataclasses.replace(one, measurement=meas, noise=noise)  # refuses data the model cannot give
+            check_dof(new.n_obs, new.free, "the uploaded file", new.n_removed)
         except MeasurementCheckError as e:
             raise RequestError(refusal(e, "study"), "measurement") from None
         except ValueError as e:
