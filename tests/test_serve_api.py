@@ -286,6 +286,22 @@ def test_binding_needs_a_token_off_loopback():
         check_binding("0.0.0.0", 0, "short")
 
 
+def test_bound_socket_says_it_is_tcp():
+    """asyncio turns Nagle off only on connections of a socket whose proto is TCP: without it every
+    response waits ~40 ms for the client's delayed ACK."""
+    import socket
+
+    from podkrig.serve.server import bind
+
+    sock = bind("127.0.0.1", 0)
+    try:
+        assert sock.proto == socket.IPPROTO_TCP and sock.getsockname()[1] > 0
+        with pytest.raises(OSError):  # the same port twice: refused by the OS
+            bind("127.0.0.1", sock.getsockname()[1])
+    finally:
+        sock.close()
+
+
 def test_real_server_on_a_free_port(tiny_study):
     """``podkrig serve DIR --no-browser --port 0`` prints its address, serves the study, and stops."""
     cmd = [sys.executable, "-c", "from podkrig.cli import app; app()", "serve", str(tiny_study[1]), "--no-browser"]

@@ -12,8 +12,8 @@ answers the page's questions about it as JSON-able dicts:
 * :meth:`Session.predict` — the surrogate's mean and σ at the measured readings of every test, the
   standardized residuals ``(d − g)/σ_total`` with ``σ_total² = σ_noise² + σ_surrogate²`` (the
   diagonal of thesis eq. 2.10's ``C_D``), each test's χ²/dof and the misfit ω (thesis eq. 2.13).
-  This is the slider's path: one batched surrogate call per test, well under a millisecond of CPU
-  on the demo;
+  This is the slider's path: one surrogate call per test (mean and σ; χ² and ω from the same
+  prediction), about half a millisecond of CPU on the demo;
 * :meth:`Session.replace_measurement` — an uploaded measurement log read by the library's reader
   (:func:`podkrig.io.measurement_log.read_measurement`) with the study's import settings and
   checked like the study's measurement stage; it replaces that test's data in this session only.
@@ -353,20 +353,23 @@ class Session:
         """
         problem = self.problem
         x = self.values(values)
-        parts = problem.parts(x) if isinstance(problem, JointProblem) else {None: (problem, x)}
-        tests, chi2_all = [], 0.0
+        parts = problem.parts(x) or {None: (problem, x)}  # one test: the problem itself
+        tests, chi2_all, omega = [], 0.0, 0.0
         for name, (p, xt) in parts.items():
-            mean, std = p.misfit.predict(xt[None])
+            misfit, meas = p.misfit, p.measurement
+            mean, std = misfit.predict(xt[None])  # one surrogate call: χ² and ω from the same prediction
+            w = misfit.whiten(mean - meas.data, std)  # L_D⁻¹ (g − d), rigid-body motions projected out
+            chi2 = float(np.sum(w**2))
+            prior = misfit.prior_residuals(xt[None])
+            omega += 0.5 * chi2 + 0.5 * float(np.sum(prior**2))  # thesis eq. (2.13)
+            chi2_all += chi2
             mean = mean[0]
-            noise = p.misfit.noise_std
+            sd = np.zeros_like(mean) if std is None else std[0]
+            noise = misfit.noise_std
             if p.model_form_error is not None:
                 noise = np.sqrt(noise**2 + p.model_form_error.std**2)
-            total = noise if std is None else np.sqrt(noise**2 + std[0] ** 2)
-            meas = p.measurement
-            grid_mean, grid_std = meas.grid(mean), meas.grid(np.zeros_like(mean) if std is None else std[0])
-            grid_res = meas.grid((meas.data - mean) / total)
-            chi2 = float(p.chi2(xt[None])[0])
-            chi2_all += chi2
+            total = np.sqrt(noise**2 + sd**2)  # the diagonal of C_D
+            grid_mean, grid_std, grid_res = meas.grid(mean), meas.grid(sd), meas.grid((meas.data - mean) / total)
             dof = p.n_obs - p.n_removed - p.n_free
             levels, unit = json_safe(meas.load_levels), p.model.load_unit
             series = [{"sensor": s, "unit": u, "x": levels, "x_unit": unit, "measured": json_safe(meas.values[:, j]),
@@ -375,8 +378,7 @@ class Session:
                       for j, (s, u) in enumerate(zip(meas.sensor_names, meas.sensor_units))]
             tests.append({"name": name, "chi2": chi2, "dof": dof, "chi2_dof": chi2 / max(dof, 1), "series": series})
         dof = problem.n_obs - problem.n_removed - problem.n_free
-        return {"omega": float(problem.omega(x[None])[0]), "chi2": chi2_all, "dof": dof,
-                "chi2_dof": chi2_all / max(dof, 1), "tests": tests}
+        return {"omega": omega, "chi2": chi2_all, "dof": dof, "chi2_dof": chi2_all / max(dof, 1), "tests": tests}
 
     # -------------------------------------------------------------------------------- files
 
