@@ -498,11 +498,16 @@ def test_fe_view_of_a_nonlinear_run():
     np.testing.assert_allclose(view["curve"]["y"], np.asarray(path.load)[control], rtol=1e-12, atol=0)
     assert view["curve"]["y_unit"] == r.force_unit and max(view["curve"]["y"]) in np.asarray(path.load)[control]
     joints = view["joints"]
-    n_points = len(sc.model.point_nodes())
-    assert np.shape(joints["points"]) == (n_points, 2)
-    assert np.shape(joints["opening"]) == np.shape(joints["slip"]) == (n, n_points)
-    last = np.asarray(path.states[control[-1]]["opening"], float)
-    np.testing.assert_allclose(joints["opening"][-1], last, rtol=0, atol=1e-5 * np.abs(last).max())  # 6 digits
+    points = sc.mesh.nodes[np.asarray(sc.model.point_nodes())]
+    n_elements = len(sc.model.interface_elements)
+    assert len(joints) == n_elements and all(len(j["opening"]) == len(j["slip"]) == n for j in joints)
+    per = len(points) // n_elements
+    last = np.asarray(path.states[control[-1]]["opening"], float).reshape(n_elements, per).mean(axis=1)
+    opening = np.array([j["opening"][-1] for j in joints])
+    np.testing.assert_allclose(opening, last, rtol=0, atol=1e-5 * np.abs(last).max())  # rounded to 6 digits
+    for e in (0, n_elements - 1):  # the ends are two of the element's own integration points
+        own = points[e * per:(e + 1) * per].tolist()
+        assert joints[e]["a"] in own and joints[e]["b"] in own and joints[e]["a"] != joints[e]["b"]
     assert np.shape(view["displacement"])[:2] == (n, len(view["nodes"]))
 
 

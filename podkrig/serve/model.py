@@ -61,8 +61,7 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
         (``x_unit``); ``displacement`` ``(n_steps, n_drawn, 2)`` mm; ``scale`` the suggested
         magnification (-); ``curve`` (nonlinear: control displacement ``x`` mm and load ``y`` in
         ``y_unit`` of every converged step of the controlled phase) or None; ``joints``
-        (nonlinear: ``points`` ``(n_points, 2)`` mm, the joints' integration points, and their
-        ``opening`` and ``slip`` ``(n_steps, n_points)`` mm) or None.
+        (nonlinear: one entry per interface element, :func:`_joints`) or None.
 
     Raises
     ------
@@ -90,9 +89,7 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
         x, x_unit = disp[steps], "mm"
         curve = {"x": disp[control].tolist(), "y": load[control].tolist(), "x_unit": "mm",
                  "y_unit": response.force_unit}
-        joints = {"points": mesh.nodes[point_nodes].tolist(),
-                  "opening": _rounded([np.asarray(path.states[s]["opening"], float) for s in steps]).tolist(),
-                  "slip": _rounded([np.asarray(path.states[s]["slip"], float) for s in steps]).tolist()}
+        joints = _joints(scenario, mesh.nodes[point_nodes], [path.states[s] for s in steps])
     else:
         if getattr(response, "field", None) is None:
             raise ValueError("the FE run kept no displacement field: run it with field=True")
@@ -102,6 +99,23 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
     return {"nodes": mesh.nodes[drawn].tolist(), "outline": index[corners].tolist(), "steps": x.tolist(),
             "x_unit": x_unit, "displacement": _rounded(u).tolist(), "scale": float(scale),
             "scale_text": f"displacements drawn × {scale:.3g}", "curve": curve, "joints": joints}
+
+
+def _joints(scenario, points, states):
+    """One entry per interface element of a nonlinear scenario: its ends ``a``, ``b`` (mm, the two
+    of its integration points farthest apart, on face A) and its ``opening`` and ``slip`` at each
+    shown step (mm, the mean over its integration points; the states' per-point values)."""
+    n_elements = len(scenario.model.interface_elements)
+    n_per = len(points) // n_elements  # the points are element by element (point_nodes)
+    xy = points.reshape(n_elements, n_per, 2)
+    gap = np.linalg.norm(xy[:, :, None] - xy[:, None, :], axis=-1).reshape(n_elements, -1)
+    ends = np.unravel_index(np.argmax(gap, axis=1), (n_per, n_per))
+    rows = np.arange(n_elements)
+    a, b = xy[rows, ends[0]], xy[rows, ends[1]]
+    opening = _rounded([np.asarray(st["opening"], float).reshape(n_elements, n_per).mean(axis=1) for st in states])
+    slip = _rounded([np.asarray(st["slip"], float).reshape(n_elements, n_per).mean(axis=1) for st in states])
+    return [{"a": a[e].tolist(), "b": b[e].tolist(), "opening": opening[:, e].tolist(), "slip": slip[:, e].tolist()}
+            for e in range(n_elements)]
 
 
 class FEViews:
