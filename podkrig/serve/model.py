@@ -21,6 +21,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from fe.scenarios import build_scenario
 from podkrig.reports.fields import auto_magnification
 from podkrig.reports.step_slider import MAX_FRAMES, select_steps
 from podkrig.serve.session import RequestError
@@ -127,7 +128,7 @@ class FEViews:
         self._views = {}
         self._ids = itertools.count(1)
         self._lock = threading.Lock()
-        self._scenario_lock = threading.Lock()
+        self._scenarios = {}  # its own scenario per test: never run at once with a calibration's FE check
 
     def start(self, body):
         """``POST /api/fe``: check ``values`` (the free parameters, physical; missing ones at the
@@ -155,8 +156,9 @@ class FEViews:
     def _run(self, fid, test, params):
         view = self._views[fid]
         try:
-            with self._scenario_lock:  # one scenario build per test (StudyRun caches it)
-                scenario = self.session.study_run().scenario(test)
+            if test.name not in self._scenarios:  # built in the one worker thread
+                self._scenarios[test.name] = build_scenario(test.spec)
+            scenario = self._scenarios[test.name]
             response = scenario.run(params, field=True)
             result = model_view(scenario, response)
             view.update(status="done", result=result, seconds=time.time() - view["started"])
