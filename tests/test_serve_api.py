@@ -604,3 +604,77 @@ def test_measurement_upload_replaces_the_data(tiny_study, tmp_path, monkeypatch)
         monkeypatch.setattr(app_module, "MAX_UPLOAD_BYTES", 100)
         error_of(c.post("/api/measurement", content=log.read_bytes(), headers=headers), 413, "100 bytes")
     s.close()
+
+
+# ------------------------------------------------------------------------------------- a joint study
+
+JOINT = """\
+name = "tiny_joint_serve"
+
+[parameters]
+kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
+kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
+
+[fixed]
+E_b = 11000.0
+
+[sampling]
+train = { n = 16, seed = 0 }
+held_out = { n = 4, seed = 1, method = "random" }
+workers = 1
+
+[inversion]
+population_size = 20
+generations = 10
+n_starts = 2
+region_samples = 4096
+
+[[test]]
+name = "diagonal"
+scenario = { scenario = "diagonal_compression", nx = 2, ny = 1 }
+measurement = { file = "diagonal.csv", noise_abs = 0.001, noise_rel = 0.01 }
+fixed = { r_hj = 0.6 }
+
+[[test]]
+name = "shear"
+scenario = { scenario = "shear_compression", nx = 2, ny = 1 }
+measurement = { file = "shear.csv", noise_abs = 0.001, noise_rel = 0.01 }
+parameters = { r_hj = { lower = 0.2, upper = 1.0 } }
+"""
+
+
+@pytest.mark.slow
+def test_joint_study_side_by_side(tmp_path):
+    """Two tests sharing kN_bj and kV_bj, the shear test with its own r_hj: one slider set (the
+    union, in the joint order), one series set per test, χ² summed over the tests."""
+    for name, scenario, r_hj in (("diagonal", "diagonal_compression", 0.6), ("shear", "shear_compression", 0.45)):
+        sc = build_scenario({"scenario": scenario, "nx": 2, "ny": 1})
+        clean = sc.run({**TRUTH, "r_hj": r_hj}).readings
+        write_measurement_csv(tmp_path / f"{name}.csv", Measurement(clean, sc.sensor_names, sc.load_levels))
+    (tmp_path / "study.toml").write_text(JOINT)
+    run_study(load_study(tmp_path / "study.toml"), tmp_path / "out")
+    s = Session.open(tmp_path / "out")
+    with TestClient(create_app(s), base_url=ORIGIN) as c:
+        study = c.get("/api/study").json()
+        assert [p["name"] for p in study["parameters"]] == ["kN_bj", "kV_bj", "r_hj"]
+        assert [(t["name"], t["free"]) for t in study["tests"]] == [("diagonal", ["kN_bj", "kV_bj"]),
+                                                                     ("shear", ["kN_bj", "kV_bj", "r_hj"])]
+        assert set(study["noise"]) == {"diagonal", "shear"}
+        out = c.post("/api/predict", json={"values": {"kN_bj": 90.0, "kV_bj": 35.0, "r_hj": 0.45}}).json()
+        assert [t["name"] for t in out["tests"]] == ["diagonal", "shear"]
+        np.testing.assert_allclose(out["chi2"], sum(t["chi2"] for t in out["tests"]), rtol=1e-12, atol=0)
+        n_obs = sum(len(t["series"]) * len(t["series"][0]["x"]) for t in out["tests"])
+        assert out["dof"] == n_obs - 3
+        for t in out["tests"]:  # noise-free data at the truth: the residuals are the surrogate's error
+            z = np.array([x["residual"] for x in t["series"]])
+            np.testing.assert_allclose(t["chi2"], np.sum(z**2), rtol=1e-10, atol=0)
+        error_of(c.post("/api/calibrate", json={"frozen": {"kN_bj": 90.0, "kV_bj": 35.0}}), 422, "diagonal",
+                 "free", field="frozen")
+        rid = c.post("/api/calibrate", json={"frozen": {"r_hj": 0.45}}).json()["run"]
+        run = wait_for(c, f"/api/runs/{rid}")
+        assert run["status"] == "done", run["error"]
+        assert [q["name"] for q in run["result"]["parameters"]] == ["kN_bj", "kV_bj"]
+        assert [f["test"] for f in run["result"]["fe_check"]] == ["diagonal", "shear"]
+        error_of(c.post("/api/calibrate", json={"noise": {"shear": {"noise_rel": -1.0}}}), 422, "noise_rel",
+                 field="noise.shear.noise_rel")
+    s.close()
