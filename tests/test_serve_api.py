@@ -423,6 +423,18 @@ def test_calibration_noise_from_the_page(client, session):
     assert 2.0 < p.chi2(x)[0] / run["result"]["chi2"] <= 4.0
 
 
+@pytest.mark.slow
+def test_calibration_with_the_diagnosis(client):
+    """Asked for, the model diagnosis runs after the calibration; the data were made by this very
+    model (1 % noise), so it finds the model adequate and names no cause."""
+    rid = client.post("/api/calibrate", json={"inversion": GA, "diagnosis": True}).json()["run"]
+    run = wait_for(client, f"/api/runs/{rid}", timeout=600)
+    assert run["status"] == "done", run["error"]
+    (diagnosis,) = run["result"]["diagnosis"].values()
+    assert diagnosis["verdict"] == "adequate" and diagnosis["causes"] == []
+    assert run["settings"]["diagnosis"] is True
+
+
 def test_calibration_refuses_bad_settings(client):
     post = lambda body: client.post("/api/calibrate", json=body)  # noqa: E731
     error_of(post({"inversion": {**GA, "population_size": 2}}), 422, "population_size", "2", "[4,",

@@ -22,8 +22,9 @@ Safety (:class:`Guard`): the ``Host`` header must name the bound address (a page
 that rebinds its DNS name to 127.0.0.1 is refused); a request that carries an ``Origin`` must come
 from the served address; with a token, every request must carry it (``?token=`` once, which sets a
 cookie, or the ``X-Podkrig-Token`` header). Request bodies are JSON (``Content-Type:
-application/json``, which a page of another site cannot send without a preflight this server never
-answers) and capped in size.
+application/json``) or, for a measurement log, raw bytes (``application/octet-stream``): types a
+page of another site cannot send without a preflight this server never answers. Bodies are capped
+in size (:data:`MAX_JSON_BODY`, :data:`MAX_UPLOAD_BYTES`).
 """
 
 import dataclasses
@@ -126,15 +127,13 @@ class Guard:
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
         headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope["headers"]}
-        refused = None
+        refused = field = None
         host = headers.get("host", "")
         if not self.allowed_host(host):
-            refused = f"host {host!r} is not the address this server is bound to"
+            refused, field = f"host {host!r} is not the address this server is bound to", "host"
         origin = headers.get("origin")
-        if refused is None and origin is not None and origin != "null":
-            netloc = urllib.parse.urlsplit(origin).netloc
-            if netloc != host:
-                refused = f"requests from origin {origin!r} are refused: open the page at http://{host}/"
+        if refused is None and origin is not None and urllib.parse.urlsplit(origin).netloc != host:
+            refused, field = f"requests from origin {origin!r} are refused: open the page at http://{host}/", "host"
         set_cookie = False
         if refused is None and self.token is not None:
             query = urllib.parse.parse_qs(scope.get("query_string", b"").decode("latin-1"))
@@ -142,10 +141,11 @@ class Guard:
             given = (query.get("token", [None])[0] or headers.get(TOKEN_HEADER)
                      or (cookies[TOKEN_COOKIE].value if TOKEN_COOKIE in cookies else None))
             if given is None or not hmac.compare_digest(given.encode(), self.token.encode()):
-                refused = "a token is required: open the address podkrig serve printed (it carries ?token=)"
+                refused, field = "a token is required: open the address podkrig serve printed (it carries ?token=)", \
+                    "token"
             set_cookie = "token" in query
         if refused is not None:
-            return await error_response(refused, "token" if "token" in refused else "host", 403)(scope, receive, send)
+            return await error_response(refused, field, 403)(scope, receive, send)
         if not set_cookie:
             return await self.app(scope, receive, send)
         cookie = f"{TOKEN_COOKIE}={self.token}; Path=/; HttpOnly; SameSite=Strict".encode("latin-1")
@@ -257,7 +257,7 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
         return FileResponse(session.file(request.path_params["path"]))
 
     def study(request):  # reads the study's calibration back when it changed: in the thread pool
-        cal = session._calibration_cached()
+        cal = session.calibration()
         return JSON(session.study_view(calibration=None if cal is None else result_view(cal)))
 
     async def predict(request):  # the slider's path: a millisecond on the event loop, no thread hop

@@ -119,6 +119,7 @@ class Session:
         self._problem = None
         self._uploads = {}  # test name -> path of the uploaded log (a temporary file of this session)
         self._tmp = None
+        self._calibration = None  # (manifest mtime, CalibrationResult or None)
 
     @classmethod
     def open(cls, path, out=None):
@@ -207,7 +208,7 @@ class Session:
         soon as the address is printed: the problem, the study's calibration read back, one
         prediction, and what a first calibration needs besides (each test's FE scenario for the FE
         check, the validation models' surrogates) — about 2 s of CPU on the demo."""
-        self._calibration_cached()
+        self.calibration()
         if not self.ready:
             return
         self.predict({})
@@ -233,8 +234,19 @@ class Session:
 
     def calibration(self):
         """The study's calibration (:class:`~podkrig.online.calibrate.CalibrationResult` of its
-        stage manifest and ``region.npz``), or None when it has not run."""
-        manifest = read_manifest(self.folder / "stages" / "calibration.json")
+        stage manifest and ``region.npz``), or None when it has not run; read again only when the
+        manifest changed (a study job wrote a new one)."""
+        path = self.folder / "stages" / "calibration.json"
+        try:
+            stamp = path.stat().st_mtime_ns
+        except OSError:
+            return None
+        if self._calibration is None or self._calibration[0] != stamp:
+            self._calibration = (stamp, self._read_calibration(path))
+        return self._calibration[1]
+
+    def _read_calibration(self, path):
+        manifest = read_manifest(path)
         if manifest is None:
             return None
         try:
@@ -283,27 +295,15 @@ class Session:
         return {n: best.get(n, mid[n]) for n in space.names}
 
     def _best(self):
-        cal = self._calibration_cached()
+        cal = self.calibration()
         return {} if cal is None else {n: float(v) for n, v in cal.inversion.free_parameters.items()}
-
-    def _calibration_cached(self):
-        """:meth:`calibration`, read once per manifest version (its mtime)."""
-        path = self.folder / "stages" / "calibration.json"
-        try:
-            stamp = path.stat().st_mtime_ns
-        except OSError:
-            return None
-        cached = getattr(self, "_cal", None)
-        if cached is None or cached[0] != stamp:
-            self._cal = (stamp, self.calibration())
-        return self._cal[1]
 
     # -------------------------------------------------------------------------------- the views
 
     def parameters_view(self):
         """The free parameters for the page: name, unit, bounds, scale, value, best and the
         study's equivalence interval (None before a calibration)."""
-        cal = self._calibration_cached()
+        cal = self.calibration()
         best = self._best()
         intervals = {} if cal is None else cal.region.intervals
         defaults = self.defaults()
