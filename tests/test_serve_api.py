@@ -273,6 +273,14 @@ def test_host_origin_and_token(session):
         assert c.get("/api/study").status_code == 200
 
 
+def test_printed_address():
+    from podkrig.serve.server import address
+
+    assert address("127.0.0.1", 8765) == "http://127.0.0.1:8765/"
+    assert address("::1", 8765) == "http://[::1]:8765/"
+    assert address("0.0.0.0", 8765, "long-enough-token") == "http://127.0.0.1:8765/?token=long-enough-token"
+
+
 def test_binding_needs_a_token_off_loopback():
     check_binding("127.0.0.1", 0, None)
     check_binding("::1", 8080, None)

@@ -160,7 +160,8 @@ class Runs:
     def prepare(self, body):
         """The problem with the ``frozen`` parameters fixed and the ``noise`` of each test, and the
         calibration settings with the ``inversion`` of the request (the study's otherwise), all
-        checked here: ``(problem, settings, frozen, diagnosis)``.
+        checked here: ``(problem, settings, frozen, diagnosis, noise)`` (``noise``: each test's
+        noise settings as a dict, the page's or the study's).
 
         Raises
         ------

@@ -55,7 +55,9 @@ def bind(host, port):
 
 
 def address(host, port, token=None):
-    """The URL of the page (with ``?token=`` when there is one)."""
+    """The URL of the page (with ``?token=`` when there is one); for a server on every interface
+    (``0.0.0.0``, ``::``) its loopback address, which this machine's browser opens."""
+    host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)
     shown = f"[{host}]" if ":" in host else host
     return f"http://{shown}:{port}/" + (f"?token={token}" if token else "")
 

@@ -63,10 +63,8 @@ class RequestError(PodkrigError):
 
 
 def json_safe(values):
-    """A float array as a JSON list, NaN (a missing reading) as None."""
-    a = np.asarray(values, dtype=float)
-    return [None if not math.isfinite(v) else v for v in a.ravel().tolist()] if a.ndim <= 1 else \
-        [json_safe(row) for row in a]
+    """A 1-D float array as a JSON list, NaN (a missing reading) as None."""
+    return [v if math.isfinite(v) else None for v in np.asarray(values, dtype=float).tolist()]
 
 
 def study_file_of(folder):
