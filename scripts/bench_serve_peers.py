@@ -725,7 +725,10 @@ def main(argv=None):
     args = parse_args(argv)
     if args.install is not None:
         for name in args.install or list(STACKS):
-            install(STACKS[name])
+            try:
+                install(STACKS[name])
+            except (subprocess.CalledProcessError, subprocess.TimeoutExpired) as error:
+                sys.exit(f"making the {name} environment failed: {error} (pip's output is above)")
         return 0
     missing = []
     for name in args.stacks:
