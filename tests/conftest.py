@@ -1,8 +1,12 @@
 """Shared pytest fixtures and helpers."""
 
 import contextlib
+import fcntl
 import importlib.util
+import json
 import logging
+import os
+import shutil
 from pathlib import Path
 
 import h5py
@@ -11,6 +15,8 @@ import pytest
 from fe.scenarios import Scenario, build_scenario
 from fe.scenarios.diagonal_compression import DEFAULT_SENSORS
 from podkrig.parameters import ParameterSpace
+
+ROOT = Path(__file__).resolve().parents[1]
 
 #: the 9 × 9 displacement grid over the diagonal test's panel that the diagnosis tests add to its
 #: six gauges (mm)
@@ -37,6 +43,54 @@ def done_rows(path):
             return int((f["status"][...] == 1).sum())
     except (OSError, KeyError):
         return 0
+
+
+def shared_cli_run(tmp_path_factory, name, args):
+    """``podkrig ARGS`` run once per test session in the folder ``name`` (a scratch folder with
+    ``examples/`` beside it, the command's working directory) and shared by every test and every
+    xdist worker of the session that asks for it: ``(folder, exit_code, output)``.
+
+    The first caller runs it under an exclusive lock on ``NAME.lock`` in the session's temporary
+    folder (the parent of a worker's own, which all workers of one session share); the others wait
+    on the lock and read the result. Read-only for the tests: one that writes into the run's
+    folder works on a copy (its stages are cached by their inputs' contents, so a copy resumes as
+    the original would: every finished stage skipped)."""
+    from typer.testing import CliRunner
+
+    from podkrig.cli import app
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent
+    folder, result = root / name, root / f"{name}.json"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes (or the process dies)
+        if not result.is_file():
+            shutil.rmtree(folder, ignore_errors=True)  # what a caller that raised left
+            folder.mkdir()
+            (folder / "examples").symlink_to(ROOT / "examples")
+            with pytest.MonkeyPatch.context() as monkeypatch:
+                monkeypatch.chdir(folder)
+                run = CliRunner().invoke(app, args)
+            result.write_text(json.dumps({"exit_code": run.exit_code, "output": run.output}))
+    done = json.loads(result.read_text())
+    return folder, done["exit_code"], done["output"]
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    """``podkrig demo --skip-diagnosis`` (the README's first command, about 350 FE runs) run once
+    per session, see :func:`shared_cli_run`; its study folder is ``FOLDER/out/demo``."""
+    return shared_cli_run(tmp_path_factory, "demo_skip_diagnosis", ["demo", "--skip-diagnosis"])
+
+
+@pytest.fixture(scope="session")
+def triplet_series_run(tmp_path_factory):
+    """``podkrig run examples/triplet_series.toml --out out/triplet_series`` (docs/strength.md's
+    command, 518 FE runs) run once per session, see :func:`shared_cli_run`; its study folder is
+    ``FOLDER/out/triplet_series``."""
+    return shared_cli_run(tmp_path_factory, "triplet_series",
+                          ["run", "examples/triplet_series.toml", "--out", "out/triplet_series"])
 
 
 @pytest.fixture(scope="session")

@@ -8,6 +8,7 @@ docs/nonlinear.md's commands run in ``tests/test_cli_simulate.py``.
 """
 
 import shlex
+import shutil
 from pathlib import Path
 
 import pytest
@@ -103,11 +104,20 @@ RUNNABLE = [(page, line, args, stdout) for page, line, args, stdout in ALL
 
 
 @pytest.mark.slow
-def test_every_example_runs_as_written(tmp_path, monkeypatch):
+def test_every_example_runs_as_written(tmp_path, monkeypatch, demo_run, triplet_series_run):
     """In a scratch folder (a fresh checkout's view: ``examples/`` beside it), the examples run one
     after the other as a reader runs them — later ones use the files earlier ones wrote — and each
     ends with exit code 0. The demo runs first (``podkrig sensitivity out/demo/...`` reads it)
-    without its diagnosis."""
+    without its diagnosis.
+
+    The two study runs (the demo and docs/strength.md's ``podkrig run
+    examples/triplet_series.toml``) are the session's (conftest.py: one fresh run each, in a scratch
+    folder of the same layout, shared with the other tests that need them): each must have ended
+    with exit code 0, and its folder is copied here, where the command then runs as written and
+    resumes it (every stage cached by its inputs' contents)."""
+    for folder, exit_code, output in (demo_run, triplet_series_run):
+        assert exit_code == 0, output[-2000:]
+        shutil.copytree(folder / "out", tmp_path / "out", dirs_exist_ok=True)
     monkeypatch.chdir(tmp_path)
     (tmp_path / "examples").symlink_to(ROOT / "examples")
     runner = CliRunner()

@@ -12,6 +12,7 @@ scenarios NAME``. The project's tests and code comments are not user text.
 import ast
 import re
 import shlex
+import shutil
 import tomllib
 from pathlib import Path
 
@@ -197,11 +198,18 @@ def test_every_python_example_is_valid_python():
 
 
 @pytest.mark.slow
-def test_the_python_examples_run_as_written(tmp_path, monkeypatch):
+def test_the_python_examples_run_as_written(tmp_path, monkeypatch, demo_run):
     """In a scratch folder beside ``examples/``, after ``podkrig demo --skip-diagnosis`` (the
     README's first command; its Python then adds the diagnosis, every other stage cached), each
     page's Python blocks run one after the other in one namespace, as a reader pastes them into
-    one session, except those that need what only the reader has (:data:`PY_BRING`)."""
+    one session, except those that need what only the reader has (:data:`PY_BRING`).
+
+    The demo's first run is the session's (conftest.py: one fresh run in a scratch folder of the
+    same layout, shared): it must have ended with exit code 0; its folder is copied here, where the
+    command then runs as written and resumes it (every stage cached by its inputs' contents)."""
+    folder, exit_code, output = demo_run
+    assert exit_code == 0, output[-2000:]
+    shutil.copytree(folder / "out", tmp_path / "out")
     monkeypatch.chdir(tmp_path)
     (tmp_path / "examples").symlink_to(ROOT / "examples")
     setup = runner.invoke(app, ["demo", "--skip-diagnosis"])

@@ -9,11 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
-from typer.testing import CliRunner
 
 from conftest import load_file
 from fe.scenarios import build_scenario
-from podkrig.cli import app
 from podkrig.study.schema import load_study
 from podkrig.study.stages import read_study_measurement
 
@@ -60,7 +58,7 @@ def test_the_make_script_reproduces_the_shipped_curves(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_series_finds_the_hidden_truth_and_proposes_to_fix_the_tensile_strength(tmp_path):
+def test_the_series_finds_the_hidden_truth_and_proposes_to_fix_the_tensile_strength(triplet_series_run):
     """``podkrig run examples/triplet_series.toml`` (518 FE runs, ~32 s CPU): the truth of the make
     script lies in the 95 % region of c_bj, tanphi_bj and GfII_bj, each identified within a tenth of
     its range (measured: [0.294, 0.313] MPa, [0.825, 0.865], [0.096, 0.104] N/mm); ft_bj is not
@@ -73,9 +71,9 @@ def test_the_series_finds_the_hidden_truth_and_proposes_to_fix_the_tensile_stren
     1 % of the surrogate, and the one snapshot over the box without a load maximum (tanφ < tanφ_r:
     friction hardens) is left out of its surrogate; the report shows its distribution figure."""
     truth = _make_script().TRUTH
-    out = tmp_path / "out"
-    result = CliRunner().invoke(app, ["run", str(STUDY), "--out", str(out)])
-    assert result.exit_code == 0, result.output[-3000:]
+    folder, exit_code, output = triplet_series_run  # one fresh run per session (conftest.py)
+    assert exit_code == 0, output[-3000:]
+    out = folder / "out" / "triplet_series"
     summary = json.loads((out / "summary.json").read_text())
     capacity = summary["stages"]["calibration"]["rvc"]["p1_4MPa"]
     (model,) = load_study(STUDY).validation
@@ -101,4 +99,4 @@ def test_the_series_finds_the_hidden_truth_and_proposes_to_fix_the_tensile_stren
         assert hi - lo < 0.1 * (bounds[name][1] - bounds[name][0]), name
     assert not region["identifiability"]["ft_bj"]["identifiable"]
     assert summary["stages"]["sensitivity"]["propose_fixing"] == ["ft_bj"]
-    assert "couplet_tension" in result.output
+    assert "couplet_tension" in output
