@@ -173,6 +173,27 @@ def count_fe_runs():
     return _counting_fe_runs
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _one_blas_thread_per_xdist_worker():
+    """Under ``pytest -n N`` the N worker processes already use the cores: each worker's MKL (the
+    PARDISO sparse solver) and OpenBLAS get one thread, as :func:`podkrig.parallel.one_blas_thread`
+    gives the online stage. With their default (one thread per core) the workers' pools compete
+    for the same cores: the FE runs of the diagnosis tests took 20 % more CPU with two MKL threads
+    than with one even in a single process (tests/test_diagnosis.py's negative control, 4 trials:
+    10.9 s against 8.7 s). A limit at run time, in this process only: subprocesses a test starts
+    (tests/test_fe_verification.py switches MKL's threads in one) keep their defaults. Without
+    xdist (``-p no:xdist``, one process) the libraries keep theirs."""
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    with contextlib.suppress(ImportError):
+        import pypardiso  # noqa: F401  (loads MKL, so that the limit reaches it)
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
 @pytest.fixture(autouse=True)
 def _project_loggers_enabled():
     """Importing ``distributed`` (a Dask test earlier in the same worker) runs
