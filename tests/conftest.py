@@ -194,6 +194,35 @@ def _one_blas_thread_per_xdist_worker():
         yield
 
 
+@pytest.fixture
+def memo_nonlinear_runs(monkeypatch):
+    """Serve a nonlinear scenario's repeated runs from memory while a test runs: a second
+    ``run(params)`` of a scenario with the same spec and bitwise the same resolved values returns
+    a copy of the first run's response instead of following the load path again (runs with
+    ``field`` or ``settings`` are not kept). The path following is a deterministic function of
+    those inputs in one process (tests/test_diagnosis_strength.py compares two runs bitwise), so
+    what a test computes is unchanged; only the FE runs it repeats are saved — a diagnosis on a
+    curve repeats about a fifth of its runs (a refit's final point, the start of the next one),
+    since its FE context keeps only its last run. Returns the memo (key → response)."""
+    import copy
+
+    from fe.scenarios.nonlinear import NonlinearScenario
+
+    original, memo = NonlinearScenario.run, {}
+
+    def run(scenario, params=None, *, field=False, settings=None):
+        if field or settings is not None:
+            return original(scenario, params, field=field, settings=settings)
+        key = (json.dumps(scenario.spec.to_dict(), sort_keys=True, default=repr),
+               tuple(sorted(scenario.resolve(params).items())))
+        if key not in memo:
+            memo[key] = original(scenario, params)
+        return copy.deepcopy(memo[key])
+
+    monkeypatch.setattr(NonlinearScenario, "run", run)
+    return memo
+
+
 @pytest.fixture(autouse=True)
 def _project_loggers_enabled():
     """Importing ``distributed`` (a Dask test earlier in the same worker) runs

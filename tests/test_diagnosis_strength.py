@@ -133,6 +133,7 @@ def test_with_the_cohesion_free_a_25_percent_weaker_joint_is_absorbed():
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("memo_nonlinear_runs")  # the diagnosis's repeated FE runs: conftest.py
 def test_one_joint_20_to_30_percent_weaker_is_named():
     named = []
     for seed in range(5):
@@ -150,6 +151,7 @@ def test_one_joint_20_to_30_percent_weaker_is_named():
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("memo_nonlinear_runs")  # the diagnosis's repeated FE runs: conftest.py
 def test_dilatancy_is_named():
     for seed in range(3):
         trial = make_strength_trial("dilatancy", np.random.default_rng(3200 + seed))
@@ -159,6 +161,7 @@ def test_dilatancy_is_named():
 
 
 @pytest.mark.slow
+@pytest.mark.usefixtures("memo_nonlinear_runs")  # the diagnosis's repeated FE runs: conftest.py
 def test_clean_curves_raise_at_most_one_alarm_in_20():
     verdicts = [diagnose_trial(make_strength_trial(None, np.random.default_rng(3200 + seed)), seed).verdict
                 for seed in range(20)]
