@@ -1040,10 +1040,11 @@
   }
 
   async function boot() {
-    showScreen(location.hash.replace(/^#\/?/, "") || "explore");
+    const asked = location.hash.replace(/^#\/?/, "");
+    showScreen(asked || "explore");
     try {
       const study = await api("GET", "/api/study");
-      if (study.state === "needs_offline" && !location.hash) showScreen("jobs");
+      if (study.state === "needs_offline" && !asked) showScreen("jobs");
       await start(study);
     } catch (err) {
       const notice = $("#notice");
