@@ -13,7 +13,7 @@ import sys
 import typer
 
 from podkrig import __version__
-from podkrig.cli import diagnose, invert, run, scenarios, sensitivity, sensors, simulate, snapshots, surrogate
+from podkrig.cli import diagnose, invert, run, scenarios, sensitivity, sensors, serve, simulate, snapshots, surrogate
 from podkrig.cli._common import error_message
 
 
@@ -50,6 +50,7 @@ run.register(app)
 scenarios.register(app)
 sensors.register(app)
 sensitivity.register(app)
+serve.register(app)
 
 
 def _print_version(value: bool):

@@ -1,0 +1,461 @@
+"""The session of ``podkrig serve``: one study, its output folder and its calibration problem.
+
+A :class:`Session` is opened over a finished study's output folder (its ``summary.json`` names the
+study file) or over a study file (its folder is ``--out``, by default ``out/NAME`` as for
+``podkrig run``). It builds the calibration problem from the folder exactly as the study's
+calibration stage does (:meth:`podkrig.study.stages.StudyRun.calibration_problem`: each test's
+surrogate and measurement, one :class:`~podkrig.online.joint.JointProblem` for several tests), and
+answers the page's questions about it as JSON-able dicts:
+
+* :meth:`Session.study_view` — the parameters (search box, scale, best value and interval of the
+  study's calibration), the tests (sensors, load levels, free parameters), noise and GA settings;
+* :meth:`Session.predict` — the surrogate's mean and σ at the measured readings of every test, the
+  standardized residuals ``(d − g)/σ_total`` with ``σ_total² = σ_noise² + σ_surrogate²`` (the
+  diagonal of thesis eq. 2.10's ``C_D``), each test's χ²/dof and the misfit ω (thesis eq. 2.13).
+  This is the slider's path: one batched surrogate call per test, well under a millisecond of CPU
+  on the demo;
+* :meth:`Session.replace_measurement` — an uploaded measurement log read by the library's reader
+  (:func:`podkrig.io.measurement_log.read_measurement`) with the study's import settings and
+  checked like the study's measurement stage; it replaces that test's data in this session only.
+
+Every value a request gives is checked here and refused with a :class:`RequestError` naming the
+field, the value and what is allowed; nothing from a request is ever executed or unpickled.
+"""
+
+import dataclasses
+import json
+import logging
+import math
+import os
+import tempfile
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from podkrig.exceptions import PodkrigError
+from podkrig.limits import MAX_JSON_BYTES, check_name, read_bounded
+from podkrig.online.calibrate import problems_by_test
+from podkrig.online.data_check import MeasurementCheckError
+from podkrig.online.joint import JointProblem
+from podkrig.parameters import ParameterSpace
+from podkrig.reports.findings import refusal
+from podkrig.study import load_study
+from podkrig.study.cache import Progress, read_manifest
+from podkrig.study.stages import StudyRun, calibration_result, read_study_measurement
+
+logger = logging.getLogger(__name__)
+
+#: the control variable of a test, by the load unit of its scenario
+CONTROLS = {"kN": "load", "mm": "displacement", "step": "step", "MPa": "load"}
+
+
+class RequestError(PodkrigError):
+    """A request the session refuses: ``status`` is its HTTP status (422 invalid input, 404 unknown
+    id, 409 the folder is busy or not ready, 413 too large, 403 forbidden) and ``field`` the key it
+    names (None: the request as a whole)."""
+
+    def __init__(self, message, field=None, status=422):
+        super().__init__(message)
+        self.field = field
+        self.status = status
+
+
+def json_safe(values):
+    """A float array as a JSON list, NaN (a missing reading) as None."""
+    a = np.asarray(values, dtype=float)
+    return [None if not math.isfinite(v) else v for v in a.ravel().tolist()] if a.ndim <= 1 else \
+        [json_safe(row) for row in a]
+
+
+def study_file_of(folder):
+    """The study file named by a finished study folder's ``summary.json``.
+
+    Raises
+    ------
+    RequestError
+        No ``summary.json`` (not a finished study folder), or its study file is gone.
+    """
+    folder = Path(folder)
+    summary = folder / "summary.json"
+    try:
+        data = json.loads(read_bounded(summary, MAX_JSON_BYTES, "study summary").decode("utf-8"))
+    except OSError:
+        raise RequestError(f"{folder} holds no summary.json, so it is not a finished study's output folder: "
+                           "give the study file instead (podkrig serve STUDY.toml --out FOLDER)", "folder") from None
+    except ValueError as e:
+        raise RequestError(f"{summary} cannot be read ({e}): give the study file instead "
+                           "(podkrig serve STUDY.toml --out FOLDER)", "folder") from None
+    path = Path(data.get("study", ""))
+    if not path.is_file():
+        raise RequestError(f"{summary} names the study file {path}, which does not exist: give the study file "
+                           "(podkrig serve STUDY.toml --out FOLDER)", "folder")
+    return path
+
+
+class Session:
+    """One study served: its folder, its study and (once the offline stage has run) its problem.
+
+    Parameters
+    ----------
+    study : Study
+        From :func:`podkrig.study.load_study`.
+    folder : str or Path
+        The study's output folder.
+
+    Attributes
+    ----------
+    study : Study
+    folder : Path
+        Resolved.
+    """
+
+    def __init__(self, study, folder):
+        self.study = study
+        self.folder = Path(folder).resolve()
+        self._lock = threading.Lock()
+        self._run = None
+        self._problem = None
+        self._uploads = {}  # test name -> path of the uploaded log (a temporary file of this session)
+        self._tmp = None
+
+    @classmethod
+    def open(cls, path, out=None):
+        """A session over a study folder or a study file (``out``: its folder; default
+        ``out/NAME`` with the study's name, as ``podkrig run``).
+
+        Raises
+        ------
+        RequestError
+            A folder that is not a finished study's, ``out`` given with a folder.
+        StudyError
+            The study file is invalid (its own message, with file, line and key).
+        """
+        path = Path(path)
+        if path.is_dir():
+            if out is not None:
+                raise RequestError(f"--out is for a study file; {path} is a folder already", "out")
+            return cls(load_study(study_file_of(path)), path)
+        study = load_study(path)
+        if out is None:
+            out = Path("out") / check_name(study.name, f"the study name in {path}")
+        return cls(study, out)
+
+    # ------------------------------------------------------------------------------------- state
+
+    @property
+    def tests(self):
+        """The study's calibration tests (one with name None, or the ``[[test]]`` tables)."""
+        return self.study.calibration_tests
+
+    @property
+    def ready(self):
+        """Whether every test's surrogate is in the folder (the offline stage has run)."""
+        return all((self.folder / t.file("surrogate.h5")).is_file() for t in self.tests)
+
+    @property
+    def state(self):
+        return "ready" if self.ready else "needs_offline"
+
+    def reload(self):
+        """Forget the problem built so far (after a study job wrote new surrogates)."""
+        with self._lock:
+            self._run = None
+            self._problem = None
+
+    def study_run(self):
+        """The :class:`~podkrig.study.stages.StudyRun` over the folder (built once; it caches
+        scenarios, surrogates and measurements)."""
+        with self._lock:
+            if self._run is None:
+                self._run = StudyRun(self.study, self.folder, Progress())
+            return self._run
+
+    @property
+    def problem(self):
+        """The calibration problem (:meth:`StudyRun.calibration_problem`, with uploaded
+        measurements in place), built on first use.
+
+        Raises
+        ------
+        RequestError
+            409 while the offline stage has not run.
+        """
+        problem = self._problem
+        if problem is not None:
+            return problem
+        if not self.ready:
+            raise RequestError(f"the surrogates of study {self.study.name!r} are not in {self.folder} yet: run the "
+                               "study first (a study job from the page, or podkrig run)", None, 409)
+        run = self.study_run()
+        with self._lock:
+            if self._problem is None:
+                self._problem = run.calibration_problem()
+            return self._problem
+
+    def warm(self):
+        """Build what the first requests need before the server answers (the problem, the
+        study's calibration read back, one prediction: about a second on the demo), so the page is
+        ready as soon as the address is printed."""
+        self._calibration_cached()
+        if self.ready:
+            self.predict({})
+
+    # -------------------------------------------------------------------------------- parameters
+
+    @property
+    def space(self):
+        """The joint free parameters of the tests (union in order of first appearance, the order
+        of :class:`~podkrig.online.joint.JointProblem`)."""
+        params = {}
+        for t in self.tests:
+            for p in t.space.parameters:
+                params.setdefault(p.name, p)
+        return ParameterSpace(tuple(params.values()))
+
+    def calibration(self):
+        """The study's calibration (:class:`~podkrig.online.calibrate.CalibrationResult` of its
+        stage manifest and ``region.npz``), or None when it has not run."""
+        manifest = read_manifest(self.folder / "stages" / "calibration.json")
+        if manifest is None:
+            return None
+        try:
+            return calibration_result(self.folder, manifest["result"])
+        except (KeyError, ValueError, OSError) as e:
+            logger.warning("the calibration in %s cannot be read back (%s); shown as not run", self.folder, e)
+            return None
+
+    def values(self, given=None, *, field="values"):
+        """Every free parameter's value, ``(n_free,)`` physical, from ``given`` (name → number);
+        a parameter not given takes its default (:meth:`defaults`).
+
+        Raises
+        ------
+        RequestError
+            An unknown name, a value that is not a finite number, or one outside its search range
+            (naming the parameter, the value and the bounds with the unit).
+        """
+        space = self.space
+        if given is None:
+            given = {}
+        if not isinstance(given, dict):
+            raise RequestError(f"{field} must be an object name → value; got {type(given).__name__}", field)
+        unknown = [n for n in given if n not in space.names]
+        if unknown:
+            raise RequestError(f"unknown parameter {unknown[0]!r}; the free parameters are {list(space.names)}",
+                               unknown[0])
+        defaults = self.defaults()
+        x = np.empty(space.n_params)
+        for j, p in enumerate(space.parameters):
+            v = given.get(p.name, defaults[p.name])
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise RequestError(f"{p.name} must be a finite number ({p.unit}); got {v!r}", p.name)
+            if not p.lower <= v <= p.upper:
+                raise RequestError(f"{p.name} = {v:g} {p.unit} lies outside its search range "
+                                   f"[{p.lower:g}, {p.upper:g}] {p.unit}", p.name)
+            x[j] = v
+        return x
+
+    def defaults(self):
+        """The value each free parameter starts from: the study's best fit, else the box's midpoint
+        (in the unit cube: the geometric mean of the bounds of a log-scaled parameter)."""
+        space = self.space
+        mid = dict(zip(space.names, space.from_unit(np.full((1, space.n_params), 0.5))[0].tolist()))
+        best = self._best()
+        return {n: best.get(n, mid[n]) for n in space.names}
+
+    def _best(self):
+        cal = self._calibration_cached()
+        return {} if cal is None else {n: float(v) for n, v in cal.inversion.free_parameters.items()}
+
+    def _calibration_cached(self):
+        """:meth:`calibration`, read once per manifest version (its mtime)."""
+        path = self.folder / "stages" / "calibration.json"
+        try:
+            stamp = path.stat().st_mtime_ns
+        except OSError:
+            return None
+        cached = getattr(self, "_cal", None)
+        if cached is None or cached[0] != stamp:
+            self._cal = (stamp, self.calibration())
+        return self._cal[1]
+
+    # -------------------------------------------------------------------------------- the views
+
+    def parameters_view(self):
+        """The free parameters for the page: name, unit, bounds, scale, value, best and the
+        study's equivalence interval (None before a calibration)."""
+        cal = self._calibration_cached()
+        best = self._best()
+        intervals = {} if cal is None else cal.region.intervals
+        defaults = self.defaults()
+        return [{"name": p.name, "unit": p.unit, "lower": p.lower, "upper": p.upper, "scale": p.scale,
+                 "value": defaults[p.name], "best": best.get(p.name),
+                 "interval": [float(v) for v in intervals[p.name]] if p.name in intervals else None}
+                for p in self.space.parameters]
+
+    def tests_view(self):
+        """Each test for the page: name, scenario, control variable and unit, load levels, the
+        measured sensors with their units and the free parameters it depends on."""
+        out = []
+        per_test = problems_by_test(self.problem) if self.ready else {}
+        for t in self.tests:
+            p = per_test.get(t.name)
+            if p is not None:
+                model, meas = p.model, p.measurement
+                unit, levels = model.load_unit, model.load_levels
+                sensors = [{"name": s, "unit": u} for s, u in zip(meas.sensor_names, meas.sensor_units)]
+            else:  # before the offline stage: the scenario tells its sensors and loads
+                sc = self.study_run().scenario(t)
+                unit, levels = sc.load_unit, sc.load_levels
+                units = sc.sensor_units
+                sensors = [{"name": s, "unit": units.get(s, "mm") if isinstance(units, dict) else "mm"}
+                           for s in sc.sensor_names]
+            out.append({"name": t.name, "scenario": t.spec.scenario, "control": CONTROLS.get(unit, "load"),
+                        "load_unit": unit, "load_levels": np.asarray(levels, dtype=float).tolist(),
+                        "sensors": sensors, "free": list(t.space.names)})
+        return out
+
+    def study_view(self, calibration=None):
+        """``GET /api/study``: the study, its state, parameters, tests, last calibration (the view
+        of :func:`podkrig.serve.runs.result_view`, given by the caller), noise and GA settings."""
+        settings = self.study.calibration_settings()
+        return {
+            "name": self.study.name, "folder": str(self.folder), "study_file": str(self.study.path),
+            "state": self.state, "parameters": self.parameters_view(), "tests": self.tests_view(),
+            "calibration": calibration,
+            "noise": {t.name or "": dataclasses.asdict(t.measurement.noise) for t in self.tests},
+            "inversion": dataclasses.asdict(settings.inversion),
+        }
+
+    # -------------------------------------------------------------------------------- predict
+
+    def predict(self, values=None):
+        """``POST /api/predict``: the surrogate at the free values ``values`` (name → number,
+        physical; missing ones at :meth:`defaults`) against every test's measurement.
+
+        Returns
+        -------
+        dict
+            ``omega`` (thesis eq. 2.13), ``chi2``, ``dof``, ``chi2_dof`` of all tests, and per test
+            its ``chi2_dof`` and one series per measured sensor: ``x`` (the measured control
+            levels, ``x_unit``), ``measured``, the surrogate ``mean`` and ``std`` and the
+            standardized ``residual`` (d − g)/σ_total (None where a reading is missing).
+        """
+        problem = self.problem
+        x = self.values(values)
+        parts = problem.parts(x) if isinstance(problem, JointProblem) else {None: (problem, x)}
+        tests, chi2_all = [], 0.0
+        for name, (p, xt) in parts.items():
+            mean, std = p.misfit.predict(xt[None])
+            mean = mean[0]
+            noise = p.misfit.noise_std
+            if p.model_form_error is not None:
+                noise = np.sqrt(noise**2 + p.model_form_error.std**2)
+            total = noise if std is None else np.sqrt(noise**2 + std[0] ** 2)
+            meas = p.measurement
+            grid_mean, grid_std = meas.grid(mean), meas.grid(np.zeros_like(mean) if std is None else std[0])
+            grid_res = meas.grid((meas.data - mean) / total)
+            chi2 = float(p.chi2(xt[None])[0])
+            chi2_all += chi2
+            dof = p.n_obs - p.n_removed - p.n_free
+            levels, unit = json_safe(meas.load_levels), p.model.load_unit
+            series = [{"sensor": s, "unit": u, "x": levels, "x_unit": unit, "measured": json_safe(meas.values[:, j]),
+                       "mean": json_safe(grid_mean[:, j]), "std": json_safe(grid_std[:, j]),
+                       "residual": json_safe(grid_res[:, j])}
+                      for j, (s, u) in enumerate(zip(meas.sensor_names, meas.sensor_units))]
+            tests.append({"name": name, "chi2": chi2, "dof": dof, "chi2_dof": chi2 / max(dof, 1), "series": series})
+        dof = problem.n_obs - problem.n_removed - problem.n_free
+        return {"omega": float(problem.omega(x[None])[0]), "chi2": chi2_all, "dof": dof,
+                "chi2_dof": chi2_all / max(dof, 1), "tests": tests}
+
+    # -------------------------------------------------------------------------------- files
+
+    def file(self, relative):
+        """The file ``relative`` (a URL path) under the served folder, resolved (symbolic links
+        followed).
+
+        Raises
+        ------
+        RequestError
+            403 for a path that resolves outside the folder (``..``, an absolute path, a link out)
+            or names a hidden file (the folder's lock, temporary files); 404 for no such file.
+        """
+        parts = Path(relative).parts
+        if Path(relative).is_absolute() or ".." in parts or any(p.startswith(".") for p in parts):
+            raise RequestError(f"{relative!r} is not a path inside the served folder", "path", 403)
+        path = (self.folder / relative).resolve()
+        if not path.is_relative_to(self.folder):
+            raise RequestError(f"{relative!r} leads outside the served folder", "path", 403)
+        if not path.is_file():
+            raise RequestError(f"no file {relative!r} in the served folder", "path", 404)
+        return path
+
+    # -------------------------------------------------------------------------------- uploads
+
+    def test(self, name):
+        """The calibration test called ``name`` ('' or None for the one test of a study without
+        ``[[test]]`` tables).
+
+        Raises
+        ------
+        RequestError
+            404 naming the tests.
+        """
+        name = name or None
+        for t in self.tests:
+            if t.name == name:
+                return t
+        raise RequestError(f"no test {name!r}; the tests are {[t.name or '' for t in self.tests]}", "test", 404)
+
+    def replace_measurement(self, test_name, data, suffix):
+        """Read an uploaded measurement log (``data``: its bytes; ``suffix``: ``.csv``, ``.tsv``,
+        ``.txt`` or ``.xlsx``) for test ``test_name`` with the study's import settings, check it as
+        the study's measurement stage does, and use it for that test in this session.
+
+        Returns
+        -------
+        dict
+            The test's entry of :meth:`tests_view`.
+
+        Raises
+        ------
+        RequestError
+            The reader's or the check's message (422), an unknown test (404), a study not ready (409).
+        """
+        t = self.test(test_name)
+        problem = self.problem  # 409 before the offline stage
+        if self._tmp is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="podkrig-serve-")
+        fd, path = tempfile.mkstemp(suffix=suffix, dir=self._tmp.name)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        one = problems_by_test(problem)[t.name]
+        model = one.model
+        upload = dataclasses.replace(t, measurement=dataclasses.replace(t.measurement, file=Path(path)))
+        try:
+            meas, noise = read_study_measurement(upload, model.sensor_names, model.load_levels, model.load_unit,
+                                                 model.load_response, model.sensor_units)
+            new = dataclasses.replace(one, measurement=meas, noise=noise)
+            new.observation  # a measurement the model cannot be evaluated at is refused here
+            new.misfit
+        except MeasurementCheckError as e:
+            raise RequestError(refusal(e, "study"), "measurement") from None
+        except ValueError as e:
+            raise RequestError(str(e).replace(path, "the uploaded file"), "measurement") from None
+        with self._lock:
+            if isinstance(problem, JointProblem):
+                self._problem = JointProblem({**problem.problems, t.name: new})
+            else:
+                self._problem = new
+        self._uploads[t.name] = path
+        return next(v for v in self.tests_view() if v["name"] == t.name)
+
+    def close(self):
+        """Remove the session's temporary files (uploaded logs)."""
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+
+__all__ = ["CONTROLS", "RequestError", "Session", "json_safe", "study_file_of"]
