@@ -121,6 +121,7 @@
   };
   window.podkrigLatency = [];   // ms per slider input, input event -> plot redraw finished
   window.podkrigPredictions = 0;
+  window.podkrigCalibration = [];  // ms per calibration from the page, click -> results drawn
 
   // ---------------------------------------------------------------- tabs
   const SCREENS = ["explore", "calibrate", "model", "jobs"];
@@ -336,7 +337,7 @@
       if (!slot) return;
       $(`#chi2-${i}`).textContent = `χ²/dof = ${num(t.chi2_dof, 3)}`;
       const xUnit = t.series.length ? t.series[0].x_unit : "";
-      const xLabel = `${state.tests[i].control === "step" ? "step" : "control"} ${bracketUnit(xUnit)}`;
+      const xLabel = `${state.tests[i].control || "control"} ${bracketUnit(xUnit)}`;
       // group sensors by unit: one readings plot per unit
       const groups = new Map();
       for (const se of t.series) {
@@ -477,12 +478,16 @@
     clearErrors($("#screen-calibrate"));
     const button = $("#calibrate");
     button.disabled = true;
+    const clicked = event.timeStamp;
+    $("#calib-status").dataset.status = "starting";
     try {
       const { run } = await api("POST", "/api/calibrate", readCalibrationBody());
       $("#calib-status").textContent = "running";
-      await followRun(run);
+      const finished = await followRun(run);
+      if (finished.status === "done") window.podkrigCalibration.push(performance.now() - clicked);
     } catch (err) {
       $("#calib-status").textContent = "";
+      $("#calib-status").dataset.status = "refused";
       showError(err, $("#calib-error"));
     } finally {
       button.disabled = false;
@@ -511,7 +516,7 @@
         await refreshRuns();
         return run;
       }
-      await sleep(100);
+      await sleep(50);
     }
   }
 
