@@ -545,8 +545,16 @@
         h("td", { text: p.name }),
         h("td", { class: "num", text: withUnit(p.value, p.unit) }),
         h("td", { class: "num", text: p.interval ? `${num(p.interval[0])} – ${num(p.interval[1])} ${unitText(p.unit)}` : "–" }),
-        h("td", { class: p.identified ? "yes" : "no", text: p.identified ? "yes" : "no" }),
-        h("td", { class: "small", text: p.words || "" }))));
+        h("td", { class: p.identified === null ? "" : p.identified ? "yes" : "no",
+          text: p.identified === null || p.identified === undefined ? "–" : p.identified ? "yes" : "no" }),
+        h("td", { class: "small", text: p.words || "" }))),
+      ...frozen.filter(([name]) => !r.parameters.some((p) => p.name === name)).map(([name, value]) =>
+        h("tr", { "data-param": name, class: "frozen" },
+          h("td", { text: name }),
+          h("td", { class: "num", text: withUnit(value, unitOf(name)) }),
+          h("td", { class: "num", text: "–" }),
+          h("td", { text: "frozen" }),
+          h("td", { class: "small", text: "held at this value (locked on the Explore screen)" }))));
     drawRegion(r.region);
     const fe = r.fe_check || [];
     $("#fe-check").replaceChildren(...(fe.length ? [
