@@ -220,6 +220,8 @@ def test_page_shows_the_study_with_units_and_log_sliders(server, browser):
         assert int(slider.get_attribute("value")) == pytest.approx(1000 * t, abs=1)
     assert browser.find_element(By.ID, "chi2").text.startswith("χ²/dof")
     assert browser.find_element(By.ID, "plot-0").find_elements(By.TAG_NAME, "canvas")
+    # the performance log sees the page's requests (so the after-test check is not vacuous)
+    assert requested_hosts(browser) == {"127.0.0.1"}
 
 
 def test_moving_a_slider_redraws_the_plot_with_the_servers_prediction(server, browser):
