@@ -273,6 +273,14 @@ def test_host_origin_and_token(session):
         assert c.get("/api/study").status_code == 200
 
 
+def test_printed_address():
+    from podkrig.serve.server import address
+
+    assert address("127.0.0.1", 8765) == "http://127.0.0.1:8765/"
+    assert address("::1", 8765) == "http://[::1]:8765/"
+    assert address("0.0.0.0", 8765, "long-enough-token") == "http://127.0.0.1:8765/?token=long-enough-token"
+
+
 def test_binding_needs_a_token_off_loopback():
     check_binding("127.0.0.1", 0, None)
     check_binding("::1", 8080, None)
@@ -284,6 +292,22 @@ def test_binding_needs_a_token_off_loopback():
         check_binding("127.0.0.1", 70000, None)
     with pytest.raises(RequestError, match="8 characters"):
         check_binding("0.0.0.0", 0, "short")
+
+
+def test_bound_socket_says_it_is_tcp():
+    """asyncio turns Nagle off only on connections of a socket whose proto is TCP: without it every
+    response waits ~40 ms for the client's delayed ACK."""
+    import socket
+
+    from podkrig.serve.server import bind
+
+    sock = bind("127.0.0.1", 0)
+    try:
+        assert sock.proto == socket.IPPROTO_TCP and sock.getsockname()[1] > 0
+        with pytest.raises(OSError):  # the same port twice: refused by the OS
+            bind("127.0.0.1", sock.getsockname()[1])
+    finally:
+        sock.close()
 
 
 def test_real_server_on_a_free_port(tiny_study):
@@ -310,3 +334,367 @@ def test_real_server_on_a_free_port(tiny_study):
     finally:
         proc.terminate()
         proc.wait(timeout=30)
+
+
+def test_cli_refuses_other_hosts_without_a_token(tiny_study):
+    from typer.testing import CliRunner
+
+    from podkrig.cli import app
+
+    result = CliRunner().invoke(app, ["serve", str(tiny_study[1]), "--host", "0.0.0.0", "--no-browser"])
+    assert result.exit_code == 2
+    assert "--token" in result.output and "0.0.0.0" in result.output
+
+
+# ------------------------------------------------------------------------------------- calibrate
+
+
+def wait_for(client, url, timeout=120):
+    """Poll ``url`` until its status is no longer running; its last answer."""
+    deadline = time.monotonic() + timeout
+    while True:
+        body = client.get(url).json()
+        if body["status"] != "running":
+            return body
+        assert time.monotonic() < deadline, f"{url} still running after {timeout} s"
+        time.sleep(0.05)
+
+
+GA = {"seed": 3, "population_size": 16, "generations": 8, "n_starts": 2}
+
+
+def test_calibration_is_the_library_stage_with_the_frozen_parameter_fixed(client, session):
+    r = client.post("/api/calibrate", json={"frozen": {"r_hj": 0.6}, "noise": None, "inversion": GA,
+                                            "diagnosis": False})
+    assert r.status_code == 202
+    rid = r.json()["run"]
+    run = wait_for(client, f"/api/runs/{rid}")
+    assert run["status"] == "done", run["error"]
+    assert run["frozen"] == {"r_hj": 0.6} and run["progress"]["done"] == run["progress"]["total"]
+    assert run["settings"]["calibration"]["inversion"] == GA
+    # the same stage called directly on the same problem with r_hj fixed
+    import dataclasses as dc
+
+    from podkrig.online.calibrate import calibrate
+    from podkrig.online.settings import InversionSettings
+
+    p = session.problem
+    direct_problem = dc.replace(p, free=("kN_bj", "kV_bj"), fixed={**p.fixed, "r_hj": 0.6})
+    settings = dc.replace(session.study.calibration_settings(), inversion=InversionSettings(**GA))
+    direct = calibrate(direct_problem, settings, check_measurement=False, range_check=False)
+    result = run["result"]
+    assert [q["name"] for q in result["parameters"]] == ["kN_bj", "kV_bj"]  # r_hj frozen: not identified
+    # the same seeded computation in the same process: equal up to summation order
+    np.testing.assert_allclose([q["value"] for q in result["parameters"]], direct.inversion.x, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(result["chi2_dof"], direct.inversion.chi2_dof, rtol=1e-9, atol=0)
+    assert result["dof"] == direct.inversion.dof == p.n_obs - 2
+    for q in result["parameters"]:
+        lo, hi = direct.region.intervals[q["name"]]
+        np.testing.assert_allclose(q["interval"], [lo, hi], rtol=1e-9, atol=0)
+        assert q["identified"] == direct.region.identifiability[q["name"]]["identifiable"]
+        assert q["name"] in q["words"]
+    region = result["region"]
+    assert region["names"] == ["kN_bj", "kV_bj"] and len(region["samples"]) == min(region["n_members"], 2000)
+    assert len(region["omega"]) == len(region["samples"]) and region["best"] == [q["value"] for q in result["parameters"]]
+    assert result["fe_check"][0]["test"] is None and result["fe_check"][0]["max_diff"] >= 0
+    assert all(set(f) == {"code", "level", "message"} for f in result["findings"])
+    # the history and the export
+    rows = client.get("/api/runs").json()
+    assert rows[-1]["id"] == rid and rows[-1]["frozen"] == {"r_hj": 0.6}
+    assert rows[-1]["chi2_dof"] == result["chi2_dof"]
+    r = client.get(f"/api/runs/{rid}/summary.json")
+    assert r.status_code == 200 and "attachment" in r.headers["content-disposition"]
+    summary = r.json()
+    expected = json.loads(json.dumps(direct.to_dict()))
+    assert summary["inversion"]["parameters"].keys() == expected["inversion"]["parameters"].keys()
+    assert summary["settings"] == expected["settings"]
+    assert {"warnings", "region", "rvc", "findings"} <= set(summary)
+
+
+def test_calibration_noise_from_the_page(client, session):
+    """A noise model given on the page replaces the study's: the run's χ² is that of the problem
+    with the page's noise at the run's optimum."""
+    import dataclasses as dc
+
+    from podkrig.online.settings import NoiseSettings
+
+    r = client.post("/api/calibrate", json={"noise": {"": {"noise_rel": 0.02}}, "inversion": GA})
+    run = wait_for(client, f"/api/runs/{r.json()['run']}")
+    assert run["status"] == "done", run["error"]
+    assert run["settings"]["noise"] == {"": {"noise_abs": None, "noise_rel": 0.02, "instrument": None}}
+    p = session.problem
+    doubled = dc.replace(p, noise=NoiseSettings(noise_rel=0.02).noise_model(p.measurement.sensor_names))
+    x = np.array([[q["value"] for q in run["result"]["parameters"]]])
+    np.testing.assert_allclose(run["result"]["chi2"], doubled.chi2(x)[0], rtol=1e-9, atol=0)  # same arithmetic
+    # with the study's σ (half the page's) the same residuals weigh up to 4× more (less where the
+    # surrogate's own variance dominates C_D)
+    assert 2.0 < p.chi2(x)[0] / run["result"]["chi2"] <= 4.0
+
+
+@pytest.mark.slow
+def test_calibration_with_the_diagnosis(client):
+    """Asked for, the model diagnosis runs after the calibration; the data were made by this very
+    model (1 % noise), so it finds the model adequate and names no cause."""
+    rid = client.post("/api/calibrate", json={"inversion": GA, "diagnosis": True}).json()["run"]
+    run = wait_for(client, f"/api/runs/{rid}", timeout=600)
+    assert run["status"] == "done", run["error"]
+    (diagnosis,) = run["result"]["diagnosis"].values()
+    assert diagnosis["verdict"] == "adequate" and diagnosis["causes"] == []
+    assert run["settings"]["diagnosis"] is True
+
+
+def test_calibration_refuses_bad_settings(client):
+    post = lambda body: client.post("/api/calibrate", json=body)  # noqa: E731
+    error_of(post({"inversion": {**GA, "population_size": 2}}), 422, "population_size", "2", "[4,",
+             field="inversion.population_size")
+    error_of(post({"inversion": {**GA, "generations": "10"}}), 422, "generations", "an integer",
+             field="inversion.generations")
+    error_of(post({"inversion": {"pop": 10}}), 422, "pop", "population_size", field="inversion.pop")
+    error_of(post({"noise": {"": {"noise_rel": 0.01, "instrument": "lvdt"}}}), 422, "instrument", "noise_rel",
+             field="noise.instrument")
+    error_of(post({"noise": {"": {"instrument": "laser"}}}), 422, "laser", "lvdt", field="noise.instrument")
+    error_of(post({"noise": {"": {}}}), 422, "give a noise model", field="noise")
+    error_of(post({"noise": {"wall": {"noise_rel": 0.01}}}), 422, "wall", field="noise.wall")
+    error_of(post({"noise": {"": {"noise_abs": {"D9": 0.001}}}}), 422, "D9", "D1", field="noise..noise_abs")
+    error_of(post({"frozen": {"r_hj": 2.0}}), 422, "r_hj", "2", "[0.2, 1]", field="r_hj")
+    error_of(post({"frozen": {"kN_bj": 90.0, "kV_bj": 35.0, "r_hj": 0.6}}), 422, "free at least one", field="frozen")
+    error_of(post({"diagnosis": "yes"}), 422, "diagnosis", field="diagnosis")
+    error_of(client.get("/api/runs/r999"), 404, "r999", field="run")
+    error_of(client.get("/api/runs/r999/summary.json"), 404, "r999", field="run")
+
+
+# ------------------------------------------------------------------------------------- the FE model
+
+
+def test_fe_view_of_a_linear_test(client, session):
+    values = {"kN_bj": 90.0, "kV_bj": 35.0, "r_hj": 0.6}
+    r = client.post("/api/fe", json={"values": values, "test": None})
+    assert r.status_code == 202
+    view = wait_for(client, f"/api/fe/{r.json()['fe']}")
+    assert view["status"] == "done", view["error"]
+    assert view["parameters"] == values  # E_b is fixed in the study's scenario spec
+    res = view["result"]
+    sc = build_scenario(session.tests[0].spec)
+    field = sc.run(values, field=True).field
+    corners = np.unique(np.asarray(sc.mesh.quads)[:, :4])
+    nodes, outline, u = np.array(res["nodes"]), np.array(res["outline"]), np.array(res["displacement"])
+    np.testing.assert_allclose(nodes, sc.mesh.nodes[corners], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(nodes[outline], sc.mesh.nodes[np.asarray(sc.mesh.quads)[:, :4]])
+    assert res["steps"] == sc.load_levels.tolist() and res["x_unit"] == "kN"
+    top = np.abs(field).max()
+    np.testing.assert_allclose(u, field[:, corners], rtol=0, atol=1e-5 * top)  # rounded to 6 significant digits
+    # a linear test: the field grows in proportion to the load (closed form)
+    ratio = u / np.asarray(res["steps"])[:, None, None]
+    np.testing.assert_allclose(ratio, np.broadcast_to(ratio[-1], ratio.shape), rtol=0, atol=1e-4 * np.abs(ratio).max())
+    # the largest displacement drawn as 5 % of the specimen's larger side
+    largest = np.linalg.norm(field[-1], axis=-1).max()
+    np.testing.assert_allclose(res["scale"] * largest, 0.05 * max(sc.mesh.width, sc.mesh.height), rtol=1e-9, atol=0)
+    assert res["curve"] is None and res["joints"] is None
+
+
+def test_fe_view_refusals(client):
+    error_of(client.post("/api/fe", json={"values": {"kV_bj": 500.0}}), 422, "kV_bj", "500", "[10, 120]",
+             field="kV_bj")
+    error_of(client.post("/api/fe", json={"test": "wall"}), 404, "wall", field="test")
+    error_of(client.get("/api/fe/f999"), 404, "f999", field="fe")
+
+
+@pytest.mark.slow
+def test_fe_view_of_a_nonlinear_run():
+    """Joints' opening and slip and the load–displacement curve of a coarse triplet pushed past its
+    peak (the run of the step slider's tests)."""
+    from podkrig.reports.step_slider import MAX_FRAMES
+    from podkrig.serve.model import model_view
+
+    sc = build_scenario({"scenario": "triplet_shear", "nx": 2, "ny": 1, "precompression": 0.2,
+                         "load_levels": [0.05, 0.3, 1.0], "increment": 0.005, "max_increment": 0.02})
+    r = sc.run(field=True)
+    view = model_view(sc, r)
+    path = r.path
+    control = np.flatnonzero(path.of_phase(path.phase[-1]))
+    n = len(view["steps"])
+    assert n == min(MAX_FRAMES, len(control))
+    np.testing.assert_allclose(view["curve"]["x"], sc.control_sign * np.asarray(path.path)[control], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(view["curve"]["y"], np.asarray(path.load)[control], rtol=1e-12, atol=0)
+    assert view["curve"]["y_unit"] == r.force_unit and max(view["curve"]["y"]) in np.asarray(path.load)[control]
+    joints = view["joints"]
+    points = sc.mesh.nodes[np.asarray(sc.model.point_nodes())]
+    n_elements = len(sc.model.interface_elements)
+    assert len(joints) == n_elements and all(len(j["opening"]) == len(j["slip"]) == n for j in joints)
+    per = len(points) // n_elements
+    last = np.asarray(path.states[control[-1]]["opening"], float).reshape(n_elements, per).mean(axis=1)
+    opening = np.array([j["opening"][-1] for j in joints])
+    np.testing.assert_allclose(opening, last, rtol=0, atol=1e-5 * np.abs(last).max())  # rounded to 6 digits
+    for e in (0, n_elements - 1):  # the ends are two of the element's own integration points
+        own = points[e * per:(e + 1) * per].tolist()
+        assert joints[e]["a"] in own and joints[e]["b"] in own and joints[e]["a"] != joints[e]["b"]
+    assert np.shape(view["displacement"])[:2] == (n, len(view["nodes"]))
+
+
+# ------------------------------------------------------------------------------------- jobs
+
+
+@pytest.fixture
+def fresh_study(tiny_study, tmp_path):
+    """A copy of the tiny study file whose stages have not run: (session, client)."""
+    study = tmp_path / "study.toml"
+    study.write_text(TINY)
+    (tmp_path / "measured.csv").write_bytes((tiny_study[0].parent / "measured.csv").read_bytes())
+    s = Session.open(study, tmp_path / "out")
+    with TestClient(create_app(s), base_url=ORIGIN) as c:
+        yield s, c
+    c.app.app.state.services.close()
+    s.close()
+
+
+def test_study_file_before_its_stages(fresh_study):
+    s, c = fresh_study
+    study = c.get("/api/study").json()
+    assert study["state"] == "needs_offline" and study["calibration"] is None
+    assert [p["value"] for p in study["parameters"]] == pytest.approx([np.sqrt(9000), np.sqrt(1200), 0.6], rel=1e-12)
+    assert study["tests"][0]["sensors"][0] == {"name": "D1", "unit": "mm"}
+    error_of(c.post("/api/predict", json={}), 409, "run the study first")
+    error_of(c.post("/api/calibrate", json={}), 409, "run the study first")
+
+
+def test_job_cancel_and_a_busy_folder(fresh_study):
+    from podkrig.locks import folder_lock
+
+    s, c = fresh_study
+    error_of(c.post("/api/jobs", json={"kind": "sweep"}), 422, "sweep", "study", field="kind")
+    with folder_lock(s.folder):  # another job holds the folder
+        error_of(c.post("/api/jobs", json={"kind": "study"}), 409, "in use", str(s.folder))
+    r = c.post("/api/jobs", json={"kind": "study"})
+    assert r.status_code == 202
+    jid = r.json()["job"]
+    error_of(c.post("/api/jobs", json={"kind": "study"}), 409, jid, "cancel")
+    job = c.delete(f"/api/jobs/{jid}").json()
+    assert job["status"] == "cancelled" and "resume" in job["log"][-1]
+    assert c.get("/api/jobs").json()[-1]["status"] == "cancelled"
+    with folder_lock(s.folder):  # the job's process is gone: its lock with it
+        pass
+    error_of(c.get("/api/jobs/j999"), 404, "j999", field="job")
+
+
+@pytest.mark.slow
+def test_study_job_runs_the_study_then_resumes_cached(fresh_study):
+    s, c = fresh_study
+    jid = c.post("/api/jobs", json={"kind": "study"}).json()["job"]
+    job = wait_for(c, f"/api/jobs/{jid}", timeout=600)
+    assert job["status"] == "done", job
+    assert any("Training snapshots" in line for line in job["log"])
+    study = c.get("/api/study").json()
+    assert study["state"] == "ready" and study["calibration"] is not None
+    out = c.post("/api/predict", json={}).json()  # at the job's best fit: its χ²/dof
+    np.testing.assert_allclose(out["chi2_dof"], study["calibration"]["chi2_dof"], rtol=1e-9, atol=0)
+    again = wait_for(c, f"/api/jobs/{c.post('/api/jobs', json={}).json()['job']}", timeout=600)
+    assert again["status"] == "done" and "0 FE runs" in again["log"][-1]  # every stage cached
+    assert sum("cached" in line for line in again["log"]) >= 6
+
+
+# ------------------------------------------------------------------------------------- uploads
+
+
+def test_measurement_upload_replaces_the_data(tiny_study, tmp_path, monkeypatch):
+    s = Session.open(tiny_study[1])
+    with TestClient(create_app(s), base_url=ORIGIN) as c:
+        log = tmp_path / "new.csv"
+        values = measured(log, seed=7)
+        headers = {"content-type": "application/octet-stream"}
+        r = c.post("/api/measurement?test=&name=new.csv", content=log.read_bytes(), headers=headers)
+        assert r.status_code == 200, r.text
+        assert r.json()["name"] is None and len(r.json()["sensors"]) == 6
+        series = c.post("/api/predict", json={}).json()["tests"][0]["series"]
+        # the uploaded readings as they were written (CSV text: 6 significant digits or more)
+        np.testing.assert_allclose([x["measured"] for x in series], values.T, rtol=1e-6, atol=0)
+        error_of(c.post("/api/measurement", content=log.read_bytes(), headers={"content-type": "text/plain"}), 415,
+                 "application/octet-stream")
+        error_of(c.post("/api/measurement?name=log.pdf", content=b"x", headers=headers), 422, ".csv", field="name")
+        error_of(c.post("/api/measurement?test=wall", content=log.read_bytes(), headers=headers), 404, "wall",
+                 field="test")
+        no_load = log.read_text().replace("load", "force", 1)
+        error_of(c.post("/api/measurement", content=no_load.encode(), headers=headers), 422, "load",
+                 field="measurement")
+        micrometres = tmp_path / "um.csv"
+        measured(micrometres, seed=7, scale=1000.0)  # µm written as mm: refused against the training runs
+        error_of(c.post("/api/measurement", content=micrometres.read_bytes(), headers=headers), 422, "D1", "larger",
+                 field="measurement")
+        import podkrig.serve.app as app_module
+
+        monkeypatch.setattr(app_module, "MAX_UPLOAD_BYTES", 100)
+        error_of(c.post("/api/measurement", content=log.read_bytes(), headers=headers), 413, "100 bytes")
+    s.close()
+
+
+# ------------------------------------------------------------------------------------- a joint study
+
+JOINT = """\
+name = "tiny_joint_serve"
+
+[parameters]
+kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
+kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
+
+[fixed]
+E_b = 11000.0
+
+[sampling]
+train = { n = 16, seed = 0 }
+held_out = { n = 4, seed = 1, method = "random" }
+workers = 1
+
+[inversion]
+population_size = 20
+generations = 10
+n_starts = 2
+region_samples = 4096
+
+[[test]]
+name = "diagonal"
+scenario = { scenario = "diagonal_compression", nx = 2, ny = 1 }
+measurement = { file = "diagonal.csv", noise_abs = 0.001, noise_rel = 0.01 }
+fixed = { r_hj = 0.6 }
+
+[[test]]
+name = "shear"
+scenario = { scenario = "shear_compression", nx = 2, ny = 1 }
+measurement = { file = "shear.csv", noise_abs = 0.001, noise_rel = 0.01 }
+parameters = { r_hj = { lower = 0.2, upper = 1.0 } }
+"""
+
+
+@pytest.mark.slow
+def test_joint_study_side_by_side(tmp_path):
+    """Two tests sharing kN_bj and kV_bj, the shear test with its own r_hj: one slider set (the
+    union, in the joint order), one series set per test, χ² summed over the tests."""
+    for name, scenario, r_hj in (("diagonal", "diagonal_compression", 0.6), ("shear", "shear_compression", 0.45)):
+        sc = build_scenario({"scenario": scenario, "nx": 2, "ny": 1})
+        clean = sc.run({**TRUTH, "r_hj": r_hj}).readings
+        write_measurement_csv(tmp_path / f"{name}.csv", Measurement(clean, sc.sensor_names, sc.load_levels))
+    (tmp_path / "study.toml").write_text(JOINT)
+    run_study(load_study(tmp_path / "study.toml"), tmp_path / "out")
+    s = Session.open(tmp_path / "out")
+    with TestClient(create_app(s), base_url=ORIGIN) as c:
+        study = c.get("/api/study").json()
+        assert [p["name"] for p in study["parameters"]] == ["kN_bj", "kV_bj", "r_hj"]
+        assert [(t["name"], t["free"]) for t in study["tests"]] == [("diagonal", ["kN_bj", "kV_bj"]),
+                                                                     ("shear", ["kN_bj", "kV_bj", "r_hj"])]
+        assert set(study["noise"]) == {"diagonal", "shear"}
+        out = c.post("/api/predict", json={"values": {"kN_bj": 90.0, "kV_bj": 35.0, "r_hj": 0.45}}).json()
+        assert [t["name"] for t in out["tests"]] == ["diagonal", "shear"]
+        np.testing.assert_allclose(out["chi2"], sum(t["chi2"] for t in out["tests"]), rtol=1e-12, atol=0)
+        n_obs = sum(len(t["series"]) * len(t["series"][0]["x"]) for t in out["tests"])
+        assert out["dof"] == n_obs - 3
+        for t in out["tests"]:  # noise-free data at the truth: the residuals are the surrogate's error
+            z = np.array([x["residual"] for x in t["series"]])
+            np.testing.assert_allclose(t["chi2"], np.sum(z**2), rtol=1e-10, atol=0)
+        error_of(c.post("/api/calibrate", json={"frozen": {"kN_bj": 90.0, "kV_bj": 35.0}}), 422, "diagonal",
+                 "free", field="frozen")
+        rid = c.post("/api/calibrate", json={"frozen": {"r_hj": 0.45}}).json()["run"]
+        run = wait_for(c, f"/api/runs/{rid}")
+        assert run["status"] == "done", run["error"]
+        assert [q["name"] for q in run["result"]["parameters"]] == ["kN_bj", "kV_bj"]
+        assert [f["test"] for f in run["result"]["fe_check"]] == ["diagonal", "shear"]
+        error_of(c.post("/api/calibrate", json={"noise": {"shear": {"noise_rel": -1.0}}}), 422, "noise_rel",
+                 field="noise.shear.noise_rel")
+    s.close()

@@ -26,11 +26,12 @@ def register(app):
         Binds 127.0.0.1 on a free port by default, prints the address and opens it in the browser. Serves
         only files under the study's folder; the page asks no other host for anything. Ctrl-C stops it.
         """
-        from podkrig.serve.server import check_binding, serve as run_server
+        from podkrig.serve.server import bind, check_binding, serve as run_server
         from podkrig.serve.session import Session
 
         configure_logging(verbose)
         with user_errors():
             check_binding(host, port, token)
             session = Session.open(target, out)
-        run_server(session, host=host, port=port, token=token, open_browser=not no_browser, say=typer.echo)
+            sock = bind(host, port)  # a port in use is refused here, with the OS's words
+        run_server(session, sock, host=host, token=token, open_browser=not no_browser, say=typer.echo)

@@ -8,6 +8,7 @@ so the printed address is the one served).
 import logging
 import socket
 import threading
+import time
 import webbrowser
 
 from podkrig.serve.app import create_app, is_loopback
@@ -34,27 +35,43 @@ def check_binding(host, port, token):
 
 
 def bind(host, port):
-    """A listening TCP socket on ``host:port`` (``port`` 0: a free one)."""
+    """A listening TCP socket on ``host:port`` (``port`` 0: a free one).
+
+    Made with ``proto=IPPROTO_TCP``, not 0 as :func:`socket.create_server` does: asyncio switches
+    Nagle's algorithm off (``TCP_NODELAY``) only on connections of a socket that says it is TCP, and
+    with Nagle on, a response written as headers then body waits for the client's delayed ACK —
+    44 ms per request on loopback (measured 2026-11-27), the whole slider budget.
+    """
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
-    return socket.create_server((host, port), family=family)
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host, port))
+        sock.listen(128)
+    except OSError:
+        sock.close()
+        raise
+    return sock
 
 
 def address(host, port, token=None):
-    """The URL of the page (with ``?token=`` when there is one)."""
+    """The URL of the page (with ``?token=`` when there is one); for a server on every interface
+    (``0.0.0.0``, ``::``) its loopback address, which this machine's browser opens."""
+    host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)
     shown = f"[{host}]" if ":" in host else host
     return f"http://{shown}:{port}/" + (f"?token={token}" if token else "")
 
 
-def serve(session, *, host="127.0.0.1", port=0, token=None, open_browser=True, say=print):
-    """Serve ``session`` until interrupted (Ctrl-C).
+def serve(session, sock, *, host="127.0.0.1", token=None, open_browser=True, say=print):
+    """Serve ``session`` on the listening socket ``sock`` (:func:`bind`) until interrupted (Ctrl-C).
 
     Parameters
     ----------
     session : Session
+    sock : socket.socket
+        Bound to ``host`` (:func:`check_binding` passed).
     host : str
-        Address to bind (loopback by default; another needs ``token``).
-    port : int
-        0: a free port.
+        The address ``sock`` is bound to (the Host header every request must name).
     token : str, optional
     open_browser : bool
         Open the page in the default browser once the server is up.
@@ -63,8 +80,6 @@ def serve(session, *, host="127.0.0.1", port=0, token=None, open_browser=True, s
     """
     import uvicorn
 
-    check_binding(host, port, token)
-    sock = bind(host, port)
     port = sock.getsockname()[1]
     session.warm()
     app = create_app(session, host=host, port=port, token=token)
@@ -74,16 +89,14 @@ def serve(session, *, host="127.0.0.1", port=0, token=None, open_browser=True, s
     if open_browser:
         def open_when_up():
             while not server.started and not server.should_exit:
-                threading.Event().wait(0.05)
+                time.sleep(0.05)
             if server.started:
                 webbrowser.open(url)
         threading.Thread(target=open_when_up, daemon=True).start()
     try:
         server.run(sockets=[sock])
     finally:
-        services = getattr(app.app.state, "services", None)
-        if services is not None:
-            services.close()
+        app.app.state.services.close()
         session.close()
         sock.close()
 

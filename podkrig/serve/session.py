@@ -12,8 +12,8 @@ answers the page's questions about it as JSON-able dicts:
 * :meth:`Session.predict` — the surrogate's mean and σ at the measured readings of every test, the
   standardized residuals ``(d − g)/σ_total`` with ``σ_total² = σ_noise² + σ_surrogate²`` (the
   diagonal of thesis eq. 2.10's ``C_D``), each test's χ²/dof and the misfit ω (thesis eq. 2.13).
-  This is the slider's path: one batched surrogate call per test, well under a millisecond of CPU
-  on the demo;
+  This is the slider's path: one surrogate call per test (mean and σ; χ² and ω from the same
+  prediction), about half a millisecond of CPU on the demo;
 * :meth:`Session.replace_measurement` — an uploaded measurement log read by the library's reader
   (:func:`podkrig.io.measurement_log.read_measurement`) with the study's import settings and
   checked like the study's measurement stage; it replaces that test's data in this session only.
@@ -36,8 +36,9 @@ import numpy as np
 from podkrig.exceptions import PodkrigError
 from podkrig.limits import MAX_JSON_BYTES, check_name, read_bounded
 from podkrig.online.calibrate import problems_by_test
-from podkrig.online.data_check import MeasurementCheckError
+from podkrig.online.data_check import MeasurementCheckError, check_readings, surrogate_training_outputs
 from podkrig.online.joint import JointProblem
+from podkrig.online.problem import check_dof
 from podkrig.parameters import ParameterSpace
 from podkrig.reports.findings import refusal
 from podkrig.study import load_study
@@ -62,10 +63,8 @@ class RequestError(PodkrigError):
 
 
 def json_safe(values):
-    """A float array as a JSON list, NaN (a missing reading) as None."""
-    a = np.asarray(values, dtype=float)
-    return [None if not math.isfinite(v) else v for v in a.ravel().tolist()] if a.ndim <= 1 else \
-        [json_safe(row) for row in a]
+    """A 1-D float array as a JSON list, NaN (a missing reading) as None."""
+    return [v if math.isfinite(v) else None for v in np.asarray(values, dtype=float).tolist()]
 
 
 def study_file_of(folder):
@@ -118,6 +117,7 @@ class Session:
         self._problem = None
         self._uploads = {}  # test name -> path of the uploaded log (a temporary file of this session)
         self._tmp = None
+        self._calibration = None  # (manifest mtime, CalibrationResult or None)
 
     @classmethod
     def open(cls, path, out=None):
@@ -157,11 +157,19 @@ class Session:
     def state(self):
         return "ready" if self.ready else "needs_offline"
 
+    @property
+    def uploaded(self):
+        """The tests whose measurement was replaced by an upload in this session."""
+        return tuple(self._uploads)
+
     def reload(self):
-        """Forget the problem built so far (after a study job wrote new surrogates)."""
+        """Forget the problem built so far (after a study job wrote new surrogates or a new
+        calibration): it is built again from the folder, with the study's measurements (an upload
+        of this session is dropped)."""
         with self._lock:
             self._run = None
             self._problem = None
+            self._uploads = {}
 
     def study_run(self):
         """The :class:`~podkrig.study.stages.StudyRun` over the folder (built once; it caches
@@ -194,12 +202,21 @@ class Session:
             return self._problem
 
     def warm(self):
-        """Build what the first requests need before the server answers (the problem, the
-        study's calibration read back, one prediction: about a second on the demo), so the page is
-        ready as soon as the address is printed."""
-        self._calibration_cached()
-        if self.ready:
-            self.predict({})
+        """Build what the first requests need before the server answers, so the page is ready as
+        soon as the address is printed: the problem, the study's calibration read back, one
+        prediction, and what a first calibration needs besides (each test's FE scenario for the FE
+        check, the validation models' surrogates) — about 2 s of CPU on the demo."""
+        self.calibration()
+        if not self.ready:
+            return
+        self.predict({})
+        run = self.study_run()
+        for t in self.tests:
+            run.scenario(t)
+        for m in self.study.validation:
+            path = f"validation_{m.name}_surrogate.h5"
+            if (self.folder / path).is_file():
+                run.surrogate(path)
 
     # -------------------------------------------------------------------------------- parameters
 
@@ -215,8 +232,19 @@ class Session:
 
     def calibration(self):
         """The study's calibration (:class:`~podkrig.online.calibrate.CalibrationResult` of its
-        stage manifest and ``region.npz``), or None when it has not run."""
-        manifest = read_manifest(self.folder / "stages" / "calibration.json")
+        stage manifest and ``region.npz``), or None when it has not run; read again only when the
+        manifest changed (a study job wrote a new one)."""
+        path = self.folder / "stages" / "calibration.json"
+        try:
+            stamp = path.stat().st_mtime_ns
+        except OSError:
+            return None
+        if self._calibration is None or self._calibration[0] != stamp:
+            self._calibration = (stamp, self._read_calibration(path))
+        return self._calibration[1]
+
+    def _read_calibration(self, path):
+        manifest = read_manifest(path)
         if manifest is None:
             return None
         try:
@@ -265,27 +293,15 @@ class Session:
         return {n: best.get(n, mid[n]) for n in space.names}
 
     def _best(self):
-        cal = self._calibration_cached()
+        cal = self.calibration()
         return {} if cal is None else {n: float(v) for n, v in cal.inversion.free_parameters.items()}
-
-    def _calibration_cached(self):
-        """:meth:`calibration`, read once per manifest version (its mtime)."""
-        path = self.folder / "stages" / "calibration.json"
-        try:
-            stamp = path.stat().st_mtime_ns
-        except OSError:
-            return None
-        cached = getattr(self, "_cal", None)
-        if cached is None or cached[0] != stamp:
-            self._cal = (stamp, self.calibration())
-        return self._cal[1]
 
     # -------------------------------------------------------------------------------- the views
 
     def parameters_view(self):
         """The free parameters for the page: name, unit, bounds, scale, value, best and the
         study's equivalence interval (None before a calibration)."""
-        cal = self._calibration_cached()
+        cal = self.calibration()
         best = self._best()
         intervals = {} if cal is None else cal.region.intervals
         defaults = self.defaults()
@@ -344,20 +360,23 @@ class Session:
         """
         problem = self.problem
         x = self.values(values)
-        parts = problem.parts(x) if isinstance(problem, JointProblem) else {None: (problem, x)}
-        tests, chi2_all = [], 0.0
+        parts = problem.parts(x) or {None: (problem, x)}  # one test: the problem itself
+        tests, chi2_all, omega = [], 0.0, 0.0
         for name, (p, xt) in parts.items():
-            mean, std = p.misfit.predict(xt[None])
+            misfit, meas = p.misfit, p.measurement
+            mean, std = misfit.predict(xt[None])  # one surrogate call: χ² and ω from the same prediction
+            w = misfit.whiten(mean - meas.data, std)  # L_D⁻¹ (g − d), rigid-body motions projected out
+            chi2 = float(np.sum(w**2))
+            prior = misfit.prior_residuals(xt[None])
+            omega += 0.5 * chi2 + 0.5 * float(np.sum(prior**2))  # thesis eq. (2.13)
+            chi2_all += chi2
             mean = mean[0]
-            noise = p.misfit.noise_std
+            sd = np.zeros_like(mean) if std is None else std[0]
+            noise = misfit.noise_std
             if p.model_form_error is not None:
                 noise = np.sqrt(noise**2 + p.model_form_error.std**2)
-            total = noise if std is None else np.sqrt(noise**2 + std[0] ** 2)
-            meas = p.measurement
-            grid_mean, grid_std = meas.grid(mean), meas.grid(np.zeros_like(mean) if std is None else std[0])
-            grid_res = meas.grid((meas.data - mean) / total)
-            chi2 = float(p.chi2(xt[None])[0])
-            chi2_all += chi2
+            total = np.sqrt(noise**2 + sd**2)  # the diagonal of C_D
+            grid_mean, grid_std, grid_res = meas.grid(mean), meas.grid(sd), meas.grid((meas.data - mean) / total)
             dof = p.n_obs - p.n_removed - p.n_free
             levels, unit = json_safe(meas.load_levels), p.model.load_unit
             series = [{"sensor": s, "unit": u, "x": levels, "x_unit": unit, "measured": json_safe(meas.values[:, j]),
@@ -366,8 +385,7 @@ class Session:
                       for j, (s, u) in enumerate(zip(meas.sensor_names, meas.sensor_units))]
             tests.append({"name": name, "chi2": chi2, "dof": dof, "chi2_dof": chi2 / max(dof, 1), "series": series})
         dof = problem.n_obs - problem.n_removed - problem.n_free
-        return {"omega": float(problem.omega(x[None])[0]), "chi2": chi2_all, "dof": dof,
-                "chi2_dof": chi2_all / max(dof, 1), "tests": tests}
+        return {"omega": omega, "chi2": chi2_all, "dof": dof, "chi2_dof": chi2_all / max(dof, 1), "tests": tests}
 
     # -------------------------------------------------------------------------------- files
 
@@ -436,9 +454,12 @@ class Session:
         try:
             meas, noise = read_study_measurement(upload, model.sensor_names, model.load_levels, model.load_unit,
                                                  model.load_response, model.sensor_units)
-            new = dataclasses.replace(one, measurement=meas, noise=noise)
-            new.observation  # a measurement the model cannot be evaluated at is refused here
-            new.misfit
+            # the readings against the surrogate's training runs (a unit or sign error), as the study
+            # compares its log with its probe and training runs
+            check_readings(meas, noise, model.sensor_names, model.load_levels, model.load_response,
+                           surrogate_training_outputs(model.surrogate), runs="surrogate")
+            new = dataclasses.replace(one, measurement=meas, noise=noise)  # refuses data the model cannot give
+            check_dof(new.n_obs, new.free, "the uploaded file", new.n_removed)
         except MeasurementCheckError as e:
             raise RequestError(refusal(e, "study"), "measurement") from None
         except ValueError as e:
