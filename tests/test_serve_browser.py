@@ -332,6 +332,38 @@ def test_invalid_settings_show_the_settings_message_beside_the_field(server, bro
     assert "population_size" in text
 
 
+def test_a_measurement_upload_is_checked_and_replaces_the_data(server, browser, finished, tmp_path):
+    load(browser, server.url)
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+    clean = sc.run(TRUTH).readings
+    # readings written in µm instead of mm: refused with the reader's words, shown beside the upload
+    wrong = tmp_path / "in_micrometres.csv"
+    write_measurement_csv(wrong, Measurement(1000 * clean, sc.sensor_names, sc.load_levels))
+    expected = server.api("POST", "/api/measurement?test=&name=in_micrometres.csv", content=wrong.read_bytes(),
+                          headers={"Content-Type": "application/octet-stream"})
+    assert expected.status_code == 422
+    browser.find_element(By.ID, "upload-0").send_keys(str(wrong))
+    box = browser.find_element(By.ID, "err-upload-0")
+    wait(browser, lambda d: box.text, message="upload refused")
+    # the same words as the API's answer (which names the server's scratch copy of the upload)
+    assert box.text.split(": ", 1)[1] == expected.json()["error"].split(": ", 1)[1]
+    # another measurement of the same wall (other noise): accepted, the page predicts against it
+    other = tmp_path / "second_series.csv"
+    noisy = clean * (1 + 0.05 * np.random.default_rng(7).standard_normal(clean.shape))
+    write_measurement_csv(other, Measurement(noisy, sc.sensor_names, sc.load_levels))
+    chi2 = browser.find_element(By.ID, "chi2").text
+    count = browser.execute_script("return window.podkrigPredictions")
+    browser.find_element(By.ID, "upload-0").send_keys(str(other))
+    wait(browser, lambda d: d.execute_script("return window.podkrigPredictions") > count, message="predicted again")
+    assert "second_series.csv" in browser.find_element(By.ID, "upload-note-0").text
+    assert box.text == ""
+    assert browser.find_element(By.ID, "chi2").text != chi2
+    # put the study's own measurement back for the other tests of this module
+    original = finished.parent / "measured.csv"
+    assert server.api("POST", "/api/measurement?test=&name=measured.csv", content=original.read_bytes(),
+                      headers={"Content-Type": "application/octet-stream"}).status_code == 200
+
+
 @pytest.fixture(scope="module")
 def unfinished(tmp_path_factory):
     """A study file whose offline stage has not run (enough FE runs to be cancelled mid-way)."""
@@ -339,7 +371,7 @@ def unfinished(tmp_path_factory):
 
 
 def test_a_job_starts_from_the_page_and_is_cancelled(unfinished, browser):
-    srv = Server(unfinished)
+    srv = Server(unfinished, "--out", str(unfinished.parent / "out"))
     try:
         load(browser, srv.url)
         assert browser.execute_script("return document.body.dataset.state") == "needs_offline"

@@ -93,7 +93,14 @@
   function showError(err, fallback) {
     const field = err.field;
     if (field) {
-      const candidates = [field, String(field).split(".").pop(), String(field).replace(/[^A-Za-z0-9_-]/g, "_")];
+      const parts = String(field).split(".");
+      const candidates = [field, parts[parts.length - 1]];
+      if (parts[0] === "noise") {
+        // "noise.TEST.noise_rel", or "noise.noise_rel" for a study of one test
+        const key = parts.length > 2 ? parts.slice(1, -1).join(".") : "";
+        const input = $$("#noise-fields input").find((i) => i.dataset.noiseKey === key && i.id.endsWith(parts[parts.length - 1]));
+        if (input) candidates.unshift(input.id);
+      }
       for (const name of candidates) {
         const box = document.getElementById(`err-${name}`);
         if (box) {
@@ -253,8 +260,15 @@
     box.replaceChildren();
     state.plots = [];
     state.tests.forEach((test, i) => {
+      const upload = h("input", { type: "file", id: `upload-${i}`, accept: ".csv,.tsv,.txt,.xlsx", class: "upload" });
+      upload.addEventListener("change", () => uploadMeasurement(i, upload));
       const panel = h("div", { class: "test", id: `test-${i}` },
         h("h3", {}, testLabel(test, i), " ", h("span", { class: "muted small", id: `chi2-${i}` })),
+        h("div", { class: "small upload-line" },
+          h("label", { for: `upload-${i}`, title: "CSV, TSV or Excel log, as podkrig invert reads; this session only" },
+            "Replace the measurement: "), upload,
+          h("span", { class: "muted", id: `upload-note-${i}` })),
+        h("div", { class: "error", id: `err-upload-${i}`, role: "alert" }),
         h("div", { class: "legend", id: `legend-${i}` }),
         h("div", { id: `plot-${i}` }),
         h("div", { class: "axis-note", text: "Standardized residuals (measured − predicted)/σ per sensor; |r| > 2 is unusual." }),
@@ -262,6 +276,31 @@
       box.append(panel);
       state.plots.push({ readings: null, resid: null });
     });
+  }
+
+  // A measurement log replaces the test's data for this session (the server reads and checks it
+  // with the study's reader); the page then predicts again against it.
+  async function uploadMeasurement(i, input) {
+    const file = input.files && input.files[0];
+    if (!file) return;
+    const box = $(`#err-upload-${i}`);
+    box.textContent = "";
+    const test = state.tests[i];
+    const query = `test=${encodeURIComponent(test.name ?? "")}&name=${encodeURIComponent(file.name)}`;
+    try {
+      const response = await fetch(`/api/measurement?${query}`, {
+        method: "POST", headers: { "Content-Type": "application/octet-stream" }, body: file,
+      });
+      const data = await response.json().catch(() => ({ error: `${response.status} ${response.statusText}` }));
+      if (!response.ok) throw new ApiError(data.error, data.field, response.status);
+      state.tests[i] = Object.assign({}, test, data);
+      $(`#upload-note-${i}`).textContent = ` now: ${file.name} (this session only)`;
+      requestPrediction();
+    } catch (err) {
+      box.textContent = err.message;
+    } finally {
+      input.value = "";
+    }
   }
 
   function plotWidth(container) {
@@ -805,7 +844,7 @@
         if (answer.status === "failed") throw new ApiError(answer.error || "the FE run failed", null, 500);
         status.className = "small";
         status.textContent = `done in ${((performance.now() - t0) / 1000).toFixed(1)} s`;
-        showFE(answer.result);
+        showFE(answer.result, answer.parameters);
         break;
       }
     } catch (err) {
@@ -817,7 +856,7 @@
     }
   });
 
-  function showFE(result) {
+  function showFE(result, parameters) {
     const nodes = result.nodes;
     let xmin = Infinity; let xmax = -Infinity; let ymin = Infinity; let ymax = -Infinity;
     for (const [x, y] of nodes) {
@@ -858,7 +897,7 @@
     stepInput.max = Math.max(0, n - 1);
     stepInput.value = Math.max(0, n - 1);
     $("#fe-scale").value = num(result.scale, 3);
-    state.fe = { result, polys, lines, joints, span, curvePlot: null };
+    state.fe = { result, polys, lines, joints, span, parameters, curvePlot: null };
     buildCurve(result);
     redrawFE();
   }
@@ -891,7 +930,8 @@
       ? `red joints: ${kind}, darkest = ${withUnit(top, "mm")} (at step ${k + 1}: up to ${withUnit(Math.max(0, ...joints.map((j) => Math.abs(j[kind][k]))), "mm")})`
       : "linear scenario: no joint opening or slip";
     $("#fe-step-label").textContent = `${k + 1}/${result.steps.length}: ${withUnit(result.steps[k], result.x_unit)}`;
-    $("#mesh-caption").textContent = `Deformed mesh at step ${k + 1} (${withUnit(result.steps[k], result.x_unit)}), displacements magnified ×${num(scale, 3)}; grey: undeformed. Coordinates in mm.`;
+    const ran = Object.entries(fe.parameters || {}).map(([name, v]) => `${name} = ${withUnit(v, unitOf(name))}`).join(", ");
+    $("#mesh-caption").textContent = `Deformed mesh at step ${k + 1} (${withUnit(result.steps[k], result.x_unit)}), displacements magnified ×${num(scale, 3)}; grey: undeformed; coordinates in mm.${ran ? ` FE model at ${ran}.` : ""}`;
     if (fe.curvePlot) fe.curvePlot.setData(curveData(result, k));
   }
 
@@ -935,7 +975,7 @@
   $("#job-start").addEventListener("click", async () => {
     clearErrors($("#screen-jobs"));
     try {
-      const { job } = await api("POST", "/api/jobs", { kind: "study" });
+      const { job } = await api("POST", "/api/jobs", { kind: "study", skip_diagnosis: $("#job-skip-diagnosis").checked });
       followJob(job);
     } catch (err) {
       showError(err, $("#job-error"));
@@ -1002,10 +1042,14 @@
     return jobs;
   }
 
+  // After a job the server reads the folder again: a new state or parameter set rebuilds the page,
+  // otherwise the sliders keep their values and ask the new surrogate.
   async function reloadStudyIfChanged() {
     try {
       const study = await api("GET", "/api/study");
-      if (study.state !== state.study.state) await start(study);
+      const names = (s) => s.parameters.map((p) => `${p.name}:${p.lower}:${p.upper}:${p.scale}`).join("|");
+      if (study.state !== state.study.state || names(study) !== names(state.study)) await start(study);
+      else if (study.state === "ready") requestPrediction();
     } catch (err) {
       showError(err, $("#job-error"));
     }
