@@ -67,16 +67,21 @@ def wait_for(driver, script, timeout=300.0):
 
 
 def save(driver, path, width, max_height):
-    """A screenshot of the page (its whole height, at most ``max_height`` px) as a 256-colour PNG."""
+    """A screenshot of the page's content (at most ``max_height`` px tall) as a 256-colour PNG."""
     from PIL import Image
 
-    height = driver.execute_script("return document.documentElement.scrollHeight")
-    driver.set_window_size(width, min(height, max_height))
-    # the window's outer size includes no chrome in headless mode; let the plots settle
-    time.sleep(0.4)
+    content = driver.execute_script(
+        "return Math.ceil(Math.max(...Array.from(document.querySelectorAll('main > .screen:not([hidden]) > *'))"
+        ".map(e => e.getBoundingClientRect().bottom + window.scrollY)) + 12)")
+    height = min(int(content), max_height)
+    driver.execute_script("document.activeElement && document.activeElement.blur()")
+    driver.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
+                           {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False})
+    time.sleep(0.4)  # the plots follow the new size
     driver.execute_script("window.scrollTo(0, 0)")
     picture = Image.open(io.BytesIO(driver.get_screenshot_as_png())).convert("RGB")
     picture.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
+    driver.execute_cdp_cmd("Emulation.clearDeviceMetricsOverride", {})
     print(f"{path} ({path.stat().st_size / 1024:.0f} KiB, {picture.width}×{picture.height})")
 
 
@@ -129,7 +134,6 @@ def main(argv=None):
             save(driver, args.out / "serve-calibrate.png", args.width, 1700)
 
             # Model: the FE model at the best fit
-            driver.set_window_size(args.width, 820)
             driver.find_element(By.ID, "tab-model").click()
             Select(driver.find_element(By.ID, "fe-source")).select_by_value("best")
             driver.find_element(By.ID, "fe-run").click()
@@ -137,7 +141,6 @@ def main(argv=None):
             save(driver, args.out / "serve-model.png", args.width, 1000)
 
             # Jobs: the study rerun in the background
-            driver.set_window_size(args.width, 820)
             driver.find_element(By.ID, "tab-jobs").click()
             driver.find_element(By.ID, "job-start").click()
             wait_for(driver, "return ['done', 'failed', 'cancelled'].includes("

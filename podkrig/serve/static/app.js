@@ -597,12 +597,15 @@
     drawRegion(r.region);
     const fe = r.fe_check || [];
     $("#fe-check").replaceChildren(...(fe.length ? [
-      h("tr", {}, h("th", { text: "test" }), h("th", { text: "max |FE − surrogate|" }), h("th", { text: "other" })),
-      ...fe.map((row) => h("tr", {},
-        h("td", { text: row.test ?? "the test" }),
+      h("tr", {}, h("th", { text: "test" }), h("th", { text: "max |FE − surrogate|" }),
+        h("th", { text: "÷ noise σ" }), h("th", { text: "χ²/dof of the FE model" }), h("th", { text: "verdict" })),
+      ...fe.map((row) => h("tr", { "data-test": row.test ?? "" },
+        h("td", { text: row.test || "the test" }),
         h("td", { class: "num", text: withUnit(row.max_diff, row.unit) }),
-        h("td", { class: "small", text: Object.entries(row).filter(([k]) => !["test", "max_diff", "unit"].includes(k))
-          .map(([k, v]) => `${k}: ${typeof v === "number" ? num(v) : JSON.stringify(v)}`).join(", ") })))]
+        h("td", { class: "num", text: row.max_diff_over_noise === undefined ? "–" : `${num(row.max_diff_over_noise, 3)} [-]` }),
+        h("td", { class: "num", text: row.chi2_dof_fe === undefined ? "–" : num(row.chi2_dof_fe, 3) }),
+        h("td", { class: row.ok === false ? "no" : "yes",
+          text: row.ok === false ? "the surrogate misses the FE model" : "the surrogate agrees" })))]
       : [h("tr", {}, h("td", { class: "muted", text: "no FE check in this run" }))]));
     $("#findings").replaceChildren(...((r.findings || []).map((f) => h("li", {}, h("code", { text: f.code }), " ", f.message))));
     renderDiagnosis(r.diagnosis);
@@ -662,10 +665,12 @@
       const log = p && p.scale === "log";
       const f = (v) => (log ? Math.log10(v) : v);
       const vals = region.samples.map((row) => f(row[j])).concat(region.best ? [f(region.best[j])] : []);
+      // the members' range with a margin (the region is often a small part of the search box)
       let lo = Math.min(...vals);
       let hi = Math.max(...vals);
-      if (p) { lo = Math.min(lo, f(p.lower)); hi = Math.max(hi, f(p.upper)); }
-      if (hi === lo) { hi += 1; lo -= 1; }
+      const margin = hi > lo ? 0.08 * (hi - lo) : Math.abs(hi) * 0.01 || 1;
+      lo -= margin;
+      hi += margin;
       return { f, lo, hi, log };
     });
     const pos = (j, v) => (scales[j].f(v) - scales[j].lo) / (scales[j].hi - scales[j].lo);
@@ -1011,7 +1016,10 @@
         log.textContent = (job.log || []).join("\n");
         log.scrollTop = log.scrollHeight;
         if (job.error) $("#job-error").textContent = job.error;
-        if (job.status !== "running") break;
+        if (job.status !== "running") {
+          if (job.status === "done") bar.value = bar.max;
+          break;
+        }
         await sleep(400);
       }
     } catch (err) {
@@ -1033,11 +1041,14 @@
       return [];
     }
     $("#jobs").replaceChildren(
-      h("tr", {}, h("th", { text: "job" }), h("th", { text: "kind" }), h("th", { text: "status" }), h("th", { text: "progress" })),
+      h("tr", {}, h("th", { text: "job" }), h("th", { text: "kind" }), h("th", { text: "status" }),
+        h("th", { text: "started" }), h("th", { text: "progress or time" })),
       ...jobs.map((job) => {
         const p = job.progress || {};
+        const progress = job.status === "running" ? `${p.stage ?? ""} ${p.done ?? 0}/${p.total ?? "?"}`
+          : (job.seconds === null || job.seconds === undefined ? "–" : `${num(job.seconds, 3)} s`);
         return h("tr", { "data-job": job.id }, h("td", { text: job.id }), h("td", { text: job.kind ?? "study" }),
-          h("td", { text: job.status }), h("td", { text: `${p.stage ?? ""} ${p.done ?? 0}/${p.total ?? "?"}` }));
+          h("td", { text: job.status }), h("td", { text: formatTime(job.started) }), h("td", { class: "num", text: progress }));
       }));
     return jobs;
   }
