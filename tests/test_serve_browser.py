@@ -329,7 +329,19 @@ def test_invalid_settings_show_the_settings_message_beside_the_field(server, bro
     wait(browser, lambda d: d.find_element(By.ID, "err-population_size").text
          or d.find_element(By.ID, "calib-error").text, message="error shown")
     text = browser.find_element(By.ID, "err-population_size").text
-    assert "population_size" in text
+    assert "population_size" in text and "1" in text
+    box.clear()
+    box.send_keys("20")
+    # a noise setting's refusal (field "noise.noise_rel") lands beside the noise field of its test
+    noise = browser.find_element(By.ID, "noise-0-noise_rel")
+    noise.clear()
+    noise.send_keys("-1")
+    browser.find_element(By.ID, "calibrate").click()
+    wait(browser, lambda d: d.find_element(By.ID, "err-noise-0-noise_rel").text
+         or d.find_element(By.ID, "calib-error").text, message="error shown")
+    text = browser.find_element(By.ID, "err-noise-0-noise_rel").text
+    assert "noise_rel" in text and "-1" in text
+    assert browser.find_element(By.ID, "err-population_size").text == ""
 
 
 def test_a_measurement_upload_is_checked_and_replaces_the_data(server, browser, finished, tmp_path):
