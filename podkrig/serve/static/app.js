@@ -256,6 +256,10 @@
   }
 
   function buildTests() {
+    for (const slot of state.plots) {
+      if (slot.readings) slot.readings.forEach((r) => r.plot.destroy());
+      if (slot.resid) slot.resid.destroy();
+    }
     const box = $("#tests");
     box.replaceChildren();
     state.plots = [];
