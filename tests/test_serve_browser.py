@@ -406,3 +406,79 @@ def test_a_job_starts_from_the_page_and_is_cancelled(unfinished, browser):
              message="jobs table updated")
     finally:
         srv.stop()
+
+
+#: two tests sharing kN_bj and kV_bj, the shear test with its own r_hj
+JOINT = """\
+name = "tiny_joint_page"
+
+[parameters]
+kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
+kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
+
+[fixed]
+E_b = 11000.0
+
+[sampling]
+train = { n = 16, seed = 0 }
+held_out = { n = 4, seed = 1, method = "random" }
+workers = 1
+
+[inversion]
+population_size = 20
+generations = 10
+n_starts = 2
+region_samples = 1024
+
+[[test]]
+name = "diagonal"
+scenario = { scenario = "diagonal_compression", nx = 2, ny = 1 }
+measurement = { file = "diagonal.csv", noise_abs = 0.001, noise_rel = 0.01 }
+fixed = { r_hj = 0.6 }
+
+[[test]]
+name = "shear"
+scenario = { scenario = "shear_compression", nx = 2, ny = 1 }
+measurement = { file = "shear.csv", noise_abs = 0.001, noise_rel = 0.01 }
+parameters = { r_hj = { lower = 0.2, upper = 1.0 } }
+"""
+
+
+@pytest.mark.slow
+def test_a_joint_study_shows_its_tests_side_by_side(tmp_path, browser):
+    for name, scenario, r_hj in (("diagonal", "diagonal_compression", 0.6), ("shear", "shear_compression", 0.45)):
+        sc = build_scenario({"scenario": scenario, "nx": 2, "ny": 1})
+        clean = sc.run({**TRUTH, "r_hj": r_hj}).readings
+        write_measurement_csv(tmp_path / f"{name}.csv", Measurement(clean, sc.sensor_names, sc.load_levels))
+    (tmp_path / "study.toml").write_text(JOINT)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out"),
+                                      "--skip-diagnosis"])
+    assert result.exit_code == 0, result.output
+    srv = Server(tmp_path / "out")
+    try:
+        load(browser, srv.url)
+        assert [s.get_attribute("id") for s in browser.find_elements(By.CSS_SELECTOR, "#sliders input[type=range]")] \
+            == ["param-kN_bj", "param-kV_bj", "param-r_hj"]
+        panels = [browser.find_element(By.ID, f"test-{i}") for i in range(2)]
+        assert "diagonal" in panels[0].text and "shear" in panels[1].text
+        # side by side: same row, the second to the right of the first
+        assert panels[0].rect["y"] == panels[1].rect["y"] and panels[1].rect["x"] > panels[0].rect["x"]
+        values = slider_values(browser, ["kN_bj", "kV_bj", "r_hj"])
+        answer = srv.api("POST", "/api/predict", json={"values": values}).json()
+        for i, t in enumerate(answer["tests"]):
+            shown = browser.find_element(By.ID, f"chi2-{i}").text
+            assert float(shown.split("=")[1]) == pytest.approx(t["chi2_dof"], rel=5e-3, abs=1e-3)
+        # a noise setting of the second test is refused beside that test's field
+        browser.find_element(By.ID, "tab-calibrate").click()
+        keys = browser.execute_script(
+            "return Array.from(document.querySelectorAll('#noise-fields input')).map(i => [i.id, i.dataset.noiseKey])")
+        shear_rel = next(i for i, key in keys if key == "shear" and i.endswith("noise_rel"))
+        box = browser.find_element(By.ID, shear_rel)
+        box.clear()
+        box.send_keys("-1")
+        browser.find_element(By.ID, "calibrate").click()
+        error = browser.find_element(By.ID, f"err-{shear_rel}")
+        wait(browser, lambda d: error.text, message="noise error beside the shear test's field")
+        assert "noise_rel" in error.text
+    finally:
+        srv.stop()
