@@ -111,14 +111,15 @@ class Server:
             lines.append(line)
             found = re.search(r"http://127\.0\.0\.1:\d+/?\S*", line)
             if found:
-                self.url = found.group(0).rstrip("/.,") + "/"
+                self.url = found.group(0).rstrip(".,")
                 break
         if self.url is None:
             self.stop()
             raise RuntimeError("podkrig serve printed no address:\n" + "".join(lines))
 
     def api(self, method, path, **kwargs):
-        return httpx.request(method, self.url.rstrip("/") + path, timeout=30, **kwargs)
+        parts = urlsplit(self.url)
+        return httpx.request(method, f"{parts.scheme}://{parts.netloc}{path}", timeout=30, **kwargs)
 
     def stop(self):
         if self.process.poll() is None:
@@ -374,6 +375,22 @@ def test_a_measurement_upload_is_checked_and_replaces_the_data(server, browser, 
     original = finished.parent / "measured.csv"
     assert server.api("POST", "/api/measurement?test=&name=measured.csv", content=original.read_bytes(),
                       headers={"Content-Type": "application/octet-stream"}).status_code == 200
+
+
+def test_the_page_works_behind_a_token(finished, browser):
+    """With --token the printed address carries it once; the page's own requests then pass on the
+    cookie the server set, and a request without it is refused."""
+    srv = Server(finished, "--token", "page-token-1234")
+    try:
+        assert "token=page-token-1234" in srv.url
+        load(browser, srv.url)
+        count = browser.execute_script("return window.podkrigPredictions")
+        browser.find_element(By.ID, "param-kN_bj").send_keys(Keys.RIGHT)
+        wait(browser, lambda d: d.execute_script("return window.podkrigPredictions") > count, message="predicted")
+        assert browser.find_element(By.ID, "explore-error").text == ""
+        assert srv.api("GET", "/api/study").status_code == 403
+    finally:
+        srv.stop()
 
 
 @pytest.fixture(scope="module")
