@@ -565,6 +565,7 @@
 
   function showRun(run, title) {
     state.shownRun = run.id || null;
+    state.shownRunData = run;
     const r = run.result;
     $("#result-title").textContent = title || `Result of run ${run.id}`;
     const exportLink = $("#export");
@@ -825,8 +826,15 @@
 
   function feValues() {
     if ($("#fe-source").value === "best") {
+      // the best fit of the calibration on the Calibrate screen (its frozen values included),
+      // else the study's
       const values = {};
       for (const p of state.params) values[p.name] = p.best ?? p.value;
+      const run = state.shownRunData;
+      if (run && run.result) {
+        Object.assign(values, run.frozen || {});
+        for (const p of run.result.parameters) values[p.name] = p.value;
+      }
       return values;
     }
     return Object.assign({}, state.values);
