@@ -49,7 +49,7 @@ from podkrig.exceptions import InUseError, PodkrigError
 from podkrig.serve.jobs import Jobs
 from podkrig.serve.model import FEViews
 from podkrig.serve.runs import Runs, result_view
-from podkrig.serve.session import RequestError
+from podkrig.serve.session import RequestError, check_keys, upload_name
 from podkrig.study import StudyError
 
 logger = logging.getLogger(__name__)
@@ -186,6 +186,8 @@ async def read_json(request, *, required=True):
         data = json.loads(body)
     except (ValueError, UnicodeDecodeError) as e:
         raise RequestError(f"the body is not valid JSON: {e}") from None
+    except RecursionError:  # a few hundred kB of '[': deeper than any request of the page
+        raise RequestError("the body is not valid JSON: nested too deeply") from None
     if not isinstance(data, dict):
         raise RequestError(f"the body must be a JSON object; got {type(data).__name__}")
     return data
@@ -262,6 +264,7 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
 
     async def predict(request):  # the slider's path: a millisecond on the event loop, no thread hop
         body = await read_json(request)
+        check_keys(body, ("values",), "predict")
         return JSON(session.predict(body.get("values")))
 
     async def calibrate(request):
@@ -302,15 +305,14 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
         if kind != "application/octet-stream":
             raise RequestError("send the measurement log as the raw body with Content-Type: application/octet-stream; "
                                f"got {kind or 'none'!r}", None, 415)
-        name = request.query_params.get("name", "upload.csv")
-        suffix = Path(name).suffix.lower()
-        if suffix not in UPLOAD_SUFFIXES:
+        name = upload_name(request.query_params.get("name"))
+        if Path(name).suffix.lower() not in UPLOAD_SUFFIXES:
             raise RequestError(f"name {name!r}: a measurement log is one of {', '.join(UPLOAD_SUFFIXES)}", "name")
-        data = await read_body(request, MAX_UPLOAD_BYTES, "the measurement log")
+        data = await read_body(request, MAX_UPLOAD_BYTES, f"the measurement log {name}")
         if not data:
-            raise RequestError("the measurement log is empty", "measurement")
+            raise RequestError(f"the measurement log {name} is empty", "measurement")
         test = request.query_params.get("test")
-        return JSON(await run_in_threadpool(session.replace_measurement, test, data, suffix))
+        return JSON(await run_in_threadpool(session.replace_measurement, test, data, name))
 
     async def on_request_error(request, exc):
         return error_response(str(exc), exc.field, exc.status)

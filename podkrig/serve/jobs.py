@@ -32,7 +32,7 @@ from pathlib import Path
 import podkrig
 from podkrig.exceptions import InUseError
 from podkrig.locks import folder_lock
-from podkrig.serve.session import RequestError
+from podkrig.serve.session import RequestError, check_keys
 from podkrig.study.cache import Progress, now
 
 logger = logging.getLogger(__name__)
@@ -145,6 +145,7 @@ class Jobs:
             422 an unknown kind; 409 a job of this session running, or the folder in use by
             another job (its holder named).
         """
+        check_keys(body, ("kind", "skip_diagnosis"), "jobs")
         kind = body.get("kind", "study")
         if kind not in KINDS:
             raise RequestError(f"kind {kind!r}: one of {', '.join(KINDS)}", "kind")

@@ -307,6 +307,19 @@
     }
   }
 
+  // The session's uploads (/api/study "uploads"): the file in use beside its test, or why it was
+  // dropped when a job rebuilt the surrogates.
+  function showUploads(study) {
+    const uploads = study.uploads || {};
+    state.tests.forEach((test, i) => {
+      const upload = uploads[test.name ?? ""];
+      const note = $(`#upload-note-${i}`);
+      if (!note) return;
+      note.textContent = upload && upload.state === "in use" ? ` now: ${upload.file} (this session only)` : "";
+      if (upload && upload.state === "dropped") $(`#err-upload-${i}`).textContent = upload.message;
+    });
+  }
+
   function plotWidth(container) {
     return Math.max(300, Math.floor(container.getBoundingClientRect().width || 440) - 4);
   }
@@ -1072,7 +1085,10 @@
       const study = await api("GET", "/api/study");
       const names = (s) => s.parameters.map((p) => `${p.name}:${p.lower}:${p.upper}:${p.scale}`).join("|");
       if (study.state !== state.study.state || names(study) !== names(state.study)) await start(study);
-      else if (study.state === "ready") requestPrediction();
+      else {
+        showUploads(study);
+        if (study.state === "ready") requestPrediction();
+      }
     } catch (err) {
       showError(err, $("#job-error"));
     }
@@ -1105,6 +1121,7 @@
     describeState(study);
     buildSliders();
     buildTests();
+    showUploads(study);
     buildCalibrateForm();
     renderFrozen();
     $("#fe-test").replaceChildren(...state.tests.map((t, i) => h("option", { value: i, text: testLabel(t, i) })));
