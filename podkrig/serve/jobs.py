@@ -196,6 +196,9 @@ class Jobs:
             else:
                 final = message
         job.process.wait()
+        # new surrogates or a new calibration: the problem is built again (before the job reads as
+        # ended, so a page that reloads the study on the job's end sees the new one)
+        self.session.reload()
         job.seconds = time.perf_counter() - t0
         if job.cancelled:
             job.status = "cancelled"
@@ -209,7 +212,6 @@ class Jobs:
                 f"the job's process ended with exit code {job.process.returncode}"
                 + (f": {errors[-1].strip()}" if errors else ""))
             job.log.append(f"failed: {job.error}")
-        self.session.reload()  # new surrogates or a new calibration: the problem is built again
 
     def get(self, jid):
         job = self._jobs.get(jid)
