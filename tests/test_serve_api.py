@@ -149,6 +149,17 @@ def test_files_only_under_the_folder(client, session, tmp_path):
         session.file("/etc/passwd")
 
 
+def test_files_are_sandboxed(client):
+    """An HTML file of the folder (a report, or a file planted in a folder received from someone
+    else) runs without this server's origin: its scripts' requests carry Origin "null" (refused)."""
+    r = client.get("/files/report/index.html")
+    assert r.status_code == 200
+    assert r.headers["content-security-policy"].startswith("sandbox") and "allow-same-origin" not in \
+        r.headers["content-security-policy"]
+    assert r.headers["x-content-type-options"] == "nosniff"
+    error_of(client.post("/api/jobs", json={"kind": "study"}, headers={"origin": "null"}), 403, "null", field="host")
+
+
 def test_files_refuse_every_escape(client, session, tmp_path):
     """A hostile page or user asking /files for anything but a file under the folder."""
     error_of(client.get("/files//etc/passwd"), 403, "not a path inside", field="path")  # absolute

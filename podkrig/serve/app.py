@@ -6,7 +6,7 @@ Routes (the contract the page and the tests share; JSON in and out, errors as
 =====================================  ===============================================================
 ``GET /``                              the page (``static/index.html``)
 ``GET /static/...``                    the page's scripts, styles and the vendored chart bundle
-``GET /files/PATH``                    a file under the served folder (report figures); nothing outside
+``GET /files/PATH``                    a file under the served folder (report figures), sandboxed; nothing outside
 ``GET /api/study``                     the study: parameters, tests, state, last calibration, settings
 ``POST /api/predict``                  the surrogate at the sliders' values against the measurements
 ``POST /api/calibrate``                a calibration run (:mod:`podkrig.serve.runs`) → 202, its id
@@ -67,6 +67,12 @@ TOKEN_COOKIE = "podkrig_token"
 #: the header that may carry the token
 TOKEN_HEADER = "x-podkrig-token"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+#: headers of every file served from the study's folder: an HTML or SVG file there (a report, or a
+#: file of a folder received from someone else) runs in a sandbox with an opaque origin, so its
+#: scripts cannot read the page's cookie, and their requests to the API carry ``Origin: null``,
+#: which :class:`Guard` refuses; the type is never sniffed
+FILE_HEADERS = {"Content-Security-Policy": "sandbox allow-scripts allow-popups allow-downloads",
+                "X-Content-Type-Options": "nosniff"}
 
 
 def is_loopback(host):
@@ -255,8 +261,8 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
             return error_response("the page (static/index.html) is not installed with this podkrig", None, 404)
         return FileResponse(page, headers={"Cache-Control": "no-cache"})
 
-    async def files(request):
-        return FileResponse(session.file(request.path_params["path"]))
+    async def files(request):  # a file of the folder is data, never a page of this server (FILE_HEADERS)
+        return FileResponse(session.file(request.path_params["path"]), headers=FILE_HEADERS)
 
     def study(request):  # reads the study's calibration back when it changed: in the thread pool
         cal = session.calibration()
@@ -352,5 +358,5 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
     return Guard(app, host=host, port=port, token=token)
 
 
-__all__ = ["JSON", "MAX_JSON_BODY", "MAX_UPLOAD_BYTES", "STATIC", "UPLOAD_SUFFIXES", "Guard", "Services", "create_app",
+__all__ = ["FILE_HEADERS", "JSON", "MAX_JSON_BODY", "MAX_UPLOAD_BYTES", "STATIC", "UPLOAD_SUFFIXES", "Guard", "Services", "create_app",
            "is_loopback", "read_body", "read_json"]
