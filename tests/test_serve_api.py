@@ -639,6 +639,10 @@ def test_fe_view_of_a_nonlinear_run():
     np.testing.assert_allclose(view["curve"]["x"], sc.control_sign * np.asarray(path.path)[control], rtol=1e-12, atol=0)
     np.testing.assert_allclose(view["curve"]["y"], np.asarray(path.load)[control], rtol=1e-12, atol=0)
     assert view["curve"]["y_unit"] == r.force_unit and max(view["curve"]["y"]) in np.asarray(path.load)[control]
+    # each shown step's point on the curve (the page marks it there): the same control value
+    at = np.asarray(view["curve"]["step_index"])
+    assert len(control) > n  # the curve has more points than shown steps: the index is not k
+    np.testing.assert_allclose(np.asarray(view["curve"]["x"])[at], view["steps"], rtol=0, atol=0)
     joints = view["joints"]
     points = sc.mesh.nodes[np.asarray(sc.model.point_nodes())]
     n_elements = len(sc.model.interface_elements)

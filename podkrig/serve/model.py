@@ -64,7 +64,8 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
         corners of each element, counter-clockwise); ``steps`` the control value of each shown step
         (``x_unit``); ``displacement`` ``(n_steps, n_drawn, 2)`` mm; ``scale`` the suggested
         magnification (-); ``curve`` (nonlinear: control displacement ``x`` mm and load ``y`` in
-        ``y_unit`` of every converged step of the controlled phase) or None; ``joints``
+        ``y_unit`` of every converged step of the controlled phase, and ``step_index``: the position
+        on the curve of each shown step) or None; ``joints``
         (nonlinear: one entry per interface element, :func:`_joints`) or None.
 
     Raises
@@ -92,7 +93,7 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
         u = np.stack([np.asarray(path.displacements[s], float)[drawn] for s in steps])
         x, x_unit = disp[steps], "mm"
         curve = {"x": disp[control].tolist(), "y": load[control].tolist(), "x_unit": "mm",
-                 "y_unit": response.force_unit}
+                 "y_unit": response.force_unit, "step_index": np.searchsorted(control, steps).tolist()}
         joints = _joints(scenario, mesh.nodes[point_nodes], [path.states[s] for s in steps])
     else:
         if getattr(response, "field", None) is None:

@@ -969,7 +969,7 @@
   function curveData(result, k) {
     const c = result.curve;
     const order = c.x.map((x, i) => i).sort((a, b) => c.x[a] - c.x[b]);
-    const mark = c.x.length === result.steps.length ? k : Math.min(k, c.x.length - 1);
+    const mark = c.step_index[k];  // the shown step's own point of the curve (the curve has every step)
     return [order.map((i) => c.x[i]), order.map((i) => c.y[i]), order.map((i) => (i === mark ? c.y[i] : null))];
   }
 
