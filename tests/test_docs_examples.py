@@ -28,6 +28,7 @@ BRING = {
     "wall3_log.xlsx": "their own lab log",
     "tcp://": "a running Dask cluster",
     "...": "the options of the command before it (an elision)",
+    "serve ": "a browser: the page runs until Ctrl-C (tests/test_serve_api.py and test_serve_browser.py start it)",
 }
 
 

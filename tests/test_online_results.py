@@ -101,6 +101,33 @@ def test_inverse_result_round_trip(solved):
         back.predicted()
 
 
+class UnsortedModel(LinearModel):
+    """The linear model with its parameters named against alphabetical order (``z``, ``a``)."""
+
+    space = ParameterSpace((Parameter("z", 0.0, 2.0, unit="MPa"), Parameter("a", 0.0, 2.0)))
+
+
+def test_inverse_result_read_back_from_sorted_json_keeps_each_value_with_its_name():
+    """The study writes its manifests and summary.json with sorted keys: ``parameters`` comes back
+    as (a, z) while ``x`` stays in the free order (z, a). Each value must stay with its name (the
+    study report's table and ``podkrig serve`` read the calibration back this way); a dict written
+    before the free order was recorded is paired by name too, in the problem's order when given."""
+    problem = _problem(model=UnsortedModel())
+    result = invert(problem, rng=0, population_size=20, generations=10, n_starts=2)
+    assert result.free == ("z", "a") and result.x[0] != pytest.approx(result.x[1], rel=1e-3)
+    d = json.loads(json.dumps(result.to_dict(), sort_keys=True))
+    assert list(d["parameters"]) == ["a", "z"]
+    back = InverseResult.from_dict(d)
+    assert back.free == ("z", "a")
+    assert_allclose(back.x, result.x, rtol=0)
+    assert back.free_parameters == pytest.approx(result.free_parameters, rel=0)
+    old = {k: v for k, v in d.items() if k != "free"}
+    assert InverseResult.from_dict(old, problem=problem).free == ("z", "a")
+    assert_allclose(InverseResult.from_dict(old, problem=problem).x, result.x, rtol=0)
+    legacy = InverseResult.from_dict(old)
+    assert legacy.free_parameters == pytest.approx(result.free_parameters, rel=0)
+
+
 def test_region_rvc_and_nested_round_trips(solved):
     problem, result, region = solved
     d = _json_round(region.to_dict(members=True))

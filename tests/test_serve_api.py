@@ -149,6 +149,35 @@ def test_files_only_under_the_folder(client, session, tmp_path):
         session.file("/etc/passwd")
 
 
+def test_files_are_sandboxed(client):
+    """An HTML file of the folder (a report, or a file planted in a folder received from someone
+    else) runs without this server's origin: its scripts' requests carry Origin "null" (refused)."""
+    r = client.get("/files/report/index.html")
+    assert r.status_code == 200
+    assert r.headers["content-security-policy"].startswith("sandbox") and "allow-same-origin" not in \
+        r.headers["content-security-policy"]
+    assert r.headers["x-content-type-options"] == "nosniff"
+    error_of(client.post("/api/jobs", json={"kind": "study"}, headers={"origin": "null"}), 403, "null", field="host")
+
+
+def test_files_refuse_every_escape(client, session, tmp_path):
+    """A hostile page or user asking /files for anything but a file under the folder."""
+    error_of(client.get("/files//etc/passwd"), 403, "not a path inside", field="path")  # absolute
+    error_of(client.get("/files/report%2f..%2f..%2f..%2fetc%2fpasswd"), 403, "not a path inside", field="path")
+    error_of(client.get("/files/%2E%2E/summary.json"), 403, "not a path inside", field="path")
+    error_of(client.get("/files/report/%00.png"), 403, "not a path inside", field="path")  # NUL: no OS error
+    error_of(client.get("/files/report"), 404, "report", field="path")  # a directory: no listing
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    (outside / "secret.txt").write_text("outside")
+    link = session.folder / "report" / "dir_out"
+    link.symlink_to(outside, target_is_directory=True)
+    try:
+        error_of(client.get("/files/report/dir_out/secret.txt"), 403, "outside the served folder", field="path")
+    finally:
+        link.unlink()
+
+
 # ------------------------------------------------------------------------------------- the study
 
 
@@ -271,6 +300,48 @@ def test_host_origin_and_token(session):
         r = c.get("/api/study?token=s3cret-token")  # once in the address: then a cookie
         assert r.status_code == 200 and "podkrig_token" in r.headers["set-cookie"]
         assert c.get("/api/study").status_code == 200
+
+
+def test_dns_rebinding_and_foreign_origins(session):
+    """A page of another site whose name was rebound to 127.0.0.1 sends its own name (and the
+    server's port) as Host; a sandboxed or file:// page sends Origin "null"."""
+    for name in ("evil.example:8000", "localhost.evil.example:8000", "127.0.0.1.nip.io:8000"):
+        with TestClient(create_app(session, port=8000), base_url=f"http://{name}") as c:
+            error_of(c.get("/api/study"), 403, name.split(":")[0], field="host")
+            error_of(c.post("/api/predict", json={}), 403, name.split(":")[0], field="host")
+    with TestClient(create_app(session, port=8000), base_url="http://127.0.0.1:8000") as c:
+        for origin in ("null", "http://127.0.0.1:8001", "http://evil.example:8000"):
+            error_of(c.post("/api/predict", json={}, headers={"origin": origin}), 403, origin, field="host")
+        assert c.get("/api/study", headers={"host": "localhost:8000"}).status_code == 200
+
+
+def test_hostile_json_bodies(client):
+    """Bodies a script could send: nested, non-finite, out of a float's range, wrong types, unknown keys."""
+    as_json = {"content-type": "application/json"}
+    deep = b'{"values": ' + b"[" * 100_000 + b"]" * 100_000 + b"}"
+    error_of(client.post("/api/predict", content=deep, headers=as_json), 422, "nested too deeply", field=None)
+    for literal in (b"NaN", b"Infinity", b"-Infinity", b"1" + b"0" * 400, b'"90"', b"true", b"null", b"[90]"):
+        r = client.post("/api/predict", content=b'{"values": {"kN_bj": ' + literal + b"}}", headers=as_json)
+        error_of(r, 422, "kN_bj", "finite number", field="kN_bj")
+    r = client.post("/api/calibrate", content=b'{"frozen": {"r_hj": 1' + b"0" * 400 + b"}}", headers=as_json)
+    error_of(r, 422, "r_hj", "finite number", field="r_hj")
+    error_of(client.post("/api/predict", json={"valuez": {}}), 422, "valuez", "values", field="valuez")
+    error_of(client.post("/api/fe", json={"values": {}, "tst": None}), 422, "tst", "test", field="tst")
+    error_of(client.post("/api/jobs", json={"kind": "study", "skip": True}), 422, "skip", "skip_diagnosis",
+             field="skip")
+    error_of(client.post("/api/jobs", json={"kind": ["study"]}), 422, "study", field="kind")
+    error_of(client.post("/api/fe", json={"test": {"name": None}}), 404, "no test", field="test")
+    error_of(client.post("/api/predict", json=[1, 2]), 422, "JSON object")
+
+
+def test_an_unexpected_error_answers_without_its_traceback(session, monkeypatch):
+    def broken(values=None):
+        raise RuntimeError("secret internals at /home/someone")
+
+    monkeypatch.setattr(session, "predict", broken)
+    with TestClient(create_app(session), base_url=ORIGIN, raise_server_exceptions=False) as c:
+        body = error_of(c.post("/api/predict", json={}), 500, "internal error", "RuntimeError")
+    assert "secret" not in body["error"]
 
 
 def test_printed_address():
@@ -443,6 +514,19 @@ def test_calibration_with_the_diagnosis(client):
     assert run["settings"]["diagnosis"] is True
 
 
+@pytest.mark.slow
+def test_diagnosis_holds_the_frozen_parameters(client, session):
+    """The diagnosis asked with a calibration is that calibration's: r_hj frozen on the page at 0.45
+    (the data were made with 0.6) stays at 0.45 in the diagnosis's base fit, which fits the other two."""
+    rid = client.post("/api/calibrate", json={"frozen": {"r_hj": 0.45}, "inversion": GA, "diagnosis": True}).json()
+    run = wait_for(client, f"/api/runs/{rid['run']}", timeout=600)
+    assert run["status"] == "done", run["error"]
+    (diagnosis,) = run["result"]["diagnosis"].values()
+    assert diagnosis["held"] == {"r_hj": 0.45}  # the value its FE fits ran with, as the calibration's
+    assert set(diagnosis["base"]["parameters"]) == {"kN_bj", "kV_bj"} == set(diagnosis["surrogate"]["parameters"])
+    assert diagnosis["adequacy"]["dof"] == session.problem.n_obs - 2
+
+
 def test_calibration_refuses_bad_settings(client):
     post = lambda body: client.post("/api/calibrate", json=body)  # noqa: E731
     error_of(post({"inversion": {**GA, "population_size": 2}}), 422, "population_size", "2", "[4,",
@@ -459,8 +543,46 @@ def test_calibration_refuses_bad_settings(client):
     error_of(post({"frozen": {"r_hj": 2.0}}), 422, "r_hj", "2", "[0.2, 1]", field="r_hj")
     error_of(post({"frozen": {"kN_bj": 90.0, "kV_bj": 35.0, "r_hj": 0.6}}), 422, "free at least one", field="frozen")
     error_of(post({"diagnosis": "yes"}), 422, "diagnosis", field="diagnosis")
+    error_of(post({"frozn": {"r_hj": 0.6}}), 422, "frozn", "frozen", field="frozn")  # never ignored silently
+    error_of(post({"inversion": {**GA, "population_size": -5}}), 422, "population_size", "-5",
+             field="inversion.population_size")
+    error_of(post({"inversion": {**GA, "generations": 0}}), 422, "generations", "0", field="inversion.generations")
+    error_of(post({"inversion": {**GA, "generations": 10**9}}), 422, "generations", "GA evaluations",
+             field="inversion.generations")
+    error_of(post({"inversion": {**GA, "n_starts": 10**6}}), 422, "n_starts", field="inversion.n_starts")
     error_of(client.get("/api/runs/r999"), 404, "r999", field="run")
     error_of(client.get("/api/runs/r999/summary.json"), 404, "r999", field="run")
+
+
+def test_calibrations_and_fe_runs_wait_in_a_bounded_queue(session):
+    """Many calibrations or FE runs asked at once: a few wait, the next is refused (409) until one
+    is done, so a script cannot queue hours of work behind the page."""
+    import threading
+
+    from podkrig.serve.model import MAX_PENDING_FE
+    from podkrig.serve.runs import MAX_PENDING_RUNS
+
+    app = create_app(session)
+    services = app.app.state.services
+    gate = threading.Event()
+    services.runs._pool.submit(gate.wait)  # the worker busy: every run waits behind it
+    services.views._pool.submit(gate.wait)
+    try:
+        with TestClient(app, base_url=ORIGIN) as c:
+            ids = [c.post("/api/calibrate", json={"inversion": GA}).json()["run"] for _ in range(MAX_PENDING_RUNS)]
+            body = error_of(c.post("/api/calibrate", json={"inversion": GA}), 409, "running or waiting", ids[0])
+            assert all(i in body["error"] for i in ids)
+            assert [c.get(f"/api/runs/{i}").json()["progress"]["step"] for i in ids] == ["queued"] * MAX_PENDING_RUNS
+            fe = [c.post("/api/fe", json={}).json()["fe"] for _ in range(MAX_PENDING_FE)]
+            error_of(c.post("/api/fe", json={}), 409, "running or waiting", fe[0])
+            gate.set()
+            assert all(wait_for(c, f"/api/runs/{i}")["status"] == "done" for i in ids)
+            assert all(wait_for(c, f"/api/fe/{i}")["status"] == "done" for i in fe)
+            assert c.post("/api/calibrate", json={"inversion": GA}).status_code == 202  # room again
+            assert c.post("/api/fe", json={}).status_code == 202
+    finally:
+        gate.set()
+        services.close()
 
 
 # ------------------------------------------------------------------------------------- the FE model
@@ -517,6 +639,10 @@ def test_fe_view_of_a_nonlinear_run():
     np.testing.assert_allclose(view["curve"]["x"], sc.control_sign * np.asarray(path.path)[control], rtol=1e-12, atol=0)
     np.testing.assert_allclose(view["curve"]["y"], np.asarray(path.load)[control], rtol=1e-12, atol=0)
     assert view["curve"]["y_unit"] == r.force_unit and max(view["curve"]["y"]) in np.asarray(path.load)[control]
+    # each shown step's point on the curve (the page marks it there): the same control value
+    at = np.asarray(view["curve"]["step_index"])
+    assert len(control) > n  # the curve has more points than shown steps: the index is not k
+    np.testing.assert_allclose(np.asarray(view["curve"]["x"])[at], view["steps"], rtol=0, atol=0)
     joints = view["joints"]
     points = sc.mesh.nodes[np.asarray(sc.model.point_nodes())]
     n_elements = len(sc.model.interface_elements)
@@ -573,7 +699,10 @@ def test_job_cancel_and_a_busy_folder(fresh_study):
     assert c.get("/api/jobs").json()[-1]["status"] == "cancelled"
     with folder_lock(s.folder):  # the job's process is gone: its lock with it
         pass
+    again = c.delete(f"/api/jobs/{jid}")  # cancelling an ended job leaves it as it ended
+    assert again.status_code == 200 and again.json()["status"] == "cancelled"
     error_of(c.get("/api/jobs/j999"), 404, "j999", field="job")
+    error_of(c.delete("/api/jobs/j999"), 404, "j999", field="job")
 
 
 @pytest.mark.slow
@@ -623,6 +752,62 @@ def test_measurement_upload_replaces_the_data(tiny_study, tmp_path, monkeypatch)
 
         monkeypatch.setattr(app_module, "MAX_UPLOAD_BYTES", 100)
         error_of(c.post("/api/measurement", content=log.read_bytes(), headers=headers), 413, "100 bytes")
+    s.close()
+
+
+def test_upload_refusals_name_the_users_file(tiny_study, tmp_path):
+    """A refused upload, and a later message about its data, name the file the user chose, never
+    the server's temporary copy of it."""
+    s = Session.open(tiny_study[1])
+    headers = {"content-type": "application/octet-stream"}
+    with TestClient(create_app(s), base_url=ORIGIN) as c:
+        micrometres = tmp_path / "um.csv"
+        measured(micrometres, seed=7, scale=1000.0)  # µm written as mm: refused against the training runs
+        r = c.post("/api/measurement?name=lab_um.csv", content=micrometres.read_bytes(), headers=headers)
+        body = error_of(r, 422, "lab_um.csv", "D1", field="measurement")
+        assert "podkrig-serve" not in body["error"] and "/tmp" not in body["error"]
+        r = c.post("/api/measurement?name=C%3A%5Cfakepath%5Cshort.csv", content=b"load,D1\n", headers=headers)
+        body = error_of(r, 422, "short.csv", "no data rows", field="measurement")  # the browser's fake folder dropped
+        assert "fakepath" not in body["error"] and "podkrig-serve" not in body["error"]
+        # a log with a missing cell is accepted for the calibration; the diagnosis, which needs every
+        # reading, refuses it naming the file
+        log = tmp_path / "gap.csv"
+        measured(log, seed=7)
+        lines = log.read_text().splitlines()
+        cells = lines[1].split(",")
+        lines[1] = ",".join([cells[0], "", *cells[2:]])
+        r = c.post("/api/measurement?name=lab_gap.csv", content="\n".join(lines).encode(), headers=headers)
+        assert r.status_code == 200, r.text
+        run = wait_for(c, f"/api/runs/{c.post('/api/calibrate', json={'inversion': GA, 'diagnosis': True}).json()['run']}")
+        assert run["status"] == "failed" and "lab_gap.csv" in run["error"] and "podkrig-serve" not in run["error"]
+    s.close()
+
+
+def test_an_upload_outlives_a_job(tiny_study, tmp_path):
+    """When a study job ends the session rebuilds its problem from the folder and reads each upload
+    again: it stays in use (the page says which file), or, refused now, is dropped with the reason."""
+    s = Session.open(tiny_study[1])
+    headers = {"content-type": "application/octet-stream"}
+    with TestClient(create_app(s), base_url=ORIGIN) as c:
+        assert c.get("/api/study").json()["uploads"] == {}
+        log = tmp_path / "new.csv"
+        values = measured(log, seed=7)
+        assert c.post("/api/measurement?test=&name=lab.csv", content=log.read_bytes(), headers=headers).status_code == 200
+        s.reload()  # what the end of a study job does
+        study = c.get("/api/study").json()
+        assert study["uploads"] == {"": {"file": "lab.csv", "state": "in use", "message": None}}
+        series = c.post("/api/predict", json={}).json()["tests"][0]["series"]
+        np.testing.assert_allclose([x["measured"] for x in series], values.T, rtol=1e-6, atol=0)  # CSV's digits
+        s._uploads[None].path.unlink()  # the copy lost (a cleaned /tmp): the rebuilt problem cannot read it
+        s.reload()
+        upload = c.get("/api/study").json()["uploads"][""]
+        assert upload["state"] == "dropped" and upload["file"] == "lab.csv"
+        assert "lab.csv" in upload["message"] and "dropped" in upload["message"]
+        assert "podkrig-serve" not in upload["message"]
+        study_values = load_study(tiny_study[0])
+        series = c.post("/api/predict", json={}).json()["tests"][0]["series"]
+        assert not np.allclose([x["measured"] for x in series], values.T, rtol=1e-6, atol=0)  # the study's log
+        assert study_values.name == "tiny_serve"
     s.close()
 
 

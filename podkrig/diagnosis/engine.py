@@ -205,7 +205,10 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
     surrogate : PODKriging, optional
         A surrogate of the scenario's readings over ``space``, with its provenance (from
         :func:`build_base_surrogate` or a store; built here when not given:
-        ``settings.n_train`` Sobol' FE runs, about a second for the default test).
+        ``settings.n_train`` Sobol' FE runs, about a second for the default test). Its space may
+        hold parameters besides ``space``'s (a study's surrogate when some of its parameters are
+        held at a value): those are fixed at their value in ``fixed`` (else the scenario's
+        default), which must lie in the surrogate's trained range.
     candidates : sequence of str, optional
         Names from :data:`~podkrig.diagnosis.candidates.CANDIDATES` (default:
         :data:`~podkrig.diagnosis.candidates.DEFAULT_CANDIDATES`, all but ``nonlinearity_onset``,
@@ -261,7 +264,9 @@ def diagnose(scenario, measurement, noise, space, settings=None, *, fixed=None, 
         check_readings(measurement, noise, scenario.sensor_names, scenario.load_levels, "discrete",
                        surrogate_training_outputs(surrogate), runs="surrogate", signs=False)
     say("calibration", 1, 4)
-    problem = InverseProblem(SurrogateModel(surrogate), measurement, noise, rigid_body=rigid)
+    model = SurrogateModel(surrogate)
+    held = {n: float(values0[n]) for n in model.space.names if n not in space.names}
+    problem = InverseProblem(model, measurement, noise, rigid_body=rigid, free=tuple(space.names), fixed=held)
     inv = invert(problem, **InversionSettings(seed=rng).options())
     say("calibration", 2, 4)
     asked = "estimated" if settings.model_tolerance is None else settings.model_tolerance

@@ -191,10 +191,12 @@ class InverseResult(Displayed):
         return dataclasses.replace(self, tests={**self.tests, name: result})
 
     def to_dict(self):
-        """JSON-able numbers: ``x``, ``parameters`` (free), ``fixed``, ``units``, ``at_bound``, ``misfit``,
+        """JSON-able numbers: ``free`` (the free parameters' names in the order of ``x``), ``x``,
+        ``parameters`` (free, by name), ``fixed``, ``units``, ``at_bound``, ``misfit``,
         ``chi2``, ``dof``, ``chi2_dof``, ``chi2_basis`` (what the χ² includes),
         ``residual_convention``, ``n_evaluations``, ``seconds``, ``measurement``, ``fe_check``."""
         return {
+            "free": list(self.free),
             "x": self.x.tolist(),
             "parameters": self.free_parameters,
             "fixed": {n: float(v) for n, v in self.parameters.items() if n not in self.free},
@@ -210,10 +212,22 @@ class InverseResult(Displayed):
 
     @classmethod
     def from_dict(cls, d, *, problem=None, ga=None):
-        """Read back :meth:`to_dict` (``problem`` and ``ga`` may be attached again)."""
-        free = tuple(d["parameters"])
+        """Read back :meth:`to_dict` (``problem`` and ``ga`` may be attached again).
+
+        ``x`` is rebuilt from the named ``parameters`` in the order ``free``: a JSON writer that
+        sorts keys (the study's manifests and ``summary.json``) reorders ``parameters`` but not
+        ``x``. A dict written before ``free`` was recorded takes the order of ``problem`` when given
+        (else the dict's).
+        """
+        named = d["parameters"]
+        if "free" in d:
+            free = tuple(d["free"])
+        elif problem is not None and set(problem.free) == set(named):
+            free = tuple(problem.free)
+        else:
+            free = tuple(named)
         return cls(
-            np.asarray(d["x"], dtype=float), {**d.get("fixed", {}), **d["parameters"]}, float(d["misfit"]),
+            np.array([named[n] for n in free], dtype=float), {**d.get("fixed", {}), **named}, float(d["misfit"]),
             float(d["chi2"]),
             int(d["dof"]), int(d["n_evaluations"]), float(d["seconds"]), free, tuple(d["units"][n] for n in free),
             tuple(d["at_bound"]), dict(d["measurement"]), problem, ga,

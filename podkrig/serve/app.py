@@ -6,7 +6,7 @@ Routes (the contract the page and the tests share; JSON in and out, errors as
 =====================================  ===============================================================
 ``GET /``                              the page (``static/index.html``)
 ``GET /static/...``                    the page's scripts, styles and the vendored chart bundle
-``GET /files/PATH``                    a file under the served folder (report figures); nothing outside
+``GET /files/PATH``                    a file under the served folder (report figures), sandboxed; nothing outside
 ``GET /api/study``                     the study: parameters, tests, state, last calibration, settings
 ``POST /api/predict``                  the surrogate at the sliders' values against the measurements
 ``POST /api/calibrate``                a calibration run (:mod:`podkrig.serve.runs`) → 202, its id
@@ -49,7 +49,7 @@ from podkrig.exceptions import InUseError, PodkrigError
 from podkrig.serve.jobs import Jobs
 from podkrig.serve.model import FEViews
 from podkrig.serve.runs import Runs, result_view
-from podkrig.serve.session import RequestError
+from podkrig.serve.session import RequestError, check_keys, upload_name
 from podkrig.study import StudyError
 
 logger = logging.getLogger(__name__)
@@ -67,6 +67,12 @@ TOKEN_COOKIE = "podkrig_token"
 #: the header that may carry the token
 TOKEN_HEADER = "x-podkrig-token"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+#: headers of every file served from the study's folder: an HTML or SVG file there (a report, or a
+#: file of a folder received from someone else) runs in a sandbox with an opaque origin, so its
+#: scripts cannot read the page's cookie, and their requests to the API carry ``Origin: null``,
+#: which :class:`Guard` refuses; the type is never sniffed
+FILE_HEADERS = {"Content-Security-Policy": "sandbox allow-scripts allow-popups allow-downloads",
+                "X-Content-Type-Options": "nosniff"}
 
 
 def is_loopback(host):
@@ -186,6 +192,8 @@ async def read_json(request, *, required=True):
         data = json.loads(body)
     except (ValueError, UnicodeDecodeError) as e:
         raise RequestError(f"the body is not valid JSON: {e}") from None
+    except RecursionError:  # a few hundred kB of '[': deeper than any request of the page
+        raise RequestError("the body is not valid JSON: nested too deeply") from None
     if not isinstance(data, dict):
         raise RequestError(f"the body must be a JSON object; got {type(data).__name__}")
     return data
@@ -253,8 +261,8 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
             return error_response("the page (static/index.html) is not installed with this podkrig", None, 404)
         return FileResponse(page, headers={"Cache-Control": "no-cache"})
 
-    async def files(request):
-        return FileResponse(session.file(request.path_params["path"]))
+    async def files(request):  # a file of the folder is data, never a page of this server (FILE_HEADERS)
+        return FileResponse(session.file(request.path_params["path"]), headers=FILE_HEADERS)
 
     def study(request):  # reads the study's calibration back when it changed: in the thread pool
         cal = session.calibration()
@@ -262,6 +270,7 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
 
     async def predict(request):  # the slider's path: a millisecond on the event loop, no thread hop
         body = await read_json(request)
+        check_keys(body, ("values",), "predict")
         return JSON(session.predict(body.get("values")))
 
     async def calibrate(request):
@@ -302,15 +311,14 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
         if kind != "application/octet-stream":
             raise RequestError("send the measurement log as the raw body with Content-Type: application/octet-stream; "
                                f"got {kind or 'none'!r}", None, 415)
-        name = request.query_params.get("name", "upload.csv")
-        suffix = Path(name).suffix.lower()
-        if suffix not in UPLOAD_SUFFIXES:
+        name = upload_name(request.query_params.get("name"))
+        if Path(name).suffix.lower() not in UPLOAD_SUFFIXES:
             raise RequestError(f"name {name!r}: a measurement log is one of {', '.join(UPLOAD_SUFFIXES)}", "name")
-        data = await read_body(request, MAX_UPLOAD_BYTES, "the measurement log")
+        data = await read_body(request, MAX_UPLOAD_BYTES, f"the measurement log {name}")
         if not data:
-            raise RequestError("the measurement log is empty", "measurement")
+            raise RequestError(f"the measurement log {name} is empty", "measurement")
         test = request.query_params.get("test")
-        return JSON(await run_in_threadpool(session.replace_measurement, test, data, suffix))
+        return JSON(await run_in_threadpool(session.replace_measurement, test, data, name))
 
     async def on_request_error(request, exc):
         return error_response(str(exc), exc.field, exc.status)
@@ -350,5 +358,5 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
     return Guard(app, host=host, port=port, token=token)
 
 
-__all__ = ["JSON", "MAX_JSON_BODY", "MAX_UPLOAD_BYTES", "STATIC", "UPLOAD_SUFFIXES", "Guard", "Services", "create_app",
+__all__ = ["FILE_HEADERS", "JSON", "MAX_JSON_BODY", "MAX_UPLOAD_BYTES", "STATIC", "UPLOAD_SUFFIXES", "Guard", "Services", "create_app",
            "is_loopback", "read_body", "read_json"]

@@ -32,7 +32,7 @@ from pathlib import Path
 import podkrig
 from podkrig.exceptions import InUseError
 from podkrig.locks import folder_lock
-from podkrig.serve.session import RequestError
+from podkrig.serve.session import RequestError, check_keys
 from podkrig.study.cache import Progress, now
 
 logger = logging.getLogger(__name__)
@@ -145,6 +145,7 @@ class Jobs:
             422 an unknown kind; 409 a job of this session running, or the folder in use by
             another job (its holder named).
         """
+        check_keys(body, ("kind", "skip_diagnosis"), "jobs")
         kind = body.get("kind", "study")
         if kind not in KINDS:
             raise RequestError(f"kind {kind!r}: one of {', '.join(KINDS)}", "kind")
@@ -195,6 +196,9 @@ class Jobs:
             else:
                 final = message
         job.process.wait()
+        # new surrogates or a new calibration: the problem is built again (before the job reads as
+        # ended, so a page that reloads the study on the job's end sees the new one)
+        self.session.reload()
         job.seconds = time.perf_counter() - t0
         if job.cancelled:
             job.status = "cancelled"
@@ -208,7 +212,6 @@ class Jobs:
                 f"the job's process ended with exit code {job.process.returncode}"
                 + (f": {errors[-1].strip()}" if errors else ""))
             job.log.append(f"failed: {job.error}")
-        self.session.reload()  # new surrogates or a new calibration: the problem is built again
 
     def get(self, jid):
         job = self._jobs.get(jid)

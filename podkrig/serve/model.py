@@ -10,7 +10,8 @@ step (the frames of :func:`podkrig.reports.step_slider.select_steps`: at most
 the peak and the last among them). Nothing here draws: the page does (no matplotlib).
 
 :class:`FEViews` runs these on demand in one worker thread (FE runs queue, one at a time, so the
-page's slider path keeps a core) and keeps each result by id.
+page's slider path keeps a core) and keeps each result by id; at most :data:`MAX_PENDING_FE` runs
+wait or run at once (a further request is refused with 409).
 """
 
 import itertools
@@ -24,12 +25,14 @@ import numpy as np
 from fe.scenarios import build_scenario
 from podkrig.reports.fields import auto_magnification
 from podkrig.reports.step_slider import MAX_FRAMES, select_steps
-from podkrig.serve.session import RequestError
+from podkrig.serve.session import RequestError, check_keys
 
 logger = logging.getLogger(__name__)
 
 #: FE results kept per session (the oldest finished ones are dropped first)
 MAX_VIEWS = 20
+#: FE runs running or waiting at once (the page asks one at a time)
+MAX_PENDING_FE = 4
 
 
 def _rounded(a, digits=6):
@@ -61,7 +64,8 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
         corners of each element, counter-clockwise); ``steps`` the control value of each shown step
         (``x_unit``); ``displacement`` ``(n_steps, n_drawn, 2)`` mm; ``scale`` the suggested
         magnification (-); ``curve`` (nonlinear: control displacement ``x`` mm and load ``y`` in
-        ``y_unit`` of every converged step of the controlled phase) or None; ``joints``
+        ``y_unit`` of every converged step of the controlled phase, and ``step_index``: the position
+        on the curve of each shown step) or None; ``joints``
         (nonlinear: one entry per interface element, :func:`_joints`) or None.
 
     Raises
@@ -89,7 +93,7 @@ def model_view(scenario, response, *, max_frames=MAX_FRAMES):
         u = np.stack([np.asarray(path.displacements[s], float)[drawn] for s in steps])
         x, x_unit = disp[steps], "mm"
         curve = {"x": disp[control].tolist(), "y": load[control].tolist(), "x_unit": "mm",
-                 "y_unit": response.force_unit}
+                 "y_unit": response.force_unit, "step_index": np.searchsorted(control, steps).tolist()}
         joints = _joints(scenario, mesh.nodes[point_nodes], [path.states[s] for s in steps])
     else:
         if getattr(response, "field", None) is None:
@@ -133,6 +137,7 @@ class FEViews:
     def start(self, body):
         """``POST /api/fe``: check ``values`` (the free parameters, physical; missing ones at the
         sliders' defaults) and ``test`` (None: the first test), queue the FE run; its id."""
+        check_keys(body, ("values", "test"), "fe")
         session = self.session
         problem = session.problem  # 409 before the offline stage
         test = session.test(body.get("test") if body.get("test") is not None else session.tests[0].name)
@@ -141,6 +146,10 @@ class FEViews:
         one, x_test = parts[test.name]
         params = one.parameters_at(x_test)
         with self._lock:
+            pending = [k for k, v in self._views.items() if v["status"] == "running"]
+            if len(pending) >= MAX_PENDING_FE:
+                raise RequestError(f"{len(pending)} FE runs are running or waiting ({', '.join(pending)}): ask again "
+                                   f"when {pending[0]} is done", None, 409)
             fid = f"f{next(self._ids)}"
             self._views[fid] = {"status": "running", "error": None, "result": None, "test": test.name,
                                 "parameters": params, "started": time.time()}
@@ -178,4 +187,4 @@ class FEViews:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-__all__ = ["FEViews", "MAX_VIEWS", "model_view"]
+__all__ = ["FEViews", "MAX_PENDING_FE", "MAX_VIEWS", "model_view"]

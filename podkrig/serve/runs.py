@@ -3,7 +3,10 @@
 A run calls :func:`podkrig.online.calibrate.calibrate` — the one calibration stage every front door
 calls — on the session's problem with the parameters frozen on the page fixed at their values, the
 noise model and GA settings of the page validated by the library's own settings classes
-(:class:`~podkrig.online.settings.NoiseSettings`, :class:`~podkrig.online.settings.InversionSettings`).
+(:class:`~podkrig.online.settings.NoiseSettings`, :class:`~podkrig.online.settings.InversionSettings`);
+the model diagnosis, when asked, is that of the same calibration (the frozen parameters held at
+their values). Runs execute one at a time in a worker thread; at most :data:`MAX_PENDING_RUNS`
+wait or run at once (a further one is refused with 409, so a script cannot queue hours of work).
 :func:`result_view` turns a :class:`~podkrig.online.calibrate.CalibrationResult` into what the page
 shows: the parameters with their intervals and identifiability in words, the region of equivalence
 (at most :data:`MAX_REGION_MEMBERS` members for the pair plot), the FE check and the findings.
@@ -27,13 +30,17 @@ from podkrig.online.joint import JointProblem
 from podkrig.online.propagation import RVCModel
 from podkrig.online.settings import InversionSettings, NoiseSettings
 from podkrig.reports.findings import identifiability_text, words
-from podkrig.serve.session import RequestError
+from podkrig.serve.session import RequestError, check_keys
 from podkrig.study.cache import now
 
 logger = logging.getLogger(__name__)
 
 #: members of the region of equivalence sent to the page (a deterministic subset of a larger region)
 MAX_REGION_MEMBERS = 2000
+#: calibrations running or waiting at once (the page runs one at a time; two pages, a few)
+MAX_PENDING_RUNS = 4
+#: the keys of a ``POST /api/calibrate`` body
+CALIBRATE_KEYS = ("frozen", "noise", "inversion", "diagnosis")
 
 
 def region_members(region, limit=MAX_REGION_MEMBERS):
@@ -52,7 +59,8 @@ def result_view(result, diagnosis=None):
     (value, interval, identified, the verdict in words), ``chi2_dof``, ``dof``, ``seconds``,
     ``n_fe_runs``, ``region`` (names, units, members, their ω and the best fit), ``fe_check`` (one
     entry per test checked), ``findings`` (code, level and message with its remedy) and
-    ``diagnosis`` (a diagnosis result's dict, or None)."""
+    ``diagnosis`` (per test, a diagnosis result's dict with ``held``: the parameters it held at the
+    page's values; or None)."""
     inv, region = result.inversion, result.region
     verdicts = region.identifiability
     parameters = []
@@ -155,6 +163,7 @@ class Runs:
         self.session = session
         self._runs = {}
         self._ids = itertools.count(1)
+        self._lock = threading.Lock()
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="podkrig-calibrate")
 
     def prepare(self, body):
@@ -169,6 +178,7 @@ class Runs:
             An unknown or out-of-range frozen parameter, every parameter frozen, settings the
             library refuses (its message and the key), an unknown test.
         """
+        check_keys(body, CALIBRATE_KEYS, "calibrate")
         session = self.session
         problem = session.problem  # 409 before the offline stage
         frozen = body.get("frozen") or {}
@@ -222,12 +232,23 @@ class Runs:
         return problem, settings, frozen, diagnosis, noise_view
 
     def start(self, body):
-        """``POST /api/calibrate``: check the request (:meth:`prepare`) and queue the run; its id."""
+        """``POST /api/calibrate``: check the request (:meth:`prepare`) and queue the run; its id.
+
+        Raises
+        ------
+        RequestError
+            As :meth:`prepare`; 409 when :data:`MAX_PENDING_RUNS` runs are running or waiting.
+        """
         problem, settings, frozen, diagnosis, noise = self.prepare(body)
-        rid = f"r{next(self._ids)}"
-        run = Run(rid, frozen, {"calibration": dataclasses.asdict(settings), "noise": noise, "diagnosis": diagnosis},
-                  now(), time.perf_counter())
-        self._runs[rid] = run
+        with self._lock:
+            pending = [r.id for r in self._runs.values() if r.status == "running"]
+            if len(pending) >= MAX_PENDING_RUNS:
+                raise RequestError(f"{len(pending)} calibrations are running or waiting ({', '.join(pending)}): "
+                                   f"start another when run {pending[0]} is done", None, 409)
+            rid = f"r{next(self._ids)}"
+            run = Run(rid, frozen, {"calibration": dataclasses.asdict(settings), "noise": noise,
+                                    "diagnosis": diagnosis}, now(), time.perf_counter())
+            self._runs[rid] = run
         self._pool.submit(self._calibrate, run, problem, settings, diagnosis)
         return rid
 
@@ -255,11 +276,14 @@ class Runs:
                 for name, p in problems_by_test(problem).items():
                     t = tests[name]
                     run.progress = {"step": f"diagnosis{'' if name is None else ' ' + name}", "done": 0, "total": 1}
-                    d = diagnose(study_run.scenario(t), p.measurement, p.noise, t.space, study.diagnosis,
-                                 fixed=t.fixed, surrogate=p.model.surrogate, rigid_body=t.measurement.rigid_body,
+                    # the diagnosis of this calibration: the frozen parameters held at their values
+                    d = diagnose(study_run.scenario(t), p.measurement, p.noise, p.free_space, study.diagnosis,
+                                 fixed={**t.fixed, **p.fixed}, surrogate=p.model.surrogate,
+                                 rigid_body=t.measurement.rigid_body,
                                  rigid_groups=t.measurement.rigid_groups, range_check=False,
                                  progress=lambda stage, done, total: progress(f"diagnosis: {stage}", done, total))
-                    found[name or ""] = d.to_dict()
+                    held = {n: float(d.base.values[n]) for n in p.fixed}  # as the diagnosis's FE fit ran them
+                    found[name or ""] = {**d.to_dict(), "held": held}
             run.result = result
             run.view = result_view(result, found)
             run.status = "done"
@@ -306,4 +330,5 @@ class Runs:
         self._pool.shutdown(wait=False, cancel_futures=True)
 
 
-__all__ = ["MAX_REGION_MEMBERS", "Run", "Runs", "region_members", "result_view", "settings_from"]
+__all__ = ["CALIBRATE_KEYS", "MAX_PENDING_RUNS", "MAX_REGION_MEMBERS", "Run", "Runs", "region_members",
+           "result_view", "settings_from"]

@@ -17,6 +17,10 @@ answers the page's questions about it as JSON-able dicts:
 * :meth:`Session.replace_measurement` — an uploaded measurement log read by the library's reader
   (:func:`podkrig.io.measurement_log.read_measurement`) with the study's import settings and
   checked like the study's measurement stage; it replaces that test's data in this session only.
+  Its messages name the file as the user named it, never the server's temporary copy. When a study
+  job ends the problem is built again from the folder and every upload is read and checked again
+  against the new surrogates: kept when it passes, dropped otherwise with the reason in
+  :meth:`Session.uploads_view` (the page shows it beside the test).
 
 Every value a request gives is checked here and refused with a :class:`RequestError` naming the
 field, the value and what is allowed; nothing from a request is ever executed or unpickled.
@@ -27,6 +31,7 @@ import json
 import logging
 import math
 import os
+import reprlib
 import tempfile
 import threading
 from pathlib import Path
@@ -62,6 +67,30 @@ class RequestError(PodkrigError):
         self.status = status
 
 
+def check_keys(body, keys, what):
+    """Refuse a request body with a key not in ``keys`` (a misspelt key would be ignored silently).
+
+    Raises
+    ------
+    RequestError
+        422 naming the key and the allowed ones; field: the key.
+    """
+    unknown = [k for k in body if k not in keys]
+    if unknown:
+        raise RequestError(f"{what}: unknown key {unknown[0]!r}; the keys are {', '.join(keys)}", unknown[0])
+
+
+def is_number(value):
+    """Whether ``value`` (from a JSON body) is a finite number: not a bool, a string, NaN, ±inf or an
+    integer beyond a float's range (``10**400``)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def json_safe(values):
     """A 1-D float array as a JSON list, NaN (a missing reading) as None."""
     return [v if math.isfinite(v) else None for v in np.asarray(values, dtype=float).tolist()]
@@ -92,6 +121,23 @@ def study_file_of(folder):
     return path
 
 
+@dataclasses.dataclass(frozen=True)
+class Upload:
+    """A measurement log uploaded in a session: ``path`` its temporary copy on the server, ``name``
+    the file name the user gave (what every message names)."""
+
+    path: Path
+    name: str
+
+
+def upload_name(name):
+    """The file name of an upload as messages show it: the last part of the name the page sent
+    (a browser sends no folders; anything before a ``/`` or ``\\`` is dropped), at most 100
+    characters, ``upload.csv`` when nothing is left."""
+    base = str(name or "").replace("\\", "/").rsplit("/", 1)[-1].strip()
+    return base[:100] or "upload.csv"
+
+
 class Session:
     """One study served: its folder, its study and (once the offline stage has run) its problem.
 
@@ -115,7 +161,8 @@ class Session:
         self._lock = threading.Lock()
         self._run = None
         self._problem = None
-        self._uploads = {}  # test name -> path of the uploaded log (a temporary file of this session)
+        self._uploads = {}  # test name -> Upload (the log's temporary copy and the user's file name)
+        self._dropped = {}  # test name -> (file name, why) of an upload the rebuilt problem refused
         self._tmp = None
         self._calibration = None  # (manifest mtime, CalibrationResult or None)
 
@@ -164,12 +211,20 @@ class Session:
 
     def reload(self):
         """Forget the problem built so far (after a study job wrote new surrogates or a new
-        calibration): it is built again from the folder, with the study's measurements (an upload
-        of this session is dropped)."""
+        calibration): it is built again from the folder on first use, and each upload of this
+        session is read and checked again against it (kept, or dropped with the reason:
+        :meth:`uploads_view`)."""
         with self._lock:
             self._run = None
             self._problem = None
-            self._uploads = {}
+
+    def uploads_view(self):
+        """The uploads of this session per test (name, '' for a single test): ``{"file": the user's
+        file name, "state": "in use" | "dropped", "message": why it was dropped, or None}``."""
+        view = {name or "": {"file": u.name, "state": "in use", "message": None} for name, u in self._uploads.items()}
+        for name, (file, why) in self._dropped.items():
+            view.setdefault(name or "", {"file": file, "state": "dropped", "message": why})
+        return view
 
     def study_run(self):
         """The :class:`~podkrig.study.stages.StudyRun` over the folder (built once; it caches
@@ -198,8 +253,21 @@ class Session:
         run = self.study_run()
         with self._lock:
             if self._problem is None:
-                self._problem = run.calibration_problem()
+                self._problem = self._with_uploads(run.calibration_problem())
             return self._problem
+
+    def _with_uploads(self, problem):
+        """``problem`` (built from the folder) with this session's uploads read and checked again
+        against it; an upload it refuses is dropped and remembered with the reason."""
+        for name, upload in list(self._uploads.items()):
+            try:
+                problem = self._replaced(problem, self.test(name), upload)
+            except RequestError as e:
+                logger.warning("the upload %s of test %r is dropped: %s", upload.name, name, e)
+                del self._uploads[name]
+                self._dropped[name] = (upload.name, f"{upload.name} was dropped when the study's surrogates were "
+                                                    f"rebuilt: {e}")
+        return problem
 
     def warm(self):
         """Build what the first requests need before the server answers, so the page is ready as
@@ -276,8 +344,8 @@ class Session:
         x = np.empty(space.n_params)
         for j, p in enumerate(space.parameters):
             v = given.get(p.name, defaults[p.name])
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                raise RequestError(f"{p.name} must be a finite number ({p.unit}); got {v!r}", p.name)
+            if not is_number(v):
+                raise RequestError(f"{p.name} must be a finite number ({p.unit}); got {reprlib.repr(v)}", p.name)
             if not p.lower <= v <= p.upper:
                 raise RequestError(f"{p.name} = {v:g} {p.unit} lies outside its search range "
                                    f"[{p.lower:g}, {p.upper:g}] {p.unit}", p.name)
@@ -334,7 +402,8 @@ class Session:
 
     def study_view(self, calibration=None):
         """``GET /api/study``: the study, its state, parameters, tests, last calibration (the view
-        of :func:`podkrig.serve.runs.result_view`, given by the caller), noise and GA settings."""
+        of :func:`podkrig.serve.runs.result_view`, given by the caller), noise and GA settings and
+        the session's uploads (:meth:`uploads_view`)."""
         settings = self.study.calibration_settings()
         return {
             "name": self.study.name, "folder": str(self.folder), "study_file": str(self.study.path),
@@ -342,6 +411,7 @@ class Session:
             "calibration": calibration,
             "noise": {t.name or "": dataclasses.asdict(t.measurement.noise) for t in self.tests},
             "inversion": dataclasses.asdict(settings.inversion),
+            "uploads": self.uploads_view(),  # after tests_view: the problem (re)built, its uploads checked
         }
 
     # -------------------------------------------------------------------------------- predict
@@ -399,6 +469,8 @@ class Session:
             403 for a path that resolves outside the folder (``..``, an absolute path, a link out)
             or names a hidden file (the folder's lock, temporary files); 404 for no such file.
         """
+        if "\x00" in relative:
+            raise RequestError(f"{relative!r} is not a path inside the served folder", "path", 403)
         parts = Path(relative).parts
         if Path(relative).is_absolute() or ".." in parts or any(p.startswith(".") for p in parts):
             raise RequestError(f"{relative!r} is not a path inside the served folder", "path", 403)
@@ -426,10 +498,11 @@ class Session:
                 return t
         raise RequestError(f"no test {name!r}; the tests are {[t.name or '' for t in self.tests]}", "test", 404)
 
-    def replace_measurement(self, test_name, data, suffix):
-        """Read an uploaded measurement log (``data``: its bytes; ``suffix``: ``.csv``, ``.tsv``,
-        ``.txt`` or ``.xlsx``) for test ``test_name`` with the study's import settings, check it as
-        the study's measurement stage does, and use it for that test in this session.
+    def replace_measurement(self, test_name, data, name):
+        """Read an uploaded measurement log (``data``: its bytes; ``name``: the user's file name,
+        whose suffix ``.csv``, ``.tsv``, ``.txt`` or ``.xlsx`` picks the reader) for test
+        ``test_name`` with the study's import settings, check it as the study's measurement stage
+        does, and use it for that test in this session.
 
         Returns
         -------
@@ -439,38 +512,65 @@ class Session:
         Raises
         ------
         RequestError
-            The reader's or the check's message (422), an unknown test (404), a study not ready (409).
+            The reader's or the check's message naming the user's file (422), an unknown test
+            (404), a study not ready (409).
         """
         t = self.test(test_name)
         problem = self.problem  # 409 before the offline stage
+        name = upload_name(name)
         if self._tmp is None:
             self._tmp = tempfile.TemporaryDirectory(prefix="podkrig-serve-")
-        fd, path = tempfile.mkstemp(suffix=suffix, dir=self._tmp.name)
+        fd, path = tempfile.mkstemp(suffix=Path(name).suffix.lower(), dir=self._tmp.name)
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+        upload = Upload(Path(path), name)
+        try:
+            new = self._replaced(problem, t, upload)
+        except RequestError:
+            upload.path.unlink(missing_ok=True)
+            raise
+        with self._lock:
+            if self._problem is problem:
+                self._problem = new
+            else:  # rebuilt meanwhile (a job ended): the upload goes into the new problem
+                self._problem = self._replaced(self._problem, t, upload) if self._problem is not None else None
+            old = self._uploads.get(t.name)
+            self._uploads[t.name] = upload
+            self._dropped.pop(t.name, None)
+        if old is not None:
+            old.path.unlink(missing_ok=True)
+        return next(v for v in self.tests_view() if v["name"] == t.name)
+
+    def _replaced(self, problem, t, upload):
+        """``problem`` with test ``t``'s measurement read from ``upload`` (its source the user's
+        file name) and checked against that test's surrogate.
+
+        Raises
+        ------
+        RequestError
+            422 with the reader's or the check's message, naming ``upload.name``.
+        """
+        path = str(upload.path)
         one = problems_by_test(problem)[t.name]
         model = one.model
-        upload = dataclasses.replace(t, measurement=dataclasses.replace(t.measurement, file=Path(path)))
         try:
-            meas, noise = read_study_measurement(upload, model.sensor_names, model.load_levels, model.load_unit,
+            test = dataclasses.replace(t, measurement=dataclasses.replace(t.measurement, file=upload.path))
+            meas, noise = read_study_measurement(test, model.sensor_names, model.load_levels, model.load_unit,
                                                  model.load_response, model.sensor_units)
+            meas = dataclasses.replace(meas, source=upload.name)  # what later messages name (diagnosis, findings)
             # the readings against the surrogate's training runs (a unit or sign error), as the study
             # compares its log with its probe and training runs
             check_readings(meas, noise, model.sensor_names, model.load_levels, model.load_response,
                            surrogate_training_outputs(model.surrogate), runs="surrogate")
             new = dataclasses.replace(one, measurement=meas, noise=noise)  # refuses data the model cannot give
-            check_dof(new.n_obs, new.free, "the uploaded file", new.n_removed)
+            check_dof(new.n_obs, new.free, upload.name, new.n_removed)
         except MeasurementCheckError as e:
-            raise RequestError(refusal(e, "study"), "measurement") from None
+            raise RequestError(refusal(e, "study").replace(path, upload.name), "measurement") from None
         except ValueError as e:
-            raise RequestError(str(e).replace(path, "the uploaded file"), "measurement") from None
-        with self._lock:
-            if isinstance(problem, JointProblem):
-                self._problem = JointProblem({**problem.problems, t.name: new})
-            else:
-                self._problem = new
-        self._uploads[t.name] = path
-        return next(v for v in self.tests_view() if v["name"] == t.name)
+            raise RequestError(str(e).replace(path, upload.name), "measurement") from None
+        if isinstance(problem, JointProblem):
+            return JointProblem({**problem.problems, t.name: new})
+        return new
 
     def close(self):
         """Remove the session's temporary files (uploaded logs)."""
@@ -479,4 +579,4 @@ class Session:
             self._tmp = None
 
 
-__all__ = ["CONTROLS", "RequestError", "Session", "json_safe", "study_file_of"]
+__all__ = ["CONTROLS", "RequestError", "Session", "Upload", "check_keys", "is_number", "json_safe", "study_file_of", "upload_name"]
