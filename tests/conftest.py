@@ -178,9 +178,10 @@ def _one_blas_thread_per_xdist_worker():
     """Under ``pytest -n N`` the N worker processes already use the cores: each worker's MKL (the
     PARDISO sparse solver) and OpenBLAS get one thread, as :func:`podkrig.parallel.one_blas_thread`
     gives the online stage. With their default (one thread per core) the workers' pools compete
-    for the same cores: the FE runs of the diagnosis tests took 20 % more CPU with two MKL threads
-    than with one even in a single process (tests/test_diagnosis.py's negative control, 4 trials:
-    10.9 s against 8.7 s). A limit at run time, in this process only: subprocesses a test starts
+    for the same cores: the linear FE solves of the diagnosis tests took 20 % more CPU with two
+    MKL threads than with one even in a single process (tests/test_diagnosis.py's negative
+    control, 4 trials: 10.9 s against 8.7 s), and its two negative controls under ``-n 2`` 123 s
+    against 90 s (the nonlinear strength trials: no difference). A limit at run time, in this process only: subprocesses a test starts
     (tests/test_fe_verification.py switches MKL's threads in one) keep their defaults. Without
     xdist (``-p no:xdist``, one process) the libraries keep theirs."""
     if not os.environ.get("PYTEST_XDIST_WORKER"):
@@ -201,9 +202,10 @@ def memo_nonlinear_runs(monkeypatch):
     a copy of the first run's response instead of following the load path again (runs with
     ``field`` or ``settings`` are not kept). The path following is a deterministic function of
     those inputs in one process (tests/test_diagnosis_strength.py compares two runs bitwise), so
-    what a test computes is unchanged; only the FE runs it repeats are saved — a diagnosis on a
-    curve repeats about a fifth of its runs (a refit's final point, the start of the next one),
-    since its FE context keeps only its last run. Returns the memo (key → response)."""
+    what a test computes is unchanged (a weak-joint and a dilatancy trial: the same diagnosis to
+    every number but its time); only the FE runs it repeats are saved — a diagnosis on a curve
+    repeats about a quarter of its runs (572 and 561 runs, 416 and 422 distinct: a refit's final
+    point, the start of the next one), since its FE context keeps only its last run. Returns the memo (key → response)."""
     import copy
 
     from fe.scenarios.nonlinear import NonlinearScenario
