@@ -29,6 +29,8 @@ from podkrig.serve.server import check_binding
 from podkrig.serve.session import RequestError, Session
 from podkrig.study import load_study, run_study
 
+from joint_serve_study import write_joint_study
+
 ROOT = Path(__file__).resolve().parents[1]
 
 #: three free parameters (two log-scaled), a coarse mesh, a few FE runs, a small GA and region
@@ -813,50 +815,12 @@ def test_an_upload_outlives_a_job(tiny_study, tmp_path):
 
 # ------------------------------------------------------------------------------------- a joint study
 
-JOINT = """\
-name = "tiny_joint_serve"
-
-[parameters]
-kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
-kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
-
-[fixed]
-E_b = 11000.0
-
-[sampling]
-train = { n = 16, seed = 0 }
-held_out = { n = 4, seed = 1, method = "random" }
-workers = 1
-
-[inversion]
-population_size = 20
-generations = 10
-n_starts = 2
-region_samples = 4096
-
-[[test]]
-name = "diagonal"
-scenario = { scenario = "diagonal_compression", nx = 2, ny = 1 }
-measurement = { file = "diagonal.csv", noise_abs = 0.001, noise_rel = 0.01 }
-fixed = { r_hj = 0.6 }
-
-[[test]]
-name = "shear"
-scenario = { scenario = "shear_compression", nx = 2, ny = 1 }
-measurement = { file = "shear.csv", noise_abs = 0.001, noise_rel = 0.01 }
-parameters = { r_hj = { lower = 0.2, upper = 1.0 } }
-"""
-
 
 @pytest.mark.slow
 def test_joint_study_side_by_side(tmp_path):
     """Two tests sharing kN_bj and kV_bj, the shear test with its own r_hj: one slider set (the
     union, in the joint order), one series set per test, χ² summed over the tests."""
-    for name, scenario, r_hj in (("diagonal", "diagonal_compression", 0.6), ("shear", "shear_compression", 0.45)):
-        sc = build_scenario({"scenario": scenario, "nx": 2, "ny": 1})
-        clean = sc.run({**TRUTH, "r_hj": r_hj}).readings
-        write_measurement_csv(tmp_path / f"{name}.csv", Measurement(clean, sc.sensor_names, sc.load_levels))
-    (tmp_path / "study.toml").write_text(JOINT)
+    write_joint_study(tmp_path)
     run_study(load_study(tmp_path / "study.toml"), tmp_path / "out")
     s = Session.open(tmp_path / "out")
     with TestClient(create_app(s), base_url=ORIGIN) as c:

@@ -27,6 +27,8 @@ from podkrig.cli import app
 from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.measurement import Measurement
 
+from joint_serve_study import write_joint_study
+
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
 pytestmark = pytest.mark.skipif(
@@ -438,49 +440,10 @@ def test_a_job_starts_from_the_page_and_is_cancelled(unfinished, browser):
         srv.stop()
 
 
-#: two tests sharing kN_bj and kV_bj, the shear test with its own r_hj
-JOINT = """\
-name = "tiny_joint_page"
-
-[parameters]
-kN_bj = { lower = 30.0, upper = 300.0, scale = "log" }
-kV_bj = { lower = 10.0, upper = 120.0, scale = "log" }
-
-[fixed]
-E_b = 11000.0
-
-[sampling]
-train = { n = 16, seed = 0 }
-held_out = { n = 4, seed = 1, method = "random" }
-workers = 1
-
-[inversion]
-population_size = 20
-generations = 10
-n_starts = 2
-region_samples = 1024
-
-[[test]]
-name = "diagonal"
-scenario = { scenario = "diagonal_compression", nx = 2, ny = 1 }
-measurement = { file = "diagonal.csv", noise_abs = 0.001, noise_rel = 0.01 }
-fixed = { r_hj = 0.6 }
-
-[[test]]
-name = "shear"
-scenario = { scenario = "shear_compression", nx = 2, ny = 1 }
-measurement = { file = "shear.csv", noise_abs = 0.001, noise_rel = 0.01 }
-parameters = { r_hj = { lower = 0.2, upper = 1.0 } }
-"""
-
-
 @pytest.mark.slow
 def test_a_joint_study_shows_its_tests_side_by_side(tmp_path, browser):
-    for name, scenario, r_hj in (("diagonal", "diagonal_compression", 0.6), ("shear", "shear_compression", 0.45)):
-        sc = build_scenario({"scenario": scenario, "nx": 2, "ny": 1})
-        clean = sc.run({**TRUTH, "r_hj": r_hj}).readings
-        write_measurement_csv(tmp_path / f"{name}.csv", Measurement(clean, sc.sensor_names, sc.load_levels))
-    (tmp_path / "study.toml").write_text(JOINT)
+    """Two tests sharing kN_bj and kV_bj (tests/joint_serve_study.py): one slider set, the tests side by side."""
+    write_joint_study(tmp_path)
     result = CliRunner().invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out"),
                                       "--skip-diagnosis"])
     assert result.exit_code == 0, result.output
