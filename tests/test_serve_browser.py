@@ -160,6 +160,14 @@ def requested_hosts(driver):
     return hosts
 
 
+def console_errors(driver):
+    """The page's errors since the last call: script errors and refusals by the page's
+    Content-Security-Policy (an answer of the API with a 4xx status, which some tests ask for, is
+    logged as a failed resource and is not one)."""
+    return [e["message"] for e in driver.get_log("browser")
+            if e["level"] == "SEVERE" and "Failed to load resource" not in e["message"]]
+
+
 def wait(driver, condition, timeout=30, message=""):
     return WebDriverWait(driver, timeout, poll_frequency=0.05).until(lambda d: condition(d), message)
 
@@ -196,11 +204,14 @@ def browser():
 
 @pytest.fixture(autouse=True)
 def only_loopback(request):
-    """After each test: every request the page made went to 127.0.0.1."""
+    """After each test: every request the page made went to 127.0.0.1, and the page raised no
+    script error and broke no rule of its Content-Security-Policy."""
     yield
     if "browser" in request.fixturenames:
-        hosts = requested_hosts(request.getfixturevalue("browser"))
+        driver = request.getfixturevalue("browser")
+        hosts = requested_hosts(driver)
         assert hosts <= {"127.0.0.1"}, f"requests left 127.0.0.1: {sorted(map(str, hosts))}"
+        assert not console_errors(driver)
 
 
 def slider_values(driver, names):

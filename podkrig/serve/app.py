@@ -73,6 +73,14 @@ LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 #: which :class:`Guard` refuses; the type is never sniffed
 FILE_HEADERS = {"Content-Security-Policy": "sandbox allow-scripts allow-popups allow-downloads",
                 "X-Content-Type-Options": "nosniff"}
+#: headers of the page itself: the browser runs only podkrig's own scripts and asks no other host
+#: for anything (scripts, styles, images, fonts, requests), no page of another site may frame it,
+#: and no address leaves in a Referer header
+PAGE_HEADERS = {"Cache-Control": "no-cache", "X-Content-Type-Options": "nosniff", "Referrer-Policy": "no-referrer",
+                "Content-Security-Policy": "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; "
+                                           "img-src 'self' data: blob:; font-src 'self'; connect-src 'self'; "
+                                           "object-src 'none'; base-uri 'none'; form-action 'self'; "
+                                           "frame-ancestors 'none'"}
 
 
 def is_loopback(host):
@@ -259,7 +267,7 @@ def create_app(session, *, host="127.0.0.1", port=None, token=None):
         page = STATIC / "index.html"
         if not page.is_file():
             return error_response("the page (static/index.html) is not installed with this podkrig", None, 404)
-        return FileResponse(page, headers={"Cache-Control": "no-cache"})
+        return FileResponse(page, headers=PAGE_HEADERS)
 
     async def files(request):  # a file of the folder is data, never a page of this server (FILE_HEADERS)
         return FileResponse(session.file(request.path_params["path"]), headers=FILE_HEADERS)
