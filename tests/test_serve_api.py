@@ -22,14 +22,12 @@ with warnings.catch_warnings():  # starlette's test client asks for httpx2 over 
     from starlette.testclient import TestClient
 
 from fe.scenarios import build_scenario
-from podkrig.io.measurement_log import write_measurement_csv
-from podkrig.online.measurement import Measurement
 from podkrig.serve.app import MAX_JSON_BODY, create_app
 from podkrig.serve.server import check_binding
 from podkrig.serve.session import RequestError, Session
 from podkrig.study import load_study, run_study
 
-from joint_serve_study import write_joint_study
+from serve_studies import TRUTH, measured, write_joint_study
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -69,17 +67,7 @@ n_starts = 2
 region_samples = 4096
 """
 
-TRUTH = {"E_b": 11000.0, "r_hj": 0.6, "kN_bj": 90.0, "kV_bj": 35.0}
 ORIGIN = "http://127.0.0.1:8000"
-
-
-def measured(path, seed=0, scale=1.0):
-    """Pseudo-measured readings of the tiny study's scenario at :data:`TRUTH` with 1 % noise."""
-    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
-    clean = sc.run(TRUTH).readings
-    noisy = clean * (1 + 0.01 * np.random.default_rng(seed).standard_normal(clean.shape)) * scale
-    write_measurement_csv(path, Measurement(noisy, sc.sensor_names, sc.load_levels))
-    return noisy
 
 
 @pytest.fixture(scope="session")

@@ -27,7 +27,7 @@ from podkrig.cli import app
 from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.measurement import Measurement
 
-from joint_serve_study import write_joint_study
+from serve_studies import TRUTH, measured, write_joint_study
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMEDRIVER = Path("/usr/bin/chromedriver")
@@ -81,16 +81,10 @@ n_starts = 2
 region_samples = 1024
 """
 
-TRUTH = {"E_b": 11000.0, "r_hj": 0.6, "kN_bj": 90.0, "kV_bj": 35.0}
-
-
 def write_study(folder, n_train):
     """A tiny study file and its measurement (1 % noise on the FE response at TRUTH)."""
     folder.mkdir(parents=True, exist_ok=True)
-    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
-    clean = sc.run(TRUTH).readings
-    noisy = clean * (1 + 0.01 * np.random.default_rng(0).standard_normal(clean.shape))
-    write_measurement_csv(folder / "measured.csv", Measurement(noisy, sc.sensor_names, sc.load_levels))
+    measured(folder / "measured.csv")
     (folder / "study.toml").write_text(TINY.format(n_train=n_train))
     return folder / "study.toml"
 
@@ -453,7 +447,7 @@ def test_a_job_starts_from_the_page_and_is_cancelled(unfinished, browser):
 
 @pytest.mark.slow
 def test_a_joint_study_shows_its_tests_side_by_side(tmp_path, browser):
-    """Two tests sharing kN_bj and kV_bj (tests/joint_serve_study.py): one slider set, the tests side by side."""
+    """Two tests sharing kN_bj and kV_bj (tests/serve_studies.py): one slider set, the tests side by side."""
     write_joint_study(tmp_path)
     result = CliRunner().invoke(app, ["run", str(tmp_path / "study.toml"), "--out", str(tmp_path / "out"),
                                       "--skip-diagnosis"])

@@ -1,13 +1,27 @@
-"""A tiny joint study shared by the front end's API and browser tests: a diagonal and a shear
-test sharing kN_bj and kV_bj, the shear test with its own r_hj; coarse meshes, 16 training runs
-per test, noise-free pseudo-data at :data:`TRUTH` (the shear test's r_hj at :data:`SHEAR_R_HJ`)."""
+"""Pseudo-data shared by the front end's API and browser tests: the readings of a coarse diagonal
+compression test at :data:`TRUTH` (:func:`measured`), and a tiny joint study — a diagonal and a
+shear test sharing kN_bj and kV_bj, the shear test with its own r_hj; 16 training runs per test,
+noise-free pseudo-data at :data:`TRUTH` (the shear test's r_hj at :data:`SHEAR_R_HJ`)."""
+
+import numpy as np
 
 from fe.scenarios import build_scenario
 from podkrig.io.measurement_log import write_measurement_csv
 from podkrig.online.measurement import Measurement
 
-TRUTH = {"E_b": 11000.0, "kN_bj": 90.0, "kV_bj": 35.0}
-DIAGONAL_R_HJ, SHEAR_R_HJ = 0.6, 0.45
+TRUTH = {"E_b": 11000.0, "r_hj": 0.6, "kN_bj": 90.0, "kV_bj": 35.0}
+DIAGONAL_R_HJ, SHEAR_R_HJ = TRUTH["r_hj"], 0.45
+
+
+def measured(path, seed=0, scale=1.0):
+    """Pseudo-measured readings (mm) of the diagonal compression test on a 2 × 1 mesh at
+    :data:`TRUTH`, with 1 % noise (``seed``) and multiplied by ``scale``, written to ``path``;
+    returns them ``(n_loads, n_sensors)``."""
+    sc = build_scenario({"scenario": "diagonal_compression", "nx": 2, "ny": 1})
+    clean = sc.run(TRUTH).readings
+    noisy = clean * (1 + 0.01 * np.random.default_rng(seed).standard_normal(clean.shape)) * scale
+    write_measurement_csv(path, Measurement(noisy, sc.sensor_names, sc.load_levels))
+    return noisy
 
 STUDY = """\
 name = "tiny_joint_serve"
